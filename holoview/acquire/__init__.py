@@ -1,0 +1,1 @@
+"""Camera sources, the frame ring, the HDF5 recording format and the recorder. No Qt."""

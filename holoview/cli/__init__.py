@@ -1,0 +1,86 @@
+"""The ``holoview`` command: argparse subcommands, logging set up here only.
+
+Each subcommand lives in its own module of this package with two functions:
+``add_parser(subparsers)`` registers its options (importing nothing heavy) and
+``run(args) -> int`` does the work. A :class:`~holoview.errors.HoloviewError`
+escaping ``run`` becomes one line on stderr and exit status 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import logging
+import sys
+from collections.abc import Sequence
+from typing import NoReturn
+
+from holoview import __version__
+from holoview.errors import HoloviewError
+
+#: Subcommand modules, in the order ``holoview --help`` lists them.
+COMMANDS: tuple[str, ...] = ("live", "info")
+
+#: The subcommand run when none is given.
+DEFAULT_COMMAND = "live"
+
+
+class OneLineParser(argparse.ArgumentParser):
+    """An argument parser whose usage errors are one line, exit status 2."""
+
+    def error(self, message: str) -> NoReturn:
+        """Print ``PROG: error: MESSAGE (see PROG --help)`` and exit with status 2."""
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """Return the top-level parser with every subcommand registered."""
+    parser = OneLineParser(
+        prog="holoview",
+        description="Live view, recording and analysis for multiplexed off-axis "
+        "digital holography of fluid surfaces. With no subcommand: the live GUI "
+        "on the simulated camera.",
+    )
+    parser.add_argument("--version", action="version", version=f"holoview {__version__}")
+    noise = parser.add_mutually_exclusive_group()
+    noise.add_argument(
+        "-v", "--verbose", action="count", default=0, help="more log output (-vv: debug)"
+    )
+    noise.add_argument("-q", "--quiet", action="store_true", help="errors only, no progress bars")
+    subparsers = parser.add_subparsers(dest="command", metavar="COMMAND")
+    for name in COMMANDS:
+        module = importlib.import_module(f"holoview.cli.{name}")
+        sub = module.add_parser(subparsers)
+        sub.set_defaults(_run=module.run)
+    return parser
+
+
+def configure_logging(verbose: int, quiet: bool) -> None:
+    """Send holoview's log records to stderr at the level the flags ask for."""
+    level = (
+        logging.ERROR if quiet else (logging.WARNING, logging.INFO, logging.DEBUG)[min(verbose, 2)]
+    )
+    logging.basicConfig(level=level, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the ``holoview`` command line; return the process exit status."""
+    parser = build_parser()
+    args_list = list(sys.argv[1:] if argv is None else argv)
+    only_options = all(a.startswith("-") for a in args_list)
+    if only_options and not {"-h", "--help", "--version"} & set(args_list):
+        args_list.append(DEFAULT_COMMAND)
+    args = parser.parse_args(args_list)
+    configure_logging(args.verbose, args.quiet)
+    try:
+        return int(args._run(args) or 0)
+    except HoloviewError as exc:
+        print(f"holoview {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("holoview: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,50 @@
+"""``holoview live``: the live GUI (the default command)."""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+
+NO_DISPLAY_HELP = (
+    "no display found (DISPLAY and WAYLAND_DISPLAY are unset). Run the GUI under a "
+    "virtual display with `xvfb-run -a holoview live`, or process recordings headless "
+    "with `holoview process INPUT --out DIR`."
+)
+
+
+def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
+    """Register ``live``."""
+    parser = subparsers.add_parser("live", help="open the live GUI (default: simulated camera)")
+    parser.add_argument(
+        "--source",
+        default="sim",
+        help="camera source: sim (default), aravis[:ID], v4l2[:N] or replay:PATH",
+    )
+    parser.add_argument(
+        "--quit-after",
+        type=float,
+        default=None,
+        metavar="SECONDS",
+        help="close the window after this many seconds (for scripted runs and screenshots)",
+    )
+    return parser
+
+
+def has_display() -> bool:
+    """Return True when Qt can open a window: a display or an explicit platform plugin."""
+    return bool(
+        os.environ.get("DISPLAY")
+        or os.environ.get("WAYLAND_DISPLAY")
+        or os.environ.get("QT_QPA_PLATFORM")
+    )
+
+
+def run(args: argparse.Namespace) -> int:
+    """Open the main window and run the Qt event loop until it closes."""
+    if not has_display():
+        print(f"holoview live: {NO_DISPLAY_HELP}", file=sys.stderr)
+        return 2
+    from holoview.ui.app import run_live
+
+    return run_live(source=args.source, quit_after=args.quit_after)

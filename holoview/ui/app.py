@@ -1,0 +1,38 @@
+"""Start the Qt application and the main window."""
+
+from __future__ import annotations
+
+import logging
+
+from PyQt6.QtCore import QTimer
+from PyQt6.QtWidgets import QApplication
+
+from holoview.ui.main_window import MainWindow
+
+logger = logging.getLogger(__name__)
+
+
+def run_live(source: str = "sim", quit_after: float | None = None) -> int:
+    """Open the main window on ``source`` and run the event loop.
+
+    Parameters
+    ----------
+    source : str
+        Source specification (``sim``, ``aravis[:ID]``, ``v4l2[:N]``, ``replay:PATH``).
+    quit_after : float, optional
+        Close the window after this many seconds.
+
+    Returns
+    -------
+    int
+        The exit status of the event loop.
+    """
+    app = QApplication.instance() or QApplication(["holoview"])
+    app.setOrganizationName("holoview")
+    app.setApplicationName("holoview")
+    window = MainWindow(source=source)
+    window.show()
+    if quit_after is not None:
+        QTimer.singleShot(int(quit_after * 1000), window.close)
+    logger.info("main window open on source %s", source)
+    return app.exec()

@@ -1,0 +1,13 @@
+#!/usr/bin/env bash
+# Set up if needed, then run every quality gate: ruff lint and format check, the
+# import-linter layering contracts, and the pytest suite (Qt offscreen).
+# Extra arguments go to pytest.
+set -euo pipefail
+repo="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+bash "$repo/scripts/setup.sh"
+cd "$repo"
+export QT_QPA_PLATFORM=offscreen
+bin="$repo/.venv/bin"
+echo "== ruff" && "$bin/ruff" check --no-cache . && "$bin/ruff" format --check --no-cache .
+echo "== import-linter" && "$bin/lint-imports" --no-cache
+echo "== pytest" && exec "$bin/python" -m pytest "$@"

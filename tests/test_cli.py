@@ -1,0 +1,70 @@
+"""The ``holoview`` entry point: version, info, usage errors, logging flags."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import pytest
+
+from holoview import __version__
+from holoview.cli import main
+
+
+def run_cli(*args: str, env: dict[str, str] | None = None) -> subprocess.CompletedProcess[str]:
+    """Run ``python -m holoview ARGS`` in a child process and capture its output."""
+    return subprocess.run(
+        [sys.executable, "-m", "holoview", *args],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        env=env,
+        check=False,
+    )
+
+
+def test_version_prints_package_version() -> None:
+    result = run_cli("--version")
+    assert result.returncode == 0
+    assert result.stdout.strip() == f"holoview {__version__}"
+
+
+def test_info_names_every_component_and_aravis_status() -> None:
+    result = run_cli("info")
+    assert result.returncode == 0, result.stderr
+    names = [line.split("  ")[0].strip() for line in result.stdout.splitlines()]
+    for name in (
+        "Python",
+        "Qt",
+        "PyQt6",
+        "pyqtgraph",
+        "numpy",
+        "pyFFTW",
+        "h5py",
+        "OpenCV",
+        "GenICam (Aravis)",
+    ):
+        assert name in names
+    aravis = next(line for line in result.stdout.splitlines() if line.startswith("GenICam"))
+    assert aravis.split("  ", 1)[1].strip().startswith(("yes: Aravis 0.8", "no: "))
+    assert "not importable" not in result.stdout.replace(aravis, "")
+
+
+@pytest.mark.parametrize("argv", [["nonsense"], ["live", "--bogus"], ["-v", "-q", "info"]])
+def test_usage_error_is_one_line_exit_2(argv: list[str]) -> None:
+    result = run_cli(*argv)
+    assert result.returncode == 2
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1, result.stderr
+    assert lines[0].startswith("holoview: error:")
+    assert "Traceback" not in result.stderr
+
+
+def test_live_without_display_says_how_to_run_it(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    for name in ("DISPLAY", "WAYLAND_DISPLAY", "QT_QPA_PLATFORM"):
+        monkeypatch.delenv(name, raising=False)
+    assert main([]) == 2
+    err = capsys.readouterr().err
+    assert "xvfb-run -a holoview" in err and "holoview process" in err
