@@ -1,0 +1,571 @@
+"""holoview's HDF5 recording format: a writer (SWMR, followable live) and a reader.
+
+File layout, format ``holoview-recording`` version ``1.0``
+----------------------------------------------------------
+Everything is created before the writer switches the file to SWMR mode, so a
+reader can open the file while it is being written and follow it with
+:meth:`RecordingReader.refresh`. The file is opened with
+``libver=('v110', 'latest')``: HDF5 1.10 tools can read it, SWMR works.
+
+``/`` (root) attributes
+    ``format`` (str, always ``"holoview-recording"``), ``format_version`` (str,
+    ``"MAJOR.MINOR"``; readers accept any minor version of a major version they
+    know), ``uuid`` (str, RFC 4122, unique per recording), ``created_utc`` (str,
+    ISO 8601 start time in UTC), ``source`` (str, the source specification or
+    camera name the frames came from), ``holoview_version`` (str).
+``/frames`` dataset, shape ``(n_frames, rows, cols)``
+    The raw camera values in the camera's own dtype (``uint8`` or ``uint16``;
+    Mono10/12/16 stay unscaled in 16-bit containers). Chunked one frame per chunk,
+    uncompressed, growing along axis 0. Attributes: ``pixel_format`` (str, e.g.
+    ``"Mono12"``) and ``significant_bits`` (int).
+``/frame_id`` dataset, ``int64``, shape ``(n_frames,)``
+    The camera's frame counter (gaps mean frames the camera or transport lost).
+``/t_device_s`` dataset, ``float64``, shape ``(n_frames,)``, seconds
+    The camera's timestamp, on the camera's clock (``NaN`` where it has none).
+``/t_host_s`` dataset, ``float64``, shape ``(n_frames,)``, seconds
+    When the host received the frame, seconds since the UNIX epoch (``time.time()``).
+``/setup`` group
+    The optical setup as attributes: ``wavelength_m`` (m), ``pixel_pitch_m`` (m),
+    ``n1`` and ``n2`` (refractive indices of the media above and below the surface,
+    dimensionless), and anything else the writer was given. The unit of each
+    attribute is the attribute of the same name on ``/setup/units`` (``""`` for
+    dimensionless).
+``/settings`` group
+    Every camera setting at the start of the recording as attributes (for example
+    ``exposure_s``, ``gain_db``, ``frame_rate_hz``, ``roi`` as
+    ``(left, top, width, height)`` pixels), units on ``/settings/units`` the same way.
+
+A setting or setup value of ``None`` is not written. Names ending in a unit suffix
+(``_m``, ``_s``, ``_hz``, ``_db``, ``_px``, ``_k``) get that unit unless one is
+given explicitly. Other groups (for example ``/truth``, which the simulator adds by
+reopening a closed recording with ``h5py.File(path, "a")``) are ignored by readers.
+
+Durability: the writer flushes at most ``flush_interval_s`` (default 0.5 s) after
+an append, and :meth:`RecordingWriter.flush_if_due` lets an idle recorder keep that
+promise; a writer killed at any moment leaves a file that opens with every frame
+up to its last flush.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import logging
+import math
+import os
+import time
+import uuid as _uuid
+from collections.abc import Iterator, Mapping
+from pathlib import Path
+from types import TracebackType
+from typing import Any, Self
+
+import h5py
+import numpy as np
+
+from holoview import __version__
+from holoview.errors import InputError
+
+logger = logging.getLogger(__name__)
+
+#: The value of the root ``format`` attribute.
+FORMAT_NAME = "holoview-recording"
+#: The format version this module writes.
+FORMAT_VERSION = "1.0"
+#: Format major versions this module reads.
+SUPPORTED_MAJOR_VERSIONS = (1,)
+#: HDF5 library version bounds: readable by HDF5 1.10, SWMR-capable.
+LIBVER = ("v110", "latest")
+
+#: Unit implied by a name's suffix, where no unit is given explicitly.
+UNIT_SUFFIXES: dict[str, str] = {
+    "_m": "m",
+    "_s": "s",
+    "_hz": "Hz",
+    "_db": "dB",
+    "_px": "pixel",
+    "_k": "K",
+}
+
+#: Pixel format assumed for a dtype when the writer is given none.
+_DEFAULT_PIXEL_FORMAT = {np.dtype(np.uint8): ("Mono8", 8), np.dtype(np.uint16): ("Mono16", 16)}
+
+
+def unit_for(name: str) -> str:
+    """Return the unit a setting's name implies by its suffix (``""`` when none)."""
+    for suffix, unit in UNIT_SUFFIXES.items():
+        if name.endswith(suffix):
+            return unit
+    return ""
+
+
+def _attribute_value(name: str, value: object) -> Any:
+    """Return ``value`` in a form HDF5 stores as an attribute, or raise InputError."""
+    if isinstance(value, bool | np.bool_):
+        return np.bool_(value)
+    if isinstance(value, str | int | float | np.integer | np.floating):
+        return value
+    if isinstance(value, Path):
+        return str(value)
+    try:
+        array = np.asarray(value)
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"setting {name!r}: cannot store {type(value).__name__}") from exc
+    if array.dtype.kind not in "biuf":
+        if array.dtype.kind == "U":
+            return array.astype(h5py.string_dtype())
+        raise InputError(f"setting {name!r}: cannot store a value of type {type(value).__name__}")
+    return array
+
+
+def _write_attributes(group: h5py.Group, values: Mapping[str, object] | None) -> None:
+    """Write ``values`` as attributes of ``group`` and their units on ``group/units``.
+
+    A value may be a plain value or a ``(value, unit)`` pair whose second item is a str.
+    """
+    units_group = group.create_group("units")
+    for name, raw in (values or {}).items():
+        unit = unit_for(name)
+        value = raw
+        if isinstance(raw, tuple) and len(raw) == 2 and isinstance(raw[1], str):
+            value, unit = raw
+        if value is None:
+            continue
+        group.attrs[name] = _attribute_value(name, value)
+        units_group.attrs[name] = unit
+
+
+def _read_attributes(group: h5py.Group | None) -> tuple[dict[str, Any], dict[str, str]]:
+    """Return (values, units) from a group written by :func:`_write_attributes`."""
+    if group is None:
+        return {}, {}
+    values = {name: _plain(value) for name, value in group.attrs.items()}
+    units_group = group.get("units")
+    units = (
+        {name: str(_plain(unit)) for name, unit in units_group.attrs.items()}
+        if isinstance(units_group, h5py.Group)
+        else {}
+    )
+    return values, units
+
+
+def _plain(value: Any) -> Any:
+    """Return an attribute value as a Python scalar, str, or numpy array."""
+    if isinstance(value, bytes):
+        return value.decode("utf-8")
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, np.ndarray) and value.dtype.kind == "O":
+        return [_plain(v) for v in value.tolist()]
+    return value
+
+
+class RecordingWriter:
+    """Write frames with their ids and timestamps to a new holoview recording.
+
+    The file is created at once, with every attribute written, then switched to
+    SWMR mode (when ``swmr``) so readers can follow it while it grows.
+
+    Parameters
+    ----------
+    path : str or Path
+        The file to create; an existing file is an error (nothing is overwritten).
+    frame_shape : tuple of int
+        ``(rows, cols)`` of every frame, pixels.
+    dtype : numpy dtype
+        Dtype of every frame (``uint8`` or ``uint16`` for camera data; any integer or
+        float dtype is accepted).
+    setup : mapping, optional
+        The optical setup: ``wavelength_m`` (m), ``pixel_pitch_m`` (m), ``n1``, ``n2``
+        and any other value; a value may be a ``(value, unit)`` pair.
+    settings : mapping, optional
+        Every camera setting, same conventions (``exposure_s``, ``gain_db``, ...).
+    source : str
+        What the frames came from (a source specification or camera name).
+    swmr : bool
+        Switch to SWMR mode so readers can open the file while it is written.
+    pixel_format : str, optional
+        GenICam pixel format name (default: ``Mono8`` for uint8, ``Mono16`` for uint16).
+    significant_bits : int, optional
+        Bits that carry data in each value (default: the pixel format's, or the
+        dtype's size).
+    flush_interval_s : float
+        Longest time, seconds, an appended frame waits before it is flushed to disk.
+
+    Raises
+    ------
+    InputError
+        The file exists, its folder does not, or a shape, dtype or setting is invalid.
+    """
+
+    def __init__(
+        self,
+        path: str | os.PathLike[str],
+        frame_shape: tuple[int, int],
+        dtype: np.typing.DTypeLike,
+        *,
+        setup: Mapping[str, object] | None = None,
+        settings: Mapping[str, object] | None = None,
+        source: str = "",
+        swmr: bool = True,
+        pixel_format: str | None = None,
+        significant_bits: int | None = None,
+        flush_interval_s: float = 0.5,
+    ) -> None:
+        self.path = Path(path)
+        shape = tuple(int(n) for n in frame_shape)
+        if len(shape) != 2 or min(shape) < 1:
+            raise InputError(
+                f"frame shape must be (rows, cols) of positive ints, got {frame_shape}"
+            )
+        self.frame_shape: tuple[int, int] = (shape[0], shape[1])
+        self.dtype = np.dtype(dtype).newbyteorder("=")
+        if self.dtype.kind not in "iuf":
+            raise InputError(f"frames must be integer or float, got dtype {self.dtype}")
+        if not flush_interval_s > 0:
+            raise InputError(f"flush interval must be positive, got {flush_interval_s} s")
+        if self.path.exists():
+            raise InputError(f"{self.path} exists; holoview does not overwrite recordings")
+        if not self.path.parent.is_dir():
+            raise InputError(f"folder {self.path.parent} does not exist")
+        default_format, default_bits = _DEFAULT_PIXEL_FORMAT.get(
+            self.dtype, ("", self.dtype.itemsize * 8)
+        )
+        self.pixel_format = pixel_format or default_format
+        self.significant_bits = int(significant_bits or default_bits)
+        self.flush_interval_s = float(flush_interval_s)
+        self.uuid = str(_uuid.uuid4())
+        self._n = 0
+        self._unflushed_since: float | None = None
+        self._frame_bytes = self.frame_shape[0] * self.frame_shape[1] * self.dtype.itemsize
+        try:
+            self._file = h5py.File(self.path, "w-", libver=LIBVER)
+        except OSError as exc:
+            raise InputError(f"cannot create {self.path}: {exc}") from exc
+        try:
+            self._create_layout(setup, settings, source)
+            if swmr:
+                self._file.swmr_mode = True
+            self._file.flush()
+        except BaseException:
+            self._file.close()
+            self.path.unlink(missing_ok=True)
+            raise
+        logger.info(
+            "recording %s: %s frames %s, uuid %s",
+            self.path,
+            self.dtype,
+            self.frame_shape,
+            self.uuid,
+        )
+
+    def _create_layout(
+        self,
+        setup: Mapping[str, object] | None,
+        settings: Mapping[str, object] | None,
+        source: str,
+    ) -> None:
+        f = self._file
+        f.attrs["format"] = FORMAT_NAME
+        f.attrs["format_version"] = FORMAT_VERSION
+        f.attrs["uuid"] = self.uuid
+        f.attrs["created_utc"] = _dt.datetime.now(_dt.UTC).isoformat()
+        f.attrs["source"] = str(source)
+        f.attrs["holoview_version"] = __version__
+        rows, cols = self.frame_shape
+        frames = f.create_dataset(
+            "frames",
+            shape=(0, rows, cols),
+            maxshape=(None, rows, cols),
+            dtype=self.dtype,
+            chunks=(1, rows, cols),
+        )
+        frames.attrs["pixel_format"] = self.pixel_format
+        frames.attrs["significant_bits"] = self.significant_bits
+        chunk = (4096,)
+        f.create_dataset("frame_id", shape=(0,), maxshape=(None,), dtype=np.int64, chunks=chunk)
+        for name in ("t_device_s", "t_host_s"):
+            f.create_dataset(name, shape=(0,), maxshape=(None,), dtype=np.float64, chunks=chunk)
+            f[name].attrs["unit"] = "s"
+        f["t_host_s"].attrs["clock"] = "seconds since the UNIX epoch (host time.time())"
+        f["t_device_s"].attrs["clock"] = "the camera's clock; NaN where it has none"
+        _write_attributes(f.create_group("setup"), setup)
+        _write_attributes(f.create_group("settings"), settings)
+        self._frames = frames
+        self._ids = f["frame_id"]
+        self._t_device = f["t_device_s"]
+        self._t_host = f["t_host_s"]
+
+    def __len__(self) -> int:
+        """Return the number of frames appended so far."""
+        return self._n
+
+    @property
+    def closed(self) -> bool:
+        """True once :meth:`close` has run."""
+        return not self._file.id.valid
+
+    def append(self, frame: np.ndarray, frame_id: int, t_device: float, t_host: float) -> None:
+        """Append one frame with its id and timestamps.
+
+        Parameters
+        ----------
+        frame : ndarray
+            ``(rows, cols)`` of the writer's dtype; it is not modified.
+        frame_id : int
+            The camera's frame counter.
+        t_device : float
+            The camera's timestamp, seconds (``NaN`` when unknown).
+        t_host : float
+            Host arrival time, seconds since the UNIX epoch.
+
+        Raises
+        ------
+        InputError
+            The frame's shape or dtype differs from the writer's.
+        """
+        if self.closed:
+            raise InputError(f"recording {self.path} is closed")
+        array = np.asarray(frame)
+        if array.shape != self.frame_shape:
+            raise InputError(
+                f"frame shape {array.shape} differs from the recording's {self.frame_shape}"
+            )
+        if array.dtype != self.dtype:
+            raise InputError(f"frame dtype {array.dtype} differs from the recording's {self.dtype}")
+        n = self._n
+        self._frames.resize(n + 1, axis=0)
+        # One frame is exactly one uncompressed chunk: write its bytes directly.
+        self._frames.id.write_direct_chunk((n, 0, 0), np.ascontiguousarray(array).data)
+        for dataset, value in (
+            (self._ids, frame_id),
+            (self._t_device, t_device),
+            (self._t_host, t_host),
+        ):
+            dataset.resize(n + 1, axis=0)
+            dataset[n] = value
+        self._n = n + 1
+        now = time.monotonic()
+        if self._unflushed_since is None:
+            self._unflushed_since = now
+        if now - self._unflushed_since >= self.flush_interval_s:
+            self.flush()
+
+    def flush_if_due(self) -> bool:
+        """Flush when frames have waited ``flush_interval_s`` or longer; return whether it did."""
+        if self._unflushed_since is None or self.closed:
+            return False
+        if time.monotonic() - self._unflushed_since < self.flush_interval_s:
+            return False
+        self.flush()
+        return True
+
+    def flush(self) -> None:
+        """Write every appended frame to disk now (SWMR readers see them after refresh)."""
+        if self.closed:
+            return
+        self._file.flush()
+        self._unflushed_since = None
+
+    def close(self) -> None:
+        """Flush and close the file; calling it again does nothing."""
+        if self.closed:
+            return
+        self.flush()
+        self._file.close()
+        logger.info("recording %s closed with %d frames", self.path, self._n)
+
+    def __enter__(self) -> Self:
+        return self
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        self.close()
+
+
+class RecordingReader:
+    """Read a holoview recording, also one that is still being written (SWMR).
+
+    ``len(reader)`` is the frame count as of the last :meth:`refresh`; ``reader[i]``
+    and ``reader[a:b]`` return frames as arrays (``(rows, cols)`` or
+    ``(n, rows, cols)``); iterating yields each frame in order.
+
+    Parameters
+    ----------
+    path : str or Path
+        A file written by :class:`RecordingWriter`.
+
+    Attributes
+    ----------
+    setup : dict
+        ``wavelength_m`` (m), ``pixel_pitch_m`` (m), ``n1``, ``n2``, ... as written.
+    setup_units, settings_units : dict
+        Unit of each entry (``""`` when dimensionless).
+    settings : dict
+        Camera settings as written.
+    format_version, uuid, created_utc, source : str
+        Root attributes.
+    pixel_format : str
+        GenICam pixel format name of the frames.
+    significant_bits : int
+        Bits that carry data in each value.
+
+    Raises
+    ------
+    InputError
+        The file is missing, not HDF5, not a holoview recording, of an unknown major
+        version, or holds no frames dataset.
+    """
+
+    def __init__(self, path: str | os.PathLike[str]) -> None:
+        self.path = Path(path)
+        if not self.path.is_file():
+            raise InputError(f"{self.path}: no such file")
+        self._file = self._open(self.path)
+        try:
+            self._read_header()
+        except BaseException:
+            self._file.close()
+            raise
+
+    @staticmethod
+    def _open(path: Path) -> h5py.File:
+        """Open for SWMR reading, or plainly when the file was not written in SWMR mode."""
+        errors = []
+        for swmr in (True, False):
+            try:
+                return h5py.File(path, "r", libver=LIBVER, swmr=swmr)
+            except OSError as exc:
+                errors.append(str(exc))
+        raise InputError(f"{path}: not a readable HDF5 file ({errors[-1]})")
+
+    def _read_header(self) -> None:
+        f = self._file
+        name = _plain(f.attrs.get("format", ""))
+        if name != FORMAT_NAME:
+            raise InputError(f"{self.path}: not a holoview recording (format attribute {name!r})")
+        self.format_version = str(_plain(f.attrs.get("format_version", "")))
+        try:
+            major = int(self.format_version.split(".", 1)[0])
+        except ValueError:
+            major = -1
+        if major not in SUPPORTED_MAJOR_VERSIONS:
+            raise InputError(
+                f"{self.path}: recording format version {self.format_version!r} is not supported"
+            )
+        frames = f.get("frames")
+        if not isinstance(frames, h5py.Dataset) or frames.ndim != 3:
+            raise InputError(f"{self.path}: holds no frames dataset (/frames, 3-D)")
+        for name in ("frame_id", "t_device_s", "t_host_s"):
+            if not isinstance(f.get(name), h5py.Dataset):
+                raise InputError(f"{self.path}: /{name} is missing")
+        self._frames = frames
+        self._ids = f["frame_id"]
+        self._t_device = f["t_device_s"]
+        self._t_host = f["t_host_s"]
+        self.uuid = str(_plain(f.attrs.get("uuid", "")))
+        self.created_utc = str(_plain(f.attrs.get("created_utc", "")))
+        self.source = str(_plain(f.attrs.get("source", "")))
+        self.pixel_format = str(_plain(frames.attrs.get("pixel_format", "")))
+        self.significant_bits = int(
+            _plain(frames.attrs.get("significant_bits", frames.dtype.itemsize * 8))
+        )
+        self.setup, self.setup_units = _read_attributes(f.get("setup"))
+        self.settings, self.settings_units = _read_attributes(f.get("settings"))
+        self._n = self._complete_count()
+
+    def _complete_count(self) -> int:
+        """Frames whose frame data, id and both timestamps are all present."""
+        return int(
+            min(
+                self._frames.shape[0],
+                self._ids.shape[0],
+                self._t_device.shape[0],
+                self._t_host.shape[0],
+            )
+        )
+
+    def refresh(self) -> int:
+        """See frames a live writer has flushed since the last call; return the new count."""
+        for dataset in (self._frames, self._ids, self._t_device, self._t_host):
+            dataset.refresh()
+        self._n = self._complete_count()
+        return self._n
+
+    @property
+    def frame_shape(self) -> tuple[int, int]:
+        """``(rows, cols)`` of every frame, pixels."""
+        return int(self._frames.shape[1]), int(self._frames.shape[2])
+
+    @property
+    def dtype(self) -> np.dtype:
+        """The frames' dtype."""
+        return self._frames.dtype
+
+    @property
+    def frame_ids(self) -> np.ndarray:
+        """The camera frame counter of every frame, int64."""
+        return self._ids[: self._n]
+
+    @property
+    def t_device(self) -> np.ndarray:
+        """Device timestamps, seconds on the camera's clock (NaN where unknown)."""
+        return self._t_device[: self._n]
+
+    @property
+    def t_host(self) -> np.ndarray:
+        """Host arrival times, seconds since the UNIX epoch."""
+        return self._t_host[: self._n]
+
+    @property
+    def fps(self) -> float:
+        """Mean frame rate from the host timestamps, frames per second (NaN if unknown)."""
+        t = self.t_host
+        if len(t) < 2 or not t[-1] > t[0]:
+            return math.nan
+        return float((len(t) - 1) / (t[-1] - t[0]))
+
+    def __len__(self) -> int:
+        return self._n
+
+    def frame(self, index: int) -> np.ndarray:
+        """Return frame ``index`` (negative counts from the end) as a new array."""
+        i = int(index)
+        if i < 0:
+            i += self._n
+        if not 0 <= i < self._n:
+            raise IndexError(f"frame {index} out of range for a recording of {self._n}")
+        return self._frames[i]
+
+    def __getitem__(self, key: int | slice) -> np.ndarray:
+        if isinstance(key, slice):
+            indices = range(*key.indices(self._n))
+            if not indices:
+                return np.empty((0, *self.frame_shape), self.dtype)
+            if indices.step > 0:
+                return self._frames[indices.start : indices.stop : indices.step]
+            return self._frames[indices[-1] : indices[0] + 1 : -indices.step][::-1]
+        return self.frame(key)
+
+    def __iter__(self) -> Iterator[np.ndarray]:
+        for i in range(self._n):
+            yield self._frames[i]
+
+    def close(self) -> None:
+        """Close the file; calling it again does nothing."""
+        if self._file.id.valid:
+            self._file.close()
+
+    def __enter__(self) -> Self:
+        return self
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        self.close()
