@@ -1,0 +1,114 @@
+"""The recorder thread: every frame of a ring into a holoview recording.
+
+It reads the ring as an ``"every"`` consumer, so it gets every frame in order and
+counts exactly the frames the ring overwrote before it could write them. It
+flushes the file at least every ``flush_interval_s`` of the writer, also when no
+frame comes. It stops when the ring closes (after writing what remains), on
+:meth:`Recorder.stop`, or on a write error (kept in :attr:`Recorder.error`); in
+every case it closes the file, so everything written stays readable.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+
+import numpy as np
+
+from holoview.acquire.recording import RecordingWriter
+from holoview.acquire.ring import CLOSED, FrameRing, RingStatus
+from holoview.errors import HoloviewError, InputError
+
+logger = logging.getLogger(__name__)
+
+
+class RecordingWriteError(HoloviewError):
+    """Writing the recording failed (disk full, file removed); what was written is kept."""
+
+
+class Recorder:
+    """Write every frame of ``ring`` with ``writer`` on a thread named ``holoview-recorder``.
+
+    The recorder owns ``writer`` and closes it when it ends.
+
+    Parameters
+    ----------
+    ring : FrameRing
+        Frames to record; the recorder becomes one of its consumers at construction
+        and records from the next frame put.
+    writer : RecordingWriter
+        An open writer whose frame shape and dtype are the ring's.
+    """
+
+    def __init__(self, ring: FrameRing, writer: RecordingWriter) -> None:
+        if writer.frame_shape != ring.frame_shape or writer.dtype != ring.dtype:
+            writer.close()
+            raise InputError(
+                f"recording {writer.frame_shape} {writer.dtype} does not fit the ring's "
+                f"{ring.frame_shape} {ring.dtype}"
+            )
+        self.ring = ring
+        self.writer = writer
+        self._consumer = ring.consumer("recorder", mode="every")
+        #: The error that ended recording early, or None.
+        self.error: BaseException | None = None
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="holoview-recorder", daemon=True)
+
+    @property
+    def written(self) -> int:
+        """Frames written to the file so far."""
+        return len(self.writer)
+
+    @property
+    def running(self) -> bool:
+        """True while the thread runs."""
+        return self._thread.is_alive()
+
+    def status(self) -> RingStatus:
+        """The recorder's ring accounting: acquired, unread, dropped, capacity, ..."""
+        return self._consumer.status()
+
+    def start(self) -> None:
+        """Start the thread."""
+        self._thread.start()
+
+    def stop(self, timeout: float = 10.0) -> None:
+        """Stop now (unread frames are not written, and count as not recorded) and join."""
+        self._stop.set()
+        self.join(timeout)
+
+    def join(self, timeout: float | None = None) -> bool:
+        """Wait until the ring is closed and drained (or stop/error); True once ended."""
+        if self._thread.ident is not None:
+            self._thread.join(timeout)
+        return not self._thread.is_alive()
+
+    def _run(self) -> None:
+        writer = self.writer
+        buffer = np.empty(self.ring.frame_shape, self.ring.dtype)
+        try:
+            while not self._stop.is_set():
+                item = self._consumer.get(timeout=min(0.2, writer.flush_interval_s), out=buffer)
+                if item is CLOSED:
+                    break
+                if item is None:
+                    writer.flush_if_due()
+                    continue
+                pixels, meta = item
+                writer.append(pixels, meta.frame_id, meta.t_device, meta.t_host)
+        except OSError as exc:
+            self.error = RecordingWriteError(f"writing {writer.path} failed: {exc}")
+            logger.error("%s", self.error)
+        except Exception as exc:  # a bug: keep the traceback, still close the file
+            self.error = exc
+            logger.exception("recorder failed on %s", writer.path)
+        finally:
+            try:
+                writer.close()
+            except OSError as exc:
+                self.error = self.error or RecordingWriteError(
+                    f"closing {writer.path} failed: {exc}"
+                )
+                logger.error("closing %s failed: %s", writer.path, exc)
+            logger.info("recorder: %d frames written; %s", len(writer), self.status())
