@@ -1,0 +1,193 @@
+"""The raw camera frame: persistent levels, percentile auto-levels, saturation, readout."""
+
+from __future__ import annotations
+
+import numpy as np
+import pyqtgraph as pg
+from PyQt6.QtCore import QPointF, pyqtSignal
+from PyQt6.QtWidgets import QHBoxLayout, QLabel, QPushButton, QVBoxLayout, QWidget
+
+#: Percentiles used by the auto-levels button (low, high).
+AUTO_LEVEL_PERCENTILES = (0.5, 99.5)
+
+#: RGBA of the saturation overlay.
+SATURATION_RGBA = (255, 0, 0, 200)
+
+
+class HologramView(QWidget):
+    """Show raw frames with levels that persist across frames.
+
+    Levels change only when the operator asks (the auto-levels button or the
+    histogram), never on their own, so the image does not flicker. Pixels at or
+    above the saturation value are painted red. The cursor readout gives the pixel
+    (row, column) and its raw value. An ROI rectangle can be drawn for the source.
+
+    Signals
+    -------
+    roiChosen(tuple)
+        ``(left, top, width, height)`` in pixels, when the operator applies the ROI.
+    """
+
+    roiChosen = pyqtSignal(tuple)
+
+    def __init__(self, parent: QWidget | None = None) -> None:
+        super().__init__(parent)
+        self._frame: np.ndarray | None = None
+        self._levels: tuple[float, float] | None = None
+        self._saturation_value: float | None = None
+        self.graphics = pg.GraphicsLayoutWidget()
+        self.plot = self.graphics.addPlot()
+        self.plot.setAspectLocked(True)
+        self.plot.invertY(True)
+        self.plot.setLabel("bottom", "column", units="px")
+        self.plot.setLabel("left", "row", units="px")
+        self.image = pg.ImageItem(axisOrder="row-major")
+        self.overlay = pg.ImageItem(axisOrder="row-major")
+        self.overlay.setZValue(10)
+        self.plot.addItem(self.image)
+        self.plot.addItem(self.overlay)
+        self.histogram = pg.HistogramLUTItem(image=self.image)
+        self.histogram.sigLevelsChanged.connect(self._levels_from_histogram)
+        self.graphics.addItem(self.histogram)
+        self.roi: pg.RectROI | None = None
+
+        self.readout = QLabel("move the cursor over the image")
+        self.auto_button = QPushButton("Auto levels")
+        self.auto_button.setToolTip(
+            f"set levels to the {AUTO_LEVEL_PERCENTILES[0]}-{AUTO_LEVEL_PERCENTILES[1]} "
+            "percentiles of the current frame"
+        )
+        self.auto_button.clicked.connect(self.auto_levels)
+        self.saturation_button = QPushButton("Saturation")
+        self.saturation_button.setCheckable(True)
+        self.saturation_button.setChecked(True)
+        self.saturation_button.setToolTip("paint saturated pixels red")
+        self.saturation_button.toggled.connect(self._update_overlay)
+        self.roi_button = QPushButton("Draw ROI")
+        self.roi_button.setCheckable(True)
+        self.roi_button.toggled.connect(self._toggle_roi)
+        self.apply_roi_button = QPushButton("Apply ROI")
+        self.apply_roi_button.setEnabled(False)
+        self.apply_roi_button.clicked.connect(self._apply_roi)
+
+        buttons = QHBoxLayout()
+        for widget in (
+            self.auto_button,
+            self.saturation_button,
+            self.roi_button,
+            self.apply_roi_button,
+        ):
+            buttons.addWidget(widget)
+        buttons.addStretch(1)
+        layout = QVBoxLayout(self)
+        layout.setContentsMargins(2, 2, 2, 2)
+        layout.addLayout(buttons)
+        layout.addWidget(self.graphics, 1)
+        layout.addWidget(self.readout)
+        self.graphics.scene().sigMouseMoved.connect(self._mouse_moved)
+
+    @property
+    def levels(self) -> tuple[float, float] | None:
+        """The display levels (raw counts), or None before the first frame."""
+        return self._levels
+
+    def set_saturation_value(self, value: float | None) -> None:
+        """Set the raw value at and above which a pixel counts as saturated (None: off)."""
+        self._saturation_value = value
+        self._update_overlay()
+
+    def set_frame(self, frame: np.ndarray) -> None:
+        """Show ``frame`` (rows, cols) with the current levels (the first frame sets them)."""
+        first = self._frame is None or self._frame.shape != frame.shape
+        self._frame = frame
+        if self._levels is None:
+            self._levels = self._percentile_levels(frame)
+        self.image.setImage(frame, autoLevels=False, levels=self._levels)
+        if first:
+            self.plot.autoRange(padding=0)
+        self._update_overlay()
+
+    def set_levels(self, low: float, high: float) -> None:
+        """Fix the display levels to ``(low, high)`` raw counts."""
+        if not high > low:
+            high = low + 1.0
+        self._levels = (float(low), float(high))
+        self.histogram.setLevels(*self._levels)
+        self.image.setLevels(self._levels)
+
+    def auto_levels(self) -> None:
+        """Set levels once from the percentiles of the current frame; they then persist."""
+        if self._frame is not None:
+            self.set_levels(*self._percentile_levels(self._frame))
+
+    @staticmethod
+    def _percentile_levels(frame: np.ndarray) -> tuple[float, float]:
+        step = max(1, frame.size // 262144)
+        sample = frame.reshape(-1)[::step]
+        low, high = np.percentile(sample, AUTO_LEVEL_PERCENTILES)
+        return float(low), float(max(high, low + 1))
+
+    def _levels_from_histogram(self) -> None:
+        low, high = self.histogram.getLevels()
+        self._levels = (float(low), float(high))
+
+    def _update_overlay(self) -> None:
+        if (
+            self._frame is None
+            or self._saturation_value is None
+            or not self.saturation_button.isChecked()
+        ):
+            self.overlay.clear()
+            return
+        mask = self._frame >= self._saturation_value
+        rgba = np.zeros((*mask.shape, 4), dtype=np.uint8)
+        rgba[mask] = SATURATION_RGBA
+        self.overlay.setImage(rgba, autoLevels=False)
+
+    def saturated_count(self) -> int:
+        """Return how many pixels of the current frame are at or above saturation."""
+        if self._frame is None or self._saturation_value is None:
+            return 0
+        return int(np.count_nonzero(self._frame >= self._saturation_value))
+
+    def readout_at(self, x: float, y: float) -> str:
+        """Return the readout text for image coordinates ``x`` (column), ``y`` (row)."""
+        if self._frame is None:
+            return "no frame"
+        row, col = int(np.floor(y)), int(np.floor(x))
+        rows, cols = self._frame.shape[:2]
+        if not (0 <= row < rows and 0 <= col < cols):
+            return f"outside the frame ({rows} x {cols})"
+        return f"row {row}, column {col}: {self._frame[row, col]}"
+
+    def _mouse_moved(self, pos: QPointF) -> None:
+        if self.plot.sceneBoundingRect().contains(pos):
+            point = self.plot.vb.mapSceneToView(pos)
+            self.readout.setText(self.readout_at(point.x(), point.y()))
+
+    def _toggle_roi(self, on: bool) -> None:
+        if on and self._frame is not None:
+            rows, cols = self._frame.shape[:2]
+            self.roi = pg.RectROI(
+                [cols // 4, rows // 4], [cols // 2, rows // 2], pen=pg.mkPen("y", width=2)
+            )
+            self.roi.addScaleHandle([0, 0], [1, 1])
+            self.plot.addItem(self.roi)
+        elif self.roi is not None:
+            self.plot.removeItem(self.roi)
+            self.roi = None
+        self.apply_roi_button.setEnabled(self.roi is not None)
+
+    def current_roi(self) -> tuple[int, int, int, int] | None:
+        """Return the drawn ROI as ``(left, top, width, height)`` in pixels, or None."""
+        if self.roi is None:
+            return None
+        x, y = self.roi.pos()
+        w, h = self.roi.size()
+        return round(x), round(y), round(w), round(h)
+
+    def _apply_roi(self) -> None:
+        roi = self.current_roi()
+        if roi is not None:
+            self.roiChosen.emit(roi)
+            self.roi_button.setChecked(False)

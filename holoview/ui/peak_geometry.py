@@ -1,0 +1,93 @@
+"""Display-side geometry of peaks in the spectrum: snapping a click, window warnings.
+
+Pure functions on carriers in cycles per pixel (``fx`` along columns, ``fy`` along
+rows). They decide what the spectrum view draws and says; nothing here is saved.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+
+#: A click snaps to a peak no further than this, in cycles per pixel.
+SNAP_DISTANCE = 0.03
+
+Carrier = tuple[float, float]
+
+
+def with_twins(peaks: Sequence[Carrier]) -> list[Carrier]:
+    """Return every peak and its conjugate twin at ``(-fx, -fy)``, without duplicates."""
+    out: list[Carrier] = []
+    for fx, fy in peaks:
+        for candidate in ((fx, fy), (-fx, -fy)):
+            if all(math.dist(candidate, seen) > 1e-9 for seen in out):
+                out.append(candidate)
+    return out
+
+
+def snap_to_peak(
+    click: Carrier, peaks: Sequence[Carrier], max_distance: float = SNAP_DISTANCE
+) -> Carrier | None:
+    """Return the peak (or twin) nearest to ``click`` within ``max_distance``, else None.
+
+    Parameters
+    ----------
+    click : (float, float)
+        Where the operator clicked, cycles per pixel.
+    peaks : sequence of (float, float)
+        Detected carriers, cycles per pixel; their twins count too.
+    max_distance : float
+        The snapping distance, cycles per pixel.
+    """
+    candidates = with_twins(peaks)
+    if not candidates:
+        return None
+    best = min(candidates, key=lambda p: math.dist(p, click))
+    return best if math.dist(best, click) <= max_distance else None
+
+
+def _aliased(f: float) -> float:
+    return (f + 0.5) % 1.0 - 0.5
+
+
+def window_warnings(
+    labelled: Mapping[str, Carrier], radius: float, predicted: Mapping[str, Carrier] | None = None
+) -> list[str]:
+    """Return one line per problem of the labelled windows, for the operator to read.
+
+    Flags windows of radius ``radius`` (cycles per pixel) that overlap each other or
+    each other's twins, overlap the zero order, or cross the Nyquist edge, and
+    predicted carriers beyond Nyquist (aliased: they appear folded back).
+    """
+    problems: list[str] = []
+    items = list(labelled.items())
+    for i, (name, f) in enumerate(items):
+        if math.hypot(*f) < 2 * radius:
+            problems.append(f"{name} window overlaps the zero order (|f| < 2 r)")
+        if max(abs(f[0]), abs(f[1])) + radius > 0.5:
+            problems.append(f"{name} window crosses the Nyquist edge (aliasing)")
+        for other, g in items[i + 1 :]:
+            if math.dist(f, g) < 2 * radius:
+                problems.append(f"{name} and {other} windows overlap")
+            elif math.dist(f, (-g[0], -g[1])) < 2 * radius:
+                problems.append(f"{name} overlaps the twin of {other}")
+    for name, (fx, fy) in (predicted or {}).items():
+        if max(abs(fx), abs(fy)) > 0.5:
+            problems.append(
+                f"predicted {name} at ({fx:+.3f}, {fy:+.3f}) is beyond Nyquist: aliased to "
+                f"({_aliased(fx):+.3f}, {_aliased(fy):+.3f})"
+            )
+    return problems
+
+
+def swallowed_neighbour(centre: Carrier, radius: float, peaks: Sequence[Carrier]) -> Carrier | None:
+    """Return a peak (or twin) other than ``centre`` inside the window, or None.
+
+    A window that contains a neighbouring carrier mixes two holograms; the view
+    refuses such a radius.
+    """
+    for p in with_twins(peaks):
+        d = math.dist(p, centre)
+        if 1e-6 < d <= radius:
+            return p
+    return None

@@ -1,0 +1,307 @@
+"""The live spatial-frequency spectrum: peaks, labels, predicted carriers, windows.
+
+Axes are in cycles per pixel: fx along columns (horizontal), fy along rows
+(vertical, increasing downwards as in the image). A click near a detected peak
+(or its twin) snaps to it and offers a label; dragging a window circle's handle
+changes the window radius. The view only draws and emits commands.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping, Sequence
+
+import numpy as np
+import pyqtgraph as pg
+from PyQt6.QtCore import QRectF, pyqtSignal
+from PyQt6.QtGui import QCursor
+from PyQt6.QtWidgets import QInputDialog, QLabel, QMenu, QVBoxLayout, QWidget
+
+from holoview.ui.peak_geometry import Carrier, snap_to_peak, swallowed_neighbour, window_warnings
+from holoview.ui.settings import PEAK_LABELS
+
+#: Pen colour of a labelled peak's marker, window and label.
+LABEL_COLOUR = "#33ddff"
+#: Pen colour of model-predicted carriers.
+PREDICTED_COLOUR = "#ffd24d"
+#: Choice returned by the label menu to remove a label.
+CLEAR = "\x00clear"
+
+LabelChooser = Callable[[Carrier, str | None], str | None]
+
+
+def menu_label_chooser(parent: QWidget) -> LabelChooser:
+    """Return a chooser that pops up the label menu at the cursor."""
+
+    def choose(carrier: Carrier, current: str | None) -> str | None:
+        menu = QMenu(parent)
+        menu.addSection(f"peak at ({carrier[0]:+.4f}, {carrier[1]:+.4f}) cycles/px")
+        actions = {menu.addAction(name): name for name in PEAK_LABELS}
+        custom = menu.addAction("Custom...")
+        clear = menu.addAction(f"Clear label {current}") if current else None
+        chosen = menu.exec(QCursor.pos())
+        if chosen is None:
+            return None
+        if chosen is clear:
+            return CLEAR
+        if chosen is custom:
+            text, ok = QInputDialog.getText(parent, "Peak label", "Label:")
+            return text.strip() or None if ok else None
+        return actions[chosen]
+
+    return choose
+
+
+class SpectrumView(QWidget):
+    """Log-magnitude spectrum with peak markers, labels, predicted carriers and windows.
+
+    Signals
+    -------
+    peakLabelled(str, float, float)
+        Label and carrier (cycles per pixel) chosen by the operator.
+    labelCleared(str)
+        The operator removed this label.
+    radiusChanged(float)
+        New window radius in cycles per pixel, after a drag that was accepted.
+    message(str)
+        A problem to show the operator (no peak near the click, radius refused).
+    """
+
+    peakLabelled = pyqtSignal(str, float, float)
+    labelCleared = pyqtSignal(str)
+    radiusChanged = pyqtSignal(float)
+    message = pyqtSignal(str)
+
+    def __init__(self, parent: QWidget | None = None) -> None:
+        super().__init__(parent)
+        self.choose_label: LabelChooser = menu_label_chooser(self)
+        self._peaks: list[Carrier] = []
+        self._labelled: dict[str, Carrier] = {}
+        self._predicted: dict[str, Carrier] = {}
+        self._radius = 0.06
+        self._levels: tuple[float, float] | None = None
+        self._circles: dict[str, pg.CircleROI] = {}
+        self._texts: list[pg.TextItem] = []
+        self._updating = False
+
+        self.graphics = pg.GraphicsLayoutWidget()
+        self.plot = self.graphics.addPlot()
+        self.plot.setAspectLocked(True)
+        self.plot.invertY(True)
+        self.plot.setLabel("bottom", "fx", units="cycles/px")
+        self.plot.setLabel("left", "fy", units="cycles/px")
+        for axis in ("bottom", "left"):
+            self.plot.getAxis(axis).enableAutoSIPrefix(False)
+        self.image = pg.ImageItem(axisOrder="row-major")
+        self.image.setColorMap(pg.colormap.get("inferno"))
+        self.plot.addItem(self.image)
+        self.detected_markers = pg.ScatterPlotItem(
+            symbol="o", size=14, pen=pg.mkPen("w", width=1), brush=None
+        )
+        self.labelled_markers = pg.ScatterPlotItem(
+            symbol="o", size=12, pen=pg.mkPen(LABEL_COLOUR, width=2), brush=None
+        )
+        self.predicted_markers = pg.ScatterPlotItem(
+            symbol="x", size=14, pen=pg.mkPen(PREDICTED_COLOUR, width=2), brush=PREDICTED_COLOUR
+        )
+        for item in (self.detected_markers, self.labelled_markers, self.predicted_markers):
+            item.setZValue(20)
+            self.plot.addItem(item)
+        self.warning_label = QLabel()
+        self.warning_label.setStyleSheet("color: #b35900; font-weight: bold;")
+        self.warning_label.setWordWrap(True)
+        self.warning_label.hide()
+        hint = QLabel("click near a peak to label it; drag a circle's handle to change the radius")
+        hint.setStyleSheet("color: gray;")
+        layout = QVBoxLayout(self)
+        layout.setContentsMargins(2, 2, 2, 2)
+        layout.addWidget(self.graphics, 1)
+        layout.addWidget(self.warning_label)
+        layout.addWidget(hint)
+        self.graphics.scene().sigMouseClicked.connect(self._scene_clicked)
+
+    # ---- data in -------------------------------------------------------------
+    @property
+    def radius(self) -> float:
+        """Window radius in cycles per pixel."""
+        return self._radius
+
+    @property
+    def labelled(self) -> dict[str, Carrier]:
+        """Labelled carriers (operator and model), cycles per pixel, by label."""
+        return dict(self._labelled)
+
+    @property
+    def warnings(self) -> list[str]:
+        """The warning lines shown under the spectrum."""
+        text = self.warning_label.text()
+        return text.split("\n") if text and self.warning_label.isVisibleTo(self) else []
+
+    def set_spectrum(self, spectrum: np.ndarray) -> None:
+        """Show a centred log-magnitude spectrum spanning -0.5..0.5 cycles/px on both axes.
+
+        The levels are set from the first spectrum and then persist
+        (:meth:`auto_levels` resets them).
+        """
+        if self._levels is None:
+            self._levels = self._spectrum_levels(spectrum)
+            self.image.setImage(spectrum, autoLevels=False, levels=self._levels)
+            self.image.setRect(QRectF(-0.5, -0.5, 1.0, 1.0))
+            self.plot.setRange(xRange=(-0.5, 0.5), yRange=(-0.5, 0.5), padding=0)
+        else:
+            self.image.setImage(spectrum, autoLevels=False, levels=self._levels)
+            self.image.setRect(QRectF(-0.5, -0.5, 1.0, 1.0))
+
+    def auto_levels(self) -> None:
+        """Reset the spectrum levels from the current image."""
+        if self.image.image is not None:
+            self._levels = self._spectrum_levels(self.image.image)
+            self.image.setLevels(self._levels)
+
+    @staticmethod
+    def _spectrum_levels(spectrum: np.ndarray) -> tuple[float, float]:
+        low, high = np.percentile(spectrum[::4, ::4], (50.0, 99.99))
+        return float(low), float(max(high, low + 1e-6))
+
+    def set_peaks(self, peaks: Sequence[Carrier]) -> None:
+        """Mark detected peaks (cycles per pixel); twins are marked too."""
+        self._peaks = [(float(fx), float(fy)) for fx, fy in peaks]
+        pts = self._peaks + [(-fx, -fy) for fx, fy in self._peaks]
+        self.detected_markers.setData(pos=np.asarray(pts, dtype=float).reshape(-1, 2))
+
+    def set_model(
+        self,
+        labelled: Mapping[str, Carrier],
+        predicted: Mapping[str, Carrier],
+        radius: float,
+    ) -> None:
+        """Draw the labelled peaks with their windows, and the predicted carriers.
+
+        Parameters
+        ----------
+        labelled : mapping of str to (float, float)
+            Every named peak, by the operator or matched by the model, cycles per pixel.
+        predicted : mapping of str to (float, float)
+            Carriers the model predicts from two labels, cycles per pixel.
+        radius : float
+            Window radius, cycles per pixel.
+        """
+        labelled = {k: (float(v[0]), float(v[1])) for k, v in labelled.items()}
+        predicted = {k: (float(v[0]), float(v[1])) for k, v in predicted.items()}
+        if labelled == self._labelled and predicted == self._predicted and radius == self._radius:
+            return
+        self._labelled, self._predicted, self._radius = labelled, predicted, float(radius)
+        self._draw_model()
+
+    def _draw_model(self) -> None:
+        self._updating = True
+        try:
+            lab = np.asarray(list(self._labelled.values()), dtype=float).reshape(-1, 2)
+            self.labelled_markers.setData(pos=lab)
+            pred = np.asarray(list(self._predicted.values()), dtype=float).reshape(-1, 2)
+            self.predicted_markers.setData(pos=pred)
+            for text in self._texts:
+                self.plot.removeItem(text)
+            self._texts = []
+            for name, (fx, fy) in self._labelled.items():
+                self._add_text(name, fx, fy, LABEL_COLOUR)
+            for name, (fx, fy) in self._predicted.items():
+                if name not in self._labelled:
+                    self._add_text(f"{name}?", fx, fy, PREDICTED_COLOUR)
+            for name in list(self._circles):
+                if name not in self._labelled:
+                    self.plot.removeItem(self._circles.pop(name))
+            r = self._radius
+            for name, (fx, fy) in self._labelled.items():
+                circle = self._circles.get(name)
+                if circle is None:
+                    circle = pg.CircleROI(
+                        [fx - r, fy - r], [2 * r, 2 * r], movable=False, pen=pg.mkPen(LABEL_COLOUR)
+                    )
+                    circle.setZValue(15)
+                    circle.sigRegionChangeFinished.connect(self._circle_dragged)
+                    self.plot.addItem(circle)
+                    self._circles[name] = circle
+                else:
+                    circle.setPos([fx - r, fy - r], update=False, finish=False)
+                    circle.setSize([2 * r, 2 * r], update=True, finish=False)
+        finally:
+            self._updating = False
+        self._show_warnings(window_warnings(self._labelled, self._radius, self._predicted))
+
+    def _add_text(self, text: str, fx: float, fy: float, colour: str) -> None:
+        item = pg.TextItem(text, color=colour, anchor=(0, 1))
+        item.setPos(fx + 0.01, fy - 0.01)
+        item.setZValue(25)
+        self.plot.addItem(item)
+        self._texts.append(item)
+
+    def _show_warnings(self, lines: list[str]) -> None:
+        self.warning_label.setText("\n".join(lines))
+        self.warning_label.setVisible(bool(lines))
+
+    # ---- operator input -----------------------------------------------------
+    def click_at(self, fx: float, fy: float) -> None:
+        """Handle a click at carrier ``(fx, fy)``: snap to a peak and ask for its label."""
+        snapped = snap_to_peak((fx, fy), self._peaks)
+        if snapped is None:
+            self.message.emit(f"no peak near ({fx:+.3f}, {fy:+.3f}) cycles/px: nothing labelled")
+            return
+        current = next((n for n, f in self._labelled.items() if math.dist(f, snapped) < 1e-6), None)
+        choice = self.choose_label(snapped, current)
+        if choice is None:
+            return
+        if choice == CLEAR:
+            if current is not None:
+                self.labelCleared.emit(current)
+            return
+        self.peakLabelled.emit(choice, snapped[0], snapped[1])
+
+    def _scene_clicked(self, event: object) -> None:
+        if event.button().name != "LeftButton" or event.isAccepted():  # type: ignore[attr-defined]
+            return
+        pos = event.scenePos()  # type: ignore[attr-defined]
+        if not self.plot.vb.sceneBoundingRect().contains(pos):
+            return
+        point = self.plot.vb.mapSceneToView(pos)
+        event.accept()  # type: ignore[attr-defined]
+        self.click_at(point.x(), point.y())
+
+    def request_radius(self, label: str, radius: float) -> bool:
+        """Ask for a new window radius around ``label``; refuse one that swallows a peak.
+
+        Returns whether the radius was accepted (then :attr:`radiusChanged` is emitted).
+        """
+        centre = self._labelled.get(label)
+        if centre is None:
+            return False
+        others = [
+            p for p in (*self._peaks, *self._labelled.values()) if math.dist(p, centre) > 1e-6
+        ]
+        swallowed = swallowed_neighbour(centre, radius, others)
+        if radius <= 0 or swallowed is not None:
+            where = f" the peak at ({swallowed[0]:+.3f}, {swallowed[1]:+.3f})" if swallowed else ""
+            self.message.emit(
+                f"radius {radius:.3f} cycles/px around {label} would swallow{where}: kept "
+                f"{self._radius:.3f}"
+            )
+            self._draw_model()
+            return False
+        self._radius = float(radius)
+        self._draw_model()
+        self.radiusChanged.emit(self._radius)
+        return True
+
+    def _circle_dragged(self, circle: pg.CircleROI) -> None:
+        if self._updating:
+            return
+        label = next((n for n, c in self._circles.items() if c is circle), None)
+        if label is None:
+            return
+        radius = float(circle.size()[0]) / 2.0
+        if abs(radius - self._radius) > 1e-9:
+            self.request_radius(label, radius)
+
+    def clear_model(self) -> None:
+        """Forget labels and predictions (the circles go too)."""
+        self.set_model({}, {}, self._radius)

@@ -1,0 +1,294 @@
+"""Per-peak delta-h maps, the fused map, a shared colour bar and a line profile.
+
+Heights arrive in metres and are shown in nanometres with a perceptual colour map
+(viridis); phases arrive in radians and are shown with a cyclic one (CET-C6) over
+[-pi, pi]. A line drawn on the first map is mirrored (dashed) on the others, and
+the profile below overlays every map's curve along it (the paper's figure 4g).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+import numpy as np
+import pyqtgraph as pg
+from PyQt6.QtCore import Qt, pyqtSignal
+from PyQt6.QtWidgets import (
+    QComboBox,
+    QHBoxLayout,
+    QLabel,
+    QPushButton,
+    QSplitter,
+    QVBoxLayout,
+    QWidget,
+)
+
+from holoview.ui.settings import REFERENCE_MODES
+
+FUSED = "fused"
+#: Colour map of heights (perceptual) and of phases (cyclic).
+HEIGHT_CMAP = "viridis"
+PHASE_CMAP = "CET-C6"
+#: Colours of the profile curves, in label order; the fused curve is dashed white.
+CURVE_COLOURS = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2")
+#: Default line, as fractions of (width, height): a horizontal diameter.
+DEFAULT_LINE = ((0.05, 0.5), (0.95, 0.5))
+
+
+def sample_line(
+    image: np.ndarray, start: tuple[float, float], end: tuple[float, float], n: int
+) -> np.ndarray:
+    """Return ``n`` nearest-pixel samples of ``image`` along a line.
+
+    ``start`` and ``end`` are ``(x, y)`` fractions of the width and height, so the
+    same line can be sampled on maps of different shapes.
+    """
+    rows, cols = image.shape
+    x = np.clip(np.linspace(start[0], end[0], n) * cols, 0, cols - 1).astype(int)
+    y = np.clip(np.linspace(start[1], end[1], n) * rows, 0, rows - 1).astype(int)
+    return image[y, x]
+
+
+class SurfaceView(QWidget):
+    """Maps per labelled peak and fused, with a colour bar and a line profile.
+
+    Signals
+    -------
+    referenceChanged(str)
+        The operator chose another reference mode (relative, absolute, synthetic).
+    """
+
+    referenceChanged = pyqtSignal(str)
+
+    def __init__(self, parent: QWidget | None = None) -> None:
+        super().__init__(parent)
+        self._names: list[str] = []
+        self._data: dict[str, np.ndarray] = {}
+        self._mode = "height"
+        self._line = DEFAULT_LINE
+        self._levels: tuple[float, float] | None = None
+        self.plots: dict[str, pg.PlotItem] = {}
+        self.images: dict[str, pg.ImageItem] = {}
+        self._mirrors: dict[str, pg.PlotDataItem] = {}
+        self.line_roi: pg.LineSegmentROI | None = None
+        self._placing = False
+        self._line_placed = False
+
+        self.mode_box = QComboBox()
+        self.mode_box.addItems(["height (nm)", "phase (rad)"])
+        self.mode_box.currentIndexChanged.connect(self._mode_changed)
+        self.reference_box = QComboBox()
+        self.reference_box.addItems(REFERENCE_MODES)
+        self.reference_box.currentTextChanged.connect(self.referenceChanged.emit)
+        self.range_button = QPushButton("Auto range")
+        self.range_button.clicked.connect(self.auto_range)
+        self.stats_label = QLabel()
+        controls = QHBoxLayout()
+        controls.addWidget(QLabel("show"))
+        controls.addWidget(self.mode_box)
+        controls.addWidget(QLabel("reference"))
+        controls.addWidget(self.reference_box)
+        controls.addWidget(self.range_button)
+        controls.addStretch(1)
+        controls.addWidget(self.stats_label)
+
+        self.graphics = pg.GraphicsLayoutWidget()
+        self.colour_bar = pg.ColorBarItem(
+            values=(-1.0, 1.0), colorMap=pg.colormap.get(HEIGHT_CMAP), label="delta h (nm)"
+        )
+        self.colour_bar.sigLevelsChanged.connect(self._bar_levels_changed)
+        self.profile = pg.PlotWidget()
+        self.profile.setLabel("bottom", "position along the line", units="px")
+        self.profile.setLabel("left", "delta h (nm)")
+        self.profile.addLegend(offset=(5, 5))
+        self.curves: dict[str, pg.PlotDataItem] = {}
+        splitter = QSplitter(Qt.Orientation.Vertical)
+        splitter.addWidget(self.graphics)
+        splitter.addWidget(self.profile)
+        splitter.setSizes([500, 200])
+        layout = QVBoxLayout(self)
+        layout.setContentsMargins(2, 2, 2, 2)
+        layout.addLayout(controls)
+        layout.addWidget(splitter, 1)
+
+    @property
+    def mode(self) -> str:
+        """``height`` or ``phase``."""
+        return self._mode
+
+    @property
+    def names(self) -> list[str]:
+        """Names of the maps shown, labels first, then ``fused``."""
+        return list(self._names)
+
+    def set_reference(self, mode: str) -> None:
+        """Show ``mode`` as the chosen reference without emitting a change."""
+        self.reference_box.blockSignals(True)
+        self.reference_box.setCurrentText(mode)
+        self.reference_box.blockSignals(False)
+
+    def set_maps(
+        self,
+        heights_m: Mapping[str, np.ndarray],
+        fused_m: np.ndarray | None = None,
+        phases_rad: Mapping[str, np.ndarray] | None = None,
+    ) -> None:
+        """Show one map per label and the fused map.
+
+        Parameters
+        ----------
+        heights_m : mapping of str to ndarray
+            delta-h per labelled peak, metres.
+        fused_m : ndarray, optional
+            The fused delta-h, metres.
+        phases_rad : mapping of str to ndarray, optional
+            Phase per labelled peak, radians (shown in phase mode).
+        """
+        if self._mode == "phase" and phases_rad:
+            data = {k: np.asarray(v, dtype=np.float32) for k, v in phases_rad.items()}
+        else:
+            data = {k: np.asarray(v, dtype=np.float32) * 1e9 for k, v in heights_m.items()}
+            if fused_m is not None:
+                data[FUSED] = np.asarray(fused_m, dtype=np.float32) * 1e9
+        names = list(data)
+        if names != self._names:
+            self._rebuild(names)
+        self._data = data
+        if self._levels is None and self._mode == "height":
+            self.auto_range()
+        for name, image in self.images.items():
+            image.setImage(data[name], autoLevels=False, levels=self._current_levels())
+        self._update_profile()
+
+    def map_data(self, name: str) -> np.ndarray:
+        """Return the array shown for ``name`` (nm or rad)."""
+        return self._data[name]
+
+    def _current_levels(self) -> tuple[float, float]:
+        if self._mode == "phase":
+            return (-np.pi, np.pi)
+        return self._levels or (-1.0, 1.0)
+
+    def auto_range(self) -> None:
+        """Set the height colour range symmetric about zero from the 1-99 percentiles."""
+        if self._mode == "phase" or not self._data:
+            return
+        values = np.concatenate([d[::4, ::4].ravel() for d in self._data.values()])
+        values = values[np.isfinite(values)]
+        span = float(np.percentile(np.abs(values), 99)) if values.size else 1.0
+        span = span if span > 0 else 1.0
+        self._levels = (-span, span)
+        self.colour_bar.setLevels(self._levels)
+
+    def _bar_levels_changed(self) -> None:
+        if self._mode == "height":
+            low, high = self.colour_bar.levels()
+            self._levels = (float(low), float(high))
+
+    def _rebuild(self, names: list[str]) -> None:
+        self.graphics.clear()
+        self.plots.clear()
+        self.images.clear()
+        self._mirrors.clear()
+        self.line_roi = None
+        columns = 3 if len(names) > 4 else 2
+        for i, name in enumerate(names):
+            plot = self.graphics.addPlot(row=i // columns, col=i % columns, title=name)
+            plot.setAspectLocked(True)
+            plot.invertY(True)
+            plot.hideAxis("left")
+            plot.hideAxis("bottom")
+            image = pg.ImageItem(axisOrder="row-major")
+            plot.addItem(image)
+            self.plots[name] = plot
+            self.images[name] = image
+        self.graphics.addItem(
+            self.colour_bar, row=0, col=columns, rowspan=max(1, -(-len(names) // columns))
+        )
+        self.colour_bar.setImageItem(list(self.images.values()))
+        self._apply_cmap()
+        self._names = names
+        self._make_line_items()
+        for curve in self.curves.values():
+            self.profile.removeItem(curve)
+        self.curves.clear()
+        for i, name in enumerate(names):
+            pen = (
+                pg.mkPen("w", width=2, style=Qt.PenStyle.DashLine)
+                if name == FUSED
+                else pg.mkPen(CURVE_COLOURS[i % len(CURVE_COLOURS)], width=1.5)
+            )
+            self.curves[name] = self.profile.plot([], [], pen=pen, name=name)
+
+    def _make_line_items(self) -> None:
+        if not self._names:
+            return
+        first = self._names[0]
+        self._line_placed = False
+        self.line_roi = pg.LineSegmentROI([[0, 0], [1, 0]], pen=pg.mkPen("w", width=2))
+        self.plots[first].addItem(self.line_roi)
+        self.line_roi.sigRegionChanged.connect(self._line_moved)
+        for name in self._names[1:]:
+            mirror = pg.PlotDataItem(pen=pg.mkPen("w", width=1.5, style=Qt.PenStyle.DashLine))
+            self.plots[name].addItem(mirror)
+            self._mirrors[name] = mirror
+
+    def set_line(self, start: tuple[float, float], end: tuple[float, float]) -> None:
+        """Put the profile line from ``start`` to ``end``, ``(x, y)`` fractions of the map."""
+        self._line = (start, end)
+        self._place_line_roi()
+        self._update_profile()
+
+    def _place_line_roi(self) -> None:
+        if self.line_roi is None or not self._names or self._names[0] not in self._data:
+            return
+        rows, cols = self._data[self._names[0]].shape
+        (x0, y0), (x1, y1) = self._line
+        handles = self.line_roi.getHandles()
+        self._placing = True
+        self.line_roi.movePoint(handles[0], pg.Point(x0 * cols, y0 * rows), finish=False)
+        self.line_roi.movePoint(handles[1], pg.Point(x1 * cols, y1 * rows), finish=False)
+        self._placing = False
+
+    def _line_moved(self) -> None:
+        if self._placing or self.line_roi is None:
+            return
+        rows, cols = self._data[self._names[0]].shape
+        p0, p1 = (self.line_roi.mapToParent(h.pos()) for h in self.line_roi.getHandles())
+        self._line = ((p0.x() / cols, p0.y() / rows), (p1.x() / cols, p1.y() / rows))
+        self._update_profile()
+
+    def profile_curves(self) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+        """Return each map's profile along the line: (position in pixels, value)."""
+        out: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+        for name, data in self._data.items():
+            rows, cols = data.shape
+            (x0, y0), (x1, y1) = self._line
+            length = float(np.hypot((x1 - x0) * cols, (y1 - y0) * rows))
+            n = max(2, int(length) + 1)
+            out[name] = (np.linspace(0.0, length, n), sample_line(data, *self._line, n))
+        return out
+
+    def _update_profile(self) -> None:
+        if not self._data:
+            return
+        if self.line_roi is not None and not self._line_placed:
+            self._line_placed = True
+            self._place_line_roi()
+        for name, (x, y) in self.profile_curves().items():
+            self.curves[name].setData(x, y)
+        (x0, y0), (x1, y1) = self._line
+        for name, mirror in self._mirrors.items():
+            rows, cols = self._data[name].shape
+            mirror.setData([x0 * cols, x1 * cols], [y0 * rows, y1 * rows])
+
+    def _mode_changed(self, index: int) -> None:
+        self._mode = "phase" if index == 1 else "height"
+        self._apply_cmap()
+        unit = "phase (rad)" if self._mode == "phase" else "delta h (nm)"
+        self.profile.setLabel("left", unit)
+        self.colour_bar.setLevels(self._current_levels())
+
+    def _apply_cmap(self) -> None:
+        name = PHASE_CMAP if self._mode == "phase" else HEIGHT_CMAP
+        self.colour_bar.setColorMap(pg.colormap.get(name))

@@ -1,0 +1,118 @@
+"""Mean depth change per peak and fused against time, with the evaporation rate."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+import pyqtgraph as pg
+from PyQt6.QtCore import Qt, pyqtSignal
+from PyQt6.QtWidgets import QCheckBox, QHBoxLayout, QLabel, QPushButton, QVBoxLayout, QWidget
+
+from holoview.ui.surface_view import CURVE_COLOURS, FUSED
+
+#: Metres per second to micrometres per minute.
+M_PER_S_TO_UM_PER_MIN = 1e6 * 60.0
+
+
+def format_rate(rate_m_per_s: float, stderr_m_per_s: float) -> str:
+    """Return ``rate ± stderr`` in micrometres per minute, e.g. ``0.816 ± 0.002 um/min``."""
+    rate = rate_m_per_s * M_PER_S_TO_UM_PER_MIN
+    err = stderr_m_per_s * M_PER_S_TO_UM_PER_MIN
+    return f"{rate:.3f} ± {err:.3f} µm/min"
+
+
+class TrendsView(QWidget):
+    """Depth change against time per peak and fused; rate, PCA confidence and prefactors.
+
+    Signals
+    -------
+    pcaRequested(bool)
+        The operator asked for (or stopped asking for) the PCA identification.
+    resetRequested()
+        The operator asked to restart the series from now.
+    """
+
+    pcaRequested = pyqtSignal(bool)
+    resetRequested = pyqtSignal()
+
+    def __init__(self, parent: QWidget | None = None) -> None:
+        super().__init__(parent)
+        self.plot = pg.PlotWidget()
+        self.plot.setLabel("bottom", "time", units="s")
+        self.plot.setLabel("left", "mean depth change (nm)")
+        self.plot.getAxis("left").enableAutoSIPrefix(False)
+        self.plot.addLegend(offset=(5, 5))
+        self.plot.showGrid(x=True, y=True, alpha=0.3)
+        self.curves: dict[str, pg.PlotDataItem] = {}
+        self.fit_curve = pg.PlotDataItem(pen=pg.mkPen("y", width=1, style=Qt.PenStyle.DotLine))
+        self.plot.addItem(self.fit_curve)
+        self.rate_label = QLabel("evaporation rate: waiting for data")
+        self.rate_label.setStyleSheet("font-weight: bold;")
+        self.pca_box = QCheckBox("PCA identification")
+        self.pca_box.toggled.connect(self.pcaRequested.emit)
+        self.reset_button = QPushButton("Restart series")
+        self.reset_button.clicked.connect(self.resetRequested.emit)
+        self.pca_label = QLabel()
+        self.pca_label.setWordWrap(True)
+        row = QHBoxLayout()
+        row.addWidget(self.rate_label, 1)
+        row.addWidget(self.pca_box)
+        row.addWidget(self.reset_button)
+        layout = QVBoxLayout(self)
+        layout.setContentsMargins(2, 2, 2, 2)
+        layout.addLayout(row)
+        layout.addWidget(self.plot, 1)
+        layout.addWidget(self.pca_label)
+
+    def set_series(self, times_s: np.ndarray, depths_m: Mapping[str, np.ndarray]) -> None:
+        """Show the mean depth change (metres, shown in nm) of each series against time (s)."""
+        for name in list(self.curves):
+            if name not in depths_m:
+                self.plot.removeItem(self.curves.pop(name))
+        for i, (name, depth) in enumerate(depths_m.items()):
+            curve = self.curves.get(name)
+            if curve is None:
+                pen = (
+                    pg.mkPen("w", width=2, style=Qt.PenStyle.DashLine)
+                    if name == FUSED
+                    else pg.mkPen(CURVE_COLOURS[i % len(CURVE_COLOURS)], width=1.5)
+                )
+                curve = self.curves[name] = self.plot.plot([], [], pen=pen, name=name)
+            curve.setData(np.asarray(times_s), np.asarray(depth) * 1e9)
+
+    def set_rate(
+        self,
+        rate_m_per_s: float | None,
+        stderr_m_per_s: float | None = None,
+        fit: tuple[Sequence[float], Sequence[float]] | None = None,
+    ) -> None:
+        """Show the evaporation rate with its standard error, and the fitted line.
+
+        Parameters
+        ----------
+        rate_m_per_s, stderr_m_per_s : float or None
+            Rate of the fused depth change and its standard error, metres per second
+            (shown in µm/min). None: not enough data yet.
+        fit : (times_s, depths_m), optional
+            Two or more points of the fitted line.
+        """
+        if rate_m_per_s is None or not np.isfinite(rate_m_per_s):
+            self.rate_label.setText("evaporation rate: waiting for data")
+            self.fit_curve.setData([], [])
+            return
+        self.rate_label.setText(
+            "evaporation rate: " + format_rate(rate_m_per_s, stderr_m_per_s or 0.0)
+        )
+        if fit is not None:
+            self.fit_curve.setData(np.asarray(fit[0]), np.asarray(fit[1]) * 1e9)
+
+    def set_pca(self, confidence: float | None, prefactors: Mapping[str, float] | None) -> None:
+        """Show the PCA confidence (0..1) and the prefactor per peak, or hide them (None)."""
+        if confidence is None:
+            self.pca_label.clear()
+            return
+        parts = ", ".join(f"{k}: {v:.3f}" for k, v in (prefactors or {}).items())
+        self.pca_label.setText(
+            f"PCA confidence sg_p = {confidence * 100:.2f} %; prefactors {parts}"
+        )

@@ -1,0 +1,189 @@
+"""The GUI's views on plain arrays: levels, snapping and labels, maps, profiles, trends."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+pytest.importorskip("pyqtgraph")
+
+from holoview.ui.hologram_view import HologramView
+from holoview.ui.peak_geometry import snap_to_peak, swallowed_neighbour, window_warnings
+from holoview.ui.rates import RateMeter
+from holoview.ui.spectrum_view import CLEAR, SpectrumView
+from holoview.ui.surface_view import FUSED, SurfaceView, sample_line
+from holoview.ui.trends_view import TrendsView, format_rate
+
+pytestmark = pytest.mark.gui
+
+
+def test_hologram_levels_persist_until_auto_levels(qtbot) -> None:
+    view = HologramView()
+    qtbot.addWidget(view)
+    rng = np.random.default_rng(1)
+    first = rng.integers(100, 200, (64, 80), dtype=np.uint16)
+    view.set_frame(first)
+    levels = view.levels
+    assert levels is not None and 100 <= levels[0] < levels[1] <= 200
+    view.set_frame(first * 10)  # a much brighter frame: no flicker, the levels stay
+    assert view.levels == levels
+    view.auto_levels()
+    low, high = view.levels
+    assert low >= 1000 and high == pytest.approx(np.percentile(first * 10, 99.5), rel=0.02)
+
+
+def test_hologram_saturation_and_readout(qtbot) -> None:
+    view = HologramView()
+    qtbot.addWidget(view)
+    frame = np.zeros((10, 12), np.uint16)
+    frame[2:4, 5] = 4095
+    view.set_saturation_value(4095)
+    view.set_frame(frame)
+    assert view.saturated_count() == 2
+    assert view.overlay.image is not None and view.overlay.image[2, 5, 0] == 255
+    assert view.readout_at(5.5, 3.2) == "row 3, column 5: 4095"
+    assert view.readout_at(-1, 0).startswith("outside")
+
+
+def test_snap_to_peak_takes_the_twin_too() -> None:
+    peaks = [(0.1, 0.2), (0.3, -0.1)]
+    assert snap_to_peak((0.11, 0.19), peaks) == (0.1, 0.2)
+    assert snap_to_peak((-0.29, 0.11), peaks) == (-0.3, 0.1)
+    assert snap_to_peak((0.0, 0.4), peaks) is None
+
+
+def test_window_warnings_name_overlap_alias_and_zero_order() -> None:
+    lines = window_warnings({"RB1": (0.1, 0.1), "FB1": (0.15, 0.12)}, 0.05, {"RB2": (0.7, 0.0)})
+    text = "\n".join(lines)
+    assert "RB1 and FB1 windows overlap" in text
+    assert "predicted RB2" in text and "aliased to (-0.300" in text
+    assert window_warnings({"RB1": (0.25, 0.0)}, 0.05) == []
+    assert "zero order" in window_warnings({"RF": (0.05, 0.0)}, 0.05)[0]
+    assert "Nyquist" in window_warnings({"RF": (0.48, 0.0)}, 0.05)[0]
+
+
+def test_swallowed_neighbour() -> None:
+    assert swallowed_neighbour((0.2, 0.0), 0.05, [(0.3, 0.0)]) is None
+    assert swallowed_neighbour((0.2, 0.0), 0.15, [(0.3, 0.0)]) == (0.3, 0.0)
+
+
+def _spectrum_view(qtbot) -> tuple[SpectrumView, list]:
+    view = SpectrumView()
+    qtbot.addWidget(view)
+    view.set_spectrum(np.random.default_rng(0).random((64, 64)).astype(np.float32))
+    view.set_peaks([(0.2, 0.1), (-0.1, 0.25)])
+    events: list = []
+    view.peakLabelled.connect(lambda *a: events.append(("label", *a)))
+    view.labelCleared.connect(lambda a: events.append(("clear", a)))
+    view.message.connect(lambda m: events.append(("message", m)))
+    view.radiusChanged.connect(lambda r: events.append(("radius", r)))
+    return view, events
+
+
+def test_click_near_peak_snaps_and_labels(qtbot) -> None:
+    view, events = _spectrum_view(qtbot)
+    offered = []
+    view.choose_label = lambda carrier, current: offered.append(carrier) or "RB1"
+    view.click_at(0.21, 0.09)
+    assert offered == [(0.2, 0.1)]
+    assert events == [("label", "RB1", 0.2, 0.1)]
+
+
+def test_click_with_no_peak_says_so(qtbot) -> None:
+    view, events = _spectrum_view(qtbot)
+    view.choose_label = lambda carrier, current: pytest.fail("no menu without a peak")
+    view.click_at(0.45, -0.45)
+    assert len(events) == 1 and events[0][0] == "message" and "no peak near" in events[0][1]
+
+
+def test_clear_label_from_the_menu(qtbot) -> None:
+    view, events = _spectrum_view(qtbot)
+    view.set_model({"FB1": (0.2, 0.1)}, {}, 0.05)
+    view.choose_label = lambda carrier, current: CLEAR if current == "FB1" else None
+    view.click_at(0.2, 0.1)
+    assert events == [("clear", "FB1")]
+
+
+def test_model_draws_windows_predictions_and_warnings(qtbot) -> None:
+    view, _ = _spectrum_view(qtbot)
+    view.set_model({"RB1": (0.2, 0.1), "FB1": (-0.1, 0.25)}, {"RF": (0.3, -0.15)}, 0.04)
+    assert set(view._circles) == {"RB1", "FB1"}
+    centre = view._circles["RB1"].pos() + view._circles["RB1"].size() / 2
+    assert (centre.x(), centre.y()) == pytest.approx((0.2, 0.1))
+    assert len(view.predicted_markers.data) == 1
+    assert view.warnings == []
+    view.set_model({"RB1": (0.2, 0.1), "FB1": (0.22, 0.12)}, {"RB2": (0.6, 0.0)}, 0.04)
+    assert any("overlap" in w for w in view.warnings)
+    assert any("aliased" in w for w in view.warnings)
+
+
+def test_radius_that_swallows_a_neighbour_is_refused(qtbot) -> None:
+    view, events = _spectrum_view(qtbot)
+    view.set_model({"RB1": (0.2, 0.1)}, {}, 0.04)
+    distance = math.dist((0.2, 0.1), (-0.1, 0.25))
+    assert not view.request_radius("RB1", distance + 0.01)
+    assert view.radius == 0.04
+    assert events[-1][0] == "message" and "swallow" in events[-1][1]
+    assert view.request_radius("RB1", 0.06)
+    assert view.radius == 0.06 and events[-1] == ("radius", 0.06)
+
+
+def test_dragging_a_circle_requests_the_radius(qtbot) -> None:
+    view, events = _spectrum_view(qtbot)
+    view.set_model({"RB1": (0.2, 0.1)}, {}, 0.04)
+    circle = view._circles["RB1"]
+    circle.setSize([0.1, 0.1], center=(0.5, 0.5), finish=True)
+    assert events[-1] == ("radius", pytest.approx(0.05))
+
+
+def test_sample_line_on_maps_of_different_shapes() -> None:
+    small = np.arange(16, dtype=float).reshape(4, 4)
+    big = np.kron(small, np.ones((2, 2)))
+    line = ((0.0, 0.5), (0.99, 0.5))
+    assert np.array_equal(sample_line(small, *line, 4), small[2])
+    assert np.array_equal(sample_line(big, *line, 8)[::2], small[2])
+
+
+def test_surface_maps_in_nm_profiles_and_cyclic_phase(qtbot) -> None:
+    view = SurfaceView()
+    qtbot.addWidget(view)
+    x = np.linspace(-1, 1, 48)
+    bump = np.exp(-(x[None, :] ** 2 + x[:, None] ** 2) * 4) * 30e-9
+    heights = {"RB1": bump, "FB1": bump * 0.9}
+    view.set_maps(heights, fused_m=bump * 0.95)
+    assert view.names == ["RB1", "FB1", FUSED]
+    assert view.map_data("RB1").max() == pytest.approx(bump.max() * 1e9, rel=1e-5)
+    curves = view.profile_curves()
+    assert set(curves) == {"RB1", "FB1", FUSED}
+    _, rb1 = curves["RB1"]
+    assert rb1.max() == pytest.approx(view.map_data("RB1")[24].max(), rel=0.05)
+    assert rb1.max() > 25 and rb1[0] < 5  # a diameter across the bump
+    view.mode_box.setCurrentIndex(1)
+    view.set_maps(heights, bump, phases_rad={"RB1": bump * 1e8, "FB1": bump * 1e8})
+    assert view.mode == "phase"
+    assert tuple(view.images["RB1"].levels) == pytest.approx((-np.pi, np.pi))
+    assert view.colour_bar.colorMap().name == "CET-C6"
+
+
+def test_trends_show_rate_in_um_per_min(qtbot) -> None:
+    view = TrendsView()
+    qtbot.addWidget(view)
+    t = np.arange(10.0)
+    view.set_series(t, {"RB1": -t * 1e-8, FUSED: -t * 1e-8})
+    assert set(view.curves) == {"RB1", FUSED}
+    assert view.curves["RB1"].yData[-1] == pytest.approx(-90.0)
+    view.set_rate(-1.36e-8, 2e-11, ([0, 9], [0, -1.2e-7]))
+    assert format_rate(-1.36e-8, 2e-11) in view.rate_label.text()
+    assert format_rate(-1.36e-8, 2e-11) == "-0.816 ± 0.001 µm/min"
+    view.set_pca(0.9994, {"RB1": 0.333})
+    assert "99.94 %" in view.pca_label.text()
+
+
+def test_rate_meter() -> None:
+    meter = RateMeter(window_s=1.0)
+    for i in range(31):
+        meter.tick(now=i / 30)
+    assert meter.rate(now=1.0) == pytest.approx(30.0, rel=0.05)
+    assert meter.rate(now=5.0) == 0.0
