@@ -1,0 +1,420 @@
+"""Frame files a replay source plays: holoview recordings, TIFF stacks, image folders, videos.
+
+:func:`open_frame_file` picks the reader by what the path is: a folder (``*.tif``,
+``*.tiff``, ``*.png`` in natural order), ``.h5``/``.hdf5`` (a holoview recording),
+``.tif``/``.tiff`` (a multi-page stack), or a video (``.avi``, ``.mkv``, ``.mp4``,
+``.mov``; FFV1, also 16-bit grey, and MJPG through OpenCV's FFmpeg backend).
+Every reader checks at open what can be checked without decoding every frame: a
+TIFF whose pages run past the end of the file, pages or images of different sizes,
+a recording without frames, a video OpenCV cannot decode, each is a one-line
+:class:`~holoview.errors.InputError`. Colour images and videos are converted to
+grey with OpenCV's luma weights; grey values stay raw (16-bit stays 16-bit).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import re
+import struct
+from abc import ABC, abstractmethod
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from holoview.acquire.recording import RecordingReader
+from holoview.acquire.source import CameraNotFoundError
+from holoview.errors import InputError
+
+logger = logging.getLogger(__name__)
+
+VIDEO_SUFFIXES = (".avi", ".mkv", ".mp4", ".mov")
+IMAGE_SUFFIXES = (".tif", ".tiff", ".png")
+HDF5_SUFFIXES = (".h5", ".hdf5")
+
+
+class FrameFile(ABC):
+    """A finite sequence of frames of one shape and dtype, read by index.
+
+    Attributes
+    ----------
+    path : Path
+        The file or folder.
+    kind : str
+        ``"hdf5"``, ``"tiff"``, ``"folder"`` or ``"video"``.
+    frame_shape : tuple of int
+        ``(rows, cols)``, pixels.
+    dtype : numpy dtype
+        The frames' dtype.
+    rate_hz : float or None
+        The file's own frame rate, frames per second, where it has one.
+    pixel_format : str
+        GenICam name of the values (``Mono8``/``Mono16`` unless the file says more).
+    setup : dict
+        The optical setup stored in the file (holoview recordings), else empty.
+    """
+
+    kind = ""
+
+    def __init__(self, path: Path) -> None:
+        self.path = path
+        self.rate_hz: float | None = None
+        self.setup: dict[str, Any] = {}
+        self.frame_shape: tuple[int, int] = (0, 0)
+        self.dtype = np.dtype(np.uint16)
+        self.pixel_format = ""
+
+    def _set_format(self, shape: tuple[int, ...], dtype: np.dtype) -> None:
+        self.frame_shape = (int(shape[0]), int(shape[1]))
+        self.dtype = np.dtype(dtype)
+        if not self.pixel_format:
+            self.pixel_format = {1: "Mono8", 2: "Mono16"}.get(self.dtype.itemsize, "")
+
+    @abstractmethod
+    def __len__(self) -> int:
+        """Number of frames."""
+
+    @abstractmethod
+    def read(self, index: int) -> np.ndarray:
+        """Return frame ``index`` as a new ``(rows, cols)`` array; InputError if unreadable."""
+
+    def frame_id(self, index: int) -> int:
+        """The frame id stored for frame ``index`` (its index where the file has none)."""
+        return index
+
+    def t_device(self, index: int) -> float:
+        """The device timestamp of frame ``index``, seconds (NaN where the file has none)."""
+        return math.nan
+
+    def refresh(self) -> int:
+        """See frames appended since opening (live recordings); return the frame count."""
+        return len(self)
+
+    def close(self) -> None:  # noqa: B027 (most files need nothing)
+        """Release the file."""
+
+
+def _natural_key(path: Path) -> list[object]:
+    return [int(part) if part.isdigit() else part.lower() for part in re.split(r"(\d+)", path.name)]
+
+
+def _grey(image: np.ndarray, where: str) -> np.ndarray:
+    """Return a 2-D grey image: colour (BGR or BGRA) converted with OpenCV's luma weights."""
+    if image.ndim == 2:
+        return image
+    import cv2
+
+    if image.ndim == 3 and image.shape[2] in (3, 4):
+        code = cv2.COLOR_BGR2GRAY if image.shape[2] == 3 else cv2.COLOR_BGRA2GRAY
+        return cv2.cvtColor(image, code)
+    if image.ndim == 3 and image.shape[2] == 1:
+        return image[:, :, 0]
+    raise InputError(f"{where}: images of shape {image.shape} are not supported (grey or colour)")
+
+
+class HDF5File(FrameFile):
+    """A holoview recording (see :mod:`holoview.acquire.recording`)."""
+
+    kind = "hdf5"
+
+    def __init__(self, path: Path) -> None:
+        super().__init__(path)
+        self._reader = RecordingReader(path)
+        if len(self._reader) == 0 and self._reader.refresh() == 0:
+            self._reader.close()
+            raise InputError(f"{path}: the recording holds no frames")
+        self.pixel_format = self._reader.pixel_format
+        self._set_format(self._reader.frame_shape, self._reader.dtype)
+        self.setup = dict(self._reader.setup)
+        self._load_index()
+
+    def _load_index(self) -> None:
+        self._ids = self._reader.frame_ids
+        t_device = self._reader.t_device
+        t_host = self._reader.t_host
+        usable = np.isfinite(t_device).all() and (np.diff(t_device) > 0).all()
+        self._times = t_device if usable else t_host
+        self.rate_hz = self._reader.fps if math.isfinite(self._reader.fps) else None
+        self._t_device = t_device
+
+    def __len__(self) -> int:
+        return len(self._reader)
+
+    def read(self, index: int) -> np.ndarray:
+        try:
+            return self._reader.frame(index)
+        except OSError as exc:
+            raise InputError(f"{self.path}: frame {index} is unreadable ({exc})") from exc
+
+    def frame_id(self, index: int) -> int:
+        return int(self._ids[index])
+
+    def t_device(self, index: int) -> float:
+        return float(self._t_device[index])
+
+    def interval_s(self, index: int) -> float | None:
+        """Recorded time between frame ``index - 1`` and ``index``, seconds, where known."""
+        if index <= 0 or index >= len(self._times):
+            return None
+        dt = float(self._times[index] - self._times[index - 1])
+        return dt if math.isfinite(dt) and dt >= 0 else None
+
+    def refresh(self) -> int:
+        before = len(self._reader)
+        if self._reader.refresh() != before:
+            self._load_index()
+        return len(self._reader)
+
+    def close(self) -> None:
+        self._reader.close()
+
+
+class TiffStack(FrameFile):
+    """A multi-page TIFF, one frame per page (or a single-page TIFF: one frame)."""
+
+    kind = "tiff"
+
+    def __init__(self, path: Path) -> None:
+        super().__init__(path)
+        import tifffile
+
+        size = path.stat().st_size
+        try:
+            self._tif = tifffile.TiffFile(path)
+        except (tifffile.TiffFileError, ValueError, OSError, struct.error) as exc:
+            raise InputError(f"{path}: not a readable TIFF ({exc})") from exc
+        try:
+            try:
+                pages = list(self._tif.pages)
+            except (tifffile.TiffFileError, ValueError, OSError, struct.error) as exc:
+                raise InputError(f"{path}: not a readable TIFF ({exc})") from exc
+            if not pages:
+                raise InputError(f"{path}: the TIFF holds no images")
+            first = pages[0]
+            declared = self._tif.series[0].shape if self._tif.series else ()
+            if first.ndim == 2 and len(declared) == 3 and declared[0] > len(pages):
+                raise InputError(
+                    f"{path}: truncated TIFF: it declares {declared[0]} frames, "
+                    f"the file holds {len(pages)}"
+                )
+            for i, page in enumerate(pages):
+                if page.shape != first.shape or page.dtype != first.dtype:
+                    raise InputError(
+                        f"{path}: page {i} is {page.shape} {page.dtype}, page 0 is "
+                        f"{first.shape} {first.dtype}: pages of mixed sizes"
+                    )
+                end = max(
+                    (o + c for o, c in zip(page.dataoffsets, page.databytecounts, strict=False)),
+                    default=0,
+                )
+                if end > size:
+                    raise InputError(
+                        f"{path}: truncated TIFF: page {i} ends at byte {end}, the file has {size}"
+                    )
+            if first.dtype is None or np.dtype(first.dtype).kind not in "uif":
+                raise InputError(f"{path}: TIFF pixels of type {first.dtype} are not supported")
+            self._pages = pages
+            sample = self.read(0)
+        except BaseException:
+            self._tif.close()
+            raise
+        self._set_format(sample.shape, sample.dtype)
+
+    def __len__(self) -> int:
+        return len(self._pages)
+
+    def read(self, index: int) -> np.ndarray:
+        import tifffile
+
+        try:
+            image = self._pages[index].asarray()
+        except (tifffile.TiffFileError, ValueError, OSError) as exc:
+            raise InputError(f"{self.path}: page {index} is unreadable ({exc})") from exc
+        if image.ndim == 3 and image.shape[2] in (3, 4):
+            image = np.ascontiguousarray(image[:, :, 2::-1])  # RGB to BGR for _grey
+        return np.array(_grey(image, str(self.path)), copy=True)
+
+    def close(self) -> None:
+        self._tif.close()
+
+
+def _png_header(path: Path) -> tuple[tuple[int, int], int, int]:
+    """Return ``((rows, cols), bit_depth, colour_type)`` from a PNG's IHDR chunk."""
+    with open(path, "rb") as f:
+        head = f.read(29)
+    if len(head) < 29 or head[:8] != b"\x89PNG\r\n\x1a\n" or head[12:16] != b"IHDR":
+        raise InputError(f"{path}: not a PNG image")
+    width, height, depth, colour = struct.unpack(">IIBB", head[16:26])
+    return (height, width), depth, colour
+
+
+def _image_format(path: Path) -> tuple[tuple[int, int], str]:
+    """Return ``((rows, cols), dtype name)`` of one image file without decoding it."""
+    if path.suffix.lower() == ".png":
+        shape, depth, _ = _png_header(path)
+        return shape, "uint16" if depth == 16 else "uint8"
+    import tifffile
+
+    try:
+        with tifffile.TiffFile(path) as tif:
+            page = tif.pages[0]
+            return (int(page.shape[0]), int(page.shape[1])), str(page.dtype)
+    except (tifffile.TiffFileError, ValueError, OSError, IndexError, struct.error) as exc:
+        raise InputError(f"{path}: not a readable TIFF ({exc})") from exc
+
+
+class ImageFolder(FrameFile):
+    """A folder of TIFF and PNG images of one size, played in natural name order."""
+
+    kind = "folder"
+
+    def __init__(self, path: Path) -> None:
+        super().__init__(path)
+        files = sorted(
+            (p for p in path.iterdir() if p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES),
+            key=_natural_key,
+        )
+        if not files:
+            raise InputError(f"{path}: the folder holds no TIFF or PNG images")
+        first_shape, first_dtype = _image_format(files[0])
+        for f in files[1:]:
+            shape, dtype = _image_format(f)
+            if (shape, dtype) != (first_shape, first_dtype):
+                raise InputError(
+                    f"{path}: images of mixed sizes: {f.name} is {shape} {dtype}, "
+                    f"{files[0].name} is {first_shape} {first_dtype}"
+                )
+        self._files = files
+        sample = self.read(0)
+        self._set_format(sample.shape, sample.dtype)
+
+    def __len__(self) -> int:
+        return len(self._files)
+
+    def read(self, index: int) -> np.ndarray:
+        path = self._files[index]
+        if path.suffix.lower() == ".png":
+            import cv2
+
+            image = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+            if image is None:
+                raise InputError(f"{path}: the image is unreadable")
+        else:
+            import tifffile
+
+            try:
+                image = tifffile.imread(path, key=0)
+            except (tifffile.TiffFileError, ValueError, OSError) as exc:
+                raise InputError(f"{path}: the image is unreadable ({exc})") from exc
+            if image.ndim == 3 and image.shape[2] in (3, 4):
+                image = np.ascontiguousarray(image[:, :, 2::-1])
+        image = _grey(image, str(path))
+        if self.frame_shape not in ((0, 0), image.shape):
+            raise InputError(f"{path}: the image is {image.shape}, the others {self.frame_shape}")
+        return np.array(image, copy=True)
+
+
+class VideoFile(FrameFile):
+    """A video file decoded by OpenCV's FFmpeg backend (FFV1 grey 8/16-bit kept raw)."""
+
+    kind = "video"
+
+    def __init__(self, path: Path) -> None:
+        super().__init__(path)
+        import cv2
+
+        self._cv2 = cv2
+        self._raw = True
+        self._capture = self._open_capture(raw=True)
+        ok, frame = self._capture.read()
+        if ok and frame is not None and frame.ndim != 2:
+            self._capture.release()
+            self._raw = False
+            self._capture = self._open_capture(raw=False)
+            ok, frame = self._capture.read()
+        if not ok or frame is None:
+            self._capture.release()
+            raise InputError(f"{path}: the video holds no frame OpenCV can decode")
+        frame = self._convert(frame)
+        self._set_format(frame.shape, frame.dtype)
+        self._position = 1
+        count = int(self._capture.get(cv2.CAP_PROP_FRAME_COUNT))
+        self._count = count if count > 0 else self._count_by_reading()
+        fps = float(self._capture.get(cv2.CAP_PROP_FPS))
+        self.rate_hz = fps if math.isfinite(fps) and fps > 0 else None
+
+    def _open_capture(self, *, raw: bool) -> Any:
+        cv2 = self._cv2
+        capture = cv2.VideoCapture(str(self.path), cv2.CAP_FFMPEG)
+        if not capture.isOpened():
+            capture.release()
+            raise InputError(
+                f"{self.path}: OpenCV cannot open the video (unknown codec or damaged)"
+            )
+        if raw and not capture.set(cv2.CAP_PROP_CONVERT_RGB, 0):
+            logger.debug("%s: the backend ignores CONVERT_RGB=0", self.path)
+        return capture
+
+    def _convert(self, frame: np.ndarray) -> np.ndarray:
+        return np.ascontiguousarray(_grey(frame, str(self.path)))
+
+    def _count_by_reading(self) -> int:
+        n = 1
+        while self._capture.grab():
+            n += 1
+        self._seek(0)
+        return n
+
+    def _seek(self, index: int) -> None:
+        self._capture.set(self._cv2.CAP_PROP_POS_FRAMES, index)
+        self._position = index
+
+    def __len__(self) -> int:
+        return self._count
+
+    def read(self, index: int) -> np.ndarray:
+        if index != self._position:
+            self._seek(index)
+        ok, frame = self._capture.read()
+        if not ok or frame is None:
+            raise InputError(f"{self.path}: frame {index} cannot be decoded")
+        self._position = index + 1
+        frame = self._convert(frame)
+        if frame.shape != self.frame_shape or frame.dtype != self.dtype:
+            raise InputError(f"{self.path}: frame {index} is {frame.shape} {frame.dtype}")
+        return frame
+
+    def t_device(self, index: int) -> float:
+        return index / self.rate_hz if self.rate_hz else math.nan
+
+    def close(self) -> None:
+        self._capture.release()
+
+
+def open_frame_file(path: str | Path) -> FrameFile:
+    """Open the frame file or folder at ``path`` with the reader its kind needs.
+
+    Raises
+    ------
+    CameraNotFoundError
+        Nothing is at ``path``.
+    InputError
+        The file is of an unknown kind, damaged, truncated, empty, or of mixed sizes.
+    """
+    p = Path(path).expanduser()
+    if not p.exists():
+        raise CameraNotFoundError(f"replay: {p}: no such file or folder")
+    if p.is_dir():
+        return ImageFolder(p)
+    suffix = p.suffix.lower()
+    if suffix in HDF5_SUFFIXES:
+        return HDF5File(p)
+    if suffix in (".tif", ".tiff"):
+        return TiffStack(p)
+    if suffix in VIDEO_SUFFIXES:
+        return VideoFile(p)
+    known = ", ".join((*HDF5_SUFFIXES, ".tif", ".tiff", *VIDEO_SUFFIXES))
+    raise InputError(
+        f"replay: {p}: unknown file type {suffix or '(none)'} (known: {known}, folders)"
+    )
