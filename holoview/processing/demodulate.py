@@ -1,0 +1,637 @@
+"""Fourier demodulation of every labelled carrier, frame after frame (paper section 3).
+
+:class:`Demodulator` takes one real FFT of each frame (pyFFTW, planned once per
+shape), and per peak cuts a small box out of the half spectrum with the carrier
+moved to the origin and the window applied in the same step, then takes an
+inverse FFT of the box only. The complex field per peak therefore comes at the
+box resolution (pixel ``(p, q)`` at frame position ``(p rows / by, q cols / bx)``);
+:meth:`Demodulator.upsample` brings any map to the frame grid.
+
+Conventions (DESIGN.md):
+
+- the field is in counts: ``|field| = Y0 A`` for a fringe term ``Y0 A exp(i phi)``,
+  demodulated at the FFT bin nearest the carrier (a residual sub-bin tilt remains
+  in it; the synthetic reference removes it);
+- phases are ``current - reference`` in rad: ``synthetic`` against the plane wave
+  at the sub-bin carrier, ``absolute`` against the first frame after construction
+  or :meth:`~Demodulator.reset_reference`, ``relative`` against the previous frame;
+- ``delta_h = phase wavelength / (4 pi alpha)`` in metres for peaks with alpha.
+
+The demodulator keeps state (references, plans, buffers): use it from one thread
+at a time. It creates no thread; FFTW may use ``threads`` internally.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Sequence
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+import pyfftw
+
+from holoview.errors import InputError
+from holoview.processing.fftplans import default_threads, fft_friendly, ifft2_plan, rfft2_plan
+from holoview.processing.frames import MIN_SIDE
+from holoview.processing.peaks import MIN_RADIUS_BINS, Peak
+from holoview.processing.resample import box_positions, resample_mask, upsample
+from holoview.processing.unwrap import TWO_PI, has_wraps, unwrap_spatial
+from holoview.processing.windows import (
+    DEFAULT_TAPER,
+    auto_radius,
+    check_kind,
+    radial_window,
+    wrap_frequency,
+)
+
+logger = logging.getLogger(__name__)
+
+REFERENCE_MODES: tuple[str, ...] = ("synthetic", "absolute", "relative")
+UNWRAP_MODES: tuple[str, ...] = ("auto", "always", "never")
+
+#: A mean-phase step per frame (rad) beyond which a peak is flagged ``"phase_step"``.
+PHASE_STEP_LIMIT = 0.8 * np.pi
+
+#: A peak with fewer trusted pixels than this fraction is flagged ``"low_amplitude"``.
+MIN_VALID_FRACTION = 0.5
+
+
+@dataclass(frozen=True)
+class PeakResult:
+    """What one frame gives for one peak (maps at box resolution).
+
+    Attributes
+    ----------
+    peak : Peak
+        The peak demodulated.
+    field : ndarray of complex64, shape (by, bx)
+        Complex field (counts), carrier removed to the nearest FFT bin.
+    phase : ndarray of float32, shape (by, bx)
+        Phase against the reference (rad); unwrapped when ``unwrapped``.
+    delta_h : ndarray of float32 or None
+        Height change (m), when the peak has alpha and a wavelength was given.
+    carrier_value : complex
+        The field's mean against the sub-bin plane wave (counts): the spectrum at
+        the carrier alone, whose phase is the spatially averaged phase.
+    mean_phase : float
+        Phase of ``carrier_value`` against the reference (rad, wrapped).
+    mean_phase_unwrapped : float
+        Mean phase unwrapped in time since the reference was set (rad); in
+        relative mode the running sum of the steps, in synthetic mode it starts
+        at the first frame's wrapped value.
+    mask : ndarray of bool, shape (by, bx)
+        Trusted pixels: inside the aperture, amplitude high enough.
+    noise : float
+        Phase noise per pixel (rad), estimated from neighbour differences.
+    noise_height : float or None
+        ``noise`` converted to height (m) like ``delta_h``.
+    unwrapped : bool
+        Whether spatial unwrapping ran on this map.
+    flags : frozenset of str
+        ``"reference"`` (this frame became the reference; phase zero),
+        ``"phase_step"`` (mean phase moved more than :data:`PHASE_STEP_LIMIT`
+        since the previous frame), ``"low_amplitude"`` (few trusted pixels),
+        ``"overlap"`` (window wider than half the distance to another peak).
+    """
+
+    peak: Peak
+    field: np.ndarray
+    phase: np.ndarray
+    delta_h: np.ndarray | None
+    carrier_value: complex
+    mean_phase: float
+    mean_phase_unwrapped: float
+    mask: np.ndarray
+    noise: float
+    noise_height: float | None
+    unwrapped: bool
+    flags: frozenset[str]
+
+
+@dataclass(frozen=True)
+class DemodResult:
+    """Everything one frame gives.
+
+    Attributes
+    ----------
+    index : int
+        Frames processed since construction or the last reference reset (from 0).
+    reference : str
+        The reference mode.
+    mean_counts : float
+        Mean pixel value of the frame (counts).
+    frame_shape, box_shape : tuple of int
+        ``(rows, cols)`` of the frame and of every per-peak map.
+    radius : float
+        Window radius used (cycles/pixel).
+    peaks : tuple of PeakResult
+        One per peak, in the demodulator's order; empty for a flagged frame.
+    flags : frozenset of str
+        Frame-level problems: ``"nonfinite"`` (NaN or infinite pixels: nothing
+        demodulated, reference untouched), ``"no_signal"`` (no trusted pixel in
+        any peak: constant, black or saturated frame), ``"saturated"`` (pixels at
+        the saturation level, when one was given), ``"reference"``.
+    """
+
+    index: int
+    reference: str
+    mean_counts: float
+    frame_shape: tuple[int, int]
+    box_shape: tuple[int, int]
+    radius: float
+    peaks: tuple[PeakResult, ...]
+    flags: frozenset[str]
+
+    def by_label(self, label: str) -> PeakResult:
+        """Return the result of the peak named ``label``."""
+        for result in self.peaks:
+            if result.peak.label == label:
+                return result
+        raise KeyError(label)
+
+
+@dataclass(frozen=True)
+class _Geometry:
+    """Where a peak's box comes from in the half spectrum, and its window."""
+
+    index: np.ndarray  # flat indices into the half spectrum, box layout
+    conjugate: np.ndarray | None  # bool per box bin, or None when no bin needs conjugating
+    all_conjugate: bool
+    window: np.ndarray  # float32, scaled so the field comes out in counts
+    ramp_conj: np.ndarray  # complex64 unit modulus: the sub-bin plane wave, conjugated
+    noise_gain: float  # variance of a second difference along a row over the noise variance
+    area_fraction: float
+
+
+def _readonly(array: np.ndarray) -> np.ndarray:
+    array.setflags(write=False)
+    return array
+
+
+@lru_cache(maxsize=256)
+def _geometry(
+    frame_shape: tuple[int, int],
+    box_shape: tuple[int, int],
+    *,
+    carrier: tuple[float, float],
+    kind: str,
+    radius: float,
+    taper: float,
+) -> _Geometry:
+    rows, cols = frame_shape
+    by, bx = box_shape
+    fx, fy = carrier
+    k0y, k0x = round(fy * rows), round(fx * cols)
+    dy = np.fft.fftfreq(by, 1.0 / by).round().astype(np.int64)
+    dx = np.fft.fftfreq(bx, 1.0 / bx).round().astype(np.int64)
+    ky = (k0y + dy) % rows
+    kx = (k0x + dx) % cols
+    half_cols = cols // 2 + 1
+    direct_x = kx <= cols // 2
+    src_rows = np.where(direct_x[None, :], ky[:, None], (-ky[:, None]) % rows)
+    src_cols = np.where(direct_x, kx, (cols - kx) % cols)[None, :]
+    index = (src_rows * half_cols + src_cols).astype(np.intp).ravel()
+    conjugate = np.broadcast_to(~direct_x[None, :], (by, bx)).ravel()
+    freq_y = wrap_frequency((k0y + dy) / rows - fy)
+    freq_x = wrap_frequency((k0x + dx) / cols - fx)
+    rho = np.hypot(freq_y[:, None], freq_x[None, :])
+    w = radial_window(kind, rho, radius, taper=taper)
+    area = float(np.sum(w * w) / (rows * cols))
+    power = w * w
+    total = power.sum()
+    rho1 = float((power * np.cos(TWO_PI * dx / bx)[None, :]).sum() / total)
+    rho2 = float((power * np.cos(2 * TWO_PI * dx / bx)[None, :]).sum() / total)
+    scale = by * bx / (rows * cols)
+    y, x = box_positions(box_shape, frame_shape)
+    sub_y = fy - k0y / rows
+    sub_x = fx - k0x / cols
+    ramp = np.exp(-1j * TWO_PI * (sub_y * y[:, None] + sub_x * x[None, :])).astype(np.complex64)
+    return _Geometry(
+        index=_readonly(index),
+        conjugate=None if not conjugate.any() or conjugate.all() else _readonly(conjugate.copy()),
+        all_conjugate=bool(conjugate.all()),
+        window=_readonly((w * scale).astype(np.float32).ravel()),
+        ramp_conj=_readonly(ramp),
+        noise_gain=max(6.0 - 8.0 * rho1 + 2.0 * rho2, 1e-6),
+        area_fraction=area,
+    )
+
+
+def box_shape_for(frame_shape: tuple[int, int], radius: float) -> tuple[int, int]:
+    """Return the FFT-friendly box shape holding a window of ``radius`` (cycles/pixel).
+
+    Each side is the smallest size with prime factors 2, 3, 5 covering the window's
+    diameter in bins plus two, or the frame's side when that is not smaller.
+    """
+    sides = []
+    for n in frame_shape:
+        need = int(np.ceil(2 * radius * n)) + 2
+        size = fft_friendly(need)
+        sides.append(n if size >= n else size)
+    return sides[0], sides[1]
+
+
+def _check_peaks(peaks: Sequence[Peak]) -> tuple[Peak, ...]:
+    out = tuple(peaks)
+    if not out:
+        raise InputError("no peaks to demodulate: give at least one")
+    for i, peak in enumerate(out):
+        if not isinstance(peak, Peak):
+            raise InputError(f"peak {i} is a {type(peak).__name__}, not a Peak")
+        fx, fy = peak.carrier
+        name = f"peak {i}" + (f" ({peak.label})" if peak.label else "")
+        if not (np.isfinite(fx) and np.isfinite(fy)):
+            raise InputError(f"{name} has a non-finite carrier {peak.carrier}")
+        if abs(fx) > 0.5 or abs(fy) > 0.5:
+            raise InputError(
+                f"{name} carrier ({fx:.4g}, {fy:.4g}) is outside the spectrum "
+                "(|fx|, |fy| <= 0.5 cycles/pixel)"
+            )
+        if peak.alpha is not None and not (np.isfinite(peak.alpha) and peak.alpha != 0):
+            raise InputError(f"{name} has alpha {peak.alpha}: it must be finite and nonzero")
+    return out
+
+
+def _names(peaks: Sequence[Peak], i: int) -> str:
+    return peaks[i].label or f"peak {i}"
+
+
+class Demodulator:
+    """Demodulate a fixed list of peaks from frame after frame of one shape.
+
+    Parameters
+    ----------
+    shape : tuple of int
+        Frame shape ``(rows, cols)`` in pixels.
+    peaks : sequence of Peak
+        The carriers to demodulate (not empty, inside the spectrum).
+    window : {"raised-cosine", "top-hat", "tukey"}
+        Spectral window (:mod:`holoview.processing.windows`).
+    radius : float, optional
+        Window radius (cycles/pixel), the same for every peak; by default
+        :func:`~holoview.processing.windows.auto_radius` of the carriers.
+    reference : {"synthetic", "absolute", "relative"}
+        Reference mode (module documentation).
+    unwrap : {"auto", "always", "never"}
+        Spatial unwrapping: ``"auto"`` runs it only when a map has wraps.
+    wavelength : float, optional
+        Laser wavelength (m), needed for ``delta_h``.
+    aperture : ndarray of bool, optional
+        Trusted region at frame resolution, shape ``shape``.
+    min_amplitude : float
+        A pixel is trusted when ``|field|`` reaches this fraction of the peak's
+        expected amplitude ``peak.amplitude * mean`` (or of the median ``|field|``
+        when the peak's amplitude is not known).
+    saturation : float, optional
+        Pixel value (counts) at which the camera saturates; frames reaching it
+        (checked on every 4th row and column) are flagged ``"saturated"``.
+    taper : float
+        Tukey window edge fraction.
+    threads : int, optional
+        FFTW threads for the frame's FFT; by default the usable CPUs (at most 4).
+
+    Raises
+    ------
+    InputError
+        For a bad shape, an empty peak list, a carrier outside the spectrum, an
+        unknown mode, or a radius so large that a window holds another carrier
+        or zero frequency.
+    """
+
+    def __init__(
+        self,
+        shape: tuple[int, int],
+        peaks: Sequence[Peak],
+        *,
+        window: str = "raised-cosine",
+        radius: float | None = None,
+        reference: str = "relative",
+        unwrap: str = "auto",
+        wavelength: float | None = None,
+        aperture: np.ndarray | None = None,
+        min_amplitude: float = 0.25,
+        saturation: float | None = None,
+        taper: float = DEFAULT_TAPER,
+        threads: int | None = None,
+    ) -> None:
+        if len(shape) != 2 or min(int(shape[0]), int(shape[1])) < MIN_SIDE:
+            raise InputError(f"frame shape must be (rows, cols), each >= {MIN_SIDE}; got {shape}")
+        self.shape: tuple[int, int] = (int(shape[0]), int(shape[1]))
+        self.peaks: tuple[Peak, ...] = _check_peaks(peaks)
+        self.window = check_kind(window)
+        if reference not in REFERENCE_MODES:
+            raise InputError(
+                f"unknown reference {reference!r}; choose one of {', '.join(REFERENCE_MODES)}"
+            )
+        if unwrap not in UNWRAP_MODES:
+            raise InputError(
+                f"unknown unwrap mode {unwrap!r}; choose one of {', '.join(UNWRAP_MODES)}"
+            )
+        if wavelength is not None and not (np.isfinite(wavelength) and wavelength > 0):
+            raise InputError(f"wavelength must be > 0 metres, got {wavelength}")
+        if not 0 <= min_amplitude < 1:
+            raise InputError(f"min_amplitude must be in [0, 1), got {min_amplitude}")
+        self.reference = reference
+        self.unwrap = unwrap
+        self.wavelength = wavelength
+        self.min_amplitude = float(min_amplitude)
+        self.saturation = saturation
+        self.taper = float(taper)
+        self.threads = int(threads) if threads else default_threads()
+        carriers = np.array([p.carrier for p in self.peaks], dtype=np.float64)
+        self.radius = float(
+            auto_radius(carriers, min_radius=MIN_RADIUS_BINS / min(self.shape))
+            if radius is None
+            else radius
+        )
+        self._overlapping = self._check_radius(carriers)
+        self.box_shape = box_shape_for(self.shape, self.radius)
+        self._geometry = [
+            _geometry(
+                self.shape,
+                self.box_shape,
+                carrier=(float(p.carrier[0]), float(p.carrier[1])),
+                kind=window,
+                radius=self.radius,
+                taper=self.taper,
+            )
+            for p in self.peaks
+        ]
+        self._aperture_box: np.ndarray | None = None
+        if aperture is not None:
+            ap = np.asarray(aperture, dtype=bool)
+            if ap.shape != self.shape:
+                raise InputError(f"aperture mask has shape {ap.shape}, frames have {self.shape}")
+            self._aperture_box = resample_mask(ap, self.box_shape)
+        self.reset_reference()
+
+    def _check_radius(self, carriers: np.ndarray) -> set[int]:
+        """Raise when a window holds another carrier or zero frequency; return overlapping peaks."""
+        r = self.radius
+        if not (np.isfinite(r) and r > 0):
+            raise InputError(f"window radius must be > 0 cycles/pixel, got {r}")
+        overlapping = set()
+        n = len(carriers)
+        for i in range(n):
+            to_dc = float(np.hypot(*wrap_frequency(carriers[i])))
+            if r >= to_dc:
+                raise InputError(
+                    f"window radius {r:.4g} cycles/pixel reaches zero frequency from "
+                    f"{_names(self.peaks, i)} (|f| = {to_dc:.4g}); use a smaller radius"
+                )
+            for j in range(n):
+                for sign, what in ((1, ""), (-1, "the twin of ")):
+                    if j == i and sign == 1:
+                        continue
+                    d = float(np.hypot(*wrap_frequency(carriers[i] - sign * carriers[j])))
+                    if r >= d:
+                        raise InputError(
+                            f"window radius {r:.4g} cycles/pixel is larger than the spacing "
+                            f"{d:.4g} between {_names(self.peaks, i)} and "
+                            f"{what}{_names(self.peaks, j)}; use a smaller radius"
+                        )
+                    if 2 * r > d:
+                        overlapping.add(i)
+        return overlapping
+
+    # -- state -----------------------------------------------------------------------------
+
+    def reset_reference(self) -> None:
+        """Forget the reference frame and the running mean phases; the next frame starts over."""
+        n = len(self.peaks)
+        self._index = 0
+        self._ref_conj: list[np.ndarray | None] = [None] * n
+        self._prev_value: list[complex | None] = [None] * n
+        self._ref_value: list[complex | None] = [None] * n
+        self._unwrapped_mean = [0.0] * n
+
+    def with_peaks(self, peaks: Sequence[Peak], **changes: object) -> Demodulator:
+        """Return a demodulator for other peaks (and optionally other settings), same frames.
+
+        Windows and FFT plans are cached by shape and parameters, so this is cheap
+        when the GUI relabels or moves peaks. The radius is recomputed from the new
+        carriers unless given in ``changes``; references start over.
+        """
+        settings: dict[str, object] = {
+            "window": self.window,
+            "reference": self.reference,
+            "unwrap": self.unwrap,
+            "wavelength": self.wavelength,
+            "min_amplitude": self.min_amplitude,
+            "saturation": self.saturation,
+            "taper": self.taper,
+            "threads": self.threads,
+        }
+        settings.update(changes)
+        new = Demodulator(self.shape, peaks, **settings)  # type: ignore[arg-type]
+        if "aperture" not in changes and self._aperture_box is not None:
+            new._aperture_box = resample_mask(self._aperture_box, new.box_shape)
+        return new
+
+    def area_fraction(self, i: int) -> float:
+        """Return peak ``i``'s window area fraction ``sum |W|^2 / (rows cols)`` (DESIGN.md)."""
+        return self._geometry[i].area_fraction
+
+    def upsample(self, box_map: np.ndarray) -> np.ndarray:
+        """Return a box-resolution map (field, unwrapped phase, delta-h) on the frame grid."""
+        array = np.asarray(box_map)
+        if array.shape != self.box_shape:
+            raise InputError(
+                f"map of shape {array.shape} is not at box resolution {self.box_shape}"
+            )
+        return upsample(array, self.shape)
+
+    # -- processing ------------------------------------------------------------------------
+
+    def _check(self, frame: np.ndarray) -> np.ndarray:
+        array = np.asarray(frame)
+        if array.ndim != 2:
+            raise InputError(f"frame must be 2-D (rows, cols), got shape {array.shape}")
+        if array.shape != self.shape:
+            raise InputError(
+                f"frame has shape {array.shape}; this demodulator expects {self.shape}"
+            )
+        if array.dtype.kind not in "uif":
+            raise InputError(
+                f"frame has dtype {array.dtype}: expected integer or real pixel values"
+            )
+        return array
+
+    def _flagged(self, flags: set[str], mean: float) -> DemodResult:
+        return DemodResult(
+            index=self._index,
+            reference=self.reference,
+            mean_counts=mean,
+            frame_shape=self.shape,
+            box_shape=self.box_shape,
+            radius=self.radius,
+            peaks=(),
+            flags=frozenset(flags),
+        )
+
+    def process(self, frame: np.ndarray) -> DemodResult:
+        """Demodulate one frame (never modified) and advance the reference.
+
+        Returns
+        -------
+        DemodResult
+            A result with no peak results and the ``"nonfinite"`` flag for a frame
+            holding NaN or infinity (the reference is then left as it was).
+
+        Raises
+        ------
+        InputError
+            For a frame of another shape, not 2-D, or not of real numbers.
+        """
+        array = self._check(frame)
+        rows, cols = self.shape
+        plan = rfft2_plan(self.shape, threads=self.threads)
+        np.copyto(plan.input_array, array, casting="unsafe")
+        plan()
+        half = plan.output_array
+        dc = float(half[0, 0].real)
+        if not np.isfinite(dc):
+            return self._flagged({"nonfinite"}, float("nan"))
+        mean = dc / (rows * cols)
+        frame_flags: set[str] = set()
+        if self.saturation is not None and (array[::4, ::4] >= self.saturation).any():
+            frame_flags.add("saturated")
+        flat = half.reshape(-1)
+        box_plan = ifft2_plan(self.box_shape, threads=1)
+        results = []
+        for i, peak in enumerate(self.peaks):
+            results.append(self._peak(i, peak, flat, box_plan, mean))
+        if all(not r.mask.any() for r in results):
+            frame_flags.add("no_signal")
+        if any("reference" in r.flags for r in results):
+            frame_flags.add("reference")
+        result = DemodResult(
+            index=self._index,
+            reference=self.reference,
+            mean_counts=mean,
+            frame_shape=self.shape,
+            box_shape=self.box_shape,
+            radius=self.radius,
+            peaks=tuple(results),
+            flags=frozenset(frame_flags),
+        )
+        self._index += 1
+        return result
+
+    def _peak(
+        self, i: int, peak: Peak, flat: np.ndarray, box_plan: pyfftw.FFTW, mean: float
+    ) -> PeakResult:
+        geo = self._geometry[i]
+        box = box_plan.input_array.reshape(-1)
+        np.take(flat, geo.index, out=box)
+        if geo.all_conjugate:
+            np.conjugate(box, out=box)
+        elif geo.conjugate is not None:
+            np.conjugate(box, out=box, where=geo.conjugate)
+        np.multiply(box, geo.window, out=box)
+        box_plan()
+        field = box_plan.output_array.copy()
+        flags: set[str] = set()
+        if i in self._overlapping:
+            flags.add("overlap")
+
+        # trusted pixels
+        magnitude = np.abs(field)
+        expected = peak.amplitude * mean if peak.amplitude > 0 else float(np.median(magnitude))
+        mask = (
+            magnitude >= self.min_amplitude * expected
+            if expected > 0
+            else np.zeros(field.shape, bool)
+        )
+        if self._aperture_box is not None:
+            mask &= self._aperture_box
+        if mask.mean() < MIN_VALID_FRACTION:
+            flags.add("low_amplitude")
+
+        # mean phase: the field against the sub-bin plane wave, averaged
+        against_wave = field * geo.ramp_conj
+        value = complex(against_wave.mean())
+        prev = self._prev_value[i]
+        step = 0.0 if prev is None else float(np.angle(value * np.conj(prev)))
+        if abs(step) > PHASE_STEP_LIMIT:
+            flags.add("phase_step")
+
+        # phase map against the reference
+        if self.reference == "synthetic":
+            product = against_wave
+            if prev is None:
+                self._unwrapped_mean[i] = float(np.angle(value))
+            else:
+                self._unwrapped_mean[i] += step
+            mean_phase = float(np.angle(value))
+            target = self._unwrapped_mean[i]
+        else:
+            ref = self._ref_conj[i]
+            if ref is None:
+                flags.add("reference")
+                self._ref_conj[i] = np.conj(field)
+                self._ref_value[i] = value
+                self._unwrapped_mean[i] = 0.0
+                product = None
+                mean_phase = 0.0
+            else:
+                product = field * ref
+                self._unwrapped_mean[i] += step
+                if self.reference == "relative":
+                    self._ref_conj[i] = np.conj(field)
+                    mean_phase = step
+                else:
+                    mean_phase = float(np.angle(value * np.conj(self._ref_value[i])))
+            target = mean_phase if self.reference == "relative" else self._unwrapped_mean[i]
+        self._prev_value[i] = value
+
+        unwrapped = False
+        if product is None:
+            phase = np.zeros(field.shape, dtype=np.float32)
+        else:
+            phase = np.arctan2(product.imag, product.real)
+            if self.unwrap == "always" or (self.unwrap == "auto" and has_wraps(phase, mask)):
+                phase, unwrapped = unwrap_spatial(phase, mask)
+            if mask.any():
+                # put the map's 2 pi offset where the time-unwrapped mean phase says
+                offset = TWO_PI * round((target - float(np.mean(phase, where=mask))) / TWO_PI)
+                if offset:
+                    phase = phase + np.float32(offset)
+        noise = self._noise(phase, mask, geo)
+        to_height = None
+        if peak.alpha is not None and self.wavelength is not None:
+            to_height = self.wavelength / (4 * np.pi * peak.alpha)
+        return PeakResult(
+            peak=peak,
+            field=field,
+            phase=phase,
+            delta_h=None if to_height is None else (phase * np.float32(to_height)),
+            carrier_value=value,
+            mean_phase=mean_phase,
+            mean_phase_unwrapped=float(self._unwrapped_mean[i]),
+            mask=mask,
+            noise=noise,
+            noise_height=None if to_height is None else abs(noise * to_height),
+            unwrapped=unwrapped,
+            flags=frozenset(flags),
+        )
+
+    @staticmethod
+    def _noise(phase: np.ndarray, mask: np.ndarray, geo: _Geometry) -> float:
+        """Phase noise (rad) from the spread of second differences along rows of the map.
+
+        Second differences cancel the surface's slope; for noise shaped by the
+        window they have variance ``sigma^2 (6 - 8 rho1 + 2 rho2)``, with ``rho1``
+        and ``rho2`` the window's noise correlation at lags 1 and 2. Surface
+        curvature adds to it, so the estimate errs on the high side.
+        """
+        pair = mask[:, 2:] & mask[:, 1:-1] & mask[:, :-2]
+        count = int(np.count_nonzero(pair))
+        if count < 2:
+            return float("nan")
+        centre = phase[:, 1:-1]
+        diff = (phase[:, 2:] - centre + np.pi) % TWO_PI - np.pi
+        diff -= (centre - phase[:, :-2] + np.pi) % TWO_PI - np.pi
+        variance = float(np.mean(diff * diff, where=pair))
+        return float(np.sqrt(variance / geo.noise_gain))

@@ -1,0 +1,235 @@
+"""Planned FFTs through pyFFTW, with FFTW wisdom kept in the user cache directory.
+
+FFTW finds a fast algorithm for each transform shape by measuring ("planning"),
+which takes about a second at 2048 x 2048. The result, the *wisdom*, is saved to
+``wisdom.bin`` in the cache directory (``$HOLOVIEW_CACHE_DIR``, else
+``$XDG_CACHE_HOME/holoview``, else ``~/.cache/holoview``) and loaded on first use,
+so that a restarted program plans the same shapes in milliseconds. This module is
+the only place in :mod:`holoview.processing` that touches a file; a cache that
+cannot be read or written only logs a warning.
+
+Plans hold their own aligned buffers and must not run in two threads at once, so
+:func:`rfft2_plan` and :func:`ifft2_plan` keep one plan per shape, thread count
+*and calling thread*: each thread gets its own, and a caller using one thread at
+a time never shares a buffer.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import threading
+import time
+from collections import OrderedDict
+from pathlib import Path
+
+import numpy as np
+import pyfftw
+
+logger = logging.getLogger(__name__)
+
+#: Planner effort used when wisdom does not already cover a shape.
+PLANNER_EFFORT = "FFTW_MEASURE"
+
+#: How many plans the per-process cache keeps before dropping the least recently used.
+MAX_CACHED_PLANS = 48
+
+_WISDOM_FILE = "wisdom.bin"
+_lock = threading.Lock()
+_plans: OrderedDict[tuple[object, ...], pyfftw.FFTW] = OrderedDict()
+#: The wisdom file imported so far (None: not yet), so each file is read once.
+_loaded: dict[str, Path | None] = {"wisdom": None}
+
+
+def cache_dir() -> Path:
+    """Return the directory holding holoview's caches (it may not exist yet)."""
+    explicit = os.environ.get("HOLOVIEW_CACHE_DIR")
+    if explicit:
+        return Path(explicit)
+    xdg = os.environ.get("XDG_CACHE_HOME")
+    base = Path(xdg) if xdg else Path.home() / ".cache"
+    return base / "holoview"
+
+
+def wisdom_path() -> Path:
+    """Return the path of the FFTW wisdom file."""
+    return cache_dir() / _WISDOM_FILE
+
+
+def _encode(wisdom: tuple[bytes, ...]) -> bytes:
+    parts = [len(wisdom).to_bytes(4, "little")]
+    for item in wisdom:
+        parts += [len(item).to_bytes(8, "little"), item]
+    return b"".join(parts)
+
+
+def _decode(blob: bytes) -> tuple[bytes, ...]:
+    count = int.from_bytes(blob[:4], "little")
+    items, pos = [], 4
+    for _ in range(count):
+        size = int.from_bytes(blob[pos : pos + 8], "little")
+        pos += 8
+        items.append(blob[pos : pos + size])
+        pos += size
+    if pos != len(blob) or count > 8:
+        raise ValueError("wisdom file is malformed")
+    return tuple(items)
+
+
+def load_wisdom() -> bool:
+    """Import the wisdom file of the current cache directory, once per directory.
+
+    Returns
+    -------
+    bool
+        True when wisdom was imported by this call.
+    """
+    path = wisdom_path()
+    if _loaded["wisdom"] == path:
+        return False
+    _loaded["wisdom"] = path
+    try:
+        blob = path.read_bytes()
+    except FileNotFoundError:
+        return False
+    except OSError as exc:
+        logger.warning("cannot read FFT wisdom %s: %s", path, exc)
+        return False
+    try:
+        pyfftw.import_wisdom(_decode(blob))
+    except (ValueError, TypeError) as exc:
+        logger.warning("ignoring unusable FFT wisdom %s: %s", path, exc)
+        return False
+    logger.debug("FFT wisdom loaded from %s", path)
+    return True
+
+
+def save_wisdom() -> bool:
+    """Write the wisdom FFTW has gathered so far; a failure only logs a warning.
+
+    Returns
+    -------
+    bool
+        True when the file was written.
+    """
+    path = wisdom_path()
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_name(f"{path.name}.{os.getpid()}.tmp")
+        tmp.write_bytes(_encode(pyfftw.export_wisdom()))
+        tmp.replace(path)
+    except OSError as exc:
+        logger.warning("cannot write FFT wisdom to %s: %s", path, exc)
+        return False
+    return True
+
+
+def _build(
+    kind: str, shape: tuple[int, int], threads: int, effort: str
+) -> tuple[pyfftw.FFTW, bool]:
+    if kind == "rfft2":
+        source = pyfftw.empty_aligned(shape, dtype="float32")
+        target = pyfftw.empty_aligned((shape[0], shape[1] // 2 + 1), dtype="complex64")
+        direction = "FFTW_FORWARD"
+    else:
+        source = pyfftw.empty_aligned(shape, dtype="complex64")
+        target = pyfftw.empty_aligned(shape, dtype="complex64")
+        direction = "FFTW_BACKWARD"
+    common = {"axes": (0, 1), "direction": direction, "threads": threads}
+    try:
+        plan = pyfftw.FFTW(source, target, flags=("FFTW_WISDOM_ONLY",), **common)
+        return plan, False
+    except RuntimeError:
+        plan = pyfftw.FFTW(source, target, flags=(effort,), **common)
+        return plan, True
+
+
+def _plan(kind: str, shape: tuple[int, int], threads: int, effort: str) -> pyfftw.FFTW:
+    key = (kind, shape, threads, effort, threading.get_ident())
+    with _lock:
+        plan = _plans.get(key)
+        if plan is not None:
+            _plans.move_to_end(key)
+            return plan
+        load_wisdom()
+        started = time.perf_counter()
+        plan, planned = _build(kind, shape, threads, effort)
+        if planned:
+            logger.info(
+                "planned %s %s (threads=%d) in %.3f s",
+                kind,
+                shape,
+                threads,
+                time.perf_counter() - started,
+            )
+            save_wisdom()
+        _plans[key] = plan
+        while len(_plans) > MAX_CACHED_PLANS:
+            _plans.popitem(last=False)
+        return plan
+
+
+def rfft2_plan(
+    shape: tuple[int, int], *, threads: int = 1, effort: str = PLANNER_EFFORT
+) -> pyfftw.FFTW:
+    """Return the calling thread's plan of a float32 -> complex64 2-D real FFT.
+
+    Fill ``plan.input_array`` (shape ``shape``) and call ``plan()``; the result
+    (shape ``(rows, cols // 2 + 1)``, unnormalised, numpy's sign) is
+    ``plan.output_array``, overwritten by the next call.
+
+    Parameters
+    ----------
+    shape : tuple of int
+        Frame shape ``(rows, cols)`` in pixels.
+    threads : int
+        FFTW threads used inside the transform.
+    effort : str
+        FFTW planner flag used when the wisdom does not cover this transform.
+    """
+    return _plan("rfft2", (int(shape[0]), int(shape[1])), int(threads), effort)
+
+
+def ifft2_plan(
+    shape: tuple[int, int], *, threads: int = 1, effort: str = PLANNER_EFFORT
+) -> pyfftw.FFTW:
+    """Return the calling thread's plan of a complex64 2-D inverse FFT (normalised by 1/size).
+
+    Fill ``plan.input_array`` and call ``plan()``; the result is ``plan.output_array``.
+    """
+    return _plan("ifft2", (int(shape[0]), int(shape[1])), int(threads), effort)
+
+
+def default_threads() -> int:
+    """Return the FFTW thread count used when none is given: the usable CPUs, at most 4."""
+    try:
+        usable = len(os.sched_getaffinity(0))
+    except AttributeError:  # pragma: no cover - not on Linux
+        usable = os.cpu_count() or 1
+    return max(1, min(usable, 4))
+
+
+def clear_plans() -> None:
+    """Forget every cached plan (the wisdom stays loaded)."""
+    with _lock:
+        _plans.clear()
+
+
+def forget_loaded_wisdom() -> None:
+    """Make the next plan re-read the wisdom file (for tests that change the cache directory)."""
+    with _lock:
+        _loaded["wisdom"] = None
+
+
+def fft_friendly(n: int) -> int:
+    """Return the smallest even integer >= ``n`` whose prime factors are 2, 3 and 5 only."""
+    m = max(2, int(np.ceil(n)))
+    while True:
+        if m % 2 == 0:
+            k = m
+            for p in (2, 3, 5):
+                while k % p == 0:
+                    k //= p
+            if k == 1:
+                return m
+        m += 1

@@ -1,0 +1,120 @@
+"""The spatial-frequency spectrum of a frame: planned real FFT and a display spectrum.
+
+Frequencies are in cycles per pixel, ``fx`` along columns and ``fy`` along rows,
+with numpy's FFT sign (a field ``exp(+2 pi i (fx x + fy y))`` peaks at ``+f``).
+A real frame's spectrum is Hermitian, so only the half ``fx >= 0`` is computed
+(``rfft2`` layout, shape ``(rows, cols // 2 + 1)``); the value at ``-f`` is the
+complex conjugate of the value at ``+f``.
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+
+import numpy as np
+
+from holoview.processing.fftplans import default_threads, rfft2_plan
+from holoview.processing.frames import check_frame
+
+
+def rfft2(frame: np.ndarray, *, threads: int | None = None) -> np.ndarray:
+    """Return the half spectrum of a real frame, computed by a planned pyFFTW transform.
+
+    Parameters
+    ----------
+    frame : ndarray, shape (rows, cols)
+        Pixel values (counts), any integer or real dtype; not modified.
+    threads : int, optional
+        FFTW threads; by default the usable CPUs (at most 4).
+
+    Returns
+    -------
+    ndarray of complex64, shape (rows, cols // 2 + 1)
+        Unnormalised spectrum (counts), ``rfft2`` layout; a new array.
+    """
+    array = check_frame(frame)
+    plan = rfft2_plan(array.shape, threads=threads or default_threads())
+    np.copyto(plan.input_array, array, casting="unsafe")
+    plan()
+    return plan.output_array.copy()
+
+
+def frequencies(shape: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
+    """Return the centred frequency axes ``(fy, fx)`` of a frame's full spectrum.
+
+    Parameters
+    ----------
+    shape : tuple of int
+        Frame shape ``(rows, cols)``.
+
+    Returns
+    -------
+    fy, fx : ndarray of float64
+        Frequencies (cycles/pixel) of the rows and columns of :func:`display_spectrum`.
+    """
+    rows, cols = shape
+    return (
+        np.fft.fftshift(np.fft.fftfreq(rows)),
+        np.fft.fftshift(np.fft.fftfreq(cols)),
+    )
+
+
+@lru_cache(maxsize=16)
+def _mirror_indices(shape: tuple[int, int]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    rows, cols = shape
+    r = np.arange(rows)
+    centred_rows = (r - rows // 2) % rows
+    mirrored_rows = (rows // 2 - r) % rows
+    mirrored_cols = cols // 2 - np.arange(cols // 2)
+    return centred_rows, mirrored_rows, mirrored_cols
+
+
+def log_magnitude(half: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
+    """Return ``log(1 + |S|)`` of a half spectrum expanded to the centred full spectrum.
+
+    Parameters
+    ----------
+    half : ndarray of complex, shape (rows, cols // 2 + 1)
+        Half spectrum (``rfft2`` layout) of a real frame of shape ``shape``.
+    shape : tuple of int
+        The frame shape ``(rows, cols)``.
+
+    Returns
+    -------
+    ndarray of float32, shape ``shape``
+        Log magnitude with zero frequency at ``(rows // 2, cols // 2)`` (``fftshift``).
+    """
+    rows, cols = shape
+    if half.shape != (rows, cols // 2 + 1):
+        raise ValueError(f"half spectrum of shape {half.shape} does not match frame {shape}")
+    magnitude = np.abs(half).astype(np.float32, copy=False)
+    np.log1p(magnitude, out=magnitude)
+    centred_rows, mirrored_rows, mirrored_cols = _mirror_indices((rows, cols))
+    out = np.empty((rows, cols), dtype=np.float32)
+    right = cols - cols // 2
+    out[:, cols // 2 :] = magnitude.take(centred_rows, axis=0)[:, :right]
+    out[:, : cols // 2] = magnitude[:, mirrored_cols].take(mirrored_rows, axis=0)
+    return out
+
+
+def display_spectrum(frame: np.ndarray, *, threads: int | None = None) -> np.ndarray:
+    """Return the centred log-magnitude spectrum of a frame, for display at up to 30 Hz.
+
+    Parameters
+    ----------
+    frame : ndarray, shape (rows, cols)
+        Pixel values (counts); not modified.
+    threads : int, optional
+        FFTW threads; by default the usable CPUs (at most 4).
+
+    Returns
+    -------
+    ndarray of float32, shape (rows, cols)
+        ``log(1 + |S(f)|)`` with ``S`` in counts, zero frequency at
+        ``(rows // 2, cols // 2)``; the axes are given by :func:`frequencies`.
+    """
+    array = check_frame(frame)
+    plan = rfft2_plan(array.shape, threads=threads or default_threads())
+    np.copyto(plan.input_array, array, casting="unsafe")
+    plan()
+    return log_magnitude(plan.output_array, array.shape)
