@@ -11,15 +11,25 @@ every case it closes the file, so everything written stays readable.
 from __future__ import annotations
 
 import logging
+import os
 import threading
+from collections.abc import Mapping
 
 import numpy as np
 
+from holoview.acquire.pixel_formats import PIXEL_FORMATS
 from holoview.acquire.recording import RecordingWriter
 from holoview.acquire.ring import CLOSED, FrameRing, RingStatus
+from holoview.acquire.source import Source
 from holoview.errors import HoloviewError, InputError
 
 logger = logging.getLogger(__name__)
+
+
+def _significant_bits(pixel_format: object) -> int | None:
+    """Bits of data per value for a known pixel format name, else None."""
+    fmt = PIXEL_FORMATS.get(pixel_format) if isinstance(pixel_format, str) else None
+    return fmt.bits if fmt is not None else None
 
 
 class RecordingWriteError(HoloviewError):
@@ -54,6 +64,39 @@ class Recorder:
         self.error: BaseException | None = None
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name="holoview-recorder", daemon=True)
+
+    @classmethod
+    def for_source(
+        cls,
+        ring: FrameRing,
+        path: str | os.PathLike[str],
+        source: Source,
+        *,
+        setup: Mapping[str, object] | None = None,
+    ) -> Recorder:
+        """Return a recorder to a new file at ``path`` that describes ``source``.
+
+        The file gets the source's name, every setting the source reads back, with
+        its unit, the source's pixel format, and the setup: the source's own
+        (:attr:`Source.setup`) updated with ``setup``.
+        """
+        infos = source.describe_settings()
+        settings = {
+            name: (tuple(value) if isinstance(value, tuple) else value, infos[name].unit)
+            for name, value in source.get_all().items()
+        }
+        pixel_format = settings.get("pixel_format", (None, ""))[0]
+        writer = RecordingWriter(
+            path,
+            ring.frame_shape,
+            ring.dtype,
+            setup={**source.setup, **(setup or {})},
+            settings=settings,
+            source=source.name,
+            pixel_format=pixel_format if isinstance(pixel_format, str) else None,
+            significant_bits=_significant_bits(pixel_format),
+        )
+        return cls(ring, writer)
 
     @property
     def written(self) -> int:

@@ -339,6 +339,15 @@ class Source(ABC):
     def dtype(self) -> np.dtype:
         """Dtype of the frames (``uint8`` or ``uint16``)."""
 
+    @property
+    def setup(self) -> dict[str, Any]:
+        """The optical setup the source knows, for the recording's ``/setup``.
+
+        ``wavelength_m`` (m), ``pixel_pitch_m`` (m), ``n1``, ``n2``, ... for the
+        simulator and for replayed recordings; empty for cameras (the user gives it).
+        """
+        return {}
+
     # -- template methods --------------------------------------------------------
     @property
     def is_open(self) -> bool:

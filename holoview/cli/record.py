@@ -1,0 +1,178 @@
+"""``holoview record``: headless acquisition of a source into a holoview recording.
+
+The camera thread fills a frame ring; the recorder thread writes every frame to
+the file (format in :mod:`holoview.acquire.recording`); this command shows a
+progress bar and ends with one line of what was acquired, recorded and lost.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import sys
+import time
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from holoview.errors import HoloviewError, InputError
+
+if TYPE_CHECKING:
+    from holoview.acquire.camera_thread import CameraThread
+    from holoview.acquire.recorder import Recorder
+
+logger = logging.getLogger(__name__)
+
+
+def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
+    """Register ``record``."""
+    parser = subparsers.add_parser(
+        "record",
+        help="record a source to an HDF5 file, headless",
+        description="Record frames from a source into a new holoview recording (HDF5, "
+        "readable while it is written). Ctrl-C stops and keeps what was recorded.",
+    )
+    parser.add_argument("out", type=Path, metavar="OUT.h5", help="the recording to create")
+    parser.add_argument(
+        "--source",
+        default="sim",
+        help="sim[:SCENARIO] (default), aravis[:ID], v4l2[:N] or replay:PATH",
+    )
+    length = parser.add_mutually_exclusive_group()
+    length.add_argument("--frames", type=int, metavar="N", help="stop after N frames")
+    length.add_argument("--seconds", type=float, metavar="S", help="stop after S seconds")
+    parser.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        help="a source setting before streaming, e.g. exposure_s=0.002 or roi=0,0,640,480 "
+        "(repeatable)",
+    )
+    parser.add_argument(
+        "--ring-mb",
+        type=float,
+        default=256.0,
+        metavar="MB",
+        help="memory of the frame ring between camera and disk, MB (default 256)",
+    )
+    parser.add_argument("--wavelength-nm", type=float, help="setup: laser wavelength, nm")
+    parser.add_argument("--pixel-pitch-um", type=float, help="setup: camera pixel pitch, um")
+    parser.add_argument("--n1", type=float, help="setup: refractive index above the surface")
+    parser.add_argument("--n2", type=float, help="setup: refractive index of the liquid")
+    return parser
+
+
+def parse_setting(text: str) -> tuple[str, object]:
+    """Return ``(name, value)`` from ``NAME=VALUE``: a number, a bool, a comma list, or text."""
+    name, sep, raw = text.partition("=")
+    if not sep or not name.strip():
+        raise InputError(f"--set takes NAME=VALUE, got {text!r}")
+    raw = raw.strip()
+    if raw.lower() in ("true", "false", "yes", "no", "on", "off"):
+        return name.strip(), raw.lower() in ("true", "yes", "on")
+    if "," in raw:
+        return name.strip(), tuple(_number(part.strip()) for part in raw.split(","))
+    return name.strip(), _number(raw)
+
+
+def _number(raw: str) -> object:
+    for kind in (int, float):
+        try:
+            return kind(raw)
+        except ValueError:
+            continue
+    return raw
+
+
+def _setup_overrides(args: argparse.Namespace) -> dict[str, float]:
+    setup = {}
+    if args.wavelength_nm is not None:
+        setup["wavelength_m"] = args.wavelength_nm * 1e-9
+    if args.pixel_pitch_um is not None:
+        setup["pixel_pitch_m"] = args.pixel_pitch_um * 1e-6
+    if args.n1 is not None:
+        setup["n1"] = args.n1
+    if args.n2 is not None:
+        setup["n2"] = args.n2
+    return setup
+
+
+def run(args: argparse.Namespace) -> int:
+    """Record, show progress, print the summary line; exit status 2 if acquisition failed."""
+    from holoview.acquire import open_source
+    from holoview.acquire.camera_thread import CameraThread
+    from holoview.acquire.recorder import Recorder
+    from holoview.acquire.ring import FrameRing
+
+    if args.frames is not None and args.frames < 1:
+        raise InputError(f"--frames must be at least 1, got {args.frames}")
+    if args.seconds is not None and not args.seconds > 0:
+        raise InputError(f"--seconds must be positive, got {args.seconds}")
+    if not args.ring_mb > 0:
+        raise InputError(f"--ring-mb must be positive, got {args.ring_mb}")
+    settings = [parse_setting(text) for text in args.set]
+    out = args.out
+    if out.exists():
+        raise InputError(f"{out} exists; holoview does not overwrite recordings")
+    if not out.parent.is_dir():
+        raise InputError(f"folder {out.parent} does not exist")
+
+    with open_source(args.source) as source:
+        for name, value in settings:
+            source.set(name, value)
+        frame_bytes = source.frame_shape[0] * source.frame_shape[1] * source.dtype.itemsize
+        capacity = max(4, int(args.ring_mb * 1e6 // frame_bytes))
+        ring = FrameRing(capacity, source.frame_shape, source.dtype)
+        recorder = Recorder.for_source(ring, out, source, setup=_setup_overrides(args))
+        camera = CameraThread(source, ring, max_frames=args.frames)
+        recorder.start()
+        t0 = time.monotonic()
+        interrupted = False
+        try:
+            camera.start()
+            _follow(camera, recorder, args, t0)
+        except KeyboardInterrupt:
+            interrupted = True
+        finally:
+            camera.stop()
+            recorder.join()
+        elapsed = time.monotonic() - t0
+    status = recorder.status()
+    mb = recorder.written * frame_bytes / 1e6
+    print(
+        f"{out}: acquired {status.acquired}, recorded {recorder.written}, "
+        f"dropped {status.dropped} (ring overflow), lost {status.transport_lost} (transport) "
+        f"in {elapsed:.1f} s ({status.acquired / max(elapsed, 1e-9):.1f} frames/s, "
+        f"{mb / max(elapsed, 1e-9):.1f} MB/s)"
+    )
+    error = recorder.error or camera.error
+    if error is not None:
+        if isinstance(error, HoloviewError):
+            raise error
+        raise HoloviewError(f"acquisition failed: {error!r}") from error
+    if interrupted:
+        print("holoview record: interrupted; the recording is complete up to here", file=sys.stderr)
+        return 130
+    return 0
+
+
+def _follow(camera: CameraThread, recorder: Recorder, args: argparse.Namespace, t0: float) -> None:
+    """Show progress until the camera ends or the time is up (main thread, 5 Hz)."""
+    from tqdm import tqdm
+
+    with tqdm(
+        total=args.frames,
+        unit="frame",
+        disable=args.quiet or None,
+        file=sys.stderr,
+        dynamic_ncols=True,
+    ) as bar:
+        while not camera.join(0.2):
+            bar.update(recorder.written - bar.n)
+            status = recorder.status()
+            bar.set_postfix(dropped=status.dropped, lost=status.transport_lost, refresh=False)
+            if args.seconds is not None and time.monotonic() - t0 >= args.seconds:
+                break
+        camera.stop()
+        recorder.join()
+        bar.update(recorder.written - bar.n)
