@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import os
 import sys
+from pathlib import Path
 
 NO_DISPLAY_HELP = (
     "no display found (DISPLAY and WAYLAND_DISPLAY are unset). Run the GUI under a "
@@ -28,6 +29,14 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
         metavar="SECONDS",
         help="close the window after this many seconds (for scripted runs and screenshots)",
     )
+    parser.add_argument(
+        "--experiment",
+        type=Path,
+        default=None,
+        metavar="JSON",
+        help="experiment settings file (optics, labelled peaks, window, reference) to use "
+        "and keep up to date; default: $XDG_CONFIG_HOME/holoview/experiment.json",
+    )
     return parser
 
 
@@ -47,4 +56,4 @@ def run(args: argparse.Namespace) -> int:
         return 2
     from holoview.ui.app import run_live
 
-    return run_live(source=args.source, quit_after=args.quit_after)
+    return run_live(source=args.source, quit_after=args.quit_after, experiment=args.experiment)

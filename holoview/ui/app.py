@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import logging
+from pathlib import Path
 
 from PyQt6.QtCore import QTimer
 from PyQt6.QtWidgets import QApplication
@@ -12,7 +13,21 @@ from holoview.ui.main_window import MainWindow
 logger = logging.getLogger(__name__)
 
 
-def run_live(source: str = "sim", quit_after: float | None = None) -> int:
+def application() -> QApplication:
+    """Return the running QApplication, creating it (named ``holoview``) if needed."""
+    app = QApplication.instance()
+    if not isinstance(app, QApplication):
+        app = QApplication(["holoview"])
+    app.setOrganizationName("holoview")
+    app.setApplicationName("holoview")
+    return app
+
+
+def run_live(
+    source: str = "sim",
+    quit_after: float | None = None,
+    experiment: Path | None = None,
+) -> int:
     """Open the main window on ``source`` and run the event loop.
 
     Parameters
@@ -21,16 +36,16 @@ def run_live(source: str = "sim", quit_after: float | None = None) -> int:
         Source specification (``sim``, ``aravis[:ID]``, ``v4l2[:N]``, ``replay:PATH``).
     quit_after : float, optional
         Close the window after this many seconds.
+    experiment : Path, optional
+        Experiment settings file to use (and keep up to date) instead of the default.
 
     Returns
     -------
     int
         The exit status of the event loop.
     """
-    app = QApplication.instance() or QApplication(["holoview"])
-    app.setOrganizationName("holoview")
-    app.setApplicationName("holoview")
-    window = MainWindow(source=source)
+    app = application()
+    window = MainWindow(source=source, experiment_path=experiment)
     window.show()
     if quit_after is not None:
         QTimer.singleShot(int(quit_after * 1000), window.close)

@@ -1,19 +1,513 @@
-"""The main window."""
+"""The main window: docks an operator can rearrange, a redraw timer, menus, shortcuts.
+
+The window owns no processing. A :class:`~holoview.ui.session.LiveSession` runs the
+camera thread, the recorder and the demodulation worker; a QTimer (at most
+:data:`REDRAW_HZ`) reads the session's latest result and draws it, so the window
+never receives one signal per frame. Operator actions go back to the session as
+commands. Problems (a camera gone, a broken file, a click with no peak) are shown
+in a banner and the status bar; the rest keeps running.
+"""
 
 from __future__ import annotations
 
-from PyQt6.QtWidgets import QLabel, QMainWindow
+import logging
+import time
+from dataclasses import replace
+from pathlib import Path
+
+from PyQt6.QtCore import QByteArray, Qt, QTimer
+from PyQt6.QtGui import QAction, QCloseEvent, QKeySequence
+from PyQt6.QtWidgets import (
+    QDockWidget,
+    QFileDialog,
+    QLabel,
+    QMainWindow,
+    QToolBar,
+    QWidget,
+)
 
 from holoview import __version__
+from holoview.errors import HoloviewError
+from holoview.ui.exports import export_maps, export_window_png
+from holoview.ui.hologram_view import HologramView
+from holoview.ui.rates import RateMeter
+from holoview.ui.recording_panel import RecordingPanel, RecordRequest
+from holoview.ui.session import LiveResult, LiveSession, discover_sources
+from holoview.ui.settings import (
+    ExperimentSettings,
+    LabelledPeak,
+    default_experiment_path,
+    ui_settings,
+)
+from holoview.ui.source_panel import SourcePanel
+from holoview.ui.spectrum_view import SpectrumView
+from holoview.ui.status_bar import LiveFigures, LiveStatusBar
+from holoview.ui.surface_view import FUSED, SurfaceView
+from holoview.ui.trends_view import TrendsView
+
+logger = logging.getLogger(__name__)
+
+#: Highest redraw rate of the display timer, Hz.
+REDRAW_HZ = 30.0
+#: How long a banner message stays, seconds.
+BANNER_S = 8.0
 
 
 class MainWindow(QMainWindow):
-    """holoview's main window on one camera source."""
+    """holoview's live window.
 
-    def __init__(self, source: str = "sim") -> None:
+    Parameters
+    ----------
+    source : str
+        Source specification to offer first (``sim``, ``aravis:ID``, ``v4l2:N``,
+        ``replay:PATH``).
+    autostart : bool
+        Start the source at once.
+    experiment_path : Path, optional
+        The experiment settings file (default: :func:`default_experiment_path`).
+    frame_shape : tuple of int, optional
+        Frame size asked of the simulated source ``(rows, cols)``.
+    """
+
+    def __init__(
+        self,
+        source: str = "sim",
+        autostart: bool = True,
+        experiment_path: Path | None = None,
+        frame_shape: tuple[int, int] | None = None,
+    ) -> None:
         super().__init__()
-        self.source = source
-        self.setWindowTitle(f"holoview {__version__}: {source}")
-        self.setCentralWidget(QLabel(f"source: {source}"))
-        self.statusBar().showMessage("ready")
-        self.resize(1280, 800)
+        self.setObjectName("holoview-main")
+        self.setWindowTitle(f"holoview {__version__}")
+        self.session: LiveSession | None = None
+        self._frame_shape = frame_shape
+        self._last_seq = -1
+        self._last_result: LiveResult | None = None
+        self.display_rate = RateMeter()
+        self.last_latency_s: float | None = None
+        self._banner_until = 0.0
+        self.experiment_path = experiment_path or default_experiment_path()
+        self.experiment = ExperimentSettings()
+        start_problem = self._load_experiment_at_start()
+
+        self.hologram = HologramView()
+        self.spectrum = SpectrumView()
+        self.surface = SurfaceView()
+        self.trends = TrendsView()
+        self.source_panel = SourcePanel()
+        self.recording_panel = RecordingPanel(default_dir=Path.cwd())
+        self.status = LiveStatusBar()
+        self.setStatusBar(self.status)
+        self.banner = QLabel()
+        self.banner.setStyleSheet(
+            "background: #fff3cd; color: #664d03; padding: 4px; font-weight: bold;"
+        )
+        self.banner.setWordWrap(True)
+        self.banner_bar = QToolBar("Messages")
+        self.banner_bar.setObjectName("messages")
+        self.banner_bar.addWidget(self.banner)
+        self.banner_bar.setVisible(False)
+        self.addToolBar(Qt.ToolBarArea.TopToolBarArea, self.banner_bar)
+
+        self.docks: dict[str, QDockWidget] = {}
+        self.setDockNestingEnabled(True)
+        central = QWidget()
+        central.setMaximumSize(0, 0)
+        self.setCentralWidget(central)
+        left = Qt.DockWidgetArea.LeftDockWidgetArea
+        right = Qt.DockWidgetArea.RightDockWidgetArea
+        self._add_dock("Source", self.source_panel, left)
+        self._add_dock("Recording", self.recording_panel, left)
+        self.tabifyDockWidget(self.docks["Source"], self.docks["Recording"])
+        self.docks["Source"].raise_()
+        self._add_dock("Hologram", self.hologram, left)
+        self._add_dock("Spectrum", self.spectrum, left)
+        self._add_dock("Surface", self.surface, right)
+        self._add_dock("Trends", self.trends, right)
+        self.splitDockWidget(
+            self.docks["Source"], self.docks["Hologram"], Qt.Orientation.Horizontal
+        )
+        self.splitDockWidget(
+            self.docks["Hologram"], self.docks["Spectrum"], Qt.Orientation.Vertical
+        )
+        self.splitDockWidget(self.docks["Surface"], self.docks["Trends"], Qt.Orientation.Vertical)
+        self._default_state = self.saveState()
+        self._make_actions()
+        self._connect()
+        self.surface.set_reference(self.experiment.reference)
+        self.spectrum.set_model(
+            {p.label: (p.fx, p.fy) for p in self.experiment.peaks}, {}, self.experiment.radius
+        )
+        self.resize(1600, 1000)
+        self._restore_layout()
+
+        self.timer = QTimer(self)
+        self.timer.setObjectName("holoview-redraw")
+        self.timer.setInterval(int(1000 / REDRAW_HZ))
+        self.timer.timeout.connect(self.redraw)
+        self.source_panel.set_sources(["sim"], current=source)
+        if start_problem:
+            self.show_message(start_problem)
+        if autostart:
+            self.start_source(source)
+
+    # ---- construction ------------------------------------------------------
+    def _add_dock(self, title: str, widget: QWidget, area: Qt.DockWidgetArea) -> None:
+        dock = QDockWidget(title, self)
+        dock.setObjectName(f"dock-{title.lower()}")
+        dock.setWidget(widget)
+        self.addDockWidget(area, dock)
+        self.docks[title] = dock
+
+    def _make_actions(self) -> None:
+        def action(text: str, shortcut: str | None, slot: object) -> QAction:
+            act = QAction(text, self)
+            if shortcut:
+                act.setShortcut(QKeySequence(shortcut))
+                act.setShortcutContext(Qt.ShortcutContext.ApplicationShortcut)
+            act.triggered.connect(slot)  # type: ignore[arg-type]
+            self.addAction(act)
+            return act
+
+        self.start_action = action("Start/stop source", "F5", self.source_panel.toggle)
+        self.record_action = action("Record/stop", "Ctrl+R", self.recording_panel.toggle)
+        self.snapshot_action = action("Snapshot", "Ctrl+Shift+S", self.snapshot)
+        self.export_action = action("Export maps...", "Ctrl+E", self.export_maps_dialog)
+        self.png_action = action("Save window as PNG...", "Ctrl+P", self.save_png_dialog)
+        self.load_action = action(
+            "Load experiment settings...", "Ctrl+O", self.load_experiment_dialog
+        )
+        self.save_action = action(
+            "Save experiment settings as...", "Ctrl+S", self.save_experiment_dialog
+        )
+        self.quit_action = action("Quit", "Ctrl+Q", self.close)
+        self.reset_layout_action = action("Reset layout", None, self.reset_layout)
+        self.auto_levels_action = action("Auto levels", "Ctrl+L", self.hologram.auto_levels)
+        menus = self.menuBar()
+        file_menu = menus.addMenu("&File")
+        for act in (
+            self.load_action,
+            self.save_action,
+            self.export_action,
+            self.png_action,
+            self.snapshot_action,
+            self.quit_action,
+        ):
+            file_menu.addAction(act)
+        acq = menus.addMenu("&Acquisition")
+        acq.addAction(self.start_action)
+        acq.addAction(self.record_action)
+        acq.addAction(self.auto_levels_action)
+        view = menus.addMenu("&View")
+        for dock in self.docks.values():
+            view.addAction(dock.toggleViewAction())
+        view.addAction(self.banner_bar.toggleViewAction())
+        view.addSeparator()
+        view.addAction(self.reset_layout_action)
+
+    def _connect(self) -> None:
+        self.source_panel.startRequested.connect(self.start_source)
+        self.source_panel.stopRequested.connect(self.stop_source)
+        self.source_panel.settingRequested.connect(self.apply_setting)
+        self.source_panel.refresh_button.clicked.connect(self.find_sources)
+        self.hologram.roiChosen.connect(lambda roi: self.apply_setting("roi", roi))
+        self.spectrum.peakLabelled.connect(self.label_peak)
+        self.spectrum.labelCleared.connect(self.clear_label)
+        self.spectrum.radiusChanged.connect(self.set_radius)
+        self.spectrum.message.connect(self.show_message)
+        self.surface.referenceChanged.connect(self.set_reference)
+        self.trends.pcaRequested.connect(self._pca_requested)
+        self.trends.resetRequested.connect(self._reset_trends)
+        self.recording_panel.startRequested.connect(self.start_recording)
+        self.recording_panel.stopRequested.connect(self.stop_recording)
+
+    # ---- messages ----------------------------------------------------------
+    def show_message(self, text: str) -> None:
+        """Show ``text`` in the banner and the status bar (and log it)."""
+        logger.warning("%s", text)
+        self.banner.setText(text)
+        self.banner_bar.setVisible(True)
+        self._banner_until = time.monotonic() + BANNER_S
+        self.status.showMessage(text, int(BANNER_S * 1000))
+
+    @property
+    def banner_text(self) -> str:
+        """The message in the banner ('' when hidden)."""
+        return self.banner.text() if self.banner_bar.isVisibleTo(self) else ""
+
+    # ---- source ------------------------------------------------------------
+    def start_source(self, spec: str) -> None:
+        """Open and start ``spec``; a failure is shown, and the window stays usable."""
+        self.stop_source()
+        try:
+            self.session = LiveSession(spec, self.experiment, frame_shape=self._frame_shape)
+            self.session.start()
+        except HoloviewError as exc:
+            if self.session is not None:
+                self.session.close()
+            self.session = None
+            self.show_message(f"cannot start {spec}: {exc}")
+            self.source_panel.set_streaming(False)
+            return
+        self._last_seq = -1
+        self.hologram.set_saturation_value(self.session.saturation_value)
+        self.source_panel.set_settings(
+            self.session.describe_settings(), self.session.read_settings()
+        )
+        self.source_panel.set_streaming(True, self.session.description)
+        self.timer.start()
+
+    def stop_source(self) -> None:
+        """Stop the running session (recording included) and its threads."""
+        if self.session is None:
+            return
+        self.timer.stop()
+        self.session.close()
+        self.session = None
+        self.recording_panel.set_progress(None)
+        self.source_panel.set_streaming(False)
+        self.status.set_figures(LiveFigures())
+
+    def find_sources(self) -> None:
+        """Look for GenICam cameras and V4L2 devices and offer them."""
+        specs, problems = discover_sources()
+        self.source_panel.set_sources(specs)
+        for problem in problems:
+            self.show_message(problem)
+
+    def apply_setting(self, name: str, value: object) -> None:
+        """Send a setting to the source and show what it reads back."""
+        if self.session is None:
+            self.show_message(f"start a source before setting {name}")
+            return
+        try:
+            self.session.set_setting(name, value)
+        except HoloviewError as exc:
+            self.show_message(str(exc))
+        self.source_panel.show_values(self.session.read_settings())
+
+    # ---- experiment --------------------------------------------------------
+    def _set_experiment(self, experiment: ExperimentSettings) -> None:
+        self.experiment = experiment
+        if self.session is not None:
+            self.session.set_experiment(experiment)
+        try:
+            experiment.save(self.experiment_path)
+        except OSError as exc:
+            self.show_message(f"cannot save experiment settings to {self.experiment_path}: {exc}")
+
+    def label_peak(self, label: str, fx: float, fy: float) -> None:
+        """Name the peak at ``(fx, fy)`` cycles per pixel ``label``."""
+        self._set_experiment(self.experiment.with_peak(LabelledPeak(label, fx, fy)))
+        self.status.showMessage(f"labelled {label} at ({fx:+.4f}, {fy:+.4f}) cycles/px", 4000)
+
+    def clear_label(self, label: str) -> None:
+        """Forget the peak named ``label``."""
+        self._set_experiment(self.experiment.without_label(label))
+
+    def set_radius(self, radius: float) -> None:
+        """Use window radius ``radius`` cycles per pixel."""
+        try:
+            self._set_experiment(replace(self.experiment, radius=radius))
+        except HoloviewError as exc:
+            self.show_message(str(exc))
+
+    def set_reference(self, mode: str) -> None:
+        """Use reference mode ``mode`` (relative, absolute, synthetic)."""
+        try:
+            self._set_experiment(replace(self.experiment, reference=mode))
+        except HoloviewError as exc:
+            self.show_message(str(exc))
+
+    def _pca_requested(self, on: bool) -> None:
+        if self.session is not None:
+            self.session.set_pca(on)
+
+    def _reset_trends(self) -> None:
+        if self.session is not None:
+            self.session.reset_trends()
+
+    def _load_experiment_at_start(self) -> str | None:
+        if not self.experiment_path.exists():
+            return None
+        try:
+            self.experiment = ExperimentSettings.load(self.experiment_path)
+        except HoloviewError as exc:
+            return f"experiment settings ignored: {exc}"
+        return None
+
+    def load_experiment(self, path: Path) -> None:
+        """Read experiment settings from ``path`` and use them."""
+        try:
+            experiment = ExperimentSettings.load(path)
+        except HoloviewError as exc:
+            self.show_message(str(exc))
+            return
+        self._set_experiment(experiment)
+        self.surface.set_reference(experiment.reference)
+
+    def load_experiment_dialog(self) -> None:
+        """Ask for an experiment settings file and load it."""
+        path, _ = QFileDialog.getOpenFileName(self, "Load experiment settings", "", "JSON (*.json)")
+        if path:
+            self.load_experiment(Path(path))
+
+    def save_experiment_dialog(self) -> None:
+        """Ask where to save the experiment settings."""
+        path, _ = QFileDialog.getSaveFileName(
+            self, "Save experiment settings", str(self.experiment_path), "JSON (*.json)"
+        )
+        if path:
+            try:
+                self.experiment.save(Path(path))
+            except OSError as exc:
+                self.show_message(f"cannot save {path}: {exc}")
+
+    # ---- recording ---------------------------------------------------------
+    def start_recording(self, request: RecordRequest) -> None:
+        """Start recording what the source delivers, as ``request`` asks."""
+        if self.session is None:
+            self.show_message("start a source before recording")
+            return
+        try:
+            self.session.start_recording(request)
+        except HoloviewError as exc:
+            self.show_message(f"cannot record: {exc}")
+            return
+        self.recording_panel.set_progress(self.session.recording_progress())
+
+    def stop_recording(self) -> None:
+        """Stop the recording (the file is closed and complete)."""
+        if self.session is not None:
+            self.session.stop_recording()
+            self.recording_panel.set_progress(self.session.recording_progress())
+
+    # ---- exports -----------------------------------------------------------
+    def current_maps(self) -> tuple[dict, str]:
+        """Return the maps of the latest result (metres or radians) and their unit."""
+        result = self._last_result
+        if result is None:
+            return {}, "m"
+        if self.surface.mode == "phase":
+            return dict(result.phases_rad), "rad"
+        maps = dict(result.heights_m)
+        if result.fused_m is not None:
+            maps[FUSED] = result.fused_m
+        return maps, "m"
+
+    def export_maps_to(self, path: Path) -> list[Path]:
+        """Write the current maps next to ``path`` (``.tif`` or ``.npy``)."""
+        maps, unit = self.current_maps()
+        return export_maps(maps, path, unit)
+
+    def export_maps_dialog(self) -> None:
+        """Ask for a file name and export the current maps."""
+        path, _ = QFileDialog.getSaveFileName(
+            self, "Export maps", "maps.tif", "TIFF (*.tif);;NumPy (*.npy)"
+        )
+        if path:
+            try:
+                written = self.export_maps_to(Path(path))
+            except HoloviewError as exc:
+                self.show_message(str(exc))
+                return
+            self.status.showMessage(f"wrote {len(written)} maps", 4000)
+
+    def save_png_dialog(self) -> None:
+        """Ask for a file name and save the window as PNG."""
+        path, _ = QFileDialog.getSaveFileName(self, "Save window", "holoview.png", "PNG (*.png)")
+        if path:
+            try:
+                export_window_png(self, Path(path))
+            except HoloviewError as exc:
+                self.show_message(str(exc))
+
+    def snapshot(self, folder: Path | None = None) -> list[Path]:
+        """Save the window (PNG) and the current maps (NPY) with a time stamp in the name."""
+        folder = folder or Path.cwd()
+        stem = folder / time.strftime("holoview-%Y%m%d-%H%M%S")
+        try:
+            written = [export_window_png(self, stem.with_suffix(".png"))]
+            maps, unit = self.current_maps()
+            if maps:
+                written += export_maps(maps, stem.with_suffix(".npy"), unit)
+        except HoloviewError as exc:
+            self.show_message(str(exc))
+            return []
+        self.status.showMessage(f"snapshot: {len(written)} files in {folder}", 4000)
+        return written
+
+    # ---- redraw ------------------------------------------------------------
+    def redraw(self) -> None:
+        """Draw the session's latest result if it is new; refresh figures and messages."""
+        session = self.session
+        if session is None:
+            return
+        for problem in session.drain_messages():
+            self.show_message(problem)
+        if self._banner_until and time.monotonic() > self._banner_until:
+            self._banner_until = 0.0
+            self.banner_bar.setVisible(False)
+        result = session.latest()
+        if result is not None and result.seq != self._last_seq:
+            self._last_seq = result.seq
+            self._last_result = result
+            self._draw(result)
+            self.display_rate.tick()
+            self.last_latency_s = time.time() - result.t_host
+        self.recording_panel.set_progress(session.recording_progress())
+        camera_fps, processing_fps, dropped = session.rates()
+        self.status.set_figures(
+            LiveFigures(
+                camera_fps=camera_fps,
+                processing_fps=processing_fps,
+                display_fps=self.display_rate.rate(),
+                dropped=dropped,
+                latency_s=self.last_latency_s,
+                camera=session.description,
+            )
+        )
+        if not session.running:
+            self.source_panel.set_streaming(False, "stopped: " + session.stop_reason)
+            self.timer.stop()
+
+    def _draw(self, result: LiveResult) -> None:
+        self.hologram.set_frame(result.frame)
+        if result.spectrum is not None:
+            self.spectrum.set_spectrum(result.spectrum)
+        self.spectrum.set_peaks(result.peaks)
+        self.spectrum.set_model(result.labelled, result.predicted, result.radius)
+        if result.heights_m:
+            self.surface.set_maps(result.heights_m, result.fused_m, result.phases_rad)
+        if result.trend_times_s is not None:
+            self.trends.set_series(result.trend_times_s, result.trend_depths_m)
+            self.trends.set_rate(result.rate_m_per_s, result.rate_stderr_m_per_s, result.rate_fit)
+            self.trends.set_pca(result.pca_confidence, result.pca_prefactors)
+
+    # ---- layout ------------------------------------------------------------
+    def _restore_layout(self) -> None:
+        settings = ui_settings()
+        geometry = settings.value("main/geometry")
+        state = settings.value("main/state")
+        if isinstance(geometry, QByteArray):
+            self.restoreGeometry(geometry)
+        if isinstance(state, QByteArray):
+            self.restoreState(state)
+
+    def save_layout(self) -> None:
+        """Remember the window geometry and dock layout (QSettings)."""
+        settings = ui_settings()
+        settings.setValue("main/geometry", self.saveGeometry())
+        settings.setValue("main/state", self.saveState())
+        settings.sync()
+
+    def reset_layout(self) -> None:
+        """Put the docks back where they start."""
+        self.restoreState(self._default_state)
+
+    def closeEvent(self, event: QCloseEvent) -> None:
+        """Stop every thread and timer, remember the layout, then close."""
+        self.timer.stop()
+        self.stop_source()
+        self.save_layout()
+        super().closeEvent(event)

@@ -14,7 +14,7 @@ The JSON layout (format ``holoview-experiment``, version 1)::
 
     {"format": "holoview-experiment", "version": 1,
      "wavelength_m": 5.32e-07, "pixel_pitch_m": 5.5e-06, "n1": 1.0, "n2": 1.333,
-     "window": "hann", "radius": 0.06, "reference": "relative",
+     "window": "raised-cosine", "radius": 0.06, "reference": "relative",
      "peaks": [{"label": "RB1", "fx": 0.12, "fy": -0.05}, ...]}
 
 ``fx`` and ``fy`` are in cycles per pixel, ``radius`` too; lengths are in metres.
@@ -100,7 +100,7 @@ class ExperimentSettings:
     pixel_pitch_m: float = 5.5e-6
     n1: float = 1.0
     n2: float = 1.333
-    window: str = "hann"
+    window: str = "raised-cosine"
     radius: float = 0.06
     reference: str = "relative"
     peaks: tuple[LabelledPeak, ...] = field(default_factory=tuple)

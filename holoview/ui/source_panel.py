@@ -226,7 +226,9 @@ class SourcePanel(QWidget):
                     n, int(v) if k == "int" else v / s
                 )
             )
-            return spin, lambda v, s=spin, sc=scale: s.setValue(v * sc)
+            if info.kind == "int":
+                return spin, lambda v, s=spin: s.setValue(int(v))
+            return spin, lambda v, s=spin, sc=scale: s.setValue(float(v) * sc)
         if info.kind == "enum":
             box = QComboBox()
             box.addItems(list(info.choices or ()))

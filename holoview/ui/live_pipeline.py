@@ -1,0 +1,439 @@
+"""What the demodulation worker does with each frame (glue over holoview.processing).
+
+Per frame: the display spectrum (at most :data:`SPECTRUM_HZ`), peak detection (at
+most :data:`PEAKS_HZ`; carriers drift slowly), the labelled peaks followed onto the
+detected ones, the model's predicted carriers once two are labelled (and the
+detected peaks they match labelled too), the demodulated delta-h map of every
+labelled peak, the fused map, and the mean depth series with the evaporation rate.
+All the numbers come from :mod:`holoview.processing` and :mod:`holoview.optics`;
+this module only decides when to call what, and packs a :class:`LiveResult`.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from holoview.acquire.source import FrameMeta
+from holoview.errors import HoloviewError, InputError
+from holoview.optics.families import alpha_of, infer_carriers
+from holoview.processing.demodulate import DemodResult, Demodulator
+from holoview.processing.peaks import Peak, find_peaks
+from holoview.processing.spectrum import display_spectrum
+from holoview.processing.trends import fuse_depths
+from holoview.processing.windows import wrap_frequency
+from holoview.ui.settings import ExperimentSettings
+
+logger = logging.getLogger(__name__)
+
+#: Highest rate of the display spectrum, Hz.
+SPECTRUM_HZ = 10.0
+#: Highest rate of peak detection, Hz.
+PEAKS_HZ = 2.0
+#: Largest side of the spectrum image handed to the window (block maxima beyond).
+SPECTRUM_DISPLAY_MAX = 512
+#: A labelled or predicted carrier follows a detected peak within this, cycles/pixel.
+FOLLOW_DISTANCE = 0.02
+#: Depth series kept for the trends plot, frames.
+TREND_LENGTH = 3000
+#: Families whose predicted carriers are drawn and matched once two peaks are labelled.
+PREDICTED_FAMILIES: tuple[str, ...] = ("RF", "RB1", "FB1", "RB2", "FB2")
+
+Carrier = tuple[float, float]
+
+
+@dataclass(frozen=True)
+class LiveResult:
+    """Everything the window draws for one processed frame.
+
+    Arrays are shared, never modified after publication. Heights in metres, phases
+    in radians, carriers and radius in cycles per pixel, times in seconds.
+    """
+
+    seq: int
+    frame: np.ndarray
+    frame_id: int
+    t_host: float
+    processing_s: float
+    spectrum: np.ndarray | None
+    peaks: list[Carrier]
+    labelled: dict[str, Carrier]
+    predicted: dict[str, Carrier]
+    radius: float
+    heights_m: dict[str, np.ndarray] = field(default_factory=dict)
+    fused_m: np.ndarray | None = None
+    phases_rad: dict[str, np.ndarray] = field(default_factory=dict)
+    trend_times_s: np.ndarray | None = None
+    trend_depths_m: dict[str, np.ndarray] = field(default_factory=dict)
+    rate_m_per_s: float | None = None
+    rate_stderr_m_per_s: float | None = None
+    rate_fit: tuple[list[float], list[float]] | None = None
+    pca_confidence: float | None = None
+    pca_prefactors: dict[str, float] | None = None
+
+
+def block_max(image: np.ndarray, limit: int) -> np.ndarray:
+    """Shrink ``image`` by an integer factor with block maxima so no side exceeds ``limit``.
+
+    Maxima keep narrow peaks visible where averaging would blur them away.
+    """
+    factor = max(1, math.ceil(max(image.shape) / limit))
+    if factor == 1:
+        return image
+    rows, cols = (image.shape[0] // factor) * factor, (image.shape[1] // factor) * factor
+    blocks = image[:rows, :cols].reshape(rows // factor, factor, cols // factor, factor)
+    return blocks.max(axis=(1, 3))
+
+
+def fold(carrier: Carrier) -> Carrier:
+    """Return where a carrier beyond Nyquist appears in the spectrum (cycles/pixel)."""
+    fx, fy = wrap_frequency(np.asarray(carrier, dtype=float))
+    return (float(fx), float(fy))
+
+
+def nearest_peak(
+    carrier: Carrier, peaks: list[Peak], distance: float = FOLLOW_DISTANCE
+) -> Peak | None:
+    """Return the detected peak nearest ``carrier`` within ``distance``, on the twin nearest it.
+
+    A peak found on its other twin is returned flipped, so its carrier is the one
+    near ``carrier``. None when no peak is that close.
+    """
+    best, best_d = None, distance
+    for peak in peaks:
+        for candidate in (peak, peak.flipped()):
+            d = math.dist(candidate.carrier, carrier)
+            if d <= best_d:
+                best, best_d = candidate, d
+    return best
+
+
+def predict_carriers(labelled: dict[str, Carrier], e: ExperimentSettings) -> dict[str, Carrier]:
+    """Return the model's carriers of :data:`PREDICTED_FAMILIES` from two or more labels.
+
+    Labels the model does not know (custom names) are left out; fewer than two known
+    labels predict nothing.
+    """
+    known = {}
+    for name, carrier in labelled.items():
+        try:
+            alpha_of(name, e.n1, e.n2)
+        except InputError:
+            continue
+        known[name] = carrier
+    if len(known) < 2:
+        return {}
+    try:
+        carriers = infer_carriers(known, e.n1, e.n2)
+    except InputError:
+        return {}
+    return {k: carriers[k] for k in PREDICTED_FAMILIES if k in carriers}
+
+
+def model_alpha(label: str, e: ExperimentSettings) -> float | None:
+    """The model prefactor of ``label``, or None for a label the model does not know."""
+    try:
+        return alpha_of(label, e.n1, e.n2)
+    except InputError:
+        return None
+
+
+class DemodulationStage:
+    """Keep a :class:`Demodulator` for the labelled peaks; rebuild it only when needed.
+
+    The demodulator is rebuilt when a label appears or goes, a carrier moves by a
+    whole FFT bin, or the radius, window, reference or optics change (a rebuild
+    restarts the absolute reference).
+    """
+
+    def __init__(self, frame_shape: tuple[int, int], saturation: float | None = None) -> None:
+        self.frame_shape = frame_shape
+        self.saturation = saturation
+        self._demod: Demodulator | None = None
+        self._key: tuple | None = None
+
+    def _key_of(self, peaks: list[Peak], e: ExperimentSettings) -> tuple:
+        rows, cols = self.frame_shape
+        bins = tuple(
+            (p.label, round(p.carrier[0] * cols), round(p.carrier[1] * rows)) for p in peaks
+        )
+        return (bins, e.radius, e.window, e.reference, e.wavelength_m)
+
+    def run(
+        self, frame: np.ndarray, peaks: list[Peak], e: ExperimentSettings
+    ) -> DemodResult | None:
+        """Demodulate ``frame`` at ``peaks`` (labelled, with alpha where known); None if none."""
+        if not peaks:
+            self._demod, self._key = None, None
+            return None
+        key = self._key_of(peaks, e)
+        if key != self._key:
+            self._key = None
+            self._demod = Demodulator(
+                self.frame_shape,
+                peaks,
+                window=e.window,
+                radius=e.radius,
+                reference=e.reference,
+                wavelength=e.wavelength_m,
+                saturation=self.saturation,
+            )
+            self._key = key
+        assert self._demod is not None
+        return self._demod.process(frame)
+
+
+def fuse_maps(result: DemodResult) -> np.ndarray | None:
+    """Fuse the delta-h maps of a frame, weighting each peak by ``1 / noise_height^2``.
+
+    Untrusted pixels (outside a peak's mask) do not count. None without two maps.
+    """
+    maps = [r for r in result.peaks if r.delta_h is not None and r.noise_height]
+    if len(maps) < 2:
+        return None
+    stack = np.stack(
+        [np.where(r.mask, r.delta_h, np.nan).reshape(-1) for r in maps], axis=1
+    ).astype(np.float64)
+    noise = np.array([r.noise_height for r in maps], dtype=np.float64)
+    try:
+        fused = fuse_depths(stack, noise)
+    except InputError:
+        return None
+    return fused.depth.reshape(result.box_shape).astype(np.float32)
+
+
+class LivePipeline:
+    """Turn frames into :class:`LiveResult` objects; used by one thread at a time.
+
+    Parameters
+    ----------
+    experiment : ExperimentSettings
+        Optics, labelled peaks, window and reference mode.
+    frame_shape : tuple of int
+        ``(rows, cols)`` of the frames, pixels.
+    """
+
+    def __init__(
+        self,
+        experiment: ExperimentSettings,
+        frame_shape: tuple[int, int],
+        saturation: float | None = None,
+    ) -> None:
+        self.experiment = experiment
+        self.frame_shape = frame_shape
+        self.pca = False
+        self._seq = 0
+        self._spectrum: np.ndarray | None = None
+        self._spectrum_at = -math.inf
+        self._peaks: list[Peak] = []
+        self._peaks_at = -math.inf
+        self._demod = DemodulationStage(frame_shape, saturation)
+        self._trends = TrendStage()
+
+    def apply(self, name: str, value: object) -> None:
+        """Apply a command: ``experiment`` (new settings), ``pca`` (bool), ``reset``."""
+        if name == "experiment":
+            if not isinstance(value, ExperimentSettings):
+                raise InputError(f"experiment command needs ExperimentSettings, not {value!r}")
+            self.experiment = value
+            self._peaks_at = -math.inf  # detect again with the new radius
+        elif name == "pca":
+            self.pca = bool(value)
+        elif name == "reset":
+            self._trends.reset()
+        else:
+            raise InputError(f"unknown command {name!r}")
+
+    def labelled_peaks(self) -> tuple[list[Peak], dict[str, Carrier]]:
+        """Return the peaks to demodulate and the model's predicted carriers.
+
+        Operator labels follow the detected peak nearest them; with two labels the
+        model predicts the other families, and detected peaks near a prediction are
+        labelled with it.
+        """
+        e = self.experiment
+        chosen: list[Peak] = []
+        for p in e.peaks:
+            found = nearest_peak((p.fx, p.fy), self._peaks)
+            base = found or Peak(carrier=fold((p.fx, p.fy)), amplitude=float("nan"), snr=0.0)
+            chosen.append(base.relabelled(p.label, model_alpha(p.label, e)))
+        carriers = {p.label: p.carrier for p in chosen if p.label}
+        predicted = predict_carriers(carriers, e)
+        taken = [p.carrier for p in chosen]
+        for name, carrier in predicted.items():
+            if name in carriers:
+                continue
+            found = nearest_peak(fold(carrier), self._peaks)
+            if found is not None and all(math.dist(found.carrier, c) > 1e-6 for c in taken):
+                chosen.append(found.relabelled(name, model_alpha(name, e)))
+                taken.append(found.carrier)
+        return chosen, predicted
+
+    def process(self, frame: np.ndarray, meta: FrameMeta) -> LiveResult:
+        """Process one frame; raise HoloviewError for a problem the operator can fix."""
+        start = time.perf_counter()
+        now = time.monotonic()
+        e = self.experiment
+        if now - self._spectrum_at >= 1.0 / SPECTRUM_HZ:
+            self._spectrum = block_max(display_spectrum(frame), SPECTRUM_DISPLAY_MAX)
+            self._spectrum_at = now
+        if now - self._peaks_at >= 1.0 / PEAKS_HZ:
+            self._peaks = find_peaks(frame, radius=e.radius)
+            self._peaks_at = now
+        peaks, predicted = self.labelled_peaks()
+        demod = self._demod.run(frame, peaks, e)
+        heights: dict[str, np.ndarray] = {}
+        phases: dict[str, np.ndarray] = {}
+        fused = None
+        trend = None
+        if demod is not None:
+            for r in demod.peaks:
+                name = r.peak.label or "?"
+                phases[name] = r.phase
+                if r.delta_h is not None:
+                    heights[name] = r.delta_h
+            fused = fuse_maps(demod)
+            self._trends.add(
+                meta.t_host, {r.peak.label or "?": r.carrier_value for r in demod.peaks}
+            )
+            alphas = {p.label: p.alpha for p in peaks if p.label and p.alpha is not None}
+            try:
+                trend = self._trends.summary(alphas, e.wavelength_m, e.n1, e.n2, self.pca)
+            except HoloviewError as exc:
+                logger.debug("trends not available: %s", exc)
+        self._seq += 1
+        return LiveResult(
+            seq=self._seq,
+            frame=frame,
+            frame_id=meta.frame_id,
+            t_host=meta.t_host,
+            processing_s=time.perf_counter() - start,
+            spectrum=self._spectrum,
+            peaks=[p.carrier for p in self._peaks],
+            labelled={p.label: p.carrier for p in peaks if p.label},
+            predicted=predicted,
+            radius=e.radius if demod is None else demod.radius,
+            heights_m=heights,
+            fused_m=fused,
+            phases_rad=phases,
+            trend_times_s=None if trend is None else trend.times_s,
+            trend_depths_m={} if trend is None else trend.depths_m,
+            rate_m_per_s=None if trend is None else trend.rate_m_per_s,
+            rate_stderr_m_per_s=None if trend is None else trend.rate_stderr_m_per_s,
+            rate_fit=None if trend is None else trend.rate_fit,
+            pca_confidence=None if trend is None else trend.pca_confidence,
+            pca_prefactors=None if trend is None else trend.pca_prefactors,
+        )
+
+
+@dataclass(frozen=True)
+class TrendSummary:
+    """Depth series and rate for the trends view (metres, seconds)."""
+
+    times_s: np.ndarray
+    depths_m: dict[str, np.ndarray]
+    rate_m_per_s: float | None
+    rate_stderr_m_per_s: float | None
+    rate_fit: tuple[list[float], list[float]] | None
+    pca_confidence: float | None = None
+    pca_prefactors: dict[str, float] | None = None
+
+
+class TrendStage:
+    """Keep each labelled peak's mean complex value per frame; derive depths and the rate.
+
+    The mean phase is unwrapped in time, converted to depth with the model alpha
+    of each label, fused with weights from each series' noise, and fitted with a
+    line (all by :mod:`holoview.processing.trends`). The series restarts whenever
+    the set of labels changes.
+    """
+
+    def __init__(self, length: int = TREND_LENGTH) -> None:
+        self.length = length
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the series."""
+        self._labels: tuple[str, ...] = ()
+        self._t0: float | None = None
+        self._times: list[float] = []
+        self._values: list[np.ndarray] = []
+
+    def add(self, t_host: float, values: dict[str, complex]) -> None:
+        """Add one frame: ``values`` maps each label to its mean complex field value."""
+        labels = tuple(values)
+        if labels != self._labels:
+            self.reset()
+            self._labels = labels
+        if self._t0 is None:
+            self._t0 = t_host
+        self._times.append(t_host - self._t0)
+        self._values.append(np.array([values[k] for k in labels], dtype=np.complex128))
+        if len(self._times) > self.length:
+            del self._times[0], self._values[0]
+
+    def summary(
+        self,
+        alphas: dict[str, float],
+        wavelength_m: float,
+        n1: float,
+        n2: float,
+        pca: bool = False,
+    ) -> TrendSummary | None:
+        """Return the depth series, fused depth and rate; None with fewer than 3 frames.
+
+        Parameters
+        ----------
+        alphas : dict of str to float
+            Model prefactor of each label (labels without one are left out).
+        wavelength_m : float
+            Laser wavelength, metres.
+        n1, n2 : float
+            Refractive indices above and below the surface (for the PCA's model alphas).
+        pca : bool
+            Also identify the peaks by temporal PCA (confidence and prefactors).
+        """
+        from holoview.processing.identify import identify_peaks
+        from holoview.processing.trends import (
+            depth_series,
+            fit_rate,
+            fuse_depths,
+            series_noise,
+            unwrap_in_time,
+        )
+
+        usable = [i for i, k in enumerate(self._labels) if k in alphas]
+        if len(self._times) < 3 or not usable:
+            return None
+        times = np.asarray(self._times)
+        values = np.asarray(self._values)
+        phases = unwrap_in_time(values)
+        names = [self._labels[i] for i in usable]
+        depths = depth_series(phases[:, usable], [alphas[k] for k in names], wavelength_m)
+        series = {k: depths[:, j] for j, k in enumerate(names)}
+        rate = stderr = fit_line = None
+        noise = series_noise(depths, times)
+        if np.any(np.isfinite(noise) & (noise > 0)):
+            fused = fuse_depths(depths, noise)
+            series["fused"] = fused.depth
+            fit = fit_rate(times, fused.depth)
+            rate, stderr = fit.rate, fit.stderr
+            ends = [float(times[0]), float(times[-1])]
+            fit_line = (ends, [fit.intercept + fit.rate * t for t in ends])
+        confidence = prefactors = None
+        if pca and len(self._labels) >= 2 and names:
+            reference_label = "RB1" if "RB1" in names else names[0]
+            ident = identify_peaks(
+                phases,
+                n1,
+                n2,
+                reference=self._labels.index(reference_label),
+                reference_label=reference_label,
+            )
+            confidence = ident.confidence
+            prefactors = {k: float(a) for k, a in zip(self._labels, ident.alphas, strict=True)}
+        return TrendSummary(times, series, rate, stderr, fit_line, confidence, prefactors)

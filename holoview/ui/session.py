@@ -1,0 +1,397 @@
+"""A live session: source -> camera thread -> FrameRing -> demodulation worker (+ recorder).
+
+No Qt here: the window polls :meth:`LiveSession.latest` from its redraw timer and
+sends commands with the setters, which the worker applies between frames. The
+worker (a thread named ``holoview-demod``) takes the *newest* frame from the ring,
+runs a :class:`~holoview.ui.live_pipeline.LivePipeline` on it and publishes the
+result under a lock; the recorder (``holoview-recorder``) takes *every* frame. All
+threads stop with a sentinel (the ring closes) and are joined by :meth:`close`.
+"""
+
+from __future__ import annotations
+
+import collections
+import logging
+import queue
+import threading
+import time
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+
+from holoview.acquire.camera_thread import CameraThread
+from holoview.acquire.recorder import Recorder
+from holoview.acquire.recording import RecordingWriter
+from holoview.acquire.ring import CLOSED, FrameRing, RingConsumer
+from holoview.acquire.source import Source
+from holoview.errors import HoloviewError, InputError
+from holoview.ui.live_pipeline import LivePipeline, LiveResult
+from holoview.ui.recording_panel import RecordingProgress, RecordRequest
+from holoview.ui.settings import ExperimentSettings
+
+logger = logging.getLogger(__name__)
+
+__all__ = ["LiveResult", "LiveSession", "discover_sources"]
+
+#: Memory the frame ring may take, bytes (it holds at least 8 frames).
+RING_BYTES = 256 * 2**20
+#: Most messages kept for the window between two redraws.
+MAX_MESSAGES = 20
+
+
+class RecordingLimitWriter(RecordingWriter):
+    """A :class:`RecordingWriter` that ignores frames past ``max_frames`` (None: no cap)."""
+
+    def __init__(self, *args: Any, max_frames: int | None = None, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self.max_frames = max_frames
+
+    def append(self, frame: np.ndarray, frame_id: int, t_device: float, t_host: float) -> None:
+        """Append a frame unless the cap is reached."""
+        if self.max_frames is None or len(self) < self.max_frames:
+            super().append(frame, frame_id, t_device, t_host)
+
+
+class DemodWorker:
+    """Run a pipeline on the newest frame of a ring, on a thread named ``holoview-demod``.
+
+    Parameters
+    ----------
+    ring : FrameRing
+        Frames to process (a ``"newest"`` consumer is made at construction).
+    pipeline : LivePipeline
+        What to do with each frame; commands are applied between frames.
+    """
+
+    def __init__(self, ring: FrameRing, pipeline: LivePipeline) -> None:
+        self.pipeline = pipeline
+        self._consumer: RingConsumer = ring.consumer("processing", mode="newest")
+        self._commands: queue.SimpleQueue[tuple[str, Any]] = queue.SimpleQueue()
+        self._lock = threading.Lock()
+        self._latest: LiveResult | None = None
+        self._times: collections.deque[float] = collections.deque(maxlen=32)
+        self._messages: collections.deque[str] = collections.deque(maxlen=MAX_MESSAGES)
+        self._last_error = ""
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="holoview-demod", daemon=True)
+
+    def start(self) -> None:
+        """Start the thread."""
+        self._thread.start()
+
+    def stop(self, timeout: float = 5.0) -> None:
+        """Ask the thread to stop and join it."""
+        self._stop.set()
+        if self._thread.ident is not None:
+            self._thread.join(timeout)
+
+    @property
+    def running(self) -> bool:
+        """True while the thread runs."""
+        return self._thread.is_alive()
+
+    def post(self, name: str, value: Any = None) -> None:
+        """Queue a command for the pipeline (``experiment``, ``pca``, ``reset``)."""
+        self._commands.put((name, value))
+
+    def latest(self) -> LiveResult | None:
+        """The newest result, or None before the first."""
+        with self._lock:
+            return self._latest
+
+    def rate_hz(self) -> float:
+        """Frames processed per second over the last 32 frames."""
+        with self._lock:
+            times = list(self._times)
+        if len(times) < 2 or times[-1] <= times[0]:
+            return 0.0
+        if time.monotonic() - times[-1] > 2.0:
+            return 0.0
+        return (len(times) - 1) / (times[-1] - times[0])
+
+    def drain_messages(self) -> list[str]:
+        """Return and forget the problems met since the last call."""
+        out = []
+        while self._messages:
+            out.append(self._messages.popleft())
+        return out
+
+    def _report(self, text: str) -> None:
+        if text != self._last_error:
+            self._last_error = text
+            self._messages.append(text)
+
+    def _apply_commands(self) -> None:
+        while True:
+            try:
+                name, value = self._commands.get_nowait()
+            except queue.Empty:
+                return
+            try:
+                self.pipeline.apply(name, value)
+            except HoloviewError as exc:
+                self._report(str(exc))
+
+    def _run(self) -> None:
+        try:
+            while not self._stop.is_set():
+                self._apply_commands()
+                item = self._consumer.get(timeout=0.1)
+                if item is CLOSED:
+                    break
+                if item is None:
+                    continue
+                pixels, meta = item
+                try:
+                    result = self.pipeline.process(pixels, meta)
+                except HoloviewError as exc:
+                    self._report(str(exc))
+                    continue
+                self._last_error = ""
+                with self._lock:
+                    self._latest = result
+                    self._times.append(time.monotonic())
+        except Exception:  # a bug: keep the traceback in the log, end the thread cleanly
+            logger.exception("demodulation worker failed")
+            self._messages.append("processing stopped after an internal error (see the log)")
+
+
+class LiveSession:
+    """One source streaming into a ring, processed live, optionally recorded.
+
+    Parameters
+    ----------
+    spec : str
+        Source specification: ``sim``, ``aravis[:ID]``, ``v4l2[:N]``, ``replay:PATH``.
+    experiment : ExperimentSettings
+        Optics, labelled peaks, window and reference mode.
+    frame_shape : tuple of int, optional
+        ``(rows, cols)`` asked of the simulated source.
+
+    Raises
+    ------
+    HoloviewError
+        The source cannot be opened (camera gone, file broken or missing).
+    """
+
+    def __init__(
+        self,
+        spec: str,
+        experiment: ExperimentSettings,
+        *,
+        frame_shape: tuple[int, int] | None = None,
+    ) -> None:
+        self.spec = spec
+        self.experiment = experiment
+        self.source: Source = _open_source(spec, frame_shape)
+        try:
+            shape = self.source.frame_shape
+            frame_bytes = shape[0] * shape[1] * np.dtype(self.source.dtype).itemsize
+            capacity = int(np.clip(RING_BYTES // frame_bytes, 8, 512))
+            self.ring = FrameRing(capacity, shape, self.source.dtype)
+            self.camera = CameraThread(self.source, self.ring)
+            self.pipeline = LivePipeline(experiment, shape, saturation=self.saturation_value)
+            self.worker = DemodWorker(self.ring, self.pipeline)
+        except BaseException:
+            self.source.close()
+            raise
+        self.recorder: Recorder | None = None
+        self._request: RecordRequest | None = None
+        self._recording_started = 0.0
+        self._recording_elapsed = 0.0
+        self._messages: list[str] = []
+        self._closed = False
+
+    # ---- life cycle --------------------------------------------------------
+    def start(self) -> None:
+        """Start streaming and processing."""
+        self.camera.start()
+        self.worker.start()
+
+    def close(self) -> None:
+        """Stop recording, the camera and the worker; join them; close the source."""
+        if self._closed:
+            return
+        self._closed = True
+        self.stop_recording()
+        self.camera.stop()
+        self.worker.stop()
+        try:
+            self.source.close()
+        except HoloviewError as exc:
+            logger.warning("closing %s: %s", self.spec, exc)
+
+    @property
+    def running(self) -> bool:
+        """True while the camera thread streams."""
+        return self.camera.running
+
+    @property
+    def stop_reason(self) -> str:
+        """Why the camera thread ended ('' while it runs)."""
+        if self.camera.running:
+            return ""
+        if self.camera.error is not None:
+            return str(self.camera.error)
+        return "end of stream" if not self._closed else "stopped"
+
+    @property
+    def description(self) -> str:
+        """The source in words: name, frame shape, dtype."""
+        rows, cols = self.source.frame_shape
+        return f"{self.source.name} {cols} x {rows} {np.dtype(self.source.dtype).name}"
+
+    @property
+    def saturation_value(self) -> float:
+        """The largest raw value of the source's pixel format."""
+        bits = self._significant_bits()
+        return float(2**bits - 1)
+
+    def _significant_bits(self) -> int:
+        try:
+            has_format = self.source.has_setting("pixel_format")
+            fmt = str(self.source.get("pixel_format")) if has_format else ""
+        except HoloviewError:
+            fmt = ""
+        digits = "".join(c for c in fmt if c.isdigit())
+        if digits:
+            return int(digits)
+        return np.dtype(self.source.dtype).itemsize * 8
+
+    # ---- source settings ---------------------------------------------------
+    def describe_settings(self) -> Mapping[str, Any]:
+        """The source's setting descriptions, by name."""
+        return self.source.describe_settings()
+
+    def read_settings(self) -> dict[str, Any]:
+        """Every setting's value read back from the source."""
+        return self.source.get_all()
+
+    def set_setting(self, name: str, value: Any) -> Any:
+        """Set a source setting; return the value read back."""
+        return self.source.set(name, value)
+
+    # ---- commands to the worker -------------------------------------------
+    def set_experiment(self, experiment: ExperimentSettings) -> None:
+        """Use new experiment settings (labels, radius, reference) from the next frame."""
+        self.experiment = experiment
+        self.worker.post("experiment", experiment)
+
+    def set_pca(self, on: bool) -> None:
+        """Turn the PCA identification of the trends on or off."""
+        self.worker.post("pca", bool(on))
+
+    def reset_trends(self) -> None:
+        """Restart the depth series from the next frame."""
+        self.worker.post("reset")
+
+    # ---- what the window reads --------------------------------------------
+    def latest(self) -> LiveResult | None:
+        """The newest processed result, or None."""
+        return self.worker.latest()
+
+    def rates(self) -> tuple[float, float, int]:
+        """Return (camera fps, processing fps, frames dropped: transport + recorder overflow)."""
+        status = self.worker._consumer.status()
+        dropped = status.transport_lost
+        if self.recorder is not None:
+            dropped += self.recorder.status().dropped
+        return self.camera.rate_hz(), self.worker.rate_hz(), dropped
+
+    def drain_messages(self) -> list[str]:
+        """Problems met by the worker, the camera or the recorder since the last call."""
+        out = self.worker.drain_messages() + self._messages
+        self._messages = []
+        return out
+
+    # ---- recording ---------------------------------------------------------
+    def start_recording(self, request: RecordRequest) -> None:
+        """Record every frame from now to ``request.path`` (an HDF5 holoview recording)."""
+        if self.recorder is not None and self.recorder.running:
+            raise InputError("a recording is already running")
+        if request.path.suffix.lower() not in (".h5", ".hdf5"):
+            raise InputError(f"recording file {request.path.name} must end in .h5 or .hdf5")
+        e = self.experiment
+        try:
+            settings = {k: v for k, v in self.source.get_all().items() if _storable(v)}
+        except HoloviewError:
+            settings = {}
+        writer = RecordingLimitWriter(
+            request.path,
+            self.source.frame_shape,
+            self.source.dtype,
+            setup={
+                "wavelength_m": e.wavelength_m,
+                "pixel_pitch_m": e.pixel_pitch_m,
+                "n1": e.n1,
+                "n2": e.n2,
+            },
+            settings=settings,
+            source=self.spec,
+            max_frames=request.frames,
+        )
+        self.recorder = Recorder(self.ring, writer)
+        self.recorder.start()
+        self._request = request
+        self._recording_started = time.monotonic()
+        self._recording_elapsed = 0.0
+        logger.info("recording to %s", request.path)
+
+    def stop_recording(self) -> None:
+        """Stop the recording and close its file."""
+        if self.recorder is not None and self.recorder.running:
+            self.recorder.stop()
+            self._recording_elapsed = time.monotonic() - self._recording_started
+            if self.recorder.error is not None:
+                self._messages.append(str(self.recorder.error))
+
+    def recording_progress(self) -> RecordingProgress | None:
+        """The recording's progress; stops it once its duration or frame count is reached."""
+        recorder, request = self.recorder, self._request
+        if recorder is None or request is None:
+            return None
+        if recorder.running:
+            self._recording_elapsed = time.monotonic() - self._recording_started
+            done_frames = request.frames is not None and recorder.written >= request.frames
+            limit_s = request.duration_s
+            done_time = limit_s is not None and self._recording_elapsed >= limit_s
+            if done_frames or done_time or not self.camera.running:
+                self.stop_recording()
+        return RecordingProgress(
+            path=request.path,
+            frames=recorder.written,
+            elapsed_s=self._recording_elapsed,
+            dropped=recorder.status().dropped,
+            active=recorder.running,
+        )
+
+
+def _storable(value: Any) -> bool:
+    return isinstance(value, int | float | str | bool | tuple)
+
+
+def _open_source(spec: str, frame_shape: tuple[int, int] | None) -> Source:
+    """Open the source ``spec``: replays loop; the simulator at ``frame_shape`` when given."""
+    from holoview.acquire.factory import open_source, parse_source_spec
+
+    kind = parse_source_spec(spec).kind
+    options: dict[str, Any] = {}
+    if kind == "replay":
+        options["loop"] = True
+    if kind == "sim" and frame_shape is not None:
+        options["shape"] = frame_shape
+    return open_source(spec, **options)
+
+
+def discover_sources() -> tuple[list[str], list[str]]:
+    """Return (source specifications found, problems met looking): ``sim`` comes first."""
+    from holoview.acquire import discovery
+
+    specs, problems = ["sim"], []
+    for finder in (discovery.aravis_sources, discovery.v4l2_sources):
+        try:
+            specs += finder()
+        except HoloviewError as exc:
+            problems.append(str(exc))
+    return specs, problems

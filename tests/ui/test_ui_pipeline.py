@@ -1,0 +1,77 @@
+"""The live pipeline on synthetic holograms: labels, model predictions, maps, trends."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from holoview.acquire.source import FrameMeta
+from holoview.ui.live_pipeline import LivePipeline, block_max
+from holoview.ui.settings import ExperimentSettings, LabelledPeak
+
+from .holograms import FB1, N1, N2, RB1, WAVELENGTH_M, carriers, hologram_stack
+
+
+def _experiment(**changes: object) -> ExperimentSettings:
+    base = ExperimentSettings(
+        wavelength_m=WAVELENGTH_M,
+        n1=N1,
+        n2=N2,
+        radius=0.05,
+        reference="absolute",
+        peaks=(LabelledPeak("RB1", *RB1), LabelledPeak("FB1", *FB1)),
+    )
+    return ExperimentSettings(**{**base.__dict__, **changes})
+
+
+def _run(pipeline: LivePipeline, frames: np.ndarray, dt: float = 0.1) -> list:
+    return [
+        pipeline.process(frame, FrameMeta(frame_id=i, t_device=i * dt, t_host=100.0 + i * dt))
+        for i, frame in enumerate(frames)
+    ]
+
+
+def test_block_max_keeps_narrow_peaks() -> None:
+    image = np.zeros((1024, 1000), np.float32)
+    image[517, 3] = 5.0
+    small = block_max(image, 512)
+    assert small.shape == (512, 500) and small.max() == 5.0 and small[258, 1] == 5.0
+
+
+def test_two_labels_bring_predicted_peaks_maps_and_trend() -> None:
+    frames = hologram_stack(6, (128, 128))
+    results = _run(LivePipeline(_experiment(), (128, 128)), frames)
+    last = results[-1]
+    truth = carriers()
+    assert set(last.predicted) >= {"RF", "RB2"}
+    assert last.predicted["RF"] == pytest.approx(truth["RF"], abs=1 / 128)
+    assert set(last.labelled) == set(truth)  # RF and RB2 matched on detected peaks
+    for name, carrier in truth.items():
+        assert last.labelled[name] == pytest.approx(carrier, abs=2 / 128)
+    assert set(last.heights_m) == set(truth)
+    assert last.fused_m is not None and last.fused_m.shape == last.heights_m["RB1"].shape
+    # the bump rises 5 nm per frame at its centre; the absolute map after 5 frames shows ~25 nm
+    centre = last.fused_m[last.fused_m.shape[0] // 2, last.fused_m.shape[1] // 2]
+    assert centre == pytest.approx(25e-9, rel=0.3)
+    assert last.trend_times_s is not None and len(last.trend_times_s) == len(frames)
+    assert last.rate_m_per_s is not None and last.rate_m_per_s > 0
+    assert set(last.trend_depths_m) >= {"RB1", "fused"}
+    assert last.spectrum is not None and last.spectrum.shape == (128, 128)
+
+
+def test_custom_label_has_phase_but_no_height() -> None:
+    frames = hologram_stack(3, (128, 128))
+    experiment = _experiment(peaks=(LabelledPeak("mine", *RB1),))
+    last = _run(LivePipeline(experiment, (128, 128)), frames)[-1]
+    assert last.predicted == {}
+    assert "mine" in last.phases_rad and "mine" not in last.heights_m
+
+
+def test_commands_change_settings_between_frames() -> None:
+    pipeline = LivePipeline(_experiment(peaks=()), (128, 128))
+    frames = hologram_stack(2, (128, 128))
+    assert _run(pipeline, frames[:1])[0].labelled == {}
+    pipeline.apply("experiment", _experiment())
+    pipeline.apply("pca", True)
+    result = _run(pipeline, frames)[-1]
+    assert "RB1" in result.labelled and pipeline.pca

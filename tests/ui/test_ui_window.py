@@ -1,0 +1,131 @@
+"""The main window end to end on a replayed file: labels, predictions, maps, recording."""
+
+from __future__ import annotations
+
+import threading
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+
+from holoview.acquire.recording import RecordingReader
+from holoview.ui.main_window import MainWindow
+from holoview.ui.recording_panel import RecordRequest
+from holoview.ui.settings import ExperimentSettings, ui_settings
+
+from .holograms import FB1, N1, N2, RB1, WAVELENGTH_M
+
+pytestmark = [
+    pytest.mark.gui,
+    # the offscreen platform plugin cannot resize or raise floating docks; not holoview's
+    pytest.mark.qt_log_ignore(r"This plugin does not support (propagateSizeHints|raise)\(\)"),
+]
+
+
+def _window(qtbot, open_windows, tmp_path: Path, source: str, **kwargs) -> MainWindow:
+    path = tmp_path / "experiment.json"
+    if not path.exists():
+        ExperimentSettings(wavelength_m=WAVELENGTH_M, n1=N1, n2=N2, radius=0.05).save(path)
+    window = MainWindow(source=source, experiment_path=path, **kwargs)
+    qtbot.addWidget(window)
+    open_windows.append(window)
+    window.show()
+    return window
+
+
+def _wait_frames(qtbot, window: MainWindow, n: int = 2) -> None:
+    first = window._last_seq
+    qtbot.waitUntil(lambda: window._last_seq >= max(first, 0) + n, timeout=10000)
+
+
+def test_window_shows_frames_labels_predictions_and_maps(
+    qtbot, open_windows, tmp_path, hologram_file
+):
+    window = _window(qtbot, open_windows, tmp_path, f"replay:{hologram_file}")
+    _wait_frames(qtbot, window)
+    assert window.hologram.image.image.shape == (256, 256)
+    assert window.spectrum.image.image is not None
+    qtbot.waitUntil(lambda: len(window.spectrum._peaks) >= 4, timeout=5000)
+    choices = iter(["RB1", "FB1"])
+    window.spectrum.choose_label = lambda carrier, current: next(choices)
+    window.spectrum.click_at(RB1[0] + 0.005, RB1[1] - 0.004)
+    assert [p.label for p in window.experiment.peaks] == ["RB1"]
+    window.spectrum.click_at(FB1[0], FB1[1] + 0.006)
+    assert {p.label for p in window.experiment.peaks} == {"RB1", "FB1"}
+    qtbot.waitUntil(
+        lambda: set(window.spectrum.labelled) >= {"RB1", "FB1", "RF", "RB2"}, timeout=10000
+    )
+    assert {"RF", "RB2"} <= set(window.spectrum._predicted)
+    qtbot.waitUntil(
+        lambda: set(window.surface.names) >= {"RB1", "FB1", "RF", "RB2", "fused"}, timeout=10000
+    )
+    assert np.isfinite(window.surface.map_data("RB1")).any()
+    # the labels are in the portable experiment file, not in the UI settings
+    saved = ExperimentSettings.load(window.experiment_path)
+    assert {p.label for p in saved.peaks} == {"RB1", "FB1"}
+
+
+def test_click_with_no_peak_shows_a_message_and_keeps_running(
+    qtbot, open_windows, tmp_path, hologram_file
+):
+    window = _window(qtbot, open_windows, tmp_path, f"replay:{hologram_file}")
+    _wait_frames(qtbot, window)
+    window.spectrum.click_at(-0.45, -0.45)
+    assert "no peak near" in window.banner_text
+    _wait_frames(qtbot, window)
+    assert window.session is not None and window.session.running
+
+
+def test_recording_from_the_window_writes_a_valid_file(
+    qtbot, open_windows, tmp_path, hologram_file
+):
+    window = _window(qtbot, open_windows, tmp_path, f"replay:{hologram_file}")
+    _wait_frames(qtbot, window)
+    target = tmp_path / "rec.h5"
+    window.start_recording(RecordRequest(target, duration_s=None, frames=5))
+    assert window.recording_panel.recording
+    qtbot.waitUntil(lambda: not window.recording_panel.recording, timeout=10000)
+    assert "5 frames" in window.recording_panel.indicator.text()
+    with RecordingReader(target) as reader:
+        assert len(reader) == 5 and reader.frame_shape == (256, 256)
+        assert np.all(np.diff(reader.frame_ids) > 0)
+    with h5py.File(target) as f:
+        assert f["setup"].attrs["n2"] == pytest.approx(N2)
+
+
+def test_bad_sources_show_a_message_and_the_window_stays(qtbot, open_windows, tmp_path):
+    broken = tmp_path / "broken.tif"
+    broken.write_bytes(b"this is not a tiff")
+    window = _window(qtbot, open_windows, tmp_path, f"replay:{broken}")
+    assert window.session is None
+    assert "cannot start" in window.banner_text
+    window.start_source(f"replay:{tmp_path / 'missing.h5'}")
+    assert window.session is None and "missing.h5" in window.banner_text
+
+
+def test_radius_that_swallows_a_neighbour_is_refused_in_the_window(
+    qtbot, open_windows, tmp_path, hologram_file
+):
+    window = _window(qtbot, open_windows, tmp_path, f"replay:{hologram_file}")
+    _wait_frames(qtbot, window)
+    window.label_peak("RB1", *RB1)
+    qtbot.waitUntil(lambda: "RB1" in window.spectrum.labelled, timeout=5000)
+    assert not window.spectrum.request_radius("RB1", 0.3)
+    assert "swallow" in window.banner_text
+    assert window.experiment.radius == 0.05
+    _wait_frames(qtbot, window)
+
+
+def test_layout_is_remembered_and_close_stops_every_thread(
+    qtbot, open_windows, tmp_path, hologram_file
+):
+    window = _window(qtbot, open_windows, tmp_path, f"replay:{hologram_file}")
+    _wait_frames(qtbot, window)
+    window.docks["Trends"].setFloating(True)
+    window.close()
+    assert window.session is None and not window.timer.isActive()
+    assert not [t for t in threading.enumerate() if t.name.startswith("holoview") and t.is_alive()]
+    assert ui_settings().value("main/state") is not None
+    again = _window(qtbot, open_windows, tmp_path, "sim", autostart=False)
+    assert again.docks["Trends"].isFloating()
