@@ -20,11 +20,12 @@ import numpy as np
 
 from holoview.acquire.source import FrameMeta
 from holoview.errors import HoloviewError, InputError
-from holoview.optics.families import alpha_of, infer_carriers
+from holoview.optics.families import alpha_of
 from holoview.processing.demodulate import DemodResult, Demodulator
+from holoview.processing.heights import fuse
+from holoview.processing.labelling import label_peaks
 from holoview.processing.peaks import Peak, find_peaks
 from holoview.processing.spectrum import display_spectrum
-from holoview.processing.trends import fuse_depths
 from holoview.processing.windows import wrap_frequency
 from holoview.ui.settings import ExperimentSettings
 
@@ -74,6 +75,7 @@ class LiveResult:
     rate_fit: tuple[list[float], list[float]] | None = None
     pca_confidence: float | None = None
     pca_prefactors: dict[str, float] | None = None
+    notes: tuple[str, ...] = ()
 
 
 def block_max(image: np.ndarray, limit: int) -> np.ndarray:
@@ -110,28 +112,6 @@ def nearest_peak(
             if d <= best_d:
                 best, best_d = candidate, d
     return best
-
-
-def predict_carriers(labelled: dict[str, Carrier], e: ExperimentSettings) -> dict[str, Carrier]:
-    """Return the model's carriers of :data:`PREDICTED_FAMILIES` from two or more labels.
-
-    Labels the model does not know (custom names) are left out; fewer than two known
-    labels predict nothing.
-    """
-    known = {}
-    for name, carrier in labelled.items():
-        try:
-            alpha_of(name, e.n1, e.n2)
-        except InputError:
-            continue
-        known[name] = carrier
-    if len(known) < 2:
-        return {}
-    try:
-        carriers = infer_carriers(known, e.n1, e.n2)
-    except InputError:
-        return {}
-    return {k: carriers[k] for k in PREDICTED_FAMILIES if k in carriers}
 
 
 def model_alpha(label: str, e: ExperimentSettings) -> float | None:
@@ -188,22 +168,18 @@ class DemodulationStage:
 
 
 def fuse_maps(result: DemodResult) -> np.ndarray | None:
-    """Fuse the delta-h maps of a frame, weighting each peak by ``1 / noise_height^2``.
+    """Fuse the delta-h maps of a frame (:func:`holoview.processing.heights.fuse`).
 
-    Untrusted pixels (outside a peak's mask) do not count. None without two maps.
+    Each peak is weighted by ``1 / noise_height^2`` over its trusted pixels; None
+    with fewer than two height maps.
     """
     maps = [r for r in result.peaks if r.delta_h is not None and r.noise_height]
     if len(maps) < 2:
         return None
-    stack = np.stack(
-        [np.where(r.mask, r.delta_h, np.nan).reshape(-1) for r in maps], axis=1
-    ).astype(np.float64)
-    noise = np.array([r.noise_height for r in maps], dtype=np.float64)
-    try:
-        fused = fuse_depths(stack, noise)
-    except InputError:
-        return None
-    return fused.depth.reshape(result.box_shape).astype(np.float32)
+    fused, _ = fuse(
+        [r.delta_h for r in maps], [r.noise_height for r in maps], masks=[r.mask for r in maps]
+    )
+    return fused.astype(np.float32)
 
 
 class LivePipeline:
@@ -248,30 +224,51 @@ class LivePipeline:
         else:
             raise InputError(f"unknown command {name!r}")
 
-    def labelled_peaks(self) -> tuple[list[Peak], dict[str, Carrier]]:
-        """Return the peaks to demodulate and the model's predicted carriers.
+    def labelled_peaks(self) -> tuple[list[Peak], dict[str, Carrier], list[str]]:
+        """Return the peaks to demodulate, the model's predicted carriers, and notes.
 
-        Operator labels follow the detected peak nearest them; with two labels the
-        model predicts the other families, and detected peaks near a prediction are
-        labelled with it.
+        Operator labels follow the detected peak nearest them. With two labels the
+        model (:func:`holoview.processing.labelling.label_peaks`) places the other
+        families of :data:`PREDICTED_FAMILIES`, and the detected peaks they land on
+        are labelled too. Notes say what the operator should know (a label that
+        matches no peak, a label probably on the wrong twin).
         """
         e = self.experiment
+        notes: list[str] = []
         chosen: list[Peak] = []
         for p in e.peaks:
             found = nearest_peak((p.fx, p.fy), self._peaks)
+            if found is None:
+                notes.append(f"{p.label}: no peak detected near its position any more")
             base = found or Peak(carrier=fold((p.fx, p.fy)), amplitude=float("nan"), snr=0.0)
             chosen.append(base.relabelled(p.label, model_alpha(p.label, e)))
-        carriers = {p.label: p.carrier for p in chosen if p.label}
-        predicted = predict_carriers(carriers, e)
-        taken = [p.carrier for p in chosen]
-        for name, carrier in predicted.items():
-            if name in carriers:
+        known = {p.label: p.carrier for p in chosen if p.alpha is not None}
+        predicted: dict[str, Carrier] = {}
+        if len(known) < 2 or not self._peaks:
+            return chosen, predicted, notes
+        try:
+            model = label_peaks(
+                [p.carrier for p in self._peaks], known, e.n1, e.n2, self.frame_shape
+            )
+        except InputError as exc:
+            notes.append(f"model labelling: {exc}")
+            return chosen, predicted, notes
+        for name in model.flip_hint:
+            notes.append(f"{name} is probably on the wrong twin: label its twin instead")
+        taken = set(known)
+        for prediction in model.predictions:
+            if prediction.label not in PREDICTED_FAMILIES:
                 continue
-            found = nearest_peak(fold(carrier), self._peaks)
-            if found is not None and all(math.dist(found.carrier, c) > 1e-6 for c in taken):
-                chosen.append(found.relabelled(name, model_alpha(name, e)))
-                taken.append(found.carrier)
-        return chosen, predicted
+            predicted[prediction.label] = prediction.carrier
+            if prediction.folded:
+                notes.append(f"{prediction.label} lies past Nyquist: it appears folded back")
+            if prediction.label in taken or prediction.peak is None:
+                continue
+            peak = self._peaks[prediction.peak]
+            peak = peak.flipped() if prediction.twin else peak
+            chosen.append(peak.relabelled(prediction.label, model_alpha(prediction.label, e)))
+            taken.add(prediction.label)
+        return chosen, predicted, notes
 
     def process(self, frame: np.ndarray, meta: FrameMeta) -> LiveResult:
         """Process one frame; raise HoloviewError for a problem the operator can fix."""
@@ -284,7 +281,7 @@ class LivePipeline:
         if now - self._peaks_at >= 1.0 / PEAKS_HZ:
             self._peaks = find_peaks(frame, radius=e.radius)
             self._peaks_at = now
-        peaks, predicted = self.labelled_peaks()
+        peaks, predicted, notes = self.labelled_peaks()
         demod = self._demod.run(frame, peaks, e)
         heights: dict[str, np.ndarray] = {}
         phases: dict[str, np.ndarray] = {}
@@ -327,6 +324,7 @@ class LivePipeline:
             rate_fit=None if trend is None else trend.rate_fit,
             pca_confidence=None if trend is None else trend.pca_confidence,
             pca_prefactors=None if trend is None else trend.pca_prefactors,
+            notes=tuple(notes),
         )
 
 

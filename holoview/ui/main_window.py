@@ -250,12 +250,27 @@ class MainWindow(QMainWindow):
             self.source_panel.set_streaming(False)
             return
         self._last_seq = -1
+        self._adopt_source_setup(self.session.source_setup())
         self.hologram.set_saturation_value(self.session.saturation_value)
         self.source_panel.set_settings(
             self.session.describe_settings(), self.session.read_settings()
         )
         self.source_panel.set_streaming(True, self.session.description)
         self.timer.start()
+
+    def _adopt_source_setup(self, setup: dict) -> None:
+        """Take the optics a source knows (simulator, recording) into the experiment."""
+        fields = ("wavelength_m", "pixel_pitch_m", "n1", "n2")
+        changes = {k: float(setup[k]) for k in fields if k in setup}
+        if not changes or all(getattr(self.experiment, k) == v for k, v in changes.items()):
+            return
+        try:
+            self._set_experiment(replace(self.experiment, **changes))
+        except HoloviewError as exc:
+            self.show_message(f"the source's optical setup is not usable: {exc}")
+            return
+        text = ", ".join(f"{k} = {v:g}" for k, v in changes.items())
+        self.status.showMessage(f"optics from the source: {text}", 8000)
 
     def stop_source(self) -> None:
         """Stop the running session (recording included) and its threads."""
@@ -477,6 +492,7 @@ class MainWindow(QMainWindow):
             self.spectrum.set_spectrum(result.spectrum)
         self.spectrum.set_peaks(result.peaks)
         self.spectrum.set_model(result.labelled, result.predicted, result.radius)
+        self.spectrum.set_notes(result.notes)
         if result.heights_m:
             self.surface.set_maps(result.heights_m, result.fused_m, result.phases_rad)
         if result.trend_times_s is not None:

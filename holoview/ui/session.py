@@ -21,6 +21,7 @@ from typing import Any
 import numpy as np
 
 from holoview.acquire.camera_thread import CameraThread
+from holoview.acquire.pixel_formats import PIXEL_FORMATS
 from holoview.acquire.recorder import Recorder
 from holoview.acquire.recording import RecordingWriter
 from holoview.acquire.ring import CLOSED, FrameRing, RingConsumer
@@ -249,17 +250,19 @@ class LiveSession:
         return float(2**bits - 1)
 
     def _significant_bits(self) -> int:
-        try:
-            has_format = self.source.has_setting("pixel_format")
-            fmt = str(self.source.get("pixel_format")) if has_format else ""
-        except HoloviewError:
-            fmt = ""
-        digits = "".join(c for c in fmt if c.isdigit())
-        if digits:
-            return int(digits)
-        return np.dtype(self.source.dtype).itemsize * 8
+        fmt = None
+        if self.source.has_setting("pixel_format"):
+            try:
+                fmt = PIXEL_FORMATS.get(str(self.source.get("pixel_format")))
+            except HoloviewError as exc:
+                logger.warning("%s: pixel format unreadable: %s", self.source.name, exc)
+        return fmt.bits if fmt is not None else np.dtype(self.source.dtype).itemsize * 8
 
     # ---- source settings ---------------------------------------------------
+    def source_setup(self) -> dict[str, Any]:
+        """The optical setup the source knows (simulator, replayed recording), else empty."""
+        return dict(self.source.setup)
+
     def describe_settings(self) -> Mapping[str, Any]:
         """The source's setting descriptions, by name."""
         return self.source.describe_settings()
@@ -313,22 +316,29 @@ class LiveSession:
         if request.path.suffix.lower() not in (".h5", ".hdf5"):
             raise InputError(f"recording file {request.path.name} must end in .h5 or .hdf5")
         e = self.experiment
-        try:
-            settings = {k: v for k, v in self.source.get_all().items() if _storable(v)}
-        except HoloviewError:
-            settings = {}
+        infos = self.source.describe_settings()
+        settings = {
+            name: (tuple(value) if isinstance(value, tuple) else value, infos[name].unit)
+            for name, value in self.source.get_all().items()
+            if _storable(value)
+        }
+        pixel_format = settings.get("pixel_format", (None, ""))[0]
+        known_format = PIXEL_FORMATS.get(pixel_format) if isinstance(pixel_format, str) else None
         writer = RecordingLimitWriter(
             request.path,
             self.source.frame_shape,
             self.source.dtype,
             setup={
+                **self.source.setup,
                 "wavelength_m": e.wavelength_m,
                 "pixel_pitch_m": e.pixel_pitch_m,
                 "n1": e.n1,
                 "n2": e.n2,
             },
             settings=settings,
-            source=self.spec,
+            source=self.source.name,
+            pixel_format=known_format.name if known_format else None,
+            significant_bits=known_format.bits if known_format else None,
             max_frames=request.frames,
         )
         self.recorder = Recorder(self.ring, writer)

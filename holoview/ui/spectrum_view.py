@@ -79,6 +79,7 @@ class SpectrumView(QWidget):
         self._labelled: dict[str, Carrier] = {}
         self._predicted: dict[str, Carrier] = {}
         self._radius = 0.06
+        self._notes: tuple[str, ...] = ()
         self._levels: tuple[float, float] | None = None
         self._circles: dict[str, pg.CircleROI] = {}
         self._texts: list[pg.TextItem] = []
@@ -236,7 +237,14 @@ class SpectrumView(QWidget):
         self.plot.addItem(item)
         self._texts.append(item)
 
+    def set_notes(self, notes: tuple[str, ...]) -> None:
+        """Show ``notes`` (from the labelling) under the window warnings."""
+        if tuple(notes) != self._notes:
+            self._notes = tuple(notes)
+            self._show_warnings(window_warnings(self._labelled, self._radius, self._predicted))
+
     def _show_warnings(self, lines: list[str]) -> None:
+        lines = [*lines, *self._notes]
         self.warning_label.setText("\n".join(lines))
         self.warning_label.setVisible(bool(lines))
 
