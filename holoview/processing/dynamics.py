@@ -4,7 +4,7 @@ A sequence of delta-h maps is a sampled wave field ``h(t, y, x)``. Its three-dim
 Fourier transform, averaged over the direction of the wave vector, gives the power
 ``P(omega, k)`` against the angular frequency ``omega`` (rad/s) and the wavenumber
 ``k = |k|`` (rad/m). Free surface waves put their power on the capillary-gravity
-dispersion relation
+dispersion relation (:func:`holoview.optics.surfaces.dispersion_omega`)
 
     omega^2 = (g k + sigma k^3 / rho) tanh(k d)
 
@@ -28,44 +28,16 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from holoview.errors import InputError
+from holoview.optics.surfaces import GRAVITY, dispersion_omega
 
 logger = logging.getLogger(__name__)
 
 __all__ = [
-    "STANDARD_GRAVITY",
     "DispersionComparison",
     "SpaceTimeSpectrum",
-    "capillary_gravity_omega",
     "compare_dispersion",
     "space_time_spectrum",
 ]
-
-#: Standard gravity in m/s^2.
-STANDARD_GRAVITY = 9.80665
-
-
-def capillary_gravity_omega(
-    k: ArrayLike,
-    depth: float,
-    surface_tension: float,
-    density: float,
-    gravity: float = STANDARD_GRAVITY,
-) -> NDArray[np.float64]:
-    """Angular frequency in rad/s of capillary-gravity waves of wavenumber ``k`` rad/m.
-
-    ``omega = sqrt((g k + sigma k^3 / rho) tanh(k d))`` for depth ``d`` in m, surface
-    tension ``sigma`` in N/m, density ``rho`` in kg/m^3 and gravity ``g`` in m/s^2.
-    """
-    if not (depth > 0 and surface_tension >= 0 and density > 0 and gravity >= 0):
-        raise InputError(
-            "dispersion needs depth > 0 m, surface tension >= 0 N/m, density > 0 kg/m^3 "
-            f"and gravity >= 0 m/s^2; got {depth}, {surface_tension}, {density}, {gravity}"
-        )
-    wavenumber = np.abs(np.asarray(k, dtype=np.float64))
-    return np.sqrt(
-        (gravity * wavenumber + surface_tension * wavenumber**3 / density)
-        * np.tanh(wavenumber * depth)
-    )
 
 
 @dataclass(frozen=True)
@@ -242,7 +214,7 @@ def compare_dispersion(
     depth: float,
     surface_tension: float,
     density: float,
-    gravity: float = STANDARD_GRAVITY,
+    gravity: float = GRAVITY,
     *,
     min_contrast: float = 20.0,
 ) -> DispersionComparison:
@@ -278,7 +250,9 @@ def compare_dispersion(
     InputError
         When no cell has a clear ridge.
     """
-    model = capillary_gravity_omega(spectrum.cell_k, depth, surface_tension, density, gravity)
+    model = np.asarray(
+        dispersion_omega(spectrum.cell_k, depth, g=gravity, sigma=surface_tension, rho=density)
+    )
     n_k = spectrum.k.size
     step = spectrum.omega_step
     peak = spectrum.cell_peak

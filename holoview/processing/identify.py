@@ -31,6 +31,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from holoview.errors import InputError
+from holoview.optics.families import alpha_of
 from holoview.processing.pca import PhasePCA, phase_pca
 
 logger = logging.getLogger(__name__)
@@ -149,15 +150,10 @@ def family_alphas(n1: float, n2: float, max_order: int = 3) -> dict[str, float]:
     dict of str to float
         ``{"RF": n1, "RB1": n2 - n1, "FB1": n2, ...}``, all positive (twin rule).
     """
-    if not (n1 > 0 and n2 > n1):
-        raise InputError(f"need 0 < n1 < n2, got n1={n1}, n2={n2}")
     if max_order < 1:
         raise InputError(f"max_order must be at least 1, got {max_order}")
-    alphas = {"RF": float(n1)}
-    for j in range(1, max_order + 1):
-        alphas[f"RB{j}"] = j * n2 - n1
-        alphas[f"FB{j}"] = j * n2
-    return alphas
+    labels = ["RF"] + [f"{kind}{j}" for j in range(1, max_order + 1) for kind in ("RB", "FB")]
+    return {label: alpha_of(label, n1, n2) for label in labels}
 
 
 def _nearest(value: float, table: dict[str, float], tolerance: float) -> str | None:
@@ -269,7 +265,9 @@ def identify_peaks(
         Index of the labelled peak. By default the brightest by ``amplitudes`` (the
         paper's procedure: the brightest peak is RB1).
     reference_label : str
-        The labelled peak's family (``"RB1"``, ``"FB1"``, ``"RF"``, ...).
+        The labelled peak's family, any label of
+        :func:`holoview.optics.families.alpha_of` (``"RB1"``, ``"FB1"``, ``"RF"``,
+        ``"B2B1"``, ``"2RB1"``, ...).
     amplitudes : array_like of float, shape (M,), optional
         Peak amplitudes (any unit): choose the reference when it is not given, and order
         the peaks for the family-or-repeat decision (brightest is the family).
@@ -283,16 +281,14 @@ def identify_peaks(
     Raises
     ------
     InputError
-        With fewer than two peaks or frames, no common frames, an unknown label, or
-        neither ``reference`` nor ``amplitudes``.
+        With fewer than two peaks or frames, no common frames, a label that is not a
+        family, or neither ``reference`` nor ``amplitudes``.
     """
     pca = phase_pca(phases)
     n_peaks = pca.component.size
-    table = family_alphas(n1, n2, max_order)
-    if reference_label not in table:
-        raise InputError(
-            f"unknown reference label {reference_label!r}; expected one of {', '.join(table)}"
-        )
+    reference_alpha = alpha_of(reference_label, n1, n2)
+    if reference_alpha <= 0:
+        raise InputError(f"{reference_label} carries no height (alpha 0): label another peak")
     brightness = None
     if amplitudes is not None:
         brightness = np.asarray(amplitudes, dtype=np.float64)
@@ -302,7 +298,7 @@ def identify_peaks(
         if brightness is None:
             raise InputError("give the labelled peak's index or the peak amplitudes")
         reference = int(np.argmax(brightness))
-    alphas = pca.prefactors(reference, table[reference_label])
+    alphas = pca.prefactors(reference, reference_alpha)
     order = np.arange(n_peaks) if brightness is None else np.argsort(-brightness, kind="stable")
     # The labelled peak goes first so that it is the family, never a repeat.
     order = np.concatenate([[reference], order[order != reference % n_peaks]])

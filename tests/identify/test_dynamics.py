@@ -6,12 +6,8 @@ import numpy as np
 import pytest
 
 from holoview.errors import InputError
-from holoview.processing.dynamics import (
-    STANDARD_GRAVITY,
-    capillary_gravity_omega,
-    compare_dispersion,
-    space_time_spectrum,
-)
+from holoview.optics.surfaces import dispersion_omega
+from holoview.processing.dynamics import compare_dispersion, space_time_spectrum
 
 WATER = {"depth": 5e-3, "surface_tension": 0.072, "density": 1000.0}
 FRAMES, SIZE, INTERVAL, PIXEL = 128, 64, 0.01, 0.5e-3  # 100 fps, 32 mm field of view
@@ -23,26 +19,15 @@ def wave_field(seed: int = 0, noise: float = 1e-9, **fluid: float) -> np.ndarray
     ky = 2 * np.pi * np.fft.fftfreq(SIZE)[:, None] / PIXEL
     kx = 2 * np.pi * np.fft.fftfreq(SIZE)[None, :] / PIXEL
     k = np.hypot(ky, kx)
-    omega = capillary_gravity_omega(k, **(WATER | fluid))
+    water = WATER | fluid
+    omega = dispersion_omega(
+        k, water["depth"], sigma=water["surface_tension"], rho=water["density"]
+    )
     amplitude = (rng.normal(size=k.shape) + 1j * rng.normal(size=k.shape)) * (k > 0)
     amplitude *= np.exp(-((k / 3000) ** 2))
     times = np.arange(FRAMES)[:, None, None] * INTERVAL
     field = np.fft.ifft2(amplitude * np.exp(-1j * omega * times), axes=(1, 2)).real * 1e-6
     return field + rng.normal(0, noise, field.shape)
-
-
-def test_dispersion_limits():
-    k = np.array([1.0, 10.0])
-    deep_gravity = capillary_gravity_omega(k, depth=10.0, surface_tension=0.0, density=1000.0)
-    np.testing.assert_allclose(deep_gravity, np.sqrt(STANDARD_GRAVITY * k), rtol=1e-6)
-    shallow = capillary_gravity_omega(k * 1e-3, depth=1e-3, surface_tension=0.0, density=1e3)
-    np.testing.assert_allclose(shallow, k * 1e-3 * np.sqrt(STANDARD_GRAVITY * 1e-3), rtol=1e-5)
-    capillary = capillary_gravity_omega(
-        1e5, depth=1.0, surface_tension=0.072, density=1000.0, gravity=0.0
-    )
-    assert float(capillary) == pytest.approx(np.sqrt(0.072 * 1e15 / 1000))
-    with pytest.raises(InputError, match="depth > 0"):
-        capillary_gravity_omega(k, depth=0.0, surface_tension=0.07, density=1000.0)
 
 
 def test_a_plane_wave_lands_on_its_frequency_and_wavenumber():

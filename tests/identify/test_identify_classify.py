@@ -58,7 +58,7 @@ def test_second_order_of_fb1_is_fb2():
 @pytest.mark.parametrize(
     ("kwargs", "message"),
     [
-        ({"n1": 1.4, "n2": 1.3}, "0 < n1 < n2"),
+        ({"n1": 1.4, "n2": 1.3}, "must exceed n1"),
         ({"tolerance": 0.7}, "tolerance"),
         ({"explained": [1.0]}, "explained has shape"),
     ],
@@ -100,8 +100,10 @@ def test_identify_needs_a_reference_and_a_known_label(evaporation):
     phases = unwrap_in_time(evaporation.values)
     with pytest.raises(InputError, match="labelled peak's index or the peak amplitudes"):
         identify_peaks(phases, N_AIR, 1.377)
-    with pytest.raises(InputError, match="unknown reference label 'RB9'"):
-        identify_peaks(phases, N_AIR, 1.377, reference=0, reference_label="RB9")
+    with pytest.raises(InputError, match="'XB1' is not a family label"):
+        identify_peaks(phases, N_AIR, 1.377, reference=0, reference_label="XB1")
+    with pytest.raises(InputError, match="carries no height"):
+        identify_peaks(phases, N_AIR, 1.377, reference=0, reference_label="RR~g0")
     with pytest.raises(InputError, match="3 amplitudes given for 6 peaks"):
         identify_peaks(phases, N_AIR, 1.377, amplitudes=[1, 2, 3])
 
@@ -111,3 +113,6 @@ def test_another_labelled_family_gives_the_same_prefactors(evaporation):
     from_rb1 = identify_peaks(phases, N_AIR, 1.377, reference=0).alphas
     from_fb1 = identify_peaks(phases, N_AIR, 1.377, reference=2, reference_label="FB1").alphas
     assert np.allclose(from_rb1, from_fb1, rtol=0.02)
+    # A second order works as the label too (any label the model knows).
+    from_2rb1 = identify_peaks(phases, N_AIR, 1.377, reference=5, reference_label="2RB1").alphas
+    assert np.allclose(from_rb1, from_2rb1, rtol=0.02)
