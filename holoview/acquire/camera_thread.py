@@ -84,7 +84,7 @@ class CameraThread:
     def start(self) -> None:
         """Start the source's stream (errors raise here) and then the thread."""
         self.source.start()
-        self._lost_seen = self.source.stats().get("lost", 0)
+        self._lost_seen = self.source.counters.get("lost", 0)
         self._thread.start()
 
     def stop(self, timeout: float = 5.0) -> None:
@@ -134,7 +134,7 @@ class CameraThread:
             ring.close()
 
     def _pass_on_losses(self) -> None:
-        lost = self.source.stats().get("lost", 0)
+        lost = self.source.counters.get("lost", 0)
         if lost > self._lost_seen:
             self.ring.add_transport_lost(lost - self._lost_seen)
             self._lost_seen = lost
