@@ -11,6 +11,7 @@ in a banner and the status bar; the rest keeps running.
 from __future__ import annotations
 
 import logging
+import threading
 import time
 from dataclasses import replace
 from pathlib import Path
@@ -65,8 +66,9 @@ class MainWindow(QMainWindow):
         Start the source at once.
     experiment_path : Path, optional
         The experiment settings file (default: :func:`default_experiment_path`).
-    frame_shape : tuple of int, optional
-        Frame size asked of the simulated source ``(rows, cols)``.
+    source_options : dict, optional
+        Passed to the constructor of ``source`` (e.g. the simulator's frame shape and
+        rate) whenever that source is started; other sources get none.
     """
 
     def __init__(
@@ -74,13 +76,14 @@ class MainWindow(QMainWindow):
         source: str = "sim",
         autostart: bool = True,
         experiment_path: Path | None = None,
-        frame_shape: tuple[int, int] | None = None,
+        source_options: dict | None = None,
     ) -> None:
         super().__init__()
         self.setObjectName("holoview-main")
         self.setWindowTitle(f"holoview {__version__}")
         self.session: LiveSession | None = None
-        self._frame_shape = frame_shape
+        self.source_options = dict(source_options or {})
+        self._optioned_source = source
         self._last_seq = -1
         self._last_result: LiveResult | None = None
         self.display_rate = RateMeter()
@@ -116,21 +119,25 @@ class MainWindow(QMainWindow):
         self.setCentralWidget(central)
         left = Qt.DockWidgetArea.LeftDockWidgetArea
         right = Qt.DockWidgetArea.RightDockWidgetArea
+        horizontal, vertical = Qt.Orientation.Horizontal, Qt.Orientation.Vertical
         self._add_dock("Source", self.source_panel, left)
         self._add_dock("Recording", self.recording_panel, left)
-        self.tabifyDockWidget(self.docks["Source"], self.docks["Recording"])
-        self.docks["Source"].raise_()
         self._add_dock("Hologram", self.hologram, left)
         self._add_dock("Spectrum", self.spectrum, left)
         self._add_dock("Surface", self.surface, right)
         self._add_dock("Trends", self.trends, right)
-        self.splitDockWidget(
-            self.docks["Source"], self.docks["Hologram"], Qt.Orientation.Horizontal
+        self.splitDockWidget(self.docks["Source"], self.docks["Hologram"], horizontal)
+        self.splitDockWidget(self.docks["Hologram"], self.docks["Spectrum"], vertical)
+        self.splitDockWidget(self.docks["Surface"], self.docks["Trends"], vertical)
+        self.tabifyDockWidget(self.docks["Source"], self.docks["Recording"])
+        self.docks["Source"].raise_()
+        self.resize(1800, 1000)
+        self.resizeDocks(
+            [self.docks["Source"], self.docks["Hologram"], self.docks["Surface"]],
+            [330, 620, 850],
+            horizontal,
         )
-        self.splitDockWidget(
-            self.docks["Hologram"], self.docks["Spectrum"], Qt.Orientation.Vertical
-        )
-        self.splitDockWidget(self.docks["Surface"], self.docks["Trends"], Qt.Orientation.Vertical)
+        self.resizeDocks([self.docks["Surface"], self.docks["Trends"]], [620, 380], vertical)
         self._default_state = self.saveState()
         self._make_actions()
         self._connect()
@@ -138,13 +145,18 @@ class MainWindow(QMainWindow):
         self.spectrum.set_model(
             {p.label: (p.fx, p.fy) for p in self.experiment.peaks}, {}, self.experiment.radius
         )
-        self.resize(1600, 1000)
         self._restore_layout()
 
         self.timer = QTimer(self)
         self.timer.setObjectName("holoview-redraw")
         self.timer.setInterval(int(1000 / REDRAW_HZ))
         self.timer.timeout.connect(self.redraw)
+        self._discovery: threading.Thread | None = None
+        self._discovery_result: list = []
+        self.discovery_timer = QTimer(self)
+        self.discovery_timer.setObjectName("holoview-discovery")
+        self.discovery_timer.setInterval(50)
+        self.discovery_timer.timeout.connect(self._discovery_done)
         self.source_panel.set_sources(["sim"], current=source)
         if start_problem:
             self.show_message(start_problem)
@@ -240,7 +252,11 @@ class MainWindow(QMainWindow):
         """Open and start ``spec``; a failure is shown, and the window stays usable."""
         self.stop_source()
         try:
-            self.session = LiveSession(spec, self.experiment, frame_shape=self._frame_shape)
+            self.session = LiveSession(
+                spec,
+                self.experiment,
+                source_options=self.source_options if spec == self._optioned_source else None,
+            )
             self.session.start()
         except HoloviewError as exc:
             if self.session is not None:
@@ -284,9 +300,32 @@ class MainWindow(QMainWindow):
         self.status.set_figures(LiveFigures())
 
     def find_sources(self) -> None:
-        """Look for GenICam cameras and V4L2 devices and offer them."""
-        specs, problems = discover_sources()
+        """Look for GenICam cameras and V4L2 devices (on a thread) and offer them."""
+        if self._discovery is not None:
+            return
+        found: list = []
+        self._discovery = threading.Thread(
+            target=lambda: found.append(discover_sources()), name="holoview-discover", daemon=True
+        )
+        self._discovery_result = found
+        self.source_panel.refresh_button.setEnabled(False)
+        self.source_panel.state_label.setText("looking for cameras...")
+        self._discovery.start()
+        self.discovery_timer.start()
+
+    def _discovery_done(self) -> None:
+        if self._discovery is None or self._discovery.is_alive():
+            return
+        self._discovery.join()
+        self._discovery = None
+        self.discovery_timer.stop()
+        self.source_panel.refresh_button.setEnabled(self.session is None)
+        if not self._discovery_result:
+            self.show_message("looking for cameras failed (see the log)")
+            return
+        specs, problems = self._discovery_result[0]
         self.source_panel.set_sources(specs)
+        self.source_panel.state_label.setText(f"{len(specs)} sources found")
         for problem in problems:
             self.show_message(problem)
 
@@ -524,6 +563,10 @@ class MainWindow(QMainWindow):
     def closeEvent(self, event: QCloseEvent) -> None:
         """Stop every thread and timer, remember the layout, then close."""
         self.timer.stop()
+        self.discovery_timer.stop()
+        if self._discovery is not None:
+            self._discovery.join()
+            self._discovery = None
         self.stop_source()
         self.save_layout()
         super().closeEvent(event)

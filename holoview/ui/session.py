@@ -16,6 +16,7 @@ import queue
 import threading
 import time
 from collections.abc import Mapping
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -167,8 +168,9 @@ class LiveSession:
         Source specification: ``sim``, ``aravis[:ID]``, ``v4l2[:N]``, ``replay:PATH``.
     experiment : ExperimentSettings
         Optics, labelled peaks, window and reference mode.
-    frame_shape : tuple of int, optional
-        ``(rows, cols)`` asked of the simulated source.
+    source_options : mapping, optional
+        Passed to the source's constructor (e.g. ``frame_rate_hz`` of the simulator);
+        replays loop unless ``loop=False`` is given.
 
     Raises
     ------
@@ -181,11 +183,11 @@ class LiveSession:
         spec: str,
         experiment: ExperimentSettings,
         *,
-        frame_shape: tuple[int, int] | None = None,
+        source_options: Mapping[str, Any] | None = None,
     ) -> None:
         self.spec = spec
         self.experiment = experiment
-        self.source: Source = _open_source(spec, frame_shape)
+        self.source: Source = _open_source(spec, source_options or {})
         try:
             shape = self.source.frame_shape
             frame_bytes = shape[0] * shape[1] * np.dtype(self.source.dtype).itemsize
@@ -381,27 +383,29 @@ def _storable(value: Any) -> bool:
     return isinstance(value, int | float | str | bool | tuple)
 
 
-def _open_source(spec: str, frame_shape: tuple[int, int] | None) -> Source:
-    """Open the source ``spec``: replays loop; the simulator at ``frame_shape`` when given."""
+def _open_source(spec: str, options: Mapping[str, Any]) -> Source:
+    """Open the source ``spec`` with constructor ``options``; replays loop by default."""
     from holoview.acquire.factory import open_source, parse_source_spec
 
-    kind = parse_source_spec(spec).kind
-    options: dict[str, Any] = {}
-    if kind == "replay":
-        options["loop"] = True
-    if kind == "sim" and frame_shape is not None:
-        options["shape"] = frame_shape
-    return open_source(spec, **options)
+    kwargs = dict(options)
+    if parse_source_spec(spec).kind == "replay":
+        kwargs.setdefault("loop", True)
+    return open_source(spec, **kwargs)
 
 
 def discover_sources() -> tuple[list[str], list[str]]:
-    """Return (source specifications found, problems met looking): ``sim`` comes first."""
-    from holoview.acquire import discovery
+    """Return (source specifications found, problems met looking); ``sim`` comes first.
+
+    GenICam cameras come from Aravis (``aravis:ID``), V4L2 devices from ``/dev/video*``
+    (``v4l2:N``).
+    """
+    from holoview.acquire.aravis import list_cameras
 
     specs, problems = ["sim"], []
-    for finder in (discovery.aravis_sources, discovery.v4l2_sources):
-        try:
-            specs += finder()
-        except HoloviewError as exc:
-            problems.append(str(exc))
+    try:
+        specs += [f"aravis:{camera['id']}" for camera in list_cameras()]
+    except HoloviewError as exc:
+        problems.append(f"GenICam cameras not searched: {exc}")
+    devices = sorted(Path("/dev").glob("video[0-9]*"), key=lambda p: int(p.name[5:]))
+    specs += [f"v4l2:{device.name[5:]}" for device in devices]
     return specs, problems

@@ -129,3 +129,21 @@ def test_layout_is_remembered_and_close_stops_every_thread(
     assert ui_settings().value("main/state") is not None
     again = _window(qtbot, open_windows, tmp_path, "sim", autostart=False)
     assert again.docks["Trends"].isFloating()
+
+
+def test_camera_that_is_gone_shows_a_message(qtbot, open_windows, tmp_path):
+    window = _window(qtbot, open_windows, tmp_path, "sim", autostart=False)
+    window.start_source("aravis:no-such-camera-here")
+    assert window.session is None and "cannot start aravis" in window.banner_text
+
+
+def test_find_sources_runs_on_a_thread_and_offers_sim(qtbot, open_windows, tmp_path):
+    window = _window(qtbot, open_windows, tmp_path, "sim", autostart=False)
+    window.find_sources()
+    assert not window.source_panel.refresh_button.isEnabled()
+    qtbot.waitUntil(lambda: window._discovery is None, timeout=20000)
+    items = [
+        window.source_panel.source_box.itemText(i)
+        for i in range(window.source_panel.source_box.count())
+    ]
+    assert items[0] == "sim" and window.source_panel.refresh_button.isEnabled()
