@@ -39,6 +39,23 @@ def model_peaks(n1: float, n2: float) -> list[ModelPeak]:
     ]
 
 
+def reference_arm(
+    times: np.ndarray, vibration: float, drift: float, rng: np.random.Generator
+) -> np.ndarray:
+    """Reference-arm length over time, m: table vibration plus a slow air-path drift.
+
+    ``vibration`` is the RMS of a sum of five tones of random phase between 0.3 and 3 Hz;
+    ``drift`` the RMS of a random walk (thermal drift of the air path), both in m.
+    """
+    tones = rng.uniform(0.3, 3.0, 5)
+    shifts = rng.uniform(0, 2 * np.pi, 5)
+    arm = np.sum(np.sin(2 * np.pi * tones[:, None] * times + shifts[:, None]), axis=0)
+    arm *= vibration / np.std(arm)
+    walk = np.cumsum(rng.normal(size=times.size))
+    walk -= walk.mean()
+    return arm + walk * (drift / np.std(walk)) if drift > 0 else arm
+
+
 @dataclass(frozen=True)
 class Recording:
     """Complex peak values over time with the truth they came from."""
@@ -57,20 +74,18 @@ def simulate(
     fps: float,
     duration: float,
     vibration: float,
+    drift: float = 0.0,
     seed: int,
 ) -> Recording:
     """Simulate the peaks' complex values: a linear depth change, vibration on the reference arm.
 
-    ``vibration`` is the RMS reference-arm motion in m: a sum of a few tones of random
-    phase between 0.3 and 3 Hz, as a table's vibration would be.
+    The reference arm moves as :func:`reference_arm` says (``vibration`` and ``drift``
+    RMS, m).
     """
     rng = np.random.default_rng(seed)
     times = np.arange(round(duration * fps)) / fps
     height = rate * times
-    tones = rng.uniform(0.3, 3.0, 5)
-    shifts = rng.uniform(0, 2 * np.pi, 5)
-    arm = np.sum(np.sin(2 * np.pi * tones[:, None] * times + shifts[:, None]), axis=0)
-    arm *= vibration / np.std(arm)
+    arm = reference_arm(times, vibration, drift, rng)
     k0 = 2 * np.pi / WAVELENGTH
     values = np.empty((times.size, len(peaks)), dtype=np.complex128)
     for m, peak in enumerate(peaks):
@@ -78,3 +93,75 @@ def simulate(
         phase += rng.normal(0.0, peak.noise, times.size) + rng.uniform(0, 2 * np.pi)
         values[:, m] = peak.amplitude * np.exp(1j * phase)
     return Recording(times=times, values=values, height=height, peaks=peaks, rate=rate)
+
+
+@dataclass(frozen=True)
+class SynthesisedRecording:
+    """Carrier values of every detected peak over synthesised frames, and the truth.
+
+    ``peaks`` are the detected peaks on the twin the model labelling says is stored
+    (phase growing with the height); ``names`` their model labels (empty: unexplained).
+    """
+
+    times: np.ndarray
+    values: np.ndarray  # (frames, peaks) complex
+    peaks: list
+    names: tuple[tuple[str, ...], ...]
+    reference: int  # index of the peak labelled RB1
+    rate: float  # true dh/dt, m/s
+
+
+def synthesise(
+    setup,
+    rate: float,
+    *,
+    fps: float,
+    duration: float,
+    vibration: float,
+    drift: float = 0.0,
+    seed: int,
+) -> SynthesisedRecording:
+    """Render frames of a uniformly moving level through the synthesiser and demodulate them.
+
+    The operator's procedure: peaks found in the first frame, RB1 and FB1 named where the
+    model puts them, the model labels the rest and says which twin to keep; then every
+    detected peak is demodulated (synthetic reference) and its carrier value kept. The
+    reference arm moves as :func:`reference_arm` says.
+    """
+    from holoview.optics.families import predict_families
+    from holoview.optics.synthesis import HologramSynthesizer
+    from holoview.processing.demodulate import Demodulator
+    from holoview.processing.labelling import label_peaks
+    from holoview.processing.peaks import find_peaks
+
+    rng = np.random.default_rng(seed)
+    times = np.arange(round(duration * fps)) / fps
+    arm = reference_arm(times, vibration, drift, rng)
+    jitter = 4 * np.pi / setup.wavelength * setup.n1 * arm  # reference-arm phase, rad
+    synthesiser = HologramSynthesizer(setup, noise="poisson")
+    first = synthesiser.render(0.0, reference_phase=float(jitter[0]), rng=rng)
+    detected = find_peaks(first)
+    truth = {f.label: f for f in predict_families(setup, max_order=3)}
+    anchors = {label: truth[label].observed_carrier for label in ("RB1", "FB1")}
+    labelling = label_peaks(
+        [p.carrier for p in detected], anchors, setup.n1, setup.n2, setup.shape, max_order=3
+    )
+    twins = {p.peak: p.twin for p in labelling.predictions if p.peak is not None}
+    peaks = [p.flipped() if twins.get(i, False) else p for i, p in enumerate(detected)]
+    demodulator = Demodulator(setup.shape, peaks, reference="synthetic", unwrap="never")
+    values = np.empty((times.size, len(peaks)), dtype=np.complex128)
+    for i, t in enumerate(times):
+        frame = (
+            first
+            if i == 0
+            else synthesiser.render(rate * t, reference_phase=float(jitter[i]), rng=rng)
+        )
+        values[i] = [r.carrier_value for r in demodulator.process(frame).peaks]
+    return SynthesisedRecording(
+        times=times,
+        values=values,
+        peaks=peaks,
+        names=labelling.names,
+        reference=labelling.anchors["RB1"],
+        rate=rate,
+    )

@@ -1,0 +1,101 @@
+"""Issue 5 targets on synthesised recordings with known truth, through the real demodulator.
+
+Frames come from :class:`holoview.optics.synthesis.HologramSynthesizer` (128 x 128,
+Poisson shot noise, reference-arm vibration), peaks from ``find_peaks`` and the model
+labelling, carrier values from :class:`holoview.processing.demodulate.Demodulator`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from identify_model import SynthesisedRecording, synthesise
+
+from holoview.optics.families import alpha_of
+from holoview.optics.setup import FLUIDS, Setup
+from holoview.processing.identify import PeakKind, identify_peaks
+from holoview.processing.trends import compare_rate, track_depth, unwrap_in_time
+
+SHAPE = (128, 128)
+INJECTION_AREA = 70.6e-4  # m^2
+INJECTION_RATE = 12.3e-9  # m^3/s
+
+
+@pytest.fixture(scope="module")
+def evaporation() -> tuple[Setup, SynthesisedRecording]:
+    """Isopropanol, 5.72 um/min, 10 fps, 60 s; reference arm: 10 nm tones, 3 nm drift."""
+    setup = Setup(shape=SHAPE, n2=FLUIDS["isopropanol"])
+    rate = -5.72e-6 / 60
+    return setup, synthesise(
+        setup, rate, fps=10.0, duration=60.0, vibration=10e-9, drift=3e-9, seed=11
+    )
+
+
+@pytest.fixture(scope="module")
+def injection() -> tuple[Setup, SynthesisedRecording]:
+    """Water, 12.3 uL/s into 70.6 cm^2, 25 fps for 24 s, 3 nm reference vibration."""
+    setup = Setup(shape=SHAPE, n2=FLUIDS["water"])
+    rate = INJECTION_RATE / INJECTION_AREA
+    return setup, synthesise(setup, rate, fps=25.0, duration=24.0, vibration=3e-9, seed=12)
+
+
+def model_alphas(setup: Setup, recording: SynthesisedRecording) -> np.ndarray:
+    """Each peak's model alpha from its label; NaN for peaks the model does not explain."""
+    return np.array(
+        [alpha_of(names[0], setup.n1, setup.n2) if names else np.nan for names in recording.names]
+    )
+
+
+def check_pca(setup: Setup, recording: SynthesisedRecording) -> None:
+    ident = identify_peaks(
+        unwrap_in_time(recording.values), setup.n1, setup.n2, reference=recording.reference
+    )
+    assert ident.confidence > 0.97
+    by_label = ident.by_label()
+    for label in ("RF", "RB1", "FB1", "RB2"):
+        index = by_label[label]
+        assert recording.names[index][0] == label  # PCA and model labelling agree
+        expected = alpha_of(label, setup.n1, setup.n2)
+        assert ident.alphas[index] == pytest.approx(expected, rel=0.02), label
+        assert ident.peaks[index].kind is PeakKind.FAMILY
+
+
+def test_evaporation_pca_confidence_and_prefactors(evaporation):
+    check_pca(*evaporation)
+
+
+def test_injection_pca_confidence_and_prefactors(injection):
+    check_pca(*injection)
+
+
+def test_evaporation_fused_rate(evaporation):
+    setup, recording = evaporation
+    alphas = model_alphas(setup, recording)
+    known = np.isfinite(alphas)
+    track = track_depth(
+        recording.values[:, known], recording.times, alphas[known], setup.wavelength
+    )
+    assert not np.any(track.aliasing.aliased)
+    error = track.fit.relative_error(recording.rate)
+    assert error < 0.003
+    worst_error = max(f.relative_error(recording.rate) for f in track.peak_fits)
+    worst_stderr = max(f.stderr for f in track.peak_fits)
+    assert worst_error > 3 * error
+    assert worst_stderr > 3 * track.fit.stderr
+
+
+def test_injection_fused_rate_with_aliasing_peaks_excluded(injection):
+    setup, recording = injection
+    alphas = model_alphas(setup, recording)
+    known = np.isfinite(alphas)
+    track = track_depth(
+        recording.values[:, known], recording.times, alphas[known], setup.wavelength
+    )
+    # At 25 fps, 70 nm per frame: a peak with alpha above about 2.7 steps past pi.
+    step = 4 * np.pi * alphas[known] * recording.rate / 25.0 / setup.wavelength
+    should_alias = np.abs(step) > np.pi
+    assert np.any(should_alias)
+    np.testing.assert_array_equal(track.aliasing.aliased[should_alias], True)
+    assert not np.any(track.fused.used[track.aliasing.aliased])
+    comparison = compare_rate(track.fit, INJECTION_AREA, INJECTION_RATE)
+    assert abs(comparison.relative_error) < 0.005
