@@ -33,6 +33,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from holoview.errors import InputError
+from holoview.processing.heights import phase_to_height
 
 logger = logging.getLogger(__name__)
 
@@ -238,11 +239,10 @@ def depth_series(phases: ArrayLike, alphas: ArrayLike, wavelength: float) -> NDA
         raise InputError(
             f"phases (frames, peaks) {phase.shape} and alphas {alpha.shape} do not match"
         )
-    if np.any(alpha == 0) or not np.all(np.isfinite(alpha)):
-        raise InputError("every prefactor alpha must be finite and non-zero")
-    if not wavelength > 0:
-        raise InputError(f"wavelength must be positive, got {wavelength} m")
-    return phase * wavelength / (4.0 * np.pi * alpha)
+    depths = np.empty_like(phase)
+    for m, value in enumerate(alpha):
+        depths[:, m] = phase_to_height(phase[:, m], float(value), wavelength)
+    return depths
 
 
 def _check_times(times: ArrayLike, n_frames: int) -> NDArray[np.float64]:

@@ -65,6 +65,10 @@ def test_depth_series_converts_phase_with_alpha():
     phases = np.array([[0.0, 0.0], [4 * np.pi, 2 * np.pi]])
     depths = depth_series(phases, [1.0, 0.5], WAVELENGTH)
     np.testing.assert_allclose(depths[1], [WAVELENGTH, WAVELENGTH])
+    with pytest.raises(InputError, match="alpha must be finite and nonzero"):
+        depth_series(phases, [1.0, 0.0], WAVELENGTH)
+    with pytest.raises(InputError, match="wavelength must be > 0"):
+        depth_series(phases, [1.0, 1.0], -1.0)
 
 
 def test_series_noise_measures_each_peak():
