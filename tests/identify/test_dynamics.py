@@ -6,8 +6,13 @@ import numpy as np
 import pytest
 
 from holoview.errors import InputError
-from holoview.optics.surfaces import dispersion_omega
+from holoview.optics.families import predict_families
+from holoview.optics.setup import Setup
+from holoview.optics.surfaces import Mode, StandingWaves, dispersion_omega
+from holoview.optics.synthesis import HologramSynthesizer, pixel_coordinates
+from holoview.processing.demodulate import Demodulator
 from holoview.processing.dynamics import compare_dispersion, space_time_spectrum
+from holoview.processing.peaks import find_peaks
 
 WATER = {"depth": 5e-3, "surface_tension": 0.072, "density": 1000.0}
 FRAMES, SIZE, INTERVAL, PIXEL = 128, 64, 0.01, 0.5e-3  # 100 fps, 32 mm field of view
@@ -92,3 +97,36 @@ def test_nan_maps_are_refused_and_input_is_not_mutated():
     field[0, 0, 0] = np.nan
     with pytest.raises(InputError, match="NaN"):
         space_time_spectrum(field, INTERVAL, PIXEL)
+
+
+def test_standing_waves_through_the_synthesiser_and_demodulator():
+    """Delta-h maps of RB1 from synthesised frames of standing waves follow the dispersion."""
+    setup = Setup(shape=(128, 128), pixel_pitch=200e-6, m_r=(2e-4, 1.2e-4), m_b=(-0.5e-4, 1.5e-4))
+    side = 128 * setup.pixel_pitch  # the basin fills the frame; even modes fit the FFT grid
+    indices = [(2, 4), (4, 2), (6, 2), (2, 6), (4, 6), (8, 0)]
+    modes = tuple(Mode(m, n, 20e-9, 0.9 * i) for i, (m, n) in enumerate(indices))
+    waves = StandingWaves(modes, side, depth=5e-3)
+    synthesiser = HologramSynthesizer(setup)
+    rng = np.random.default_rng(3)
+    x, y = pixel_coordinates(setup)
+    fps = 200.0
+    first = synthesiser.render(waves(0.0, x, y), rng=rng)
+    brightest = find_peaks(first)[0]
+    rb1 = next(f for f in predict_families(setup) if f.label == "RB1")
+    if np.dot(brightest.carrier, rb1.observed_carrier) < 0:
+        brightest = brightest.flipped()
+    peak = brightest.relabelled("RB1", rb1.alpha)
+    demodulator = Demodulator(
+        setup.shape, [peak], reference="absolute", unwrap="never", wavelength=setup.wavelength
+    )
+    maps = []
+    for i in range(128):
+        frame = first if i == 0 else synthesiser.render(waves(i / fps, x, y), rng=rng)
+        maps.append(demodulator.process(frame).peaks[0].delta_h)
+    box_pixel = side / demodulator.box_shape[1]
+    spectrum = space_time_spectrum(np.array(maps), 1 / fps, box_pixel)
+    right = compare_dispersion(spectrum, 5e-3, waves.sigma, waves.rho)
+    assert right.rms_deviation < 0.06
+    assert right.power_near_model > 0.9
+    wrong = compare_dispersion(spectrum, 5e-3, waves.sigma / 2, waves.rho)
+    assert wrong.rms_deviation > 3 * right.rms_deviation
