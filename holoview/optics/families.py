@@ -186,6 +186,35 @@ def predict_families(
     return families
 
 
+def _coherent(setup: Setup, label: str) -> tuple[complex, tuple[complex, complex], float]:
+    """Return (sum of coefficients, (sum c_i dx_i, sum c_i dy_i), mean intensity).
+
+    Sums run over every beam pair (all passes) whose carrier is the family's, or its
+    twin's (conjugated).
+    """
+    beams = field_beams(setup, _ALL_PASSES)
+    norm = mean_intensity(beams)
+    pairs = [_pair(setup, a, b, norm) for i, a in enumerate(beams) for b in beams[i + 1 :]]
+    target = next((f for f, _ in pairs if f.label == label), None)
+    if target is None:
+        raise InputError(f"no first-order family {label!r} in this setup")
+    total = 0j
+    moment = [0j, 0j]
+    for family, coefficient in pairs:
+        offsets = [c - t for c, t in zip(family.carrier, target.carrier, strict=True)]
+        sums = [c + t for c, t in zip(family.carrier, target.carrier, strict=True)]
+        if max(map(abs, offsets)) < 1e-9:
+            value = coefficient
+        elif max(map(abs, sums)) < 1e-9:
+            value = coefficient.conjugate()
+        else:
+            continue
+        total += value
+        moment[0] += value * family.displacement[0]
+        moment[1] += value * family.displacement[1]
+    return total, (moment[0], moment[1]), norm
+
+
 def coherent_amplitude(setup: Setup, label: str) -> float:
     """Return the amplitude of the spectral peak at ``label``'s carrier from the field sum.
 
@@ -206,22 +235,35 @@ def coherent_amplitude(setup: Setup, label: str) -> float:
         Modulation depth relative to the mean camera value (first order in the camera
         response), like :attr:`Family.amplitude`.
     """
-    beams = field_beams(setup, _ALL_PASSES)
-    norm = mean_intensity(beams)
-    pairs = [_pair(setup, a, b, norm) for i, a in enumerate(beams) for b in beams[i + 1 :]]
-    target = next((f for f, _ in pairs if f.label == label), None)
-    if target is None:
-        raise InputError(f"no first-order family {label!r} in this setup")
-    tolerance = 1e-9
-    total = 0j
-    for family, coefficient in pairs:
-        if all(abs(c - t) < tolerance for c, t in zip(family.carrier, target.carrier, strict=True)):
-            total += coefficient
-        elif all(
-            abs(c + t) < tolerance for c, t in zip(family.carrier, target.carrier, strict=True)
-        ):
-            total += coefficient.conjugate()
+    total, _, norm = _coherent(setup, label)
     return setup.gamma * 2 * abs(total) / norm
+
+
+def coherent_displacement(setup: Setup, label: str) -> tuple[float, float]:
+    """Return the displacement, m, of the spectral peak at ``label``'s carrier.
+
+    Where several pairs share the carrier (FB1 with B2B1, B3B2, ...), the peak's phase
+    images ``h`` around ``Re(sum_i c_i delta_i / sum_i c_i)`` to first order, ``c_i``
+    the pairs' complex coefficients. Near the etalon's cancellation (``R_m -> 1``) the
+    weights nearly cancel and this displacement grows well beyond each pair's: the FB
+    peaks of a good mirror image a blurred, shifted surface.
+
+    Parameters
+    ----------
+    setup : Setup
+        The bench.
+    label : str
+        A first-order family label.
+
+    Returns
+    -------
+    tuple of float
+        ``(dx, dy)``, m (``(0, 0)`` when the peak vanishes).
+    """
+    total, moment, _ = _coherent(setup, label)
+    if abs(total) < 1e-15:
+        return (0.0, 0.0)
+    return ((moment[0] / total).real, (moment[1] / total).real)
 
 
 def _beam_terms(name: str, n1: float, n2: float) -> tuple[float, tuple[int, int], bool]:

@@ -1,0 +1,399 @@
+"""``holoview simulate``: a simulated recording with its truth, and optionally a figure.
+
+Frames come from :func:`holoview.optics.scenarios.simulate` (the paper's forward
+model, fast synthesis) and go to a holoview recording (layout in
+:mod:`holoview.acquire.recording`; ``source`` is ``"simulate:SCENARIO"``, the setup
+attributes are :meth:`holoview.optics.setup.Setup.as_attributes`). After the writer
+closes, this command reopens the file and adds the truth.
+
+``/truth`` layout
+-----------------
+attributes
+    ``scenario`` (str), ``seed`` (int, -1 when none), ``fps_hz``, ``noise`` (str), and
+    every :class:`~holoview.optics.scenarios.ScenarioConfig` field with its SI unit in
+    the name (``evaporation_rate_m_per_s``, ``injection_rate_m3_per_s``,
+    ``basin_area_m2``, ``basin_side_m``, ``wave_rms_m``, ``vibration_rms_m``,
+    ``vibration_time_s``, ...).
+``time_s`` (n,) float64
+    Simulated time of each frame, s (also ``/t_device_s``).
+``mean_height_m`` (n,) float64
+    Mean surface height over the frame, m, relative to the rest level.
+``reference_path_m``, ``reference_phase_rad`` (n,) float64
+    Reference air-path jitter, m, and the phase it adds to RF and RB_j, rad.
+``height_m`` (n, rows, cols) float32, gzip
+    The height maps, m (``waves`` only; uniform scenarios have none).
+``families/`` group, one row per predicted family (``max_order`` 4), datasets
+    ``label`` and ``kind`` (str), ``carrier_cpp`` (k, 2) cycles/pixel (fx, fy; stored
+    twin, unfolded), ``observed_carrier_cpp`` (k, 2) (folded into [-0.5, 0.5)),
+    ``aliased`` (bool), ``amplitude`` (modulation depth of the pair), ``alpha``,
+    ``displacement_m`` (k, 2), and ``peak_amplitude``, ``peak_displacement_m`` (k, 2):
+    the coherent sum of every pair on that carrier (NaN for second-order peaks).
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import math
+import time
+from dataclasses import asdict
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from holoview.errors import InputError
+
+if TYPE_CHECKING:
+    from collections.abc import Callable
+
+    import numpy as np
+
+    from holoview.optics.families import Family
+    from holoview.optics.scenarios import FrameTruth, ScenarioConfig
+    from holoview.optics.setup import Setup
+
+logger = logging.getLogger(__name__)
+
+#: Mirror passes of the families written to /truth and marked on the figure.
+MAX_ORDER = 4
+
+#: The scenario config fields and the SI unit suffixes of their /truth attributes.
+_CONFIG_UNITS = {
+    "evaporation_rate": "_m_per_s",
+    "injection_rate": "_m3_per_s",
+    "basin_area": "_m2",
+    "basin_side": "_m",
+    "wave_rms": "_m",
+    "wave_modes": "",
+    "wave_max_index": "",
+    "sigma": "_n_per_m",
+    "rho": "_kg_per_m3",
+    "vibration_rms": "_m",
+    "vibration_time": "_s",
+}
+
+
+def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
+    """Register ``simulate``."""
+    from holoview.optics.camera import NOISE_MODELS
+    from holoview.optics.scenarios import SCENARIOS
+    from holoview.optics.setup import FLUIDS
+
+    parser = subparsers.add_parser(
+        "simulate",
+        help="write a simulated recording with its truth (and a PNG figure)",
+        description="Simulate a multiplexed off-axis hologram sequence of a fluid surface "
+        "(paper's forward model) into a new holoview recording, with a /truth group.",
+    )
+    parser.add_argument("out", type=Path, metavar="OUT.h5", help="the recording to create")
+    parser.add_argument("--scenario", choices=SCENARIOS, default="waves")
+    parser.add_argument("--size", type=int, default=512, metavar="N", help="N x N pixels")
+    parser.add_argument("--frames", type=int, default=50, metavar="N")
+    parser.add_argument("--fps", type=float, default=60.0, metavar="F", help="frames/s")
+    parser.add_argument("--seed", type=int, default=None, metavar="S")
+    parser.add_argument("--noise", choices=NOISE_MODELS, default="poisson")
+    parser.add_argument("--png", type=Path, metavar="PATH", help="save a frame and its spectrum")
+    parser.add_argument("--png-frame", type=int, default=0, metavar="I", help="frame for --png")
+    setup = parser.add_argument_group("setup (defaults: holoview.optics.setup.Setup)")
+    setup.add_argument("--fluid", choices=sorted(FLUIDS), help="sets n2 from a preset")
+    setup.add_argument("--n1", type=float, help="refractive index above the surface")
+    setup.add_argument("--n2", type=float, help="refractive index of the fluid")
+    setup.add_argument("--wavelength-nm", type=float, help="laser wavelength, nm")
+    setup.add_argument("--pixel-pitch-um", type=float, help="object-side pixel pitch, um")
+    setup.add_argument("--m-r-mrad", type=float, nargs=2, metavar=("MX", "MY"))
+    setup.add_argument("--m-b-mrad", type=float, nargs=2, metavar=("MX", "MY"))
+    setup.add_argument("--depth-mm", type=float, help="fluid depth over the mirror, mm")
+    setup.add_argument("--delta-h-mm", type=float, help="arm-length difference, mm")
+    setup.add_argument("--reflectivity", type=float, help="submerged mirror power reflectance")
+    setup.add_argument("--beam-waist-mm", type=float, help="1/e^2 intensity radius, mm")
+    setup.add_argument("--aperture-mm", type=float, help="field-stop radius, mm")
+    setup.add_argument("--photons", type=float, help="photons per pixel at the beam centre")
+    setup.add_argument("--bits", type=int, help="camera bit depth")
+    setup.add_argument("--gamma", type=float, help="camera response exponent")
+    setup.add_argument("--saturation", type=float, help="photons at full scale")
+    setup.add_argument(
+        "--ghost",
+        action="append",
+        default=[],
+        nargs=4,
+        metavar=("ARM", "TX_MRAD", "TY_MRAD", "AMPLITUDE"),
+        help="a beam-splitter ghost of the reference or probe arm (repeatable)",
+    )
+    physics = parser.add_argument_group("scenario physics (defaults: the paper's)")
+    physics.add_argument("--evaporation-um-per-min", type=float)
+    physics.add_argument("--injection-ul-per-s", type=float)
+    physics.add_argument("--basin-area-cm2", type=float)
+    physics.add_argument("--wave-rms-nm", type=float)
+    physics.add_argument("--vibration-rms-nm", type=float)
+    return parser
+
+
+def _number(name: str, value: float | None, scale: float = 1.0) -> float | None:
+    if value is None:
+        return None
+    if not math.isfinite(value):
+        raise InputError(f"--{name} must be finite, got {value}")
+    return value * scale
+
+
+def build_setup(args: argparse.Namespace) -> Setup:
+    """Return the setup the command-line options describe (SI units inside)."""
+    from holoview.optics.setup import FLUIDS, Ghost, Setup
+
+    if args.size is None or args.size < 8:
+        raise InputError(f"--size must be at least 8 pixels, got {args.size}")
+    changes: dict[str, object] = {"shape": (args.size, args.size)}
+    if args.fluid is not None:
+        changes["n2"] = FLUIDS[args.fluid]
+    scalar = {
+        "n1": ("n1", 1.0),
+        "n2": ("n2", 1.0),
+        "wavelength_nm": ("wavelength", 1e-9),
+        "pixel_pitch_um": ("pixel_pitch", 1e-6),
+        "depth_mm": ("depth", 1e-3),
+        "delta_h_mm": ("delta_H", 1e-3),
+        "reflectivity": ("mirror_reflectivity", 1.0),
+        "beam_waist_mm": ("beam_waist", 1e-3),
+        "aperture_mm": ("aperture_radius", 1e-3),
+        "photons": ("photons_per_pixel", 1.0),
+        "gamma": ("gamma", 1.0),
+        "saturation": ("saturation", 1.0),
+    }
+    for option, (name, scale) in scalar.items():
+        value = _number(option.replace("_", "-"), getattr(args, option), scale)
+        if value is not None:
+            changes[name] = value
+    if args.bits is not None:
+        changes["bit_depth"] = args.bits
+    for option, name in (("m_r_mrad", "m_r"), ("m_b_mrad", "m_b")):
+        tilt = getattr(args, option)
+        if tilt is not None:
+            changes[name] = (tilt[0] * 1e-3, tilt[1] * 1e-3)
+    ghosts = []
+    for arm, tx, ty, amplitude in args.ghost:
+        try:
+            ghosts.append(Ghost(arm, (float(tx) * 1e-3, float(ty) * 1e-3), float(amplitude)))
+        except ValueError as exc:
+            raise InputError(f"--ghost {arm} {tx} {ty} {amplitude}: {exc}") from exc
+    changes["ghosts"] = tuple(ghosts)
+    return Setup().replace(**changes)
+
+
+def build_config(args: argparse.Namespace) -> ScenarioConfig:
+    """Return the scenario physics the options describe (SI units inside)."""
+    from holoview.optics.scenarios import ScenarioConfig
+
+    changes: dict[str, float] = {}
+    for option, name, scale in (
+        ("evaporation_um_per_min", "evaporation_rate", 1e-6 / 60),
+        ("injection_ul_per_s", "injection_rate", 1e-9),
+        ("basin_area_cm2", "basin_area", 1e-4),
+        ("wave_rms_nm", "wave_rms", 1e-9),
+        ("vibration_rms_nm", "vibration_rms", 1e-9),
+    ):
+        value = _number(option.replace("_", "-"), getattr(args, option), scale)
+        if value is not None:
+            changes[name] = value
+    return ScenarioConfig(**changes)
+
+
+def write_truth(
+    path: Path,
+    *,
+    truths: list[FrameTruth],
+    families: list[Family],
+    setup: Setup,
+    config: ScenarioConfig,
+    args: argparse.Namespace,
+    surface: Callable[[float, np.ndarray, np.ndarray], np.ndarray],
+) -> None:
+    """Add the ``/truth`` group (see the module docstring) to a closed recording.
+
+    Height maps are evaluated again from ``surface`` at each frame's time (the same
+    values the frames were made from), one frame at a time, not kept in memory.
+    """
+    import h5py
+    import numpy as np
+
+    from holoview.optics.families import coherent_amplitude, coherent_displacement
+    from holoview.optics.synthesis import pixel_coordinates
+
+    with h5py.File(path, "a") as f:
+        group = f.create_group("truth")
+        group.attrs["scenario"] = args.scenario
+        group.attrs["seed"] = -1 if args.seed is None else int(args.seed)
+        group.attrs["fps_hz"] = float(args.fps)
+        group.attrs["noise"] = args.noise
+        for name, value in asdict(config).items():
+            group.attrs[name + _CONFIG_UNITS.get(name, "")] = value
+        group["time_s"] = np.array([t.time for t in truths])
+        group["mean_height_m"] = np.array([t.mean_height for t in truths])
+        group["reference_path_m"] = np.array([t.reference_path for t in truths])
+        group["reference_phase_rad"] = np.array([t.reference_phase for t in truths])
+        for name, unit in (
+            ("time_s", "s"),
+            ("mean_height_m", "m"),
+            ("reference_path_m", "m"),
+            ("reference_phase_rad", "rad"),
+        ):
+            group[name].attrs["unit"] = unit
+        if not getattr(surface, "is_uniform", False):
+            rows, cols = setup.shape
+            x, y = pixel_coordinates(setup)
+            maps = group.create_dataset(
+                "height_m",
+                shape=(len(truths), rows, cols),
+                dtype=np.float32,
+                chunks=(1, rows, cols),
+                compression="gzip",
+                shuffle=True,
+            )
+            maps.attrs["unit"] = "m"
+            for i, truth in enumerate(truths):
+                maps[i] = np.broadcast_to(surface(truth.time, x, y), setup.shape)
+        table = group.create_group("families")
+        table["label"] = np.array([fam.label for fam in families], dtype=h5py.string_dtype())
+        table["kind"] = np.array([fam.kind for fam in families], dtype=h5py.string_dtype())
+        table["carrier_cpp"] = np.array([fam.carrier for fam in families]).reshape(-1, 2)
+        table["observed_carrier_cpp"] = np.array(
+            [fam.observed_carrier for fam in families]
+        ).reshape(-1, 2)
+        table["aliased"] = np.array([fam.aliased for fam in families], dtype=bool)
+        table["amplitude"] = np.array([fam.amplitude for fam in families])
+        table["alpha"] = np.array([fam.alpha for fam in families])
+        table["displacement_m"] = np.array([fam.displacement for fam in families]).reshape(-1, 2)
+        peaks = [
+            (coherent_amplitude(setup, fam.label), *coherent_displacement(setup, fam.label))
+            if fam.kind != "second-order"
+            else (math.nan, math.nan, math.nan)
+            for fam in families
+        ]
+        table["peak_amplitude"] = np.array([p[0] for p in peaks])
+        table["peak_displacement_m"] = np.array([p[1:] for p in peaks]).reshape(-1, 2)
+
+
+def spectrum_figure(frame: np.ndarray, families: list[Family], size: int = 512) -> np.ndarray:
+    """Return a BGR image: the frame beside its log spectrum, predicted carriers marked.
+
+    Each family of amplitude >= 1e-3 gets a circle at its observed carrier (stored
+    twin) labelled with its name (red: aliased, yellow: second order, green: the rest),
+    and a small dot at its conjugate twin.
+    """
+    import cv2
+    import numpy as np
+
+    data = frame.astype(np.float64)
+    low, high = np.percentile(data, (0.5, 99.5))
+    image = np.clip((data - low) / max(high - low, 1e-12) * 255, 0, 255).astype(np.uint8)
+    rows, cols = frame.shape
+    hann = np.outer(np.hanning(rows), np.hanning(cols))
+    power = np.log1p(np.abs(np.fft.fftshift(np.fft.fft2((data - data.mean()) * hann))))
+    low, high = np.percentile(power, (1, 99.99))
+    spec = np.clip((power - low) / max(high - low, 1e-12) * 255, 0, 255).astype(np.uint8)
+    scale = size / max(rows, cols)
+    target = (round(cols * scale), round(rows * scale))
+    image = cv2.cvtColor(
+        cv2.resize(image, target, interpolation=cv2.INTER_AREA), cv2.COLOR_GRAY2BGR
+    )
+    spec = cv2.cvtColor(cv2.resize(spec, target, interpolation=cv2.INTER_AREA), cv2.COLOR_GRAY2BGR)
+    width, height = target
+    marks: dict[tuple[int, int], list[Family]] = {}
+    for family in families:
+        if family.amplitude >= 1e-3:
+            fx, fy = family.observed_carrier
+            marks.setdefault((round((0.5 + fx) * width), round((0.5 + fy) * height)), []).append(
+                family
+            )
+    for (x, y), group in marks.items():
+        first = group[0]
+        colour = (
+            (0, 0, 255)
+            if first.aliased
+            else (0, 220, 255)
+            if first.kind == "second-order"
+            else (0, 220, 0)
+        )
+        label = "/".join(f.label for f in group)
+        cv2.circle(spec, (x, y), 9, colour, 1, cv2.LINE_AA)
+        cv2.putText(spec, label, (x + 10, y - 6), cv2.FONT_HERSHEY_SIMPLEX, 0.4, colour, 1)
+        cv2.circle(spec, ((width - x) % width, (height - y) % height), 2, colour, -1)
+    return np.hstack([image, np.full((height, 8, 3), 255, np.uint8), spec])
+
+
+def run(args: argparse.Namespace) -> int:
+    """Simulate, write the recording and its truth, and the figure if asked."""
+    import dataclasses
+
+    import cv2
+    import numpy as np
+    from tqdm import tqdm
+
+    from holoview.acquire.recording import RecordingWriter
+    from holoview.optics.families import predict_families
+    from holoview.optics.scenarios import make_surface, simulate
+
+    if args.frames is None or args.frames < 1:
+        raise InputError(f"--frames must be at least 1, got {args.frames}")
+    if not (math.isfinite(args.fps) and args.fps > 0):
+        raise InputError(f"--fps must be positive, got {args.fps}")
+    if args.png is not None and not 0 <= args.png_frame < args.frames:
+        raise InputError(f"--png-frame must be in 0..{args.frames - 1}, got {args.png_frame}")
+    if args.png is not None and not args.png.parent.is_dir():
+        raise InputError(f"folder {args.png.parent} does not exist")
+    setup = build_setup(args)
+    config = build_config(args)
+    families = predict_families(setup, max_order=MAX_ORDER)
+    for family in families:
+        if family.aliased and family.amplitude >= 1e-3:
+            logger.warning(
+                "%s carrier (%+.3f, %+.3f) cycles/pixel is past Nyquist; it appears folded "
+                "at (%+.3f, %+.3f)",
+                family.label,
+                *family.carrier,
+                *family.observed_carrier,
+            )
+    settings = {"frame_rate_hz": float(args.fps), "noise": args.noise}
+    truths = []
+    figure_frame = None
+    surface = make_surface(setup, args.scenario, config, np.random.default_rng(args.seed))
+    sequence = simulate(
+        setup,
+        args.scenario,
+        frames=args.frames,
+        fps=args.fps,
+        seed=args.seed,
+        config=config,
+        noise=args.noise,
+        surface=surface,
+    )
+    with RecordingWriter(
+        args.out,
+        setup.shape,
+        "uint8" if setup.bit_depth <= 8 else "uint16",
+        setup=setup.as_attributes(),
+        settings=settings,
+        source=f"simulate:{args.scenario}",
+        significant_bits=setup.bit_depth,
+        pixel_format=f"Mono{setup.bit_depth}" if setup.bit_depth in (8, 10, 12, 16) else None,
+    ) as writer:
+        progress = tqdm(total=args.frames, unit="frame", disable=args.quiet, desc="simulate")
+        with progress:
+            for frame, truth in sequence:
+                writer.append(frame, truth.index, truth.time, time.time())
+                truths.append(dataclasses.replace(truth, height=None))
+                if truth.index == args.png_frame:
+                    figure_frame = frame
+                progress.update(1)
+    write_truth(
+        args.out,
+        truths=truths,
+        families=families,
+        setup=setup,
+        config=config,
+        args=args,
+        surface=surface,
+    )
+    figure = None if figure_frame is None else spectrum_figure(figure_frame, families)
+    if args.png is not None and not cv2.imwrite(str(args.png), figure):
+        raise InputError(f"could not write {args.png}")
+    logger.info("wrote %d frames to %s", len(truths), args.out)
+    return 0
