@@ -32,11 +32,12 @@ import numpy as np
 import pyfftw
 
 from holoview.errors import InputError
+from holoview.processing.fastmath import AngleWorkspace, angle
 from holoview.processing.fftplans import default_threads, fft_friendly, ifft2_plan, rfft2_plan
 from holoview.processing.frames import MIN_SIDE
 from holoview.processing.peaks import MIN_RADIUS_BINS, Peak
 from holoview.processing.resample import box_positions, resample_mask, upsample
-from holoview.processing.unwrap import TWO_PI, has_wraps, unwrap_spatial
+from holoview.processing.unwrap import TWO_PI, has_wraps, unwrap_guided, unwrap_spatial
 from holoview.processing.windows import (
     DEFAULT_TAPER,
     auto_radius,
@@ -159,9 +160,26 @@ class _Geometry:
     conjugate: np.ndarray | None  # bool per box bin, or None when no bin needs conjugating
     all_conjugate: bool
     window: np.ndarray  # float32, scaled so the field comes out in counts
-    ramp_conj: np.ndarray  # complex64 unit modulus: the sub-bin plane wave, conjugated
+    ramp: np.ndarray  # complex64 unit modulus: the sub-bin plane wave on the box grid
+    ramp_conj: np.ndarray  # its conjugate
     noise_gain: float  # variance of a second difference along a row over the noise variance
     area_fraction: float
+
+
+@dataclass
+class _Partial:
+    """A peak's results between demodulation and unwrapping (mutable, internal)."""
+
+    field: np.ndarray
+    phase: np.ndarray
+    mask: np.ndarray
+    valid: int  # number of trusted pixels
+    value: complex
+    mean_phase: float
+    target: float  # where the map's mean should sit, rad (sets its 2 pi offset)
+    flags: set[str]
+    live: bool  # False for a reference frame: the phase is zero by definition
+    unwrapped: bool = False
 
 
 def _readonly(array: np.ndarray) -> np.ndarray:
@@ -206,13 +224,14 @@ def _geometry(
     y, x = box_positions(box_shape, frame_shape)
     sub_y = fy - k0y / rows
     sub_x = fx - k0x / cols
-    ramp = np.exp(-1j * TWO_PI * (sub_y * y[:, None] + sub_x * x[None, :])).astype(np.complex64)
+    ramp = np.exp(1j * TWO_PI * (sub_y * y[:, None] + sub_x * x[None, :])).astype(np.complex64)
     return _Geometry(
         index=_readonly(index),
         conjugate=None if not conjugate.any() or conjugate.all() else _readonly(conjugate.copy()),
         all_conjugate=bool(conjugate.all()),
         window=_readonly((w * scale).astype(np.float32).ravel()),
-        ramp_conj=_readonly(ramp),
+        ramp=_readonly(ramp),
+        ramp_conj=_readonly(np.conj(ramp)),
         noise_gain=max(6.0 - 8.0 * rho1 + 2.0 * rho2, 1e-6),
         area_fraction=area,
     )
@@ -364,6 +383,11 @@ class Demodulator:
             if ap.shape != self.shape:
                 raise InputError(f"aperture mask has shape {ap.shape}, frames have {self.shape}")
             self._aperture_box = resample_mask(ap, self.box_shape)
+        n_box = self.box_shape[0] * self.box_shape[1]
+        self._angle_workspace = AngleWorkspace(self.box_shape)
+        self._product = np.empty(self.box_shape, dtype=np.complex64)
+        self._magnitude = np.empty(self.box_shape, dtype=np.float32)
+        self._weights = np.empty(n_box, dtype=np.float32)
         self.reset_reference()
 
     def _check_radius(self, carriers: np.ndarray) -> set[int]:
@@ -499,9 +523,10 @@ class Demodulator:
             frame_flags.add("saturated")
         flat = half.reshape(-1)
         box_plan = ifft2_plan(self.box_shape, threads=1)
-        results = []
-        for i, peak in enumerate(self.peaks):
-            results.append(self._peak(i, peak, flat, box_plan, mean))
+        partial = [self._demodulate(i, flat, box_plan, mean) for i in range(len(self.peaks))]
+        if self.unwrap != "never":
+            self._unwrap(partial)
+        results = tuple(self._finish(i, part) for i, part in enumerate(partial))
         if all(not r.mask.any() for r in results):
             frame_flags.add("no_signal")
         if any("reference" in r.flags for r in results):
@@ -513,15 +538,15 @@ class Demodulator:
             frame_shape=self.shape,
             box_shape=self.box_shape,
             radius=self.radius,
-            peaks=tuple(results),
+            peaks=results,
             flags=frozenset(frame_flags),
         )
         self._index += 1
         return result
 
-    def _peak(
-        self, i: int, peak: Peak, flat: np.ndarray, box_plan: pyfftw.FFTW, mean: float
-    ) -> PeakResult:
+    def _demodulate(self, i: int, flat: np.ndarray, box_plan: pyfftw.FFTW, mean: float) -> _Partial:
+        """Cut, window and invert peak ``i``'s box; phase against the reference (wrapped)."""
+        peak = self.peaks[i]
         geo = self._geometry[i]
         box = box_plan.input_array.reshape(-1)
         np.take(flat, geo.index, out=box)
@@ -537,101 +562,156 @@ class Demodulator:
             flags.add("overlap")
 
         # trusted pixels
-        magnitude = np.abs(field)
+        magnitude = np.abs(field, out=self._magnitude)
         expected = peak.amplitude * mean if peak.amplitude > 0 else float(np.median(magnitude))
-        mask = (
-            magnitude >= self.min_amplitude * expected
-            if expected > 0
-            else np.zeros(field.shape, bool)
-        )
+        mask = np.greater_equal(magnitude, np.float32(self.min_amplitude * expected))
+        if not expected > 0:
+            mask[...] = False
         if self._aperture_box is not None:
             mask &= self._aperture_box
-        if mask.mean() < MIN_VALID_FRACTION:
+        valid = int(np.count_nonzero(mask))
+        if valid < MIN_VALID_FRACTION * mask.size:
             flags.add("low_amplitude")
 
         # mean phase: the field against the sub-bin plane wave, averaged
-        against_wave = field * geo.ramp_conj
-        value = complex(against_wave.mean())
+        value = complex(np.vdot(geo.ramp, field)) / field.size
         prev = self._prev_value[i]
         step = 0.0 if prev is None else float(np.angle(value * np.conj(prev)))
         if abs(step) > PHASE_STEP_LIMIT:
             flags.add("phase_step")
+        self._prev_value[i] = value
 
-        # phase map against the reference
+        product: np.ndarray | None = self._product
         if self.reference == "synthetic":
-            product = against_wave
+            np.multiply(field, geo.ramp_conj, out=product)
             if prev is None:
                 self._unwrapped_mean[i] = float(np.angle(value))
             else:
                 self._unwrapped_mean[i] += step
             mean_phase = float(np.angle(value))
-            target = self._unwrapped_mean[i]
+        elif self._ref_conj[i] is None:
+            flags.add("reference")
+            self._ref_conj[i] = np.conj(field)
+            self._ref_value[i] = value
+            self._unwrapped_mean[i] = 0.0
+            product = None
+            mean_phase = 0.0
         else:
-            ref = self._ref_conj[i]
-            if ref is None:
-                flags.add("reference")
-                self._ref_conj[i] = np.conj(field)
-                self._ref_value[i] = value
-                self._unwrapped_mean[i] = 0.0
-                product = None
-                mean_phase = 0.0
+            ref_conj = self._ref_conj[i]
+            np.multiply(field, ref_conj, out=product)
+            self._unwrapped_mean[i] += step
+            if self.reference == "relative":
+                np.conjugate(field, out=ref_conj)
+                mean_phase = step
             else:
-                product = field * ref
-                self._unwrapped_mean[i] += step
-                if self.reference == "relative":
-                    self._ref_conj[i] = np.conj(field)
-                    mean_phase = step
-                else:
-                    mean_phase = float(np.angle(value * np.conj(self._ref_value[i])))
-            target = mean_phase if self.reference == "relative" else self._unwrapped_mean[i]
-        self._prev_value[i] = value
-
-        unwrapped = False
+                mean_phase = float(np.angle(value * np.conj(self._ref_value[i])))
         if product is None:
             phase = np.zeros(field.shape, dtype=np.float32)
         else:
-            phase = np.arctan2(product.imag, product.real)
-            if self.unwrap == "always" or (self.unwrap == "auto" and has_wraps(phase, mask)):
-                phase, unwrapped = unwrap_spatial(phase, mask)
-            if mask.any():
-                # put the map's 2 pi offset where the time-unwrapped mean phase says
-                offset = TWO_PI * round((target - float(np.mean(phase, where=mask))) / TWO_PI)
-                if offset:
-                    phase = phase + np.float32(offset)
-        noise = self._noise(phase, mask, geo)
+            phase = angle(product, workspace=self._angle_workspace)
+        return _Partial(
+            field=field,
+            phase=phase,
+            mask=mask,
+            valid=valid,
+            value=value,
+            mean_phase=mean_phase,
+            target=mean_phase if self.reference == "relative" else self._unwrapped_mean[i],
+            flags=flags,
+            live=product is not None,
+        )
+
+    def _guide_index(self, partial: list[_Partial]) -> int | None:
+        """The peak whose map guides the others: alpha known, fewest wraps per unit noise."""
+        best, score = None, np.inf
+        for i, peak in enumerate(self.peaks):
+            if peak.alpha is None or peak.amplitude <= 0 or not partial[i].mask.any():
+                continue
+            s = abs(peak.alpha) / peak.amplitude
+            if s < score:
+                best, score = i, s
+        return best
+
+    def _unwrap(self, partial: list[_Partial]) -> None:
+        """Unwrap the maps that need it: one spatially, the others guided by it when possible.
+
+        The guide is the peak with a known alpha and the smallest ``|alpha| / amplitude``
+        (fewest wraps, least noise); when its map has wraps it is unwrapped in space
+        (:func:`~holoview.processing.unwrap.unwrap_spatial`, Herraez et al. 2002, on a
+        2x decimated map for boxes of 128 pixels or more). Every other wrapped map of
+        a peak with alpha is then unwrapped against the guide scaled by the ratio of
+        alphas (:func:`~holoview.processing.unwrap.unwrap_guided`), which costs a few
+        array passes instead of a spatial unwrap. Peaks without alpha are unwrapped
+        in space.
+        """
+        need = [p.live and (self.unwrap == "always" or has_wraps(p.phase, p.mask)) for p in partial]
+        if not any(need):
+            return
+        coarse = 2 if min(self.box_shape) >= 128 else 1
+        guide = self._guide_index(partial)
+        if guide is not None and need[guide]:
+            g = partial[guide]
+            g.phase, g.unwrapped = unwrap_spatial(g.phase, g.mask, decimate=coarse)
+        for i, part in enumerate(partial):
+            if not need[i] or i == guide:
+                continue
+            alpha = self.peaks[i].alpha
+            if guide is not None and alpha is not None and partial[guide].live:
+                ratio = alpha / self.peaks[guide].alpha  # type: ignore[operator]
+                part.phase = unwrap_guided(part.phase, partial[guide].phase * ratio, part.mask)
+                part.unwrapped = True
+            else:
+                part.phase, part.unwrapped = unwrap_spatial(part.phase, part.mask, decimate=coarse)
+
+    def _finish(self, i: int, part: _Partial) -> PeakResult:
+        """Set the map's 2 pi offset, estimate the noise, convert to height."""
+        peak = self.peaks[i]
+        phase = part.phase
+        if part.live and part.valid:
+            # put the map's 2 pi offset where the time-unwrapped mean phase says
+            weights = self._weights
+            np.copyto(weights, part.mask.reshape(-1))
+            level = float(np.dot(phase.reshape(-1), weights)) / part.valid
+            offset = TWO_PI * round((part.target - level) / TWO_PI)
+            if offset:
+                phase += np.float32(offset)
+        noise = self._noise(phase, part.mask, self._geometry[i]) if part.live else 0.0
         to_height = None
         if peak.alpha is not None and self.wavelength is not None:
             to_height = self.wavelength / (4 * np.pi * peak.alpha)
         return PeakResult(
             peak=peak,
-            field=field,
+            field=part.field,
             phase=phase,
-            delta_h=None if to_height is None else (phase * np.float32(to_height)),
-            carrier_value=value,
-            mean_phase=mean_phase,
+            delta_h=None if to_height is None else phase * np.float32(to_height),
+            carrier_value=part.value,
+            mean_phase=part.mean_phase,
             mean_phase_unwrapped=float(self._unwrapped_mean[i]),
-            mask=mask,
+            mask=part.mask,
             noise=noise,
             noise_height=None if to_height is None else abs(noise * to_height),
-            unwrapped=unwrapped,
-            flags=frozenset(flags),
+            unwrapped=part.unwrapped,
+            flags=frozenset(part.flags),
         )
 
     @staticmethod
     def _noise(phase: np.ndarray, mask: np.ndarray, geo: _Geometry) -> float:
-        """Phase noise (rad) from the spread of second differences along rows of the map.
+        """Phase noise (rad) from the spread of second differences along every 4th row.
 
         Second differences cancel the surface's slope; for noise shaped by the
         window they have variance ``sigma^2 (6 - 8 rho1 + 2 rho2)``, with ``rho1``
         and ``rho2`` the window's noise correlation at lags 1 and 2. Surface
-        curvature adds to it, so the estimate errs on the high side.
+        curvature adds to it, so the estimate errs on the high side. Differences
+        beyond pi (wraps, untrusted pixels) are left out.
         """
-        pair = mask[:, 2:] & mask[:, 1:-1] & mask[:, :-2]
-        count = int(np.count_nonzero(pair))
+        rows = phase[::4]
+        trusted = mask[::4]
+        second = rows[:, 2:] - 2 * rows[:, 1:-1] + rows[:, :-2]
+        keep = trusted[:, 2:] & trusted[:, 1:-1] & trusted[:, :-2]
+        keep &= np.abs(second) < np.pi
+        count = int(np.count_nonzero(keep))
         if count < 2:
             return float("nan")
-        centre = phase[:, 1:-1]
-        diff = (phase[:, 2:] - centre + np.pi) % TWO_PI - np.pi
-        diff -= (centre - phase[:, :-2] + np.pi) % TWO_PI - np.pi
-        variance = float(np.mean(diff * diff, where=pair))
+        second *= keep
+        variance = float(np.vdot(second, second)) / count
         return float(np.sqrt(variance / geo.noise_gain))

@@ -43,7 +43,21 @@ def has_wraps(phase: np.ndarray, mask: np.ndarray | None = None) -> bool:
     return bool(jump_x.any() or jump_y.any())
 
 
-def unwrap_spatial(phase: np.ndarray, mask: np.ndarray | None = None) -> tuple[np.ndarray, bool]:
+def _herraez(phase: np.ndarray, mask: np.ndarray | None) -> np.ndarray:
+    """Herraez et al. 2002 through scikit-image; untrusted pixels keep their wrapped value."""
+    source = phase.astype(np.float64)
+    if mask is None:
+        return unwrap_phase(source)
+    with warnings.catch_warnings():
+        # separate trusted islands are unwrapped independently; skimage says so in a warning
+        warnings.simplefilter("ignore", UserWarning)
+        result = unwrap_phase(np.ma.masked_array(source, mask=~mask))
+    return np.where(mask, result.filled(0.0), source)
+
+
+def unwrap_spatial(
+    phase: np.ndarray, mask: np.ndarray | None = None, *, decimate: int = 1
+) -> tuple[np.ndarray, bool]:
     """Unwrap a phase map in space when it has wraps (Herraez et al. 2002).
 
     Parameters
@@ -51,7 +65,11 @@ def unwrap_spatial(phase: np.ndarray, mask: np.ndarray | None = None) -> tuple[n
     phase : ndarray, shape (rows, cols)
         Wrapped phase (rad); not modified.
     mask : ndarray of bool, optional
-        Trusted pixels; the others are left as they are in the result.
+        Trusted pixels; the others keep their wrapped value.
+    decimate : int
+        Unwrap every ``decimate``-th pixel along each axis, then bring each pixel
+        within pi of its coarse neighbour (``decimate**2`` times cheaper; exact
+        wherever the phase moves less than pi between coarse samples).
 
     Returns
     -------
@@ -64,19 +82,56 @@ def unwrap_spatial(phase: np.ndarray, mask: np.ndarray | None = None) -> tuple[n
     p = np.asarray(phase)
     if p.ndim != 2:
         raise InputError(f"phase map must be 2-D, got shape {p.shape}")
-    if not has_wraps(p, mask):
+    if decimate < 1:
+        raise InputError(f"decimate must be >= 1, got {decimate}")
+    m = None if mask is None else np.asarray(mask, dtype=bool)
+    if not has_wraps(p, m) or (m is not None and not m.any()):
         return p, False
-    source = p.astype(np.float64)
-    if mask is None:
-        return unwrap_phase(source).astype(np.float32), True
-    m = np.asarray(mask, dtype=bool)
-    if not m.any():
-        return p, False
-    with warnings.catch_warnings():
-        # separate trusted islands are unwrapped independently; skimage says so in a warning
-        warnings.simplefilter("ignore", UserWarning)
-        result = unwrap_phase(np.ma.masked_array(source, mask=~m))
-    return np.where(m, result.filled(0.0), p).astype(np.float32), True
+    if decimate == 1:
+        return _herraez(p, m).astype(np.float32), True
+    f = decimate
+    coarse = _herraez(p[::f, ::f], None if m is None else m[::f, ::f])
+    guide = np.repeat(np.repeat(coarse, f, axis=0), f, axis=1)[: p.shape[0], : p.shape[1]]
+    turns = np.round((guide - p) / TWO_PI)
+    return (p + TWO_PI * turns).astype(np.float32), True
+
+
+def unwrap_guided(
+    phase: np.ndarray, guide: np.ndarray, mask: np.ndarray | None = None
+) -> np.ndarray:
+    """Unwrap a map against an unwrapped map of the same shape up to a constant and a scale.
+
+    Used across peaks: ``guide`` is another peak's unwrapped phase times the ratio
+    of the two alphas. The constant difference between the two (each map's own
+    offset) is found as the circular mean of the wrapped difference, so only the
+    *shape* of the guide matters; each pixel is then put within pi of guide plus
+    constant.
+
+    Parameters
+    ----------
+    phase : ndarray, shape (rows, cols)
+        Wrapped phase (rad); not modified.
+    guide : ndarray, shape (rows, cols)
+        Continuous phase (rad) expected to differ from the truth by a constant.
+    mask : ndarray of bool, optional
+        Pixels trusted for the constant.
+
+    Returns
+    -------
+    ndarray of float32
+    """
+    p = np.asarray(phase)
+    g = np.asarray(guide)
+    if p.shape != g.shape or p.ndim != 2:
+        raise InputError(f"phase {p.shape} and guide {g.shape} must be 2-D of one shape")
+    difference = wrap(p - g)
+    sample = difference[::4, ::4]
+    if mask is not None:
+        sample = sample[np.asarray(mask, dtype=bool)[::4, ::4]]
+    if sample.size == 0:
+        sample = difference
+    constant = float(np.angle(np.mean(np.exp(1j * sample))))
+    return (g + constant + wrap(difference - constant)).astype(np.float32)
 
 
 def unwrap_temporal(phases: np.ndarray, *, axis: int = 0) -> np.ndarray:
