@@ -19,6 +19,12 @@ FB_(l-j) and is reported as that family):
 
 A negative alpha means the peak's phase decreases with the height: it sits on the other
 twin (DESIGN.md, twin rule) and is matched on ``|alpha|`` with ``flipped`` set.
+
+A peak whose phase steps past pi per frame unwraps in time to a wrong but clean line,
+so the temporal PCA gives it a wrong alpha. Given each peak's wrapped step per frame
+(:attr:`holoview.processing.trends.AliasingReport.measured_step`), :func:`identify_peaks`
+tries the aliases ``(step + 2 pi k) / (step_ref / alpha_ref)`` of a peak no model alpha
+explains, and reports a match with ``aliased`` set.
 """
 
 from __future__ import annotations
@@ -85,6 +91,9 @@ class PeakIdentity:
         True when the measured alpha is negative (the peak sits on the other twin).
     explained : float
         Share of the peak's variance carried by the principal component (0 to 1).
+    aliased : bool
+        True when the peak's phase steps past pi per frame and ``alpha`` is the
+        de-aliased prefactor (see :func:`identify_peaks`), not the PCA's.
     """
 
     index: int
@@ -94,6 +103,7 @@ class PeakIdentity:
     expected_alpha: float | None
     flipped: bool
     explained: float
+    aliased: bool = False
 
     @property
     def mismatch(self) -> float | None:
@@ -114,7 +124,8 @@ class Identification:
         Index of the labelled peak that fixed the global sign and scale.
     reference_label : str
     alphas : ndarray of float, shape (M,)
-        Every peak's prefactor (dimensionless).
+        Every peak's prefactor from the PCA (dimensionless); a de-aliased peak's
+        prefactor is in its :class:`PeakIdentity`.
     peaks : tuple of PeakIdentity
         One per peak, in the input order.
     """
@@ -210,7 +221,11 @@ def classify_prefactors(
         raise InputError(f"tolerance must be between 0 and 0.5, got {tolerance}")
     first = family_alphas(n1, n2, max_order)
     # Second orders of FB_j coincide with FB_2j, which the first-order table matches first.
-    second = {f"2{label}": 2.0 * alpha for label, alpha in first.items()}
+    second = {
+        label: alpha
+        for label, alpha in _model_table(n1, n2, max_order).items()
+        if label not in first
+    }
     seen: set[str] = set()
     result = []
     for index, (alpha, share) in enumerate(zip(values, shares, strict=True)):
@@ -240,6 +255,47 @@ def classify_prefactors(
     return tuple(result)
 
 
+#: Smallest step per frame (rad) of the reference peak for alias resolution: below it the
+#: level hardly moves and the steps carry no trend to de-alias.
+MIN_TREND_STEP = 0.05
+
+
+def _model_table(n1: float, n2: float, max_order: int) -> dict[str, float]:
+    """First-order families and their second orders."""
+    first = family_alphas(n1, n2, max_order)
+    return first | {f"2{label}": 2.0 * alpha for label, alpha in first.items()}
+
+
+def _resolve_aliases(
+    alphas: np.ndarray,
+    steps: np.ndarray,
+    *,
+    reference: int,
+    reference_alpha: float,
+    table: dict[str, float],
+    tolerance: float,
+) -> tuple[np.ndarray, np.ndarray]:
+    """De-alias the prefactors of peaks no model alpha explains, from their phase steps."""
+    resolved = alphas.copy()
+    aliased = np.zeros(alphas.size, dtype=bool)
+    per_alpha = steps[reference] / reference_alpha  # rad per frame per unit alpha
+    if not (np.isfinite(per_alpha) and abs(steps[reference]) >= MIN_TREND_STEP):
+        logger.info("reference peak hardly moves: no alias resolution")
+        return resolved, aliased
+    for m, (alpha, step) in enumerate(zip(alphas, steps, strict=True)):
+        if not (np.isfinite(alpha) and np.isfinite(step)):
+            continue
+        if alpha != 0 and _nearest(abs(alpha), table, tolerance) is not None:
+            continue
+        for turns in (1, -1, 2, -2):
+            candidate = (step + 2.0 * np.pi * turns) / per_alpha
+            if _nearest(abs(candidate), table, tolerance) is not None:
+                resolved[m], aliased[m] = candidate, True
+                logger.info("peak %d aliases in time: alpha %.3f, not %.3f", m, candidate, alpha)
+                break
+    return resolved, aliased
+
+
 def identify_peaks(
     phases: ArrayLike,
     n1: float,
@@ -248,6 +304,7 @@ def identify_peaks(
     reference: int | None = None,
     reference_label: str = "RB1",
     amplitudes: ArrayLike | None = None,
+    steps: ArrayLike | None = None,
     max_order: int = 3,
     tolerance: float = DEFAULT_TOLERANCE,
     min_explained: float = DEFAULT_MIN_EXPLAINED,
@@ -271,6 +328,11 @@ def identify_peaks(
     amplitudes : array_like of float, shape (M,), optional
         Peak amplitudes (any unit): choose the reference when it is not given, and order
         the peaks for the family-or-repeat decision (brightest is the family).
+    steps : array_like of float, shape (M,), optional
+        Each peak's typical wrapped phase step per frame in rad (temporal PCA of a
+        steadily moving level). With it, a peak no model alpha explains is tried at
+        its temporal aliases (module documentation). Ignored when the reference peak
+        moves less than :data:`MIN_TREND_STEP` per frame.
     max_order, tolerance, min_explained
         As in :func:`classify_prefactors`.
 
@@ -299,11 +361,24 @@ def identify_peaks(
             raise InputError("give the labelled peak's index or the peak amplitudes")
         reference = int(np.argmax(brightness))
     alphas = pca.prefactors(reference, reference_alpha)
+    resolved, aliased = alphas.copy(), np.zeros(n_peaks, dtype=bool)
+    if steps is not None:
+        step = np.asarray(steps, dtype=np.float64)
+        if step.shape != (n_peaks,):
+            raise InputError(f"{step.size} phase steps given for {n_peaks} peaks")
+        resolved, aliased = _resolve_aliases(
+            alphas,
+            step,
+            reference=reference,
+            reference_alpha=reference_alpha,
+            table=_model_table(n1, n2, max_order),
+            tolerance=tolerance,
+        )
     order = np.arange(n_peaks) if brightness is None else np.argsort(-brightness, kind="stable")
     # The labelled peak goes first so that it is the family, never a repeat.
     order = np.concatenate([[reference], order[order != reference % n_peaks]])
     ranked = classify_prefactors(
-        alphas[order],
+        resolved[order],
         n1,
         n2,
         explained=pca.explained[order],
@@ -313,7 +388,7 @@ def identify_peaks(
     )
     peaks: list[PeakIdentity | None] = [None] * n_peaks
     for rank, identity in zip(order, ranked, strict=True):
-        peaks[int(rank)] = replace(identity, index=int(rank))
+        peaks[int(rank)] = replace(identity, index=int(rank), aliased=bool(aliased[rank]))
     logger.info(
         "PCA over %d samples: confidence %.4f; %s",
         pca.n_samples,

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from identify_model import N_AIR
+from identify_model import N_AIR, ModelPeak, model_peaks, simulate
 
 from holoview.errors import InputError
 from holoview.processing.identify import (
@@ -13,7 +13,7 @@ from holoview.processing.identify import (
     family_alphas,
     identify_peaks,
 )
-from holoview.processing.trends import unwrap_in_time
+from holoview.processing.trends import check_aliasing, unwrap_in_time
 
 N1, N2 = 1.0, 1.333
 
@@ -116,3 +116,28 @@ def test_another_labelled_family_gives_the_same_prefactors(evaporation):
     # A second order works as the label too (any label the model knows).
     from_2rb1 = identify_peaks(phases, N_AIR, 1.377, reference=5, reference_label="2RB1").alphas
     assert np.allclose(from_rb1, from_2rb1, rtol=0.02)
+
+
+def test_a_peak_aliasing_in_time_is_identified_from_its_steps():
+    """Water at 25 fps, 70 nm per frame: FB2's phase steps 4.4 rad, seen as -1.9 rad."""
+    n2 = 1.333
+    peaks = [*model_peaks(N_AIR, n2), ModelPeak("FB2", 2 * n2, 0.0, 0.3, 0.05)]
+    recording = simulate(peaks, 12.3e-9 / 70.6e-4, fps=25.0, duration=20.0, vibration=3e-9, seed=9)
+    phases = unwrap_in_time(recording.values)
+    steps = check_aliasing(recording.values).measured_step
+    plain = identify_peaks(phases, N_AIR, n2, reference=0)
+    assert plain.peaks[6].kind is PeakKind.UNEXPLAINED
+    resolved = identify_peaks(phases, N_AIR, n2, reference=0, steps=steps)
+    fb2 = resolved.peaks[6]
+    assert (fb2.kind, fb2.label, fb2.aliased) == (PeakKind.FAMILY, "FB2", True)
+    assert fb2.alpha == pytest.approx(2 * n2, rel=0.02)
+    assert not any(p.aliased for p in resolved.peaks[:6])
+    assert [p.label for p in resolved.peaks[:6]] == [p.label for p in plain.peaks[:6]]
+
+
+def test_alias_resolution_needs_a_moving_level(evaporation):
+    phases = unwrap_in_time(evaporation.values)
+    with pytest.raises(InputError, match="2 phase steps given for 6 peaks"):
+        identify_peaks(phases, N_AIR, 1.377, reference=0, steps=[0.1, 0.2])
+    still = identify_peaks(phases, N_AIR, 1.377, reference=0, steps=np.full(6, 1e-3))
+    assert not any(p.aliased for p in still.peaks)

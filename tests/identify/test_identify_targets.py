@@ -14,7 +14,7 @@ from identify_model import SynthesisedRecording, synthesise
 from holoview.optics.families import alpha_of
 from holoview.optics.setup import FLUIDS, Setup
 from holoview.processing.identify import PeakKind, identify_peaks
-from holoview.processing.trends import compare_rate, track_depth, unwrap_in_time
+from holoview.processing.trends import check_aliasing, compare_rate, track_depth, unwrap_in_time
 
 SHAPE = (128, 128)
 INJECTION_AREA = 70.6e-4  # m^2
@@ -99,3 +99,20 @@ def test_injection_fused_rate_with_aliasing_peaks_excluded(injection):
     assert not np.any(track.fused.used[track.aliasing.aliased])
     comparison = compare_rate(track.fit, INJECTION_AREA, INJECTION_RATE)
     assert abs(comparison.relative_error) < 0.005
+
+
+def test_injection_pca_identifies_the_peaks_that_alias(injection):
+    setup, recording = injection
+    steps = check_aliasing(recording.values).measured_step
+    ident = identify_peaks(
+        unwrap_in_time(recording.values),
+        setup.n1,
+        setup.n2,
+        reference=recording.reference,
+        steps=steps,
+    )
+    aliased = [p for p in ident.peaks if p.aliased]
+    assert aliased, "RB3 steps 4.9 rad per frame at 25 fps and should alias"
+    for peak in aliased:
+        assert peak.label == recording.names[peak.index][0]
+        assert peak.alpha == pytest.approx(peak.expected_alpha, rel=0.02)
