@@ -129,3 +129,21 @@ def test_parse_setting() -> None:
     assert parse_setting("loop=on") == ("loop", True)
     assert parse_setting("pixel_format=Mono12p") == ("pixel_format", "Mono12p")
     assert parse_setting("frames = 3") == ("frames", 3)
+
+
+def test_record_from_the_default_simulated_camera(tmp_path: Path) -> None:
+    out = tmp_path / "sim.h5"
+    result = subprocess.run(
+        [sys.executable, "-m", "holoview", "record", str(out), "--frames", "5"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+    )
+    assert result.returncode == 0, result.stderr
+    assert "acquired 5, recorded 5, dropped 0" in result.stdout
+    with RecordingReader(out) as reader:
+        assert len(reader) == 5
+        assert reader.frame_shape == (1024, 1024)
+        assert reader.source == "sim:waves"
+        assert reader.setup["wavelength_m"] > 0
