@@ -26,9 +26,13 @@ against F (a copy of RF), ``"RB1~g1"`` the reference against a probe ghost's B1,
 leading integer marks a second-order peak: ``"2RB1"``.
 
 Amplitudes are modulation depths relative to the local mean camera value at the
-beam centre: ``2 |a_A a_B| / sum_b a_b**2`` times the camera's ``gamma`` (first order),
-and ``gamma |gamma - 1| A**2 / 4`` for a second-order peak of a family of amplitude
-``A / gamma`` (a saturated camera adds harmonics this does not predict).
+beam centre. In intensity a pair has ``A = 2 |a_A a_B| / sum_b a_b**2``; through the
+camera response ``I**gamma`` a family alone would give the Fourier coefficients of
+``(1 + A cos theta)**gamma``: its first harmonic (the family's amplitude) and its
+second (the second-order peak ``"2X"``), both relative to the mean. Cross terms
+between families (for example RB2 against RF, which lands on 2RB1) and saturation
+add a few per cent that this leaves out; with ``gamma == 1`` first orders are exact
+and second orders are 0.
 
 Displacement ``delta_AB`` (m): the family's phase samples ``h(r + delta_AB)`` to first
 order, ``delta_AB = (kappa_A c_A - kappa_B c_B) / alpha`` with ``c`` the beams' walk-off
@@ -97,6 +101,31 @@ class Family:
         return (fx, fy)
 
 
+def response_harmonics(modulation: float, gamma: float) -> tuple[float, float]:
+    """Return the first and second harmonic of ``(1 + m cos t)**gamma`` over its mean.
+
+    Parameters
+    ----------
+    modulation : float
+        Modulation depth ``m`` of the intensity, in [0, 1].
+    gamma : float
+        Response exponent.
+
+    Returns
+    -------
+    tuple of float
+        ``(2 |c1| / c0, 2 |c2| / c0)``, the modulation depths of the fundamental and of
+        the second harmonic in the response.
+    """
+    if gamma == 1.0:
+        return modulation, 0.0
+    theta = np.linspace(0.0, 2 * math.pi, 256, endpoint=False)
+    base = np.maximum(1 + min(modulation, 1.0) * np.cos(theta), 0.0)
+    coefficients = np.fft.rfft(base**gamma) / theta.size
+    mean = coefficients[0].real
+    return 2 * abs(coefficients[1]) / mean, 2 * abs(coefficients[2]) / mean
+
+
 def _kind(a: Beam, b: Beam) -> str:
     if a.ghost is not None or b.ghost is not None:
         return "ghost"
@@ -132,7 +161,7 @@ def _pair(setup: Setup, a: Beam, b: Beam, norm: float) -> tuple[Family, complex]
     else:
         displacement = (0.0, 0.0)
     coefficient = high.amplitude * low.amplitude * complex(np.exp(1j * (high.offset - low.offset)))
-    amplitude = setup.gamma * 2 * abs(coefficient) / norm
+    amplitude, _ = response_harmonics(2 * abs(coefficient) / norm, setup.gamma)
     family = Family(label, carrier, amplitude, alpha, displacement, _kind(a, b))
     return family, coefficient
 
@@ -168,15 +197,17 @@ def predict_families(
             family, _ = _pair(setup, a, b, norm)
             families.append(family)
     if second_order:
-        gamma = setup.gamma
-        for family in list(families):
-            if family.kind in ("RF", "RB", "FB"):
-                first = family.amplitude / gamma
+        for i, a in enumerate(beams):
+            for b in beams[i + 1 :]:
+                family, coefficient = _pair(setup, a, b, norm)
+                if family.kind not in ("RF", "RB", "FB"):
+                    continue
+                _, second = response_harmonics(2 * abs(coefficient) / norm, setup.gamma)
                 families.append(
                     Family(
                         label=f"2{family.label}",
                         carrier=(2 * family.carrier[0], 2 * family.carrier[1]),
-                        amplitude=gamma * abs(gamma - 1) * first * first / 4,
+                        amplitude=second,
                         alpha=2 * family.alpha,
                         displacement=family.displacement,
                         kind="second-order",
@@ -232,11 +263,12 @@ def coherent_amplitude(setup: Setup, label: str) -> float:
     Returns
     -------
     float
-        Modulation depth relative to the mean camera value (first order in the camera
-        response), like :attr:`Family.amplitude`.
+        Modulation depth relative to the mean camera value, like
+        :attr:`Family.amplitude`.
     """
     total, _, norm = _coherent(setup, label)
-    return setup.gamma * 2 * abs(total) / norm
+    first, _ = response_harmonics(2 * abs(total) / norm, setup.gamma)
+    return first
 
 
 def coherent_displacement(setup: Setup, label: str) -> tuple[float, float]:
@@ -278,7 +310,7 @@ def _beam_terms(name: str, n1: float, n2: float) -> tuple[float, tuple[int, int]
         return -n1, (0, 0), ghost
     j = int(match.group(2))
     if j < 1:
-        raise InputError(f"{name!r}: B_j needs j >= 1")
+        raise InputError(f"{name!r} is not a beam name: B_j needs j >= 1")
     return j * n2 - n1, (0, j), ghost
 
 

@@ -236,7 +236,7 @@ class HologramSynthesizer:
     def _phasor_index(self, values: np.ndarray, kappa: float) -> np.ndarray:
         """Return phase-table indices of ``2 k0 kappa values`` (values in m)."""
         cycles = np.float32(self._k2 * kappa * PHASE_TABLE_SIZE / (2 * math.pi))
-        index = (values * cycles + np.float32(0.5)).astype(np.int32)
+        index = np.rint(values * cycles).astype(np.int32)
         np.bitwise_and(index, PHASE_TABLE_SIZE - 1, out=index)
         return index
 
