@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import math
+import time
+
 import numpy as np
 import pyqtgraph as pg
 from PyQt6.QtCore import QPointF, pyqtSignal
@@ -12,6 +15,9 @@ AUTO_LEVEL_PERCENTILES = (0.5, 99.5)
 
 #: RGBA of the saturation overlay.
 SATURATION_RGBA = (255, 0, 0, 200)
+
+#: Seconds between histogram updates (computing one per frame costs display rate).
+HISTOGRAM_INTERVAL_S = 0.5
 
 
 class HologramView(QWidget):
@@ -41,12 +47,17 @@ class HologramView(QWidget):
         self.plot.invertY(True)
         self.plot.setLabel("bottom", "column", units="px")
         self.plot.setLabel("left", "row", units="px")
-        self.image = pg.ImageItem(axisOrder="row-major")
-        self.overlay = pg.ImageItem(axisOrder="row-major")
+        # the screen shows fewer pixels than a camera has: downsampling before the
+        # colour lookup keeps large frames cheap to draw (the readout uses raw values)
+        self.image = pg.ImageItem(axisOrder="row-major", autoDownsample=True)
+        self.overlay = pg.ImageItem(axisOrder="row-major", autoDownsample=True)
+        self._overlay_shown = False
+        self._histogram_at = -math.inf
         self.overlay.setZValue(10)
         self.plot.addItem(self.image)
         self.plot.addItem(self.overlay)
         self.histogram = pg.HistogramLUTItem(image=self.image)
+        self.image.sigImageChanged.disconnect(self.histogram.imageChanged)
         self.histogram.sigLevelsChanged.connect(self._levels_from_histogram)
         self.graphics.addItem(self.histogram)
         self.roi: pg.RectROI | None = None
@@ -103,6 +114,10 @@ class HologramView(QWidget):
         if self._levels is None:
             self._levels = self._percentile_levels(frame)
         self.image.setImage(frame, autoLevels=False, levels=self._levels)
+        now = time.monotonic()
+        if first or now - self._histogram_at >= HISTOGRAM_INTERVAL_S:
+            self._histogram_at = now
+            self.histogram.imageChanged()
         if first:
             self.plot.autoRange(padding=0)
         self._update_overlay()
@@ -140,6 +155,12 @@ class HologramView(QWidget):
             self.overlay.clear()
             return
         mask = self._frame >= self._saturation_value
+        if not mask.any():
+            if self._overlay_shown:
+                self.overlay.clear()
+                self._overlay_shown = False
+            return
+        self._overlay_shown = True
         rgba = np.zeros((*mask.shape, 4), dtype=np.uint8)
         rgba[mask] = SATURATION_RGBA
         self.overlay.setImage(rgba, autoLevels=False)

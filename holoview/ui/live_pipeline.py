@@ -34,13 +34,18 @@ logger = logging.getLogger(__name__)
 #: Highest rate of the display spectrum, Hz.
 SPECTRUM_HZ = 10.0
 #: Highest rate of peak detection, Hz.
-PEAKS_HZ = 2.0
+PEAKS_HZ = 1.0
+#: FFTW threads of the live worker. One: the GUI thread needs the other core, and a
+#: two-thread FFT whose second thread waits for a busy core takes 10-100 times longer.
+FFT_THREADS = 1
 #: Largest side of the spectrum image handed to the window (block maxima beyond).
 SPECTRUM_DISPLAY_MAX = 512
 #: A labelled or predicted carrier follows a detected peak within this, cycles/pixel.
 FOLLOW_DISTANCE = 0.02
-#: Depth series kept for the trends plot, frames.
-TREND_LENGTH = 3000
+#: Depth series kept for the trends plot, frames (10 minutes at 60 frames/s).
+TREND_LENGTH = 36000
+#: Highest rate at which depths, rate and PCA are recomputed from the series, Hz.
+TREND_HZ = 4.0
 #: Families whose predicted carriers are drawn and matched once two peaks are labelled.
 PREDICTED_FAMILIES: tuple[str, ...] = ("RF", "RB1", "FB1", "RB2", "FB2")
 
@@ -86,9 +91,15 @@ def block_max(image: np.ndarray, limit: int) -> np.ndarray:
     factor = max(1, math.ceil(max(image.shape) / limit))
     if factor == 1:
         return image
-    rows, cols = (image.shape[0] // factor) * factor, (image.shape[1] // factor) * factor
-    blocks = image[:rows, :cols].reshape(rows // factor, factor, cols // factor, factor)
-    return blocks.max(axis=(1, 3))
+    rows, cols = image.shape[0] // factor, image.shape[1] // factor
+    out = image[0 : rows * factor : factor, 0 : cols * factor : factor].copy()
+    for dy in range(factor):
+        for dx in range(factor):
+            if dy or dx:
+                np.maximum(
+                    out, image[dy : rows * factor : factor, dx : cols * factor : factor], out=out
+                )
+    return out
 
 
 def fold(carrier: Carrier) -> Carrier:
@@ -161,6 +172,7 @@ class DemodulationStage:
                 reference=e.reference,
                 wavelength=e.wavelength_m,
                 saturation=self.saturation,
+                threads=FFT_THREADS,
             )
             self._key = key
         assert self._demod is not None
@@ -209,6 +221,10 @@ class LivePipeline:
         self._peaks_at = -math.inf
         self._demod = DemodulationStage(frame_shape, saturation)
         self._trends = TrendStage()
+        self._trend: TrendSummary | None = None
+        self._trend_at = -math.inf
+        self._labelling_key: tuple | None = None
+        self._labelling: tuple[list[Peak], dict[str, Carrier], list[str]] = ([], {}, [])
 
     def apply(self, name: str, value: object) -> None:
         """Apply a command: ``experiment`` (new settings), ``pca`` (bool), ``reset``."""
@@ -221,6 +237,7 @@ class LivePipeline:
             self.pca = bool(value)
         elif name == "reset":
             self._trends.reset()
+            self._trend = None
         else:
             raise InputError(f"unknown command {name!r}")
 
@@ -276,12 +293,18 @@ class LivePipeline:
         now = time.monotonic()
         e = self.experiment
         if now - self._spectrum_at >= 1.0 / SPECTRUM_HZ:
-            self._spectrum = block_max(display_spectrum(frame), SPECTRUM_DISPLAY_MAX)
+            self._spectrum = block_max(
+                display_spectrum(frame, threads=FFT_THREADS), SPECTRUM_DISPLAY_MAX
+            )
             self._spectrum_at = now
         if now - self._peaks_at >= 1.0 / PEAKS_HZ:
-            self._peaks = find_peaks(frame, radius=e.radius)
+            self._peaks = find_peaks(frame, radius=e.radius, threads=FFT_THREADS)
             self._peaks_at = now
-        peaks, predicted, notes = self.labelled_peaks()
+        key = (id(self._peaks), e)
+        if key != self._labelling_key:
+            self._labelling = self.labelled_peaks()
+            self._labelling_key = key
+        peaks, predicted, notes = self._labelling
         demod = self._demod.run(frame, peaks, e)
         heights: dict[str, np.ndarray] = {}
         phases: dict[str, np.ndarray] = {}
@@ -297,11 +320,15 @@ class LivePipeline:
             self._trends.add(
                 meta.t_host, {r.peak.label or "?": r.carrier_value for r in demod.peaks}
             )
-            alphas = {p.label: p.alpha for p in peaks if p.label and p.alpha is not None}
-            try:
-                trend = self._trends.summary(alphas, e.wavelength_m, e.n1, e.n2, self.pca)
-            except HoloviewError as exc:
-                logger.debug("trends not available: %s", exc)
+            if now - self._trend_at >= 1.0 / TREND_HZ:
+                alphas = {p.label: p.alpha for p in peaks if p.label and p.alpha is not None}
+                self._trend_at = now
+                try:
+                    self._trend = self._trends.summary(alphas, e.wavelength_m, e.n1, e.n2, self.pca)
+                except HoloviewError as exc:
+                    logger.debug("trends not available: %s", exc)
+                    self._trend = None
+            trend = self._trend
         self._seq += 1
         return LiveResult(
             seq=self._seq,

@@ -86,6 +86,7 @@ class MainWindow(QMainWindow):
         self._optioned_source = source
         self._last_seq = -1
         self._last_result: LiveResult | None = None
+        self._drawn: LiveResult | None = None
         self.display_rate = RateMeter()
         self.last_latency_s: float | None = None
         self._banner_until = 0.0
@@ -266,6 +267,7 @@ class MainWindow(QMainWindow):
             self.source_panel.set_streaming(False)
             return
         self._last_seq = -1
+        self._drawn = None
         self._adopt_source_setup(self.session.source_setup())
         self.hologram.set_saturation_value(self.session.saturation_value)
         self.source_panel.set_settings(
@@ -526,15 +528,22 @@ class MainWindow(QMainWindow):
             self.timer.stop()
 
     def _draw(self, result: LiveResult) -> None:
+        previous = self._drawn
+        self._drawn = result
         self.hologram.set_frame(result.frame)
-        if result.spectrum is not None:
+        if result.spectrum is not None and (
+            previous is None or result.spectrum is not previous.spectrum
+        ):
             self.spectrum.set_spectrum(result.spectrum)
-        self.spectrum.set_peaks(result.peaks)
+        if previous is None or result.peaks != previous.peaks:
+            self.spectrum.set_peaks(result.peaks)
         self.spectrum.set_model(result.labelled, result.predicted, result.radius)
         self.spectrum.set_notes(result.notes)
-        if result.heights_m:
+        if result.heights_m or result.phases_rad:
             self.surface.set_maps(result.heights_m, result.fused_m, result.phases_rad)
-        if result.trend_times_s is not None:
+        if result.trend_times_s is not None and (
+            previous is None or result.trend_times_s is not previous.trend_times_s
+        ):
             self.trends.set_series(result.trend_times_s, result.trend_depths_m)
             self.trends.set_rate(result.rate_m_per_s, result.rate_stderr_m_per_s, result.rate_fit)
             self.trends.set_pca(result.pca_confidence, result.pca_prefactors)

@@ -79,6 +79,8 @@ class TrendsView(QWidget):
                     else pg.mkPen(CURVE_COLOURS[i % len(CURVE_COLOURS)], width=1.5)
                 )
                 curve = self.curves[name] = self.plot.plot([], [], pen=pen, name=name)
+                curve.setDownsampling(auto=True, method="peak")
+                curve.setClipToView(True)
             curve.setData(np.asarray(times_s), np.asarray(depth) * 1e9)
 
     def set_rate(

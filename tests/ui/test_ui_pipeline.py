@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
 from holoview.acquire.source import FrameMeta
+from holoview.ui import live_pipeline
 from holoview.ui.live_pipeline import LivePipeline, block_max
 from holoview.ui.settings import ExperimentSettings, LabelledPeak
 
@@ -38,7 +41,8 @@ def test_block_max_keeps_narrow_peaks() -> None:
     assert small.shape == (512, 500) and small.max() == 5.0 and small[258, 1] == 5.0
 
 
-def test_two_labels_bring_predicted_peaks_maps_and_trend() -> None:
+def test_two_labels_bring_predicted_peaks_maps_and_trend(monkeypatch) -> None:
+    monkeypatch.setattr(live_pipeline, "TREND_HZ", math.inf)  # a summary every frame
     frames = hologram_stack(6, (128, 128))
     results = _run(LivePipeline(_experiment(), (128, 128)), frames)
     last = results[-1]

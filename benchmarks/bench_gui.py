@@ -1,0 +1,166 @@
+"""The live window's speed: display, processing and camera rates, stalls, frame-to-screen latency.
+
+Run it under a virtual display (or offscreen)::
+
+    xvfb-run -a -s "-screen 0 1920x1080x24" .venv/bin/python benchmarks/bench_gui.py \\
+        [--source sim] [--size 1024] [--fps 60] [--seconds 20]
+
+It opens the main window on the source, labels four peaks (RB1 and FB1 from the
+simulator's known setup or ``--label``, the model adds RF and RB2), lets it run,
+and prints medians and extremes:
+
+- camera, processing and display frames per second, each counted separately;
+- the longest event-loop stall: the largest gap between ticks of a 5 ms QTimer,
+  minus 5 ms (the GUI is frozen that long);
+- latency from the frame's host timestamp to the end of its draw call;
+- the time per draw call, and the machine's load average before and after.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import statistics
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from PyQt6.QtCore import QTimer
+
+from holoview.ui.app import application
+from holoview.ui.main_window import MainWindow
+
+
+def parse_label(text: str) -> tuple[str, float, float]:
+    """Parse ``NAME=FX,FY`` (cycles per pixel)."""
+    name, _, carrier = text.partition("=")
+    fx, fy = (float(v) for v in carrier.split(","))
+    return name, fx, fy
+
+
+def percentile(values: list[float], q: float) -> float:
+    """The ``q`` quantile (0..1) of ``values`` (nearest rank)."""
+    ordered = sorted(values)
+    return ordered[min(len(ordered) - 1, int(q * len(ordered)))] if ordered else float("nan")
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--source", default="sim")
+    parser.add_argument("--size", type=int, default=1024, help="simulated frame side, pixels")
+    parser.add_argument("--fps", type=float, default=60.0, help="simulated frame rate, Hz")
+    parser.add_argument("--seconds", type=float, default=20.0)
+    parser.add_argument("--warmup", type=float, default=4.0)
+    parser.add_argument("--label", action="append", type=parse_label, default=[])
+    args = parser.parse_args()
+    app = application()
+    load_before = os.getloadavg()
+    options: dict[str, object] = {}
+    if args.source.startswith("sim"):
+        options = {"shape": (args.size, args.size), "frame_rate_hz": args.fps}
+    elif args.source.startswith("replay:"):
+        options = {"rate_hz": args.fps}
+    with tempfile.TemporaryDirectory() as tmp:
+        os.environ["XDG_CONFIG_HOME"] = tmp
+        window = MainWindow(
+            source=args.source,
+            experiment_path=Path(tmp) / "experiment.json",
+            source_options=options,
+        )
+        window.show()
+        if window.session is None:
+            print(f"cannot start {args.source}: {window.banner_text}", file=sys.stderr)
+            return 1
+
+        draws: list[float] = []
+        work: list[float] = []
+        latencies: list[float] = []
+        original_draw = window._draw
+
+        def timed_draw(result: object) -> None:
+            start = time.perf_counter()
+            original_draw(result)  # type: ignore[arg-type]
+            draws.append(time.perf_counter() - start)
+            latencies.append(time.time() - result.t_host)  # type: ignore[attr-defined]
+            work.append(result.processing_s)  # type: ignore[attr-defined]
+
+        window._draw = timed_draw  # type: ignore[method-assign]
+        gaps: list[float] = []
+        last = [time.perf_counter()]
+
+        def tick() -> None:
+            now = time.perf_counter()
+            gaps.append(now - last[0])
+            last[0] = now
+
+        ticker = QTimer()
+        ticker.setInterval(5)
+        ticker.timeout.connect(tick)
+        ticker.start()
+
+        def run_for(seconds: float) -> None:
+            end = time.monotonic() + seconds
+            while time.monotonic() < end:
+                app.processEvents()
+                time.sleep(0.001)
+
+        run_for(1.5)
+        labels = args.label or default_labels(window)
+        for name, fx, fy in labels:
+            window.label_peak(name, fx, fy)
+        run_for(args.warmup)
+        draws.clear()
+        work.clear()
+        latencies.clear()
+        gaps.clear()
+        session = window.session
+        cam0, seq0 = session.camera.frames, session.latest().seq
+        t0 = time.monotonic()
+        run_for(args.seconds)
+        elapsed = time.monotonic() - t0
+        camera_fps = (session.camera.frames - cam0) / elapsed
+        processing_fps = (session.latest().seq - seq0) / elapsed
+        labelled = sorted(session.latest().labelled)
+        dropped = session.rates()[2]
+        ticker.stop()
+        window.close()
+    stall = max(gaps) - 0.005 if gaps else float("nan")
+    print(
+        f"source {args.source} {args.size} x {args.size} at {args.fps:g} fps; labelled {labelled}"
+    )
+    print(f"load average before {load_before[0]:.2f}, after {os.getloadavg()[0]:.2f} (2 cores)")
+    print(f"camera      {camera_fps:6.1f} fps")
+    print(
+        f"processing  {processing_fps:6.1f} fps  ({processing_fps / max(camera_fps, 1e-9):.2f} of the camera)"
+    )
+    print(f"display     {len(draws) / elapsed:6.1f} fps")
+    print(
+        f"draw call   median {statistics.median(draws) * 1e3:5.1f} ms, "
+        f"p95 {percentile(draws, 0.95) * 1e3:5.1f} ms, max {max(draws) * 1e3:5.1f} ms"
+    )
+    print(
+        f"processing  median {statistics.median(work) * 1e3:5.1f} ms per frame drawn, "
+        f"max {max(work) * 1e3:5.1f} ms"
+    )
+    print(
+        f"latency     median {statistics.median(latencies) * 1e3:5.1f} ms, "
+        f"p95 {percentile(latencies, 0.95) * 1e3:5.1f} ms, max {max(latencies) * 1e3:5.1f} ms"
+    )
+    print(f"longest event-loop stall {stall * 1e3:5.1f} ms; dropped frames {dropped}")
+    return 0
+
+
+def default_labels(window: MainWindow) -> list[tuple[str, float, float]]:
+    """RB1 and FB1 where the simulator's setup puts them, else the two brightest peaks."""
+    setup = window.session.source_setup() if window.session else {}
+    carriers = setup.get("carriers")
+    if isinstance(carriers, dict) and {"RB1", "FB1"} <= set(carriers):
+        return [(name, *carriers[name]) for name in ("RB1", "FB1")]
+    result = window._last_result
+    peaks = result.peaks[:2] if result else []
+    return [(name, *c) for name, c in zip(("RB1", "FB1"), peaks, strict=False)]
+
+
+if __name__ == "__main__":
+    sys.exit(main())
