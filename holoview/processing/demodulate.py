@@ -698,14 +698,18 @@ class Demodulator:
     def _noise(phase: np.ndarray, mask: np.ndarray, geo: _Geometry) -> float:
         """Phase noise (rad) from the spread of second differences along every 4th row.
 
+        Two pixels at the box's edge are left out: where the frame is not periodic
+        the field dips there and its phase is noisier than the rest.
+
         Second differences cancel the surface's slope; for noise shaped by the
         window they have variance ``sigma^2 (6 - 8 rho1 + 2 rho2)``, with ``rho1``
         and ``rho2`` the window's noise correlation at lags 1 and 2. Surface
         curvature adds to it, so the estimate errs on the high side. Differences
         beyond pi (wraps, untrusted pixels) are left out.
         """
-        rows = phase[::4]
-        trusted = mask[::4]
+        edge = 2 if min(phase.shape) > 16 else 0  # a non-periodic frame's field dips at the edge
+        rows = phase[edge : phase.shape[0] - edge : 4, edge : phase.shape[1] - edge]
+        trusted = mask[edge : phase.shape[0] - edge : 4, edge : phase.shape[1] - edge]
         second = rows[:, 2:] - 2 * rows[:, 1:-1] + rows[:, :-2]
         keep = trusted[:, 2:] & trusted[:, 1:-1] & trusted[:, :-2]
         keep &= np.abs(second) < np.pi
