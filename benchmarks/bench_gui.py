@@ -132,7 +132,8 @@ def main() -> int:
     print(f"load average before {load_before[0]:.2f}, after {os.getloadavg()[0]:.2f} (2 cores)")
     print(f"camera      {camera_fps:6.1f} fps")
     print(
-        f"processing  {processing_fps:6.1f} fps  ({processing_fps / max(camera_fps, 1e-9):.2f} of the camera)"
+        f"processing  {processing_fps:6.1f} fps  "
+        f"({processing_fps / max(camera_fps, 1e-9):.2f} of the camera)"
     )
     print(f"display     {len(draws) / elapsed:6.1f} fps")
     print(
