@@ -63,6 +63,7 @@ class Recorder:
         #: The error that ended recording early, or None.
         self.error: BaseException | None = None
         self._stop = threading.Event()
+        self._stop_at = 0  # with drain, the ring position to record up to before stopping
         self._thread = threading.Thread(target=self._run, name="holoview-recorder", daemon=True)
 
     @classmethod
@@ -116,8 +117,19 @@ class Recorder:
         """Start the thread."""
         self._thread.start()
 
-    def stop(self, timeout: float = 10.0) -> None:
-        """Stop now (unread frames are not written, and count as not recorded) and join."""
+    def stop(self, timeout: float = 10.0, *, drain: bool = True) -> None:
+        """Stop recording and join the thread; the file is closed when it returns.
+
+        Parameters
+        ----------
+        timeout : float
+            Seconds to wait for the thread.
+        drain : bool
+            True: first write every frame the ring had acquired when ``stop`` was
+            called (those still in the ring); False: stop after the frame in hand.
+        """
+        if drain:
+            self._stop_at = self.ring.acquired
         self._stop.set()
         self.join(timeout)
 
@@ -131,7 +143,7 @@ class Recorder:
         writer = self.writer
         buffer = np.empty(self.ring.frame_shape, self.ring.dtype)
         try:
-            while not self._stop.is_set():
+            while not self._stop.is_set() or self._consumer.position < self._stop_at:
                 item = self._consumer.get(timeout=min(0.2, writer.flush_interval_s), out=buffer)
                 if item is CLOSED:
                     break

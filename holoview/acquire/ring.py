@@ -198,6 +198,11 @@ class RingConsumer:
         self._dropped = 0
         self._skipped = 0
 
+    @property
+    def position(self) -> int:
+        """Sequence number (count of frames put into the ring) of the next frame to read."""
+        return self._next
+
     def status(self) -> RingStatus:
         """Return this consumer's :class:`RingStatus`."""
         ring = self.ring

@@ -137,3 +137,19 @@ def test_recorder_overrun_is_counted_exactly(tmp_path: Path) -> None:
         assert len(ids) == status.read == recorder.written
         assert status.read + status.dropped == status.acquired == 400
         assert (np.diff(ids) > 0).all()
+
+
+def test_stop_drains_what_the_ring_had_acquired(tmp_path: Path) -> None:
+    ring = FrameRing(16, (16, 24), np.uint16)
+    recorder = Recorder(ring, RecordingWriter(tmp_path / "r.h5", (16, 24), np.uint16))
+    with CountingSource(n_frames=10) as source:
+        source.start()
+        for _ in range(10):
+            frame = source.fetch()
+            ring.put(frame.data, frame.meta)
+        source.stop()
+    recorder.start()
+    recorder.stop(drain=True)  # the ring is still open: only the drain ends it
+    assert not recorder.running
+    with RecordingReader(tmp_path / "r.h5") as reader:
+        np.testing.assert_array_equal(reader.frame_ids, np.arange(10))

@@ -269,3 +269,20 @@ def test_frame_id_unwrapper_counts_gaps_across_the_wrap() -> None:
     unwrap = FrameIdUnwrapper()
     assert [unwrap(i) for i in (65533, 65534, 65535, 1, 3)] == [65533, 65534, 65535, 65536, 65538]
     assert unwrap.skipped == 1
+
+
+def test_find_camera_by_id_serial_or_address() -> None:
+    from holoview.acquire.aravis import find_camera_id
+
+    cameras = [
+        {"id": "Basler-1", "serial": "111", "address": "10.0.0.2"},
+        {"id": "Aravis-Fake-X", "serial": "X", "address": "127.0.0.1"},
+    ]
+    assert find_camera_id(cameras, None) == "Basler-1"
+    assert find_camera_id(cameras, "X") == "Aravis-Fake-X"
+    assert find_camera_id(cameras, "127.0.0.1") == "Aravis-Fake-X"
+    assert find_camera_id(cameras, "Basler-1") == "Basler-1"
+    with pytest.raises(CameraNotFoundError, match=r"found: Basler-1 \(10\.0\.0\.2\)"):
+        find_camera_id(cameras, "10.0.0.9")
+    with pytest.raises(CameraNotFoundError, match="no GenICam camera found"):
+        find_camera_id([], None)
