@@ -11,9 +11,15 @@ import numpy as np
 import pytest
 from identify_model import SynthesisedRecording, synthesise
 
-from holoview.optics.families import alpha_of
+from holoview.optics.families import alpha_of, predict_families
 from holoview.optics.setup import FLUIDS, Setup
+from holoview.optics.surfaces import Mode, StandingWaves
+from holoview.optics.synthesis import HologramSynthesizer, pixel_coordinates
+from holoview.processing.demodulate import Demodulator
 from holoview.processing.identify import PeakKind, identify_peaks
+from holoview.processing.labelling import label_peaks
+from holoview.processing.pca import spatial_phase_pca
+from holoview.processing.peaks import find_peaks
 from holoview.processing.trends import check_aliasing, compare_rate, track_depth, unwrap_in_time
 
 SHAPE = (128, 128)
@@ -116,3 +122,36 @@ def test_injection_pca_identifies_the_peaks_that_alias(injection):
     for peak in aliased:
         assert peak.label == recording.names[peak.index][0]
         assert peak.alpha == pytest.approx(peak.expected_alpha, rel=0.02)
+
+
+def test_spatial_pca_on_a_synthesised_frame_of_standing_waves():
+    """Phase maps of one frame against a flat first frame: the pixels are the samples."""
+    setup = Setup(shape=(256, 256))
+    side = 256 * setup.pixel_pitch
+    modes = (Mode(2, 3, 30e-9, 0.0), Mode(5, 1, 20e-9, 1.0), Mode(1, 4, 25e-9, 2.0))
+    waves = StandingWaves(modes, side, depth=5e-3)
+    synthesiser = HologramSynthesizer(setup)
+    rng = np.random.default_rng(4)
+    flat = synthesiser.render(0.0, rng=rng)
+    truth = {f.label: f for f in predict_families(setup, max_order=3)}
+    anchors = {k: truth[k].observed_carrier for k in ("RB1", "FB1")}
+    detected = find_peaks(flat)
+    labelling = label_peaks(
+        [p.carrier for p in detected], anchors, setup.n1, setup.n2, setup.shape, max_order=3
+    )
+    chosen = {name: labelling.prediction(name) for name in ("RB1", "RF", "RB2")}
+    peaks = [detected[p.peak].flipped() if p.twin else detected[p.peak] for p in chosen.values()]
+    demodulator = Demodulator(setup.shape, peaks, reference="absolute", unwrap="never")
+    demodulator.process(flat)
+    x, y = pixel_coordinates(setup)
+    result = demodulator.process(synthesiser.render(waves(0.013, x, y), rng=rng))
+    mask = np.all([r.mask for r in result.peaks], axis=0)
+    border = 4  # box pixels next to the frame edge carry the FFT's wrap-around
+    mask[:border] = mask[-border:] = False
+    mask[:, :border] = mask[:, -border:] = False
+    maps = np.array([r.phase for r in result.peaks])
+    pca = spatial_phase_pca(maps, mask)
+    assert pca.confidence > 0.97
+    alphas = pca.prefactors(0, alpha_of("RB1", setup.n1, setup.n2))
+    for alpha, label in zip(alphas, chosen, strict=True):
+        assert alpha == pytest.approx(alpha_of(label, setup.n1, setup.n2), rel=0.02), label
