@@ -77,7 +77,7 @@ def main() -> int:
     parser.add_argument("--seconds", type=float, default=60.0)
     parser.add_argument("--fps", type=float, default=80.0)
     parser.add_argument("--size", type=int, default=1024, help="frame rows = cols, pixels")
-    parser.add_argument("--ring-mb", type=float, default=256.0)
+    parser.add_argument("--ring-mb", type=float, default=512.0)
     parser.add_argument("--out", type=Path, default=None, help="folder for the recording")
     parser.add_argument("--keep", action="store_true", help="keep the recording")
     args = parser.parse_args()
