@@ -266,3 +266,23 @@ def test_source_specs_parse(spec: str, expected: tuple[str, str]) -> None:
 def test_bad_source_specs_are_one_line_errors(spec: str, match: str) -> None:
     with pytest.raises(InputError, match=match):
         parse_source_spec(spec)
+
+
+def test_replay_follows_a_recording_still_being_written(tmp_path: Path) -> None:
+    data = stack(5)
+    path = tmp_path / "live.h5"
+    with RecordingWriter(path, SHAPE, np.uint16) as writer:
+        for i in range(3):
+            writer.append(data[i], i, float(i), float(i))
+        writer.flush()
+        with ReplaySource(path, speed="fast") as source:
+            source.start()
+            got = [source.fetch(timeout=1) for _ in range(3)]
+            for i in range(3, 5):
+                writer.append(data[i], i, float(i), float(i))
+            writer.flush()
+            got += [source.fetch(timeout=1) for _ in range(2)]
+            with pytest.raises(EndOfStream):
+                source.fetch(timeout=1)
+            source.stop()
+    np.testing.assert_array_equal(np.stack([f.data for f in got]), data)
