@@ -1,0 +1,92 @@
+"""``holoview simulate``: a recording with its truth, a figure, one-line errors."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import cv2
+import h5py
+import numpy as np
+import pytest
+
+from holoview.acquire.recording import RecordingReader
+from holoview.cli import main
+from holoview.optics.families import predict_families
+from holoview.optics.scenarios import ScenarioConfig, make_surface, simulate
+from holoview.optics.setup import Setup
+
+
+def test_waves_recording_with_truth_and_figure(tmp_path: Path) -> None:
+    out, png = tmp_path / "waves.h5", tmp_path / "waves.png"
+    options = ["--size", "64", "--frames", "4", "--fps", "20", "--seed", "3"]
+    figure = ["--png", str(png), "--png-frame", "2", "--fluid", "isopropanol"]
+    status = main(["-q", "simulate", str(out), *options, *figure])
+    assert status == 0
+    setup = Setup(shape=(64, 64), n2=1.377)
+    surface = make_surface(setup, "waves", ScenarioConfig(), np.random.default_rng(3))
+    expected = list(simulate(setup, "waves", frames=4, fps=20.0, seed=3, surface=surface))
+    with RecordingReader(out) as reader:
+        assert len(reader) == 4
+        np.testing.assert_array_equal(reader[:], np.array([f for f, _ in expected]))
+        assert reader.setup["n2"] == pytest.approx(1.377)
+        assert reader.setup["wavelength_m"] == pytest.approx(setup.wavelength)
+        assert reader.source == "simulate:waves"
+    with h5py.File(out, "r") as f:
+        truth = f["truth"]
+        assert truth.attrs["scenario"] == "waves"
+        np.testing.assert_allclose(truth["time_s"][:], np.arange(4) / 20.0)
+        np.testing.assert_allclose(truth["height_m"][2], expected[2][1].height, rtol=1e-6)
+        np.testing.assert_allclose(truth["mean_height_m"][:], [t.mean_height for _, t in expected])
+        labels = [s.decode() for s in truth["families/label"][:]]
+        families = {f.label: f for f in predict_families(setup, max_order=4)}
+        assert labels == [f.label for f in predict_families(setup, max_order=4)]
+        row = labels.index("RB1")
+        np.testing.assert_allclose(truth["families/carrier_cpp"][row], families["RB1"].carrier)
+        assert truth["families/alpha"][row] == pytest.approx(1.377 - setup.n1)
+    image = cv2.imread(str(png))
+    assert image is not None and image.shape[0] == 512 and image.shape[1] == 2 * 512 + 8
+
+
+def test_uniform_scenarios_have_no_height_maps(tmp_path: Path) -> None:
+    out = tmp_path / "evap.h5"
+    args = ["-q", "simulate", str(out), "--scenario", "evaporation", "--size", "32"]
+    assert main([*args, "--frames", "3", "--evaporation-um-per-min", "6"]) == 0
+    with h5py.File(out, "r") as f:
+        assert "height_m" not in f["truth"]
+        heights = f["truth/mean_height_m"][:]
+        times = f["truth/time_s"][:]
+    np.testing.assert_allclose(heights, -6e-6 / 60 * times, atol=1e-18)
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--wavelength-nm", "nan"], "wavelength"),
+        (["--wavelength-nm", "-532"], "wavelength"),
+        (["--m-r-mrad", "8", "0"], "m_r"),
+        (["--n2", "0.9"], "n2"),
+        (["--frames", "0"], "--frames"),
+        (["--ghost", "sample", "1", "0", "0.1"], "ghost"),
+        (["--png-frame", "60"], "--png-frame"),
+    ],
+)
+def test_bad_input_is_one_line_exit_2(
+    tmp_path: Path, capsys: pytest.CaptureFixture, args: list[str], message: str
+) -> None:
+    out = tmp_path / "bad.h5"
+    status = main(["simulate", str(out), "--size", "16", "--png", str(tmp_path / "x.png"), *args])
+    assert status == 2
+    error = capsys.readouterr().err
+    assert message in error
+    assert len(error.strip().splitlines()) == 1, error
+    assert not out.exists()
+
+
+def test_existing_recording_is_not_overwritten(
+    tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    out = tmp_path / "x.h5"
+    out.write_bytes(b"keep")
+    assert main(["simulate", str(out), "--size", "16", "--frames", "1"]) == 2
+    assert "exists" in capsys.readouterr().err
+    assert out.read_bytes() == b"keep"
