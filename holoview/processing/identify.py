@@ -274,8 +274,9 @@ def _resolve_aliases(
     reference_alpha: float,
     table: dict[str, float],
     tolerance: float,
+    eligible: np.ndarray,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """De-alias the prefactors of peaks no model alpha explains, from their phase steps."""
+    """De-alias the prefactors of correlated peaks no model alpha explains, from their steps."""
     resolved = alphas.copy()
     aliased = np.zeros(alphas.size, dtype=bool)
     per_alpha = steps[reference] / reference_alpha  # rad per frame per unit alpha
@@ -283,7 +284,7 @@ def _resolve_aliases(
         logger.info("reference peak hardly moves: no alias resolution")
         return resolved, aliased
     for m, (alpha, step) in enumerate(zip(alphas, steps, strict=True)):
-        if not (np.isfinite(alpha) and np.isfinite(step)):
+        if not (eligible[m] and np.isfinite(alpha) and np.isfinite(step)):
             continue
         if alpha != 0 and _nearest(abs(alpha), table, tolerance) is not None:
             continue
@@ -373,6 +374,7 @@ def identify_peaks(
             reference_alpha=reference_alpha,
             table=_model_table(n1, n2, max_order),
             tolerance=tolerance,
+            eligible=pca.explained >= min_explained,
         )
     order = np.arange(n_peaks) if brightness is None else np.argsort(-brightness, kind="stable")
     # The labelled peak goes first so that it is the family, never a repeat.

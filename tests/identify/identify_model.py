@@ -148,7 +148,7 @@ def synthesise(
     )
     twins = {p.peak: p.twin for p in labelling.predictions if p.peak is not None}
     peaks = [p.flipped() if twins.get(i, False) else p for i, p in enumerate(detected)]
-    demodulator = Demodulator(setup.shape, peaks, reference="synthetic", unwrap="never")
+    demodulator = Demodulator(setup.shape, peaks, reference="synthetic", unwrap="never", threads=1)
     values = np.empty((times.size, len(peaks)), dtype=np.complex128)
     for i, t in enumerate(times):
         frame = (

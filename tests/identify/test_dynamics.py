@@ -117,7 +117,12 @@ def test_standing_waves_through_the_synthesiser_and_demodulator():
         brightest = brightest.flipped()
     peak = brightest.relabelled("RB1", rb1.alpha)
     demodulator = Demodulator(
-        setup.shape, [peak], reference="absolute", unwrap="never", wavelength=setup.wavelength
+        setup.shape,
+        [peak],
+        reference="absolute",
+        unwrap="never",
+        wavelength=setup.wavelength,
+        threads=1,
     )
     maps = []
     for i in range(128):
