@@ -7,18 +7,20 @@ This module turns those numbers into physics:
 1. :func:`unwrap_in_time` adds the wrapped phase steps between consecutive frames; a step
    is only right while the true step stays under pi in magnitude.
 2. :func:`check_aliasing` flags a peak whose step per frame comes near pi: its
-   ``|step| + n_sigma * noise`` reaches pi, where ``step`` is the median wrapped step (or
-   the step the model predicts from the peak's alpha and the fused depth rate, which also
-   catches a peak already past pi, whose wrapped step looks innocent) and ``noise`` the
-   robust spread of its steps (1.4826 times their median absolute deviation).
+   ``|step| + n_sigma * noise`` reaches pi (``n_sigma = 3`` by default), where ``step``
+   is the median wrapped step, or the step the model predicts from the peak's alpha and
+   a depth rate (which also catches a peak already past pi, whose wrapped step looks
+   innocent), and ``noise`` the robust spread of its steps (1.4826 times their median
+   absolute deviation).
 3. :func:`depth_series` converts phases to depth (``delta_h = delta_phi * wavelength /
    (4 pi alpha)``), :func:`series_noise` measures each peak's noise and
    :func:`fuse_depths` averages the peaks with weights ``1 / noise^2``.
 4. :func:`fit_rate` fits a line to a depth series; its standard error allows for noise
    correlated from frame to frame (lag-1 autocorrelation of the residuals).
 5. :func:`depth_to_volume`, :func:`volume_to_depth` and :func:`compare_rate` relate a
-   depth rate to a volume rate for a basin of known area (the paper's controlled
-   injection: ``d phi = 2 k0 alpha dV / A``).
+   depth rate to a volume rate for a basin of known area: ``dV = A dh``, so a peak's
+   phase moves by ``d phi = 2 k0 alpha dV / A`` (the paper's section 4.2 prints
+   ``dV / (2 k0 alpha A)``, which is not dimensionally consistent).
 
 :func:`track_depth` runs the whole chain. Times are in s, depths in m, phases in rad.
 """
