@@ -116,6 +116,12 @@ def space_time_spectrum(
     InputError
         For fewer than four frames, maps smaller than 4 x 4, NaN values or
         non-positive spacings.
+
+    Notes
+    -----
+    Works on the whole stack at once: peak memory is about 6 times the input's size in
+    float64 (600 maps of 128 x 128, 79 MB, peak at about 0.45 GB); pass maps at the demodulator's
+    box resolution rather than upsampled ones.
     """
     field = np.asarray(maps, dtype=np.float64)
     if field.ndim != 3:
