@@ -154,10 +154,12 @@ def main() -> int:
 
 def default_labels(window: MainWindow) -> list[tuple[str, float, float]]:
     """RB1 and FB1 where the simulator's setup puts them, else the two brightest peaks."""
-    setup = window.session.source_setup() if window.session else {}
-    carriers = setup.get("carriers")
-    if isinstance(carriers, dict) and {"RB1", "FB1"} <= set(carriers):
-        return [(name, *carriers[name]) for name in ("RB1", "FB1")]
+    from holoview.optics.families import predict_families
+
+    setup = getattr(window.session.source, "sim_setup", None) if window.session else None
+    if setup is not None:
+        families = {f.label: f.carrier for f in predict_families(setup)}
+        return [(name, *families[name]) for name in ("RB1", "FB1")]
     result = window._last_result
     peaks = result.peaks[:2] if result else []
     return [(name, *c) for name, c in zip(("RB1", "FB1"), peaks, strict=False)]

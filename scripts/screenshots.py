@@ -72,10 +72,7 @@ def main() -> int:
             window.close()
             return 1
         save("1-start")
-        labels = args.label
-        if not labels:
-            strongest = window._last_result.peaks[:2] if window._last_result else []
-            labels = [(n, *c) for n, c in zip(("RB1", "FB1"), strongest, strict=False)]
+        labels = args.label or default_labels(window)
         for name, fx, fy in labels:
             window.label_peak(name, fx, fy)
         wait(app, args.settle)
@@ -98,6 +95,19 @@ def main() -> int:
         save("5-trends")
         window.close()
     return 0
+
+
+def default_labels(window: MainWindow) -> list[tuple[str, float, float]]:
+    """RB1 and FB1 where the simulator's setup puts them, else the two brightest peaks."""
+    from holoview.optics.families import predict_families
+
+    setup = getattr(window.session.source, "sim_setup", None) if window.session else None
+    if setup is not None:
+        families = {f.label: f.carrier for f in predict_families(setup)}
+        return [(name, *families[name]) for name in ("RB1", "FB1")]
+    result = window._last_result
+    peaks = result.peaks[:2] if result else []
+    return [(name, *c) for name, c in zip(("RB1", "FB1"), peaks, strict=False)]
 
 
 if __name__ == "__main__":

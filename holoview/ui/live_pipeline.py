@@ -22,7 +22,7 @@ from holoview.acquire.source import FrameMeta
 from holoview.errors import HoloviewError, InputError
 from holoview.optics.families import alpha_of
 from holoview.processing.demodulate import DemodResult, Demodulator
-from holoview.processing.heights import fuse
+from holoview.processing.heights import fuse, plain_average
 from holoview.processing.labelling import label_peaks
 from holoview.processing.peaks import Peak, find_peaks
 from holoview.processing.spectrum import display_spectrum
@@ -145,25 +145,31 @@ class DemodulationStage:
         self.frame_shape = frame_shape
         self.saturation = saturation
         self._demod: Demodulator | None = None
-        self._key: tuple | None = None
+        self._settings: tuple | None = None
 
-    def _key_of(self, peaks: list[Peak], e: ExperimentSettings) -> tuple:
+    def _needs_rebuild(self, peaks: list[Peak], e: ExperimentSettings) -> bool:
+        """True when labels, settings or a carrier (by a whole FFT bin) changed."""
+        demod = self._demod
+        if demod is None or self._settings != (e.radius, e.window, e.reference, e.wavelength_m):
+            return True
+        if [(p.label, p.alpha) for p in peaks] != [(p.label, p.alpha) for p in demod.peaks]:
+            return True
         rows, cols = self.frame_shape
-        bins = tuple(
-            (p.label, round(p.carrier[0] * cols), round(p.carrier[1] * rows)) for p in peaks
+        return any(
+            abs(p.carrier[0] - q.carrier[0]) * cols > 1.0
+            or abs(p.carrier[1] - q.carrier[1]) * rows > 1.0
+            for p, q in zip(peaks, demod.peaks, strict=True)
         )
-        return (bins, e.radius, e.window, e.reference, e.wavelength_m)
 
     def run(
         self, frame: np.ndarray, peaks: list[Peak], e: ExperimentSettings
     ) -> DemodResult | None:
         """Demodulate ``frame`` at ``peaks`` (labelled, with alpha where known); None if none."""
         if not peaks:
-            self._demod, self._key = None, None
+            self._demod = None
             return None
-        key = self._key_of(peaks, e)
-        if key != self._key:
-            self._key = None
+        if self._needs_rebuild(peaks, e):
+            self._demod = None
             self._demod = Demodulator(
                 self.frame_shape,
                 peaks,
@@ -174,23 +180,26 @@ class DemodulationStage:
                 saturation=self.saturation,
                 threads=FFT_THREADS,
             )
-            self._key = key
+            self._settings = (e.radius, e.window, e.reference, e.wavelength_m)
         assert self._demod is not None
         return self._demod.process(frame)
 
 
 def fuse_maps(result: DemodResult) -> np.ndarray | None:
-    """Fuse the delta-h maps of a frame (:func:`holoview.processing.heights.fuse`).
+    """Fuse the delta-h maps of a frame (:mod:`holoview.processing.heights`).
 
-    Each peak is weighted by ``1 / noise_height^2`` over its trusted pixels; None
+    Each peak is weighted by ``1 / noise_height^2`` over its trusted pixels; on a
+    frame with no noise estimate (a reference frame) the maps are averaged. None
     with fewer than two height maps.
     """
-    maps = [r for r in result.peaks if r.delta_h is not None and r.noise_height]
+    maps = [r for r in result.peaks if r.delta_h is not None]
     if len(maps) < 2:
         return None
-    fused, _ = fuse(
-        [r.delta_h for r in maps], [r.noise_height for r in maps], masks=[r.mask for r in maps]
-    )
+    noises = [r.noise_height for r in maps]
+    if all(n is not None and np.isfinite(n) and n > 0 for n in noises):
+        fused, _ = fuse([r.delta_h for r in maps], noises, masks=[r.mask for r in maps])
+    else:
+        fused = plain_average([r.delta_h for r in maps])
     return fused.astype(np.float32)
 
 
@@ -224,6 +233,7 @@ class LivePipeline:
         self._trend: TrendSummary | None = None
         self._trend_at = -math.inf
         self._labelling_key: tuple | None = None
+        self._matched: dict[str, Peak] = {}
         self._labelling: tuple[list[Peak], dict[str, Carrier], list[str]] = ([], {}, [])
 
     def apply(self, name: str, value: object) -> None:
@@ -273,18 +283,29 @@ class LivePipeline:
         for name in model.flip_hint:
             notes.append(f"{name} is probably on the wrong twin: label its twin instead")
         taken = set(known)
+        kept: dict[str, Peak] = {}
         for prediction in model.predictions:
-            if prediction.label not in PREDICTED_FAMILIES:
+            name = prediction.label
+            if name not in PREDICTED_FAMILIES:
                 continue
-            predicted[prediction.label] = prediction.carrier
+            predicted[name] = prediction.carrier
             if prediction.folded:
-                notes.append(f"{prediction.label} lies past Nyquist: it appears folded back")
-            if prediction.label in taken or prediction.peak is None:
+                notes.append(f"{name} lies past Nyquist: it appears folded back")
+            if name in taken:
                 continue
-            peak = self._peaks[prediction.peak]
-            peak = peak.flipped() if prediction.twin else peak
-            chosen.append(peak.relabelled(prediction.label, model_alpha(prediction.label, e)))
-            taken.add(prediction.label)
+            if prediction.peak is not None:
+                peak = self._peaks[prediction.peak]
+                peak = peak.flipped() if prediction.twin else peak
+            else:
+                # a faint peak missed by one detection keeps its last match, so the
+                # set of maps does not flicker
+                peak = self._matched.get(name)
+                if peak is None or math.dist(peak.carrier, prediction.carrier) > FOLLOW_DISTANCE:
+                    continue
+            kept[name] = peak
+            chosen.append(peak.relabelled(name, model_alpha(name, e)))
+            taken.add(name)
+        self._matched = kept
         return chosen, predicted, notes
 
     def process(self, frame: np.ndarray, meta: FrameMeta) -> LiveResult:

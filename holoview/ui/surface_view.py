@@ -23,7 +23,7 @@ from PyQt6.QtWidgets import (
     QWidget,
 )
 
-from holoview.ui.settings import REFERENCE_MODES
+from holoview.ui.settings import PEAK_LABELS, REFERENCE_MODES
 
 FUSED = "fused"
 #: Colour map of heights (perceptual) and of phases (cyclic).
@@ -47,6 +47,14 @@ def sample_line(
     x = np.clip(np.linspace(start[0], end[0], n) * cols, 0, cols - 1).astype(int)
     y = np.clip(np.linspace(start[1], end[1], n) * rows, 0, rows - 1).astype(int)
     return image[y, x]
+
+
+def ordered_names(names: object) -> list[str]:
+    """Map names in a stable order: the usual families first, other labels, then fused."""
+    given = list(names)  # type: ignore[call-overload]
+    usual = [n for n in PEAK_LABELS if n in given]
+    others = sorted(n for n in given if n not in PEAK_LABELS and n != FUSED)
+    return usual + others + ([FUSED] if FUSED in given else [])
 
 
 class SurfaceView(QWidget):
@@ -150,7 +158,7 @@ class SurfaceView(QWidget):
             data = {k: np.asarray(v, dtype=np.float32) * 1e9 for k, v in heights_m.items()}
             if fused_m is not None:
                 data[FUSED] = np.asarray(fused_m, dtype=np.float32) * 1e9
-        names = list(data)
+        names = ordered_names(data)
         if names != self._names:
             self._rebuild(names)
         self._data = data
@@ -186,26 +194,32 @@ class SurfaceView(QWidget):
             self._levels = (float(low), float(high))
 
     def _rebuild(self, names: list[str]) -> None:
-        self.graphics.clear()
-        self.plots.clear()
-        self.images.clear()
-        self._mirrors.clear()
-        self.line_roi = None
+        """Lay out one plot per name, reusing the plots of names already shown."""
+        self._clear_line_items()
+        layout = self.graphics.ci
+        for item in [*self.plots.values(), self.colour_bar]:
+            if item in layout.items:
+                layout.removeItem(item)
+        for name in [n for n in self.plots if n not in names]:
+            del self.plots[name], self.images[name]
+        for name in names:
+            if name not in self.plots:
+                plot = pg.PlotItem(title=name)
+                plot.setAspectLocked(True)
+                plot.invertY(True)
+                plot.hideAxis("left")
+                plot.hideAxis("bottom")
+                image = pg.ImageItem(axisOrder="row-major")
+                plot.addItem(image)
+                self.plots[name] = plot
+                self.images[name] = image
         columns = 3 if len(names) > 4 else 2
         for i, name in enumerate(names):
-            plot = self.graphics.addPlot(row=i // columns, col=i % columns, title=name)
-            plot.setAspectLocked(True)
-            plot.invertY(True)
-            plot.hideAxis("left")
-            plot.hideAxis("bottom")
-            image = pg.ImageItem(axisOrder="row-major")
-            plot.addItem(image)
-            self.plots[name] = plot
-            self.images[name] = image
-        self.graphics.addItem(
+            layout.addItem(self.plots[name], row=i // columns, col=i % columns)
+        layout.addItem(
             self.colour_bar, row=0, col=columns, rowspan=max(1, -(-len(names) // columns))
         )
-        self.colour_bar.setImageItem(list(self.images.values()))
+        self.colour_bar.setImageItem([self.images[n] for n in names])
         self._apply_cmap()
         self._names = names
         self._make_line_items()
@@ -220,13 +234,22 @@ class SurfaceView(QWidget):
             )
             self.curves[name] = self.profile.plot([], [], pen=pen, name=name)
 
+    def _clear_line_items(self) -> None:
+        """Take the line and its mirrors off the maps (before any map goes)."""
+        if self.line_roi is not None and self._names:
+            self.plots[self._names[0]].removeItem(self.line_roi)
+        for name, mirror in self._mirrors.items():
+            self.plots[name].removeItem(mirror)
+        self._mirrors.clear()
+        self.line_roi = None
+
     def _make_line_items(self) -> None:
+        """Put the line on the first map and its dashed mirror on the others."""
         if not self._names:
             return
-        first = self._names[0]
         self._line_placed = False
         self.line_roi = pg.LineSegmentROI([[0, 0], [1, 0]], pen=pg.mkPen("w", width=2))
-        self.plots[first].addItem(self.line_roi)
+        self.plots[self._names[0]].addItem(self.line_roi)
         self.line_roi.sigRegionChanged.connect(self._line_moved)
         for name in self._names[1:]:
             mirror = pg.PlotDataItem(pen=pg.mkPen("w", width=1.5, style=Qt.PenStyle.DashLine))
