@@ -147,3 +147,40 @@ def test_record_from_the_default_simulated_camera(tmp_path: Path) -> None:
         assert reader.frame_shape == (1024, 1024)
         assert reader.source == "sim:waves"
         assert reader.setup["wavelength_m"] > 0
+
+
+def test_source_failing_mid_run_keeps_the_recording_and_exits_2(tmp_path: Path) -> None:
+    import cv2
+
+    folder = tmp_path / "imgs"
+    folder.mkdir()
+    data = np.random.default_rng(5).integers(0, 255, (4, *SHAPE), dtype=np.uint8)
+    for i, frame in enumerate(data):
+        cv2.imwrite(str(folder / f"f{i}.png"), frame)
+    damaged = folder / "f2.png"
+    damaged.write_bytes(damaged.read_bytes()[:40])  # the header survives, the pixels do not
+    out = tmp_path / "out.h5"
+    result = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "holoview",
+            "record",
+            str(out),
+            "--source",
+            f"replay:{folder}",
+            "--set",
+            "speed=fast",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=False,
+    )
+    assert result.returncode == 2
+    assert "recorded 2," in result.stdout
+    errors = result.stderr.strip().splitlines()
+    assert errors[-1].startswith("holoview record: error: ")
+    assert "f2.png" in errors[-1]
+    with RecordingReader(out) as reader:
+        np.testing.assert_array_equal(reader[:], data[:2])
