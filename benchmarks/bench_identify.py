@@ -5,10 +5,10 @@ Run from the repository root::
     .venv/bin/python benchmarks/bench_identify.py              # 5 seeds per scenario
     .venv/bin/python benchmarks/bench_identify.py --seeds 1    # quick
 
-Each seed synthesises a recording with :class:`holoview.optics.synthesis.HologramSynthesizer`
-(128 x 128, Poisson shot noise, reference-arm vibration of 10 nm in tones plus 3 nm of
-drift for the evaporation, 3 nm of tones for the injection), labels its peaks with the
-model from RB1 and FB1, demodulates every detected peak with the real
+Each seed simulates a recording with :func:`holoview.optics.scenarios.simulate` (128 x 128,
+Poisson shot noise, reference air-path jitter of 10 nm rms for the evaporation and 3 nm
+for the injection, correlation time 0.5 s), labels its peaks with the model from RB1
+and FB1, demodulates every detected peak with the real
 :class:`~holoview.processing.demodulate.Demodulator` (synthetic reference, carrier value)
 and then runs the temporal PCA and the depth tracking. The recordings are the ones the
 tests in ``tests/identify/test_identify_targets.py`` use (seed 11 and 12 there). Prints,
@@ -43,6 +43,7 @@ sys.path.insert(0, str(REPO / "tests" / "identify"))
 from identify_model import synthesise  # noqa: E402
 
 from holoview.optics.families import alpha_of, predict_families  # noqa: E402
+from holoview.optics.scenarios import ScenarioConfig  # noqa: E402
 from holoview.optics.setup import FLUIDS, Setup  # noqa: E402
 from holoview.optics.synthesis import HologramSynthesizer  # noqa: E402
 from holoview.processing.identify import identify_peaks  # noqa: E402
@@ -65,14 +66,19 @@ def scenario(name: str, seed: int) -> dict[str, object]:
     """Run one recording and return its figures."""
     if name == "evaporation":
         setup = Setup(shape=SHAPE, n2=FLUIDS["isopropanol"])
-        rate, fps, duration, vibration, drift = -5.72e-6 / 60, 10.0, 60.0, 10e-9, 3e-9
+        config = ScenarioConfig(
+            evaporation_rate=5.72e-6 / 60, vibration_rms=10e-9, vibration_time=0.5
+        )
+        fps, frames = 10.0, 600
     else:
         setup = Setup(shape=SHAPE, n2=FLUIDS["water"])
-        rate, fps, duration, vibration, drift = INJECTION / AREA, 25.0, 24.0, 3e-9, 0.0
+        config = ScenarioConfig(
+            injection_rate=INJECTION, basin_area=AREA, vibration_rms=3e-9, vibration_time=0.5
+        )
+        fps, frames = 25.0, 600
     start = time.perf_counter()
-    recording = synthesise(
-        setup, rate, fps=fps, duration=duration, vibration=vibration, drift=drift, seed=seed
-    )
+    recording = synthesise(setup, name, config, fps=fps, frames=frames, seed=seed)
+    rate = recording.rate
     per_frame = (time.perf_counter() - start) / recording.times.size
     steps = check_aliasing(recording.values).measured_step
     ident = identify_peaks(

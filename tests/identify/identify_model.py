@@ -113,33 +113,28 @@ class SynthesisedRecording:
 
 def synthesise(
     setup,
-    rate: float,
+    scenario: str,
+    config,
     *,
     fps: float,
-    duration: float,
-    vibration: float,
-    drift: float = 0.0,
+    frames: int,
     seed: int,
 ) -> SynthesisedRecording:
-    """Render frames of a uniformly moving level through the synthesiser and demodulate them.
+    """Demodulate a recording of :func:`holoview.optics.scenarios.simulate`.
 
     The operator's procedure: peaks found in the first frame, RB1 and FB1 named where the
     model puts them, the model labels the rest and says which twin to keep; then every
     detected peak is demodulated (synthetic reference) and its carrier value kept. The
-    reference arm moves as :func:`reference_arm` says.
+    true rate is the slope of the frames' true mean heights.
     """
     from holoview.optics.families import predict_families
-    from holoview.optics.synthesis import HologramSynthesizer
+    from holoview.optics.scenarios import simulate
     from holoview.processing.demodulate import Demodulator
     from holoview.processing.labelling import label_peaks
     from holoview.processing.peaks import find_peaks
 
-    rng = np.random.default_rng(seed)
-    times = np.arange(round(duration * fps)) / fps
-    arm = reference_arm(times, vibration, drift, rng)
-    jitter = 4 * np.pi / setup.wavelength * setup.n1 * arm  # reference-arm phase, rad
-    synthesiser = HologramSynthesizer(setup, noise="poisson")
-    first = synthesiser.render(0.0, reference_phase=float(jitter[0]), rng=rng)
+    stream = simulate(setup, scenario, frames=frames, fps=fps, seed=seed, config=config)
+    first, first_truth = next(stream)
     detected = find_peaks(first)
     truth = {f.label: f for f in predict_families(setup, max_order=3)}
     anchors = {label: truth[label].observed_carrier for label in ("RB1", "FB1")}
@@ -149,19 +144,19 @@ def synthesise(
     twins = {p.peak: p.twin for p in labelling.predictions if p.peak is not None}
     peaks = [p.flipped() if twins.get(i, False) else p for i, p in enumerate(detected)]
     demodulator = Demodulator(setup.shape, peaks, reference="synthetic", unwrap="never", threads=1)
-    values = np.empty((times.size, len(peaks)), dtype=np.complex128)
-    for i, t in enumerate(times):
-        frame = (
-            first
-            if i == 0
-            else synthesiser.render(rate * t, reference_phase=float(jitter[i]), rng=rng)
-        )
+    values = np.empty((frames, len(peaks)), dtype=np.complex128)
+    times, heights = np.empty(frames), np.empty(frames)
+    frame, frame_truth = first, first_truth
+    for i in range(frames):
+        if i > 0:
+            frame, frame_truth = next(stream)
         values[i] = [r.carrier_value for r in demodulator.process(frame).peaks]
+        times[i], heights[i] = frame_truth.time, frame_truth.mean_height
     return SynthesisedRecording(
         times=times,
         values=values,
         peaks=peaks,
         names=labelling.names,
         reference=labelling.anchors["RB1"],
-        rate=rate,
+        rate=float(np.polyfit(times, heights, 1)[0]),
     )

@@ -1,8 +1,9 @@
 """Issue 5 targets on synthesised recordings with known truth, through the real demodulator.
 
-Frames come from :class:`holoview.optics.synthesis.HologramSynthesizer` (128 x 128,
-Poisson shot noise, reference-arm vibration), peaks from ``find_peaks`` and the model
-labelling, carrier values from :class:`holoview.processing.demodulate.Demodulator`.
+Frames come from :func:`holoview.optics.scenarios.simulate` (128 x 128, Poisson shot
+noise, an Ornstein-Uhlenbeck jitter of the reference air path), peaks from
+``find_peaks`` and the model labelling, carrier values from
+:class:`holoview.processing.demodulate.Demodulator`.
 """
 
 from __future__ import annotations
@@ -12,6 +13,7 @@ import pytest
 from identify_model import SynthesisedRecording, synthesise
 
 from holoview.optics.families import alpha_of, predict_families
+from holoview.optics.scenarios import ScenarioConfig
 from holoview.optics.setup import FLUIDS, Setup
 from holoview.optics.surfaces import Mode, StandingWaves
 from holoview.optics.synthesis import HologramSynthesizer, pixel_coordinates
@@ -29,20 +31,23 @@ INJECTION_RATE = 12.3e-9  # m^3/s
 
 @pytest.fixture(scope="module")
 def evaporation() -> tuple[Setup, SynthesisedRecording]:
-    """Isopropanol, 5.72 um/min, 10 fps, 60 s; reference arm: 10 nm tones, 3 nm drift."""
+    """Isopropanol, 5.72 um/min, 10 fps, 60 s; reference arm jitter 10 nm rms, 0.5 s."""
     setup = Setup(shape=SHAPE, n2=FLUIDS["isopropanol"])
-    rate = -5.72e-6 / 60
-    return setup, synthesise(
-        setup, rate, fps=10.0, duration=60.0, vibration=10e-9, drift=3e-9, seed=11
-    )
+    config = ScenarioConfig(evaporation_rate=5.72e-6 / 60, vibration_rms=10e-9, vibration_time=0.5)
+    return setup, synthesise(setup, "evaporation", config, fps=10.0, frames=600, seed=11)
 
 
 @pytest.fixture(scope="module")
 def injection() -> tuple[Setup, SynthesisedRecording]:
-    """Water, 12.3 uL/s into 70.6 cm^2, 25 fps for 24 s, 3 nm reference vibration."""
+    """Water, 12.3 uL/s into 70.6 cm^2, 25 fps, 24 s; reference arm jitter 3 nm rms, 0.5 s."""
     setup = Setup(shape=SHAPE, n2=FLUIDS["water"])
-    rate = INJECTION_RATE / INJECTION_AREA
-    return setup, synthesise(setup, rate, fps=25.0, duration=24.0, vibration=3e-9, seed=12)
+    config = ScenarioConfig(
+        injection_rate=INJECTION_RATE,
+        basin_area=INJECTION_AREA,
+        vibration_rms=3e-9,
+        vibration_time=0.5,
+    )
+    return setup, synthesise(setup, "injection", config, fps=25.0, frames=600, seed=12)
 
 
 def model_alphas(setup: Setup, recording: SynthesisedRecording) -> np.ndarray:
