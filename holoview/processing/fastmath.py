@@ -3,17 +3,19 @@
 numpy's ``arctan2`` runs the scalar libm routine per element (about 30 ns here),
 which at four 144 x 144 maps per frame costs more than the frame's whole FFT.
 :func:`angle` evaluates the same function with a few SIMD-friendly array passes:
-octant reduction to ``t = min(|x|, |y|) / max(|x|, |y|)`` in [0, 1], an odd
-polynomial for ``arctan(t)`` (least-maximum-error fit of degree 13 on [0, 1], made
-for this module; error below 3e-7 rad, under float32's own rounding of the
-phase), then the octant restored.
+``atan2(|y|, |x|) = pi/4 + arctan(u)`` with ``u = (|y| - |x|) / (|y| + |x|)`` in
+[-1, 1], an odd polynomial for ``arctan(u)`` (least-maximum-error fit of degree 13,
+made for this module; error below 3e-7 rad, about float32's own rounding of a
+phase), then the quadrant restored with sign copies. The phase of exactly 0 is
+arbitrary (pi/4 here; ``np.angle`` says 0), and values below about 1e-36 in modulus
+get an inaccurate phase: a field that vanishes is masked anyway.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-#: Coefficients of ``t, t^3, ..., t^13`` approximating ``arctan(t)`` on [0, 1].
+#: Coefficients of ``u, u^3, ..., u^13`` approximating ``arctan(u)`` on [-1, 1].
 _ATAN_COEFFICIENTS = (
     0.999996112,
     -0.333173694,
@@ -26,6 +28,8 @@ _ATAN_COEFFICIENTS = (
 
 #: Largest difference from ``np.arctan2`` (rad), in float64 arithmetic.
 MAX_ERROR = 3e-7
+
+_TINY = np.finfo(np.float32).tiny
 
 _COEFFICIENTS32 = tuple(np.float32(c) for c in _ATAN_COEFFICIENTS)
 
@@ -50,7 +54,7 @@ def angle(
     Parameters
     ----------
     z : ndarray of complex64 or complex128, 2-D
-        Complex values; not modified. ``angle(0) == 0``.
+        Complex values; not modified. The phase of 0 is arbitrary.
     out : ndarray of float32, optional
         Where to write the result (shape of ``z``); a new array by default.
     workspace : AngleWorkspace, optional
@@ -66,30 +70,26 @@ def angle(
         workspace = AngleWorkspace(z.shape)
     if out is None:
         out = np.empty(z.shape, dtype=np.float32)
-    x, y, ax, ay, t, r = workspace._buffers
+    x, y, a, b, u, r = workspace._buffers
     np.copyto(x, z.real, casting="same_kind")
     np.copyto(y, z.imag, casting="same_kind")
-    np.abs(x, out=ax)
-    np.abs(y, out=ay)
-    np.minimum(ax, ay, out=t)
-    np.maximum(ax, ay, out=out)
-    out += np.float32(1e-30)  # 0 / tiny = 0 at the origin, and no division by zero
-    t /= out
+    np.abs(x, out=a)
+    np.abs(y, out=b)
+    # theta = atan2(|y|, |x|) = pi/4 + atan(u), u = (|y| - |x|) / (|y| + |x|) in [-1, 1]
+    np.subtract(b, a, out=u)
+    np.add(b, a, out=out)
+    out += _TINY  # no division by zero at the origin
+    u /= out
     s = out
-    np.multiply(t, t, out=s)
+    np.multiply(u, u, out=s)
     r.fill(_COEFFICIENTS32[-1])
     for c in reversed(_COEFFICIENTS32[:-1]):
         r *= s
         r += c
-    r *= t
-    # masked ufunc calls and np.where are slow: restore octants by arithmetic on 0/1 factors
-    fix = s
-    np.multiply(r, np.float32(-2), out=fix)
-    fix += np.float32(np.pi / 2)
-    fix *= np.greater(ay, ax)
-    r += fix
-    np.multiply(r, np.float32(-2), out=fix)
-    fix += np.float32(np.pi)
-    fix *= np.less(x, 0)
-    r += fix
+    r *= u
+    # quadrants without masks or np.where (both slow): with v = pi/2 - theta >= 0,
+    # pi/2 - copysign(v, x) is theta for x >= 0 and pi - theta for x < 0; then y's sign
+    np.subtract(np.float32(np.pi / 4), r, out=r)
+    np.copysign(r, x, out=r)
+    np.subtract(np.float32(np.pi / 2), r, out=r)
     return np.copysign(r, y, out=out)

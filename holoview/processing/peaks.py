@@ -325,7 +325,7 @@ def find_peaks(
             float(wrap_frequency((ky + dy) / rows)),
         )
         snr = float(magnitude[ky, kx]) / max(
-            background[ky, kx], _annulus_median(magnitude, int(ky), int(kx))
+            float(background[ky, kx]), _annulus_median(magnitude, int(ky), int(kx))
         )
         if snr <= threshold:
             continue

@@ -121,8 +121,9 @@ def test_fft_friendly_sizes() -> None:
 def test_fast_angle_matches_numpy() -> None:
     rng = np.random.default_rng(3)
     z = (rng.standard_normal((50, 70)) + 1j * rng.standard_normal((50, 70))).astype(np.complex64)
-    z[0, :6] = [0, -1, 1j, -1j, complex(-1, 0.0), complex(-1, -0.0)]
+    z[0, :6] = [1, -1, 1j, -1j, complex(-1, 0.0), complex(-1, -0.0)]
     z[1, :3] = [1e-20 + 1e-25j, -3e30 + 1j, 2e-30j]
+    z[2, :4] = [complex(-0.0, 1), complex(-0.0, -1), complex(0.0, -1), complex(1, -0.0)]
     kept = z.copy()
     ours = angle(z)
     assert ours.dtype == np.float32
