@@ -361,7 +361,8 @@ def identify_peaks(
         if brightness is None:
             raise InputError("give the labelled peak's index or the peak amplitudes")
         reference = int(np.argmax(brightness))
-    alphas = pca.prefactors(reference, reference_alpha)
+    alphas = pca.prefactors(reference, reference_alpha)  # checks the index
+    reference = int(reference) % n_peaks
     resolved, aliased = alphas.copy(), np.zeros(n_peaks, dtype=bool)
     if steps is not None:
         step = np.asarray(steps, dtype=np.float64)
@@ -378,7 +379,7 @@ def identify_peaks(
         )
     order = np.arange(n_peaks) if brightness is None else np.argsort(-brightness, kind="stable")
     # The labelled peak goes first so that it is the family, never a repeat.
-    order = np.concatenate([[reference], order[order != reference % n_peaks]])
+    order = np.concatenate([[reference], order[order != reference]])
     ranked = classify_prefactors(
         resolved[order],
         n1,
@@ -399,7 +400,7 @@ def identify_peaks(
     )
     return Identification(
         pca=pca,
-        reference=int(reference) % n_peaks,
+        reference=reference,
         reference_label=reference_label,
         alphas=alphas,
         peaks=tuple(p for p in peaks if p is not None),

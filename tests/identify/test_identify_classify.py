@@ -141,3 +141,11 @@ def test_alias_resolution_needs_a_moving_level(evaporation):
         identify_peaks(phases, N_AIR, 1.377, reference=0, steps=[0.1, 0.2])
     still = identify_peaks(phases, N_AIR, 1.377, reference=0, steps=np.full(6, 1e-3))
     assert not any(p.aliased for p in still.peaks)
+
+
+def test_a_negative_reference_index_counts_from_the_end(evaporation):
+    phases = unwrap_in_time(evaporation.values)
+    from_end = identify_peaks(phases, N_AIR, 1.377, reference=-6)
+    assert from_end.reference == 0
+    assert [p.index for p in from_end.peaks] == list(range(6))
+    assert from_end.peaks[0].kind is PeakKind.FAMILY
