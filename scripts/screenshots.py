@@ -47,7 +47,8 @@ def parse_label(text: str) -> tuple[str, float, float]:
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--source", default="sim")
+    parser.add_argument("--source", default="sim:evaporation")
+    parser.add_argument("--size", type=int, default=512, help="simulated frame side, pixels")
     parser.add_argument("--out", type=Path, default=Path("resources/screenshots"))
     parser.add_argument("--label", action="append", type=parse_label, default=[])
     parser.add_argument("--settle", type=float, default=3.0, help="seconds per state")
@@ -57,7 +58,12 @@ def main() -> int:
     app = application()
     with tempfile.TemporaryDirectory() as tmp:
         os.environ["XDG_CONFIG_HOME"] = tmp  # the default layout, not the user's
-        window = MainWindow(source=args.source, experiment_path=Path(tmp) / "experiment.json")
+        options = {"shape": (args.size, args.size)} if args.source.startswith("sim") else {}
+        window = MainWindow(
+            source=args.source,
+            experiment_path=Path(tmp) / "experiment.json",
+            source_options=options,
+        )
         window.resize(1800, 1000)
         window.show()
 
@@ -75,6 +81,7 @@ def main() -> int:
         labels = args.label or default_labels(window)
         for name, fx, fy in labels:
             window.label_peak(name, fx, fy)
+        window.surface.reference_box.setCurrentText("absolute")
         wait(app, args.settle)
         window.surface.auto_range()
         wait(app, 0.5)

@@ -47,6 +47,8 @@ class HologramView(QWidget):
         self.plot.invertY(True)
         self.plot.setLabel("bottom", "column", units="px")
         self.plot.setLabel("left", "row", units="px")
+        for axis in ("bottom", "left"):
+            self.plot.getAxis(axis).enableAutoSIPrefix(False)
         # the screen shows fewer pixels than a camera has: downsampling before the
         # colour lookup keeps large frames cheap to draw (the readout uses raw values)
         self.image = pg.ImageItem(axisOrder="row-major", autoDownsample=True)

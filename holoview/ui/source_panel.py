@@ -202,6 +202,19 @@ class SourcePanel(QWidget):
         if info is None:
             label = QLabel("not available")
             return label, lambda v: label.setText(str(v))
+        if info.read_only and info.kind != "roi":
+            shown = QLabel()
+            scale, unit = DISPLAY_UNITS.get(info.unit, (1.0, info.unit))
+
+            def show(v: Any, lab: QLabel = shown, sc: float = scale, u: str = unit) -> None:
+                text = (
+                    f"{v * sc:g}"
+                    if isinstance(v, int | float) and not isinstance(v, bool)
+                    else str(v)
+                )
+                lab.setText(f"{text} {u}".strip())
+
+            return shown, show
         if info.kind in ("float", "int"):
             scale, unit = DISPLAY_UNITS.get(info.unit, (1.0, info.unit))
             spin: QAbstractSpinBox

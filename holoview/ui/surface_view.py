@@ -8,12 +8,15 @@ the profile below overlays every map's curve along it (the paper's figure 4g).
 
 from __future__ import annotations
 
+import math
+import time
 from collections.abc import Mapping
 
 import numpy as np
 import pyqtgraph as pg
 from PyQt6.QtCore import Qt, pyqtSignal
 from PyQt6.QtWidgets import (
+    QCheckBox,
     QComboBox,
     QHBoxLayout,
     QLabel,
@@ -31,6 +34,8 @@ HEIGHT_CMAP = "viridis"
 PHASE_CMAP = "CET-C6"
 #: Colours of the profile curves, in label order; the fused curve is dashed white.
 CURVE_COLOURS = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2")
+#: Seconds between colour-range updates while "follow" is on.
+FOLLOW_INTERVAL_S = 0.5
 #: Default line, as fractions of (width, height): a horizontal diameter.
 DEFAULT_LINE = ((0.05, 0.5), (0.95, 0.5))
 
@@ -89,7 +94,14 @@ class SurfaceView(QWidget):
         self.reference_box.addItems(REFERENCE_MODES)
         self.reference_box.currentTextChanged.connect(self.referenceChanged.emit)
         self.range_button = QPushButton("Auto range")
+        self.range_button.setToolTip("set the colour range once from the 1-99 percentiles")
         self.range_button.clicked.connect(self.auto_range)
+        self.follow_box = QCheckBox("follow")
+        self.follow_box.setToolTip(
+            f"update the colour range from the maps every {FOLLOW_INTERVAL_S:g} s"
+        )
+        self.follow_box.setChecked(True)
+        self._range_at = -math.inf
         self.stats_label = QLabel()
         controls = QHBoxLayout()
         controls.addWidget(QLabel("show"))
@@ -97,6 +109,7 @@ class SurfaceView(QWidget):
         controls.addWidget(QLabel("reference"))
         controls.addWidget(self.reference_box)
         controls.addWidget(self.range_button)
+        controls.addWidget(self.follow_box)
         controls.addStretch(1)
         controls.addWidget(self.stats_label)
 
@@ -108,6 +121,7 @@ class SurfaceView(QWidget):
         self.profile = pg.PlotWidget()
         self.profile.setLabel("bottom", "position along the line", units="px")
         self.profile.setLabel("left", "delta h (nm)")
+        self.profile.getAxis("left").enableAutoSIPrefix(False)
         self.profile.addLegend(offset=(5, 5))
         self.curves: dict[str, pg.PlotDataItem] = {}
         splitter = QSplitter(Qt.Orientation.Vertical)
@@ -162,7 +176,9 @@ class SurfaceView(QWidget):
         if names != self._names:
             self._rebuild(names)
         self._data = data
-        if self._levels is None and self._mode == "height":
+        now = time.monotonic()
+        follow = self.follow_box.isChecked() and now - self._range_at >= FOLLOW_INTERVAL_S
+        if self._mode == "height" and (self._levels is None or follow):
             self.auto_range()
         for name, image in self.images.items():
             image.setImage(data[name], autoLevels=False, levels=self._current_levels())
@@ -178,14 +194,18 @@ class SurfaceView(QWidget):
         return self._levels or (-1.0, 1.0)
 
     def auto_range(self) -> None:
-        """Set the height colour range symmetric about zero from the 1-99 percentiles."""
+        """Set the height colour range from the 1-99 percentiles of the maps shown."""
+        self._range_at = time.monotonic()
         if self._mode == "phase" or not self._data:
             return
         values = np.concatenate([d[::4, ::4].ravel() for d in self._data.values()])
         values = values[np.isfinite(values)]
-        span = float(np.percentile(np.abs(values), 99)) if values.size else 1.0
-        span = span if span > 0 else 1.0
-        self._levels = (-span, span)
+        if not values.size:
+            return
+        low, high = (float(v) for v in np.percentile(values, (1.0, 99.0)))
+        if not high > low:
+            low, high = low - 1.0, high + 1.0
+        self._levels = (low, high)
         self.colour_bar.setLevels(self._levels)
 
     def _bar_levels_changed(self) -> None:

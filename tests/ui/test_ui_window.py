@@ -147,3 +147,32 @@ def test_find_sources_runs_on_a_thread_and_offers_sim(qtbot, open_windows, tmp_p
         for i in range(window.source_panel.source_box.count())
     ]
     assert items[0] == "sim" and window.source_panel.refresh_button.isEnabled()
+
+
+def test_window_on_the_simulated_source_labels_and_updates_maps(qtbot, open_windows, tmp_path):
+    from holoview.optics.families import predict_families
+
+    window = _window(
+        qtbot,
+        open_windows,
+        tmp_path,
+        "sim",
+        source_options={"shape": (256, 256), "frame_rate_hz": 30.0, "seed": 1},
+    )
+    assert window.session is not None, window.banner_text
+    _wait_frames(qtbot, window)
+    assert window.hologram.image.image.shape == (256, 256)
+    assert window.experiment.n2 == pytest.approx(window.session.source.sim_setup.n2)
+    families = {f.label: f.carrier for f in predict_families(window.session.source.sim_setup)}
+    qtbot.waitUntil(lambda: len(window.spectrum._peaks) >= 3, timeout=10000)
+    for name in ("RB1", "FB1"):
+        window.spectrum.choose_label = lambda carrier, current, name=name: name
+        window.spectrum.click_at(*families[name])
+    qtbot.waitUntil(lambda: {"RF", "RB2"} <= set(window.spectrum.labelled), timeout=10000)
+    for name in ("RF", "RB2"):
+        assert window.spectrum.labelled[name] == pytest.approx(families[name], abs=2 / 256)
+    qtbot.waitUntil(lambda: "fused" in window.surface.names, timeout=10000)
+    before = window.surface.map_data("RB1").copy()
+    _wait_frames(qtbot, window, 3)
+    assert not np.array_equal(before, window.surface.map_data("RB1"))
+    assert window.status.camera_fps_label.text().startswith("camera")
