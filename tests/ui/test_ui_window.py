@@ -8,6 +8,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
+import tifffile
 
 from holoview.acquire.recording import RecordingReader
 from holoview.ui.main_window import MainWindow
@@ -176,3 +177,45 @@ def test_window_on_the_simulated_source_labels_and_updates_maps(qtbot, open_wind
     _wait_frames(qtbot, window, 3)
     assert not np.array_equal(before, window.surface.map_data("RB1"))
     assert window.status.camera_fps_label.text().startswith("camera")
+
+
+def _labelled_window(qtbot, open_windows, tmp_path, hologram_file) -> MainWindow:
+    window = _window(qtbot, open_windows, tmp_path, f"replay:{hologram_file}")
+    _wait_frames(qtbot, window)
+    window.label_peak("RB1", *RB1)
+    window.label_peak("FB1", *FB1)
+    qtbot.waitUntil(lambda: "fused" in window.surface.names, timeout=10000)
+    return window
+
+
+def test_exports_snapshot_and_shortcuts(qtbot, open_windows, tmp_path, hologram_file):
+    window = _labelled_window(qtbot, open_windows, tmp_path, hologram_file)
+    written = window.export_maps_to(tmp_path / "maps.tif")
+    assert {p.name for p in written} >= {"maps_RB1.tif", "maps_fused.tif"}
+    assert np.nanmax(np.abs(tifffile.imread(tmp_path / "maps_RB1.tif"))) < 1e-6  # metres
+    files = window.snapshot(tmp_path)
+    assert any(p.suffix == ".png" for p in files) and any(p.suffix == ".npy" for p in files)
+    keys = {a.text(): a.shortcut().toString() for a in window.actions()}
+    assert keys["Start/stop source"] == "F5"
+    assert keys["Record/stop"] == "Ctrl+R"
+    assert keys["Snapshot"] == "Ctrl+Shift+S"
+    window.recording_panel.path_edit.setText(str(tmp_path / "shortcut.h5"))
+    window.record_action.trigger()
+    assert window.recording_panel.recording
+    window.record_action.trigger()
+    assert not window.recording_panel.recording and (tmp_path / "shortcut.h5").is_file()
+    window.start_action.trigger()
+    assert window.session is None and not window.timer.isActive()
+    window.start_action.trigger()
+    assert window.session is not None and window.timer.isActive()
+
+
+def test_reference_mode_reaches_the_demodulator(qtbot, open_windows, tmp_path, hologram_file):
+    window = _labelled_window(qtbot, open_windows, tmp_path, hologram_file)
+    window.surface.reference_box.setCurrentText("synthetic")
+    assert window.experiment.reference == "synthetic"
+    stage = window.session.pipeline._demod
+    qtbot.waitUntil(
+        lambda: stage._demod is not None and stage._demod.reference == "synthetic", timeout=5000
+    )
+    assert ExperimentSettings.load(window.experiment_path).reference == "synthetic"
