@@ -220,7 +220,9 @@ def _geometry(
     total = power.sum()
     rho1 = float((power * np.cos(TWO_PI * dx / bx)[None, :]).sum() / total)
     rho2 = float((power * np.cos(2 * TWO_PI * dx / bx)[None, :]).sum() / total)
-    scale = by * bx / (rows * cols)
+    # the box's inverse FFT runs unnormalised (execute): 1 / (by bx) is folded in here too,
+    # so that the field comes out in counts
+    scale = 1.0 / (rows * cols)
     y, x = box_positions(box_shape, frame_shape)
     sub_y = fy - k0y / rows
     sub_x = fx - k0x / cols
@@ -512,7 +514,7 @@ class Demodulator:
         rows, cols = self.shape
         plan = rfft2_plan(self.shape, threads=self.threads)
         np.copyto(plan.input_array, array, casting="unsafe")
-        plan()
+        plan.execute()
         half = plan.output_array
         dc = float(half[0, 0].real)
         if not np.isfinite(dc):
@@ -555,7 +557,7 @@ class Demodulator:
         elif geo.conjugate is not None:
             np.conjugate(box, out=box, where=geo.conjugate)
         np.multiply(box, geo.window, out=box)
-        box_plan()
+        box_plan.execute()
         field = box_plan.output_array.copy()
         flags: set[str] = set()
         if i in self._overlapping:
@@ -698,14 +700,13 @@ class Demodulator:
     def _noise(phase: np.ndarray, mask: np.ndarray, geo: _Geometry) -> float:
         """Phase noise (rad) from the spread of second differences along every 4th row.
 
-        Two pixels at the box's edge are left out: where the frame is not periodic
-        the field dips there and its phase is noisier than the rest.
-
         Second differences cancel the surface's slope; for noise shaped by the
         window they have variance ``sigma^2 (6 - 8 rho1 + 2 rho2)``, with ``rho1``
         and ``rho2`` the window's noise correlation at lags 1 and 2. Surface
         curvature adds to it, so the estimate errs on the high side. Differences
-        beyond pi (wraps, untrusted pixels) are left out.
+        beyond pi (wraps, untrusted pixels) are left out, and so are two pixels at
+        the box's edge: where the frame is not periodic the field dips there and
+        its phase is noisier than the rest.
         """
         edge = 2 if min(phase.shape) > 16 else 0  # a non-periodic frame's field dips at the edge
         rows = phase[edge : phase.shape[0] - edge : 4, edge : phase.shape[1] - edge]

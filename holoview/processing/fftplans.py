@@ -193,9 +193,10 @@ def rfft2_plan(
 def ifft2_plan(
     shape: tuple[int, int], *, threads: int = 1, effort: str = PLANNER_EFFORT
 ) -> pyfftw.FFTW:
-    """Return the calling thread's plan of a complex64 2-D inverse FFT (normalised by 1/size).
+    """Return the calling thread's plan of a complex64 2-D inverse FFT.
 
-    Fill ``plan.input_array`` and call ``plan()``; the result is ``plan.output_array``.
+    Fill ``plan.input_array`` and call ``plan()`` (normalised by 1 / size) or
+    ``plan.execute()`` (unnormalised, one pass less); the result is ``plan.output_array``.
     """
     return _plan("ifft2", (int(shape[0]), int(shape[1])), int(threads), effort)
 
