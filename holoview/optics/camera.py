@@ -129,8 +129,9 @@ class Camera:
                 return values
             out[...] = values
             return out
-        np.clip(counts, 0, self._top, out=counts)
+        np.minimum(counts, np.float32(self._top), out=counts)
         np.copyto(self._index, counts, casting="unsafe")
+        # mode="clip" clamps negative counts to the table's first entry, and checks nothing
         if out is None:
-            return np.take(self._table, self._index)
-        return np.take(self._table, self._index, out=out)
+            return self._table.take(self._index, mode="clip")
+        return self._table.take(self._index, out=out, mode="clip")

@@ -28,10 +28,6 @@ from holoview.optics.beams import DEFAULT_THRESHOLD, Beam, field_beams, mean_int
 from holoview.optics.camera import Camera
 from holoview.optics.setup import Setup
 
-#: Rows per matrix product: small products keep OpenBLAS on one thread, whose
-#: multi-threaded small products stall (up to 15x) when the other core is busy.
-_BLOCK_ROWS = 64
-
 #: Entries of the phase-to-phasor table (phase step 2 pi / 65536 rad).
 PHASE_TABLE_SIZE = 1 << 16
 
@@ -70,52 +66,71 @@ def field_stop(setup: Setup, x: np.ndarray, y: np.ndarray) -> np.ndarray | None:
     return ((x**2 + y**2) <= setup.aperture_radius**2).astype(float)
 
 
+def bilinear_taps(dy: float, dx: float) -> list[tuple[int, int, float]]:
+    """Return the taps ``(row offset, col offset, weight)`` of a bilinear sample.
+
+    Sampling a map at ``(row + dy, col + dx)`` is the weighted sum of the map at the
+    integer offsets returned; taps of zero weight are left out.
+    """
+    iy, ix = math.floor(dy), math.floor(dx)
+    fy, fx = dy - iy, dx - ix
+    taps = []
+    for oy, wy in ((iy, 1 - fy), (iy + 1, fy)):
+        for ox, wx in ((ix, 1 - fx), (ix + 1, fx)):
+            if wy * wx > 1e-9:
+                taps.append((oy, ox, wy * wx))
+    return taps
+
+
+def pad_edge(
+    h: np.ndarray, pad: int, out: np.ndarray | None = None, offset: float = 0.0
+) -> np.ndarray:
+    """Return ``h - offset`` edge-padded by ``pad`` pixels on every side, float32.
+
+    ``out`` (shape ``(rows + 2 pad, cols + 2 pad)``, float32) is filled when given.
+    """
+    rows, cols = h.shape
+    if out is None:
+        out = np.empty((rows + 2 * pad, cols + 2 * pad), dtype=np.float32)
+    inner = out[pad : pad + rows, pad : pad + cols]
+    np.subtract(h, offset, out=inner, casting="unsafe")
+    if pad:
+        out[:pad, pad : pad + cols] = inner[:1]
+        out[pad + rows :, pad : pad + cols] = inner[-1:]
+        out[:, :pad] = out[:, pad : pad + 1]
+        out[:, pad + cols :] = out[:, pad + cols - 1 : pad + cols]
+    return out
+
+
+def shift_map(h: np.ndarray, dy: float, dx: float) -> np.ndarray:
+    """Return ``h`` sampled at ``(row + dy, col + dx)`` (pixels), bilinear, edges clamped.
+
+    Returns
+    -------
+    ndarray, shape of ``h``, float32
+    """
+    rows, cols = h.shape
+    pad = math.ceil(max(abs(dy), abs(dx))) + 1
+    padded = pad_edge(h, pad)
+    out = np.zeros((rows, cols), dtype=np.float32)
+    for oy, ox, weight in bilinear_taps(dy, dx):
+        out += np.float32(weight) * padded[pad + oy : pad + oy + rows, pad + ox : pad + ox + cols]
+    return out
+
+
 @dataclass(frozen=True)
 class _HeightGroup:
-    """Beams that share a height term: the same kappa and walk-off centroid."""
+    """Beams that share a height term: the same kappa and walk-off centroid.
+
+    ``taps`` are the bilinear taps of the walk-off shift with the weights multiplied by
+    the phase-table cycles per metre, ``2 k0 kappa N / (2 pi)``.
+    """
 
     kappa: float
     shift_px: tuple[float, float]  # (rows, cols) pixels: sample h at (row + dy, col + dx)
     members: tuple[int, ...]
-
-
-def shift_map(
-    h: np.ndarray, dy: float, dx: float, padded: np.ndarray | None = None, pad: int = 0
-) -> np.ndarray:
-    """Return ``h`` sampled at ``(row + dy, col + dx)``, bilinear, edges clamped.
-
-    Parameters
-    ----------
-    h : ndarray, shape (rows, cols)
-        The map.
-    dy, dx : float
-        Shift in pixels (rows, columns).
-    padded, pad : ndarray and int, optional
-        ``h`` already edge-padded by ``pad`` pixels on every side (``pad`` at least
-        ``ceil(max(|dy|, |dx|)) + 1``), to share one padding between many shifts.
-
-    Returns
-    -------
-    ndarray, shape (rows, cols), float32
-    """
-    rows, cols = h.shape
-    if padded is None:
-        pad = math.ceil(max(abs(dy), abs(dx))) + 1
-        padded = np.pad(h.astype(np.float32, copy=False), pad, mode="edge")
-    iy, ix = math.floor(dy), math.floor(dx)
-    fy, fx = dy - iy, dx - ix
-    out = np.zeros((rows, cols), dtype=np.float32)
-    for oy, wy in ((iy, 1 - fy), (iy + 1, fy)):
-        for ox, wx in ((ix, 1 - fx), (ix + 1, fx)):
-            weight = wy * wx
-            if weight < 1e-9:
-                continue
-            view = padded[pad + oy : pad + oy + rows, pad + ox : pad + ox + cols]
-            if weight > 1 - 1e-9:
-                out += view
-            else:
-                out += np.float32(weight) * view
-    return out
+    taps: tuple[tuple[int, int, np.float32], ...]
+    cycles: float
 
 
 class HologramSynthesizer:
@@ -179,9 +194,11 @@ class HologramSynthesizer:
                 continue
             shift = (beam.centroid[1] / setup.pixel_pitch, beam.centroid[0] / setup.pixel_pitch)
             groups.setdefault((beam.kappa, *shift), []).append(index)
-        self._groups = [
-            _HeightGroup(k, (dy, dx), tuple(members)) for (k, dy, dx), members in groups.items()
-        ]
+        self._groups = []
+        for (kappa, dy, dx), members in groups.items():
+            cycles = self._k2 * kappa * PHASE_TABLE_SIZE / (2 * math.pi)
+            taps = tuple((oy, ox, np.float32(w * cycles)) for oy, ox, w in bilinear_taps(dy, dx))
+            self._groups.append(_HeightGroup(kappa, (dy, dx), tuple(members), taps, cycles))
         self._reference = tuple(i for i, b in enumerate(self.beams) if b.kappa == 0)
         self._pad = 1 + max(
             (math.ceil(max(abs(g.shift_px[0]), abs(g.shift_px[1]))) for g in self._groups),
@@ -190,11 +207,12 @@ class HologramSynthesizer:
         angles = np.arange(PHASE_TABLE_SIZE) * (2 * math.pi / PHASE_TABLE_SIZE)
         self._cos = np.cos(angles).astype(np.float32)
         self._sin = np.sin(angles).astype(np.float32)
-        self._group_fields: list[tuple[np.ndarray, np.ndarray]] | None = None
+        self._group_fields: list[tuple[np.ndarray, np.ndarray]] | None = None  # |g|, arg index
         self._buffers = (
             np.empty(setup.shape, dtype=np.float32),
             np.empty(setup.shape, dtype=np.float32),
         )
+        self._work: dict[str, np.ndarray] = {}
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -227,18 +245,11 @@ class HologramSynthesizer:
                 np.empty((rows, v.shape[1]), dtype=np.float32),
                 np.empty((rows, v.shape[1]), dtype=np.float32),
             )
-        for start in range(0, left_real.shape[0], _BLOCK_ROWS):
-            stop = start + _BLOCK_ROWS
-            np.matmul(left_real[start:stop], v, out=out[0][start:stop])
-            np.matmul(left_imag[start:stop], v, out=out[1][start:stop])
+        # einsum's own loops, not BLAS: OpenBLAS threads on such thin products spin and
+        # stall (up to 100x) when the other core is busy, as it is in the live app
+        np.einsum("ik,kj->ij", left_real, v, out=out[0])
+        np.einsum("ik,kj->ij", left_imag, v, out=out[1])
         return out
-
-    def _phasor_index(self, values: np.ndarray, kappa: float) -> np.ndarray:
-        """Return phase-table indices of ``2 k0 kappa values`` (values in m)."""
-        cycles = np.float32(self._k2 * kappa * PHASE_TABLE_SIZE / (2 * math.pi))
-        index = np.rint(values * cycles).astype(np.int32)
-        np.bitwise_and(index, PHASE_TABLE_SIZE - 1, out=index)
-        return index
 
     def _check_height(self, h: float | np.ndarray) -> float | np.ndarray:
         if np.ndim(h) == 0:
@@ -291,23 +302,62 @@ class HologramSynthesizer:
         real, imag = self._separable_sum(
             coefficients[list(self._reference)], self._reference, out=self._buffers
         )
-        if self._group_fields is None:
-            ones = [np.ones(len(g.members), dtype=complex) for g in self._groups]
-            self._group_fields = [
-                self._separable_sum(c, g.members) for c, g in zip(ones, self._groups, strict=True)
-            ]
-        padded = np.pad(heights.astype(np.float32, copy=False), self._pad, mode="edge")
-        for group, (g_real, g_imag) in zip(self._groups, self._group_fields, strict=True):
-            dy, dx = group.shift_px
-            index = self._phasor_index(shift_map(heights, dy, dx, padded, self._pad), group.kappa)
-            cos, sin = np.take(self._cos, index), np.take(self._sin, index)
-            real += g_real * cos
-            real -= g_imag * sin
-            cos *= g_imag
-            sin *= g_real
-            imag += cos
-            imag += sin
+        self._add_height_groups(heights, real, imag)
         return real, imag
+
+    def _buffer(self, name: str, shape: tuple[int, int], dtype: type) -> np.ndarray:
+        """Return a reusable work array (allocating it once: page faults cost here)."""
+        array = self._work.get(name)
+        if array is None:
+            array = self._work[name] = np.empty(shape, dtype=dtype)
+        return array
+
+    def _add_height_groups(self, heights: np.ndarray, real: np.ndarray, imag: np.ndarray) -> None:
+        """Add every height group's field times its phasor map to ``real``, ``imag``.
+
+        The map's mean goes into the phase exactly (float64), the rest through float32
+        and the phase table, so the table's precision does not depend on the level.
+        """
+        rows, cols = self.shape
+        pad = self._pad
+        level = float(heights.mean(dtype=np.float64))
+        padded = pad_edge(
+            heights,
+            pad,
+            self._buffer("padded", (rows + 2 * pad, cols + 2 * pad), np.float32),
+            level,
+        )
+        phase = self._buffer("phase", self.shape, np.float32)
+        tmp = self._buffer("tmp", self.shape, np.float32)
+        index = self._buffer("index", self.shape, np.int32)
+        cos = self._buffer("cos", self.shape, np.float32)
+        sin = self._buffer("sin", self.shape, np.float32)
+        if self._group_fields is None:
+            self._group_fields = []
+            for group in self._groups:
+                ones = np.ones(len(group.members), dtype=complex)
+                g_real, g_imag = self._separable_sum(ones, group.members)
+                magnitude = np.hypot(g_real, g_imag)
+                angle = np.rint(np.arctan2(g_imag, g_real) * (PHASE_TABLE_SIZE / (2 * math.pi)))
+                self._group_fields.append((magnitude, angle.astype(np.int32)))
+        for group, (magnitude, angle) in zip(self._groups, self._group_fields, strict=True):
+            for n, (oy, ox, weight) in enumerate(group.taps):
+                view = padded[pad + oy : pad + oy + rows, pad + ox : pad + ox + cols]
+                if n == 0:
+                    np.multiply(view, weight, out=phase)
+                else:
+                    np.multiply(view, weight, out=tmp)
+                    phase += tmp
+            phase += np.float32((level * group.cycles) % PHASE_TABLE_SIZE)
+            np.rint(phase, out=phase)
+            np.copyto(index, phase, casting="unsafe")
+            index += angle
+            self._cos.take(index, out=cos, mode="wrap")
+            self._sin.take(index, out=sin, mode="wrap")
+            cos *= magnitude
+            sin *= magnitude
+            real += cos
+            imag += sin
 
     def _intensity(self, h: float | np.ndarray, reference_phase: float) -> np.ndarray:
         """Return the expected photons in an internal buffer (see :meth:`intensity`)."""
