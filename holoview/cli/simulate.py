@@ -344,7 +344,8 @@ def run(args: argparse.Namespace) -> int:
     families = predict_families(setup, max_order=MAX_ORDER)
     for family in families:
         if family.aliased and family.amplitude >= 1e-3:
-            logger.warning(
+            log = logger.warning if family.amplitude >= 1e-2 else logger.info
+            log(
                 "%s carrier (%+.3f, %+.3f) cycles/pixel is past Nyquist; it appears folded "
                 "at (%+.3f, %+.3f)",
                 family.label,

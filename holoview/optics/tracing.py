@@ -341,8 +341,10 @@ def trace_fields(
         raise InputError(f"reference_phase must be finite, got {reference_phase!r} rad")
     k0 = 2 * math.pi / setup.wavelength
     n1, n2 = setup.n1, setup.n2
-    walk = max(abs(b.entry[0]) + abs(b.entry[1]) for b in field_beams(setup, threshold))
-    walk = max(walk, 2 * (max(map(abs, setup.m_r)) + max(map(abs, setup.m_b))) * 1e-2)
+    # start rays far enough out that every family's exit points cover the frame: the
+    # B_j walk-off, and the reference's 2 m_r tilt over its extra arm length
+    walk = max(max(abs(b.entry[0]), abs(b.entry[1])) for b in field_beams(setup, threshold))
+    walk = max(walk, 2 * max(map(abs, setup.m_r)) * (abs(setup.delta_H) + _CLEARANCE))
     margin = math.ceil(walk / setup.pixel_pitch) + 3
     mesh_x, mesh_y, mesh_shape = _mesh(setup, margin)
     shape = _Surface(surface, setup.depth, setup.pixel_pitch * 1e-2)
