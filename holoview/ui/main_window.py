@@ -340,7 +340,9 @@ class MainWindow(QMainWindow):
             self.session.set_setting(name, value)
         except HoloviewError as exc:
             self.show_message(str(exc))
+        self._last_seq = -1
         self.source_panel.show_values(self.session.read_settings())
+        self.source_panel.set_streaming(self.session.running, self.session.description)
 
     # ---- experiment --------------------------------------------------------
     def _set_experiment(self, experiment: ExperimentSettings) -> None:
@@ -524,7 +526,10 @@ class MainWindow(QMainWindow):
             )
         )
         if not session.running:
-            self.source_panel.set_streaming(False, "stopped: " + session.stop_reason)
+            reason = session.stop_reason
+            self.source_panel.set_streaming(False, "stopped: " + reason)
+            if session.camera.error is not None:
+                self.show_message(f"{session.spec} stopped: {reason}")
             self.timer.stop()
 
     def _draw(self, result: LiveResult) -> None:

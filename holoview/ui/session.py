@@ -188,23 +188,27 @@ class LiveSession:
         self.spec = spec
         self.experiment = experiment
         self.source: Source = _open_source(spec, source_options or {})
-        try:
-            shape = self.source.frame_shape
-            frame_bytes = shape[0] * shape[1] * np.dtype(self.source.dtype).itemsize
-            capacity = int(np.clip(RING_BYTES // frame_bytes, 8, 512))
-            self.ring = FrameRing(capacity, shape, self.source.dtype)
-            self.camera = CameraThread(self.source, self.ring)
-            self.pipeline = LivePipeline(experiment, shape, saturation=self.saturation_value)
-            self.worker = DemodWorker(self.ring, self.pipeline)
-        except BaseException:
-            self.source.close()
-            raise
         self.recorder: Recorder | None = None
         self._request: RecordRequest | None = None
         self._recording_started = 0.0
         self._recording_elapsed = 0.0
         self._messages: list[str] = []
         self._closed = False
+        try:
+            self._build()
+        except BaseException:
+            self.source.close()
+            raise
+
+    def _build(self) -> None:
+        """Make the ring, camera thread, pipeline and worker for the source as it is now."""
+        shape = self.source.frame_shape
+        frame_bytes = shape[0] * shape[1] * np.dtype(self.source.dtype).itemsize
+        capacity = int(np.clip(RING_BYTES // frame_bytes, 8, 512))
+        self.ring = FrameRing(capacity, shape, self.source.dtype)
+        self.camera = CameraThread(self.source, self.ring)
+        self.pipeline = LivePipeline(self.experiment, shape, saturation=self.saturation_value)
+        self.worker = DemodWorker(self.ring, self.pipeline)
 
     # ---- life cycle --------------------------------------------------------
     def start(self) -> None:
@@ -274,8 +278,24 @@ class LiveSession:
         return self.source.get_all()
 
     def set_setting(self, name: str, value: Any) -> Any:
-        """Set a source setting; return the value read back."""
-        return self.source.set(name, value)
+        """Set a source setting; return the value read back.
+
+        A setting locked while streaming (ROI, pixel format on most cameras) is set
+        with the stream stopped: recording, camera thread and worker stop, the value
+        is written, and streaming starts again with a ring of the new frame shape.
+        """
+        info = self.source.describe_settings().get(name)
+        if info is None or not info.locked_while_streaming or not self.camera.running:
+            return self.source.set(name, value)
+        self.stop_recording()
+        self.camera.stop()
+        self.worker.stop()
+        try:
+            readback = self.source.set(name, value)
+        finally:
+            self._build()
+            self.start()
+        return readback
 
     # ---- commands to the worker -------------------------------------------
     def set_experiment(self, experiment: ExperimentSettings) -> None:

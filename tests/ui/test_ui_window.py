@@ -219,3 +219,37 @@ def test_reference_mode_reaches_the_demodulator(qtbot, open_windows, tmp_path, h
         lambda: stage._demod is not None and stage._demod.reference == "synthetic", timeout=5000
     )
     assert ExperimentSettings.load(window.experiment_path).reference == "synthetic"
+
+
+def _flaky_window(qtbot, open_windows, tmp_path, monkeypatch, **options) -> MainWindow:
+    from holoview.ui import session
+
+    from .flaky_source import FlakySource
+
+    def open_flaky(spec, opts):
+        source = FlakySource(**options)
+        source.open()
+        return source
+
+    monkeypatch.setattr(session, "_open_source", open_flaky)
+    return _window(qtbot, open_windows, tmp_path, "sim")
+
+
+def test_camera_gone_mid_stream_is_shown_and_the_window_stays(
+    qtbot, open_windows, tmp_path, monkeypatch
+):
+    window = _flaky_window(qtbot, open_windows, tmp_path, monkeypatch, fail_after=10)
+    qtbot.waitUntil(lambda: not window.timer.isActive(), timeout=10000)
+    assert "stopped answering" in window.banner_text
+    assert window.source_panel.start_button.text() == "Start"
+    window.spectrum.click_at(0.0, 0.45)  # the views still answer
+    assert "no peak near" in window.banner_text
+
+
+def test_roi_locked_while_streaming_restarts_the_stream(qtbot, open_windows, tmp_path, monkeypatch):
+    window = _flaky_window(qtbot, open_windows, tmp_path, monkeypatch)
+    _wait_frames(qtbot, window)
+    window.apply_setting("roi", (32, 16, 128, 160))
+    assert window.session.running and window.session.source.frame_shape == (160, 128)
+    qtbot.waitUntil(lambda: window.hologram.image.image.shape == (160, 128), timeout=5000)
+    assert window.source_panel.editor("roi").text() == "left 32, top 16, 128 x 160 px"

@@ -1,0 +1,62 @@
+"""``holoview live`` opens the window on the simulated camera and closes cleanly."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+pytestmark = pytest.mark.gui
+
+
+def test_holoview_live_runs_and_quits(tmp_path: Path) -> None:
+    env = {**os.environ, "QT_QPA_PLATFORM": "offscreen", "XDG_CONFIG_HOME": str(tmp_path)}
+    experiment = tmp_path / "exp.json"
+    result = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "holoview",
+            "live",
+            "--quit-after",
+            "2",
+            "--experiment",
+            str(experiment),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        env=env,
+        check=False,
+    )
+    assert result.returncode == 0, result.stderr
+    assert "Traceback" not in result.stderr
+    assert (tmp_path / "holoview" / "ui.ini").is_file()  # the layout was remembered
+    assert experiment.is_file()  # the simulator's optics were adopted and saved
+
+
+def test_holoview_live_with_a_missing_file_stays_open_and_quits(tmp_path: Path) -> None:
+    env = {**os.environ, "QT_QPA_PLATFORM": "offscreen", "XDG_CONFIG_HOME": str(tmp_path)}
+    result = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "holoview",
+            "live",
+            "--source",
+            f"replay:{tmp_path / 'no.h5'}",
+            "--quit-after",
+            "1",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        env=env,
+        check=False,
+    )
+    assert result.returncode == 0, result.stderr
+    assert "Traceback" not in result.stderr
+    assert "cannot start replay" in result.stderr  # logged as a warning, shown in the window
