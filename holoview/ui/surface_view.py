@@ -330,7 +330,7 @@ class SurfaceView(QWidget):
         self._apply_cmap()
         unit = "phase (rad)" if self._mode == "phase" else "delta h (nm)"
         self.profile.setLabel("left", unit)
-        self.colour_bar.axis.setLabel(unit)
+        self.colour_bar.getAxis("left").setLabel(unit)
         self.colour_bar.setLevels(self._current_levels())
 
     def _apply_cmap(self) -> None:

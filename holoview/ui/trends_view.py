@@ -42,7 +42,7 @@ class TrendsView(QWidget):
         self.plot.setLabel("bottom", "time", units="s")
         self.plot.setLabel("left", "mean depth change (nm)")
         self.plot.getAxis("left").enableAutoSIPrefix(False)
-        self.plot.addLegend(offset=(5, 5))
+        self.plot.addLegend(offset=(-10, 10))
         self.plot.showGrid(x=True, y=True, alpha=0.3)
         self.curves: dict[str, pg.PlotDataItem] = {}
         self.fit_curve = pg.PlotDataItem(pen=pg.mkPen("y", width=1, style=Qt.PenStyle.DotLine))

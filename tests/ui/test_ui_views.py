@@ -165,7 +165,7 @@ def test_surface_maps_in_nm_profiles_and_cyclic_phase(qtbot) -> None:
     assert view.mode == "phase"
     assert tuple(view.images["RB1"].levels) == pytest.approx((-np.pi, np.pi))
     assert view.colour_bar.colorMap().name == "CET-C6"
-    assert view.colour_bar.axis.labelText == "phase (rad)"
+    assert view.colour_bar.getAxis("left").labelText == "phase (rad)"
 
 
 def test_trends_show_rate_in_um_per_min(qtbot) -> None:
