@@ -32,12 +32,13 @@ applies its response (:mod:`holoview.optics.camera`).
 Beam-splitter ghosts are not traced: a ghost copies an arm's traced field with its
 extra tilt and amplitude.
 
-Cost: about 6 surface hits per start ray for water (F, then B1..B4 leaving, B5 under
-the threshold), each hit 19 evaluations of ``h`` (3 Newton steps with a central-
-difference gradient, and the normal); about 0.5 s at 256 x 256 and 8-10 s at
-1024 x 1024 for a six-mode standing-wave surface on the 2-core development machine,
-memory about 1 kB per start ray. The fast synthesiser is 100-1000x cheaper; use
-this to check it.
+Cost: about 6 surface hits per start ray for water (F, then B1..B4 leaving; B5 falls
+under the threshold), each hit 19 evaluations of ``h`` (3 Newton steps with a
+central-difference gradient, and the normal), so the surface function dominates.
+Measured (``benchmarks/bench_synthesis.py``, 2-core EPYC, six-mode standing waves):
+about 2 s at 256 x 256 (0.9 million rays) and 40-60 s at 1024 x 1024 (12 million
+rays), some 700x the fast synthesis; a uniform level traces about 10x faster. Memory
+is about 1 kB per live ray. Use it to check the fast synthesiser, not to make data.
 """
 
 from __future__ import annotations
