@@ -114,22 +114,6 @@ def pad_edge(
     return out
 
 
-def shift_map(h: np.ndarray, dy: float, dx: float) -> np.ndarray:
-    """Return ``h`` sampled at ``(row + dy, col + dx)`` (pixels), bilinear, edges clamped.
-
-    Returns
-    -------
-    ndarray, shape of ``h``, float32
-    """
-    rows, cols = h.shape
-    pad = math.ceil(max(abs(dy), abs(dx))) + 1
-    padded = pad_edge(h, pad)
-    out = np.zeros((rows, cols), dtype=np.float32)
-    for oy, ox, weight in bilinear_taps(dy, dx):
-        out += np.float32(weight) * padded[pad + oy : pad + oy + rows, pad + ox : pad + ox + cols]
-    return out
-
-
 @dataclass(frozen=True)
 class _HeightGroup:
     """Beams that share a height term: the same kappa and walk-off centroid.
