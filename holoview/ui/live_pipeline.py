@@ -161,6 +161,11 @@ class DemodulationStage:
             for p, q in zip(peaks, demod.peaks, strict=True)
         )
 
+    def reset_reference(self) -> None:
+        """Make the next frame the absolute reference (maps start from zero again)."""
+        if self._demod is not None:
+            self._demod.reset_reference()
+
     def run(
         self, frame: np.ndarray, peaks: list[Peak], e: ExperimentSettings
     ) -> DemodResult | None:
@@ -206,6 +211,9 @@ def fuse_maps(result: DemodResult) -> np.ndarray | None:
 class LivePipeline:
     """Turn frames into :class:`LiveResult` objects; used by one thread at a time.
 
+    Commands (:meth:`apply`) change the experiment settings, turn the PCA on or off,
+    or restart the series (and the absolute reference) from the next frame.
+
     Parameters
     ----------
     experiment : ExperimentSettings
@@ -248,6 +256,7 @@ class LivePipeline:
         elif name == "reset":
             self._trends.reset()
             self._trend = None
+            self._demod.reset_reference()
         else:
             raise InputError(f"unknown command {name!r}")
 

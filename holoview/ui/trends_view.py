@@ -52,6 +52,7 @@ class TrendsView(QWidget):
         self.pca_box = QCheckBox("PCA identification")
         self.pca_box.toggled.connect(self.pcaRequested.emit)
         self.reset_button = QPushButton("Restart series")
+        self.reset_button.setToolTip("start the series and the absolute reference from now")
         self.reset_button.clicked.connect(self.resetRequested.emit)
         self.pca_label = QLabel()
         self.pca_label.setWordWrap(True)

@@ -32,5 +32,6 @@ def open_windows(qtbot) -> Iterator[list]:
         window.close()
         assert not window.timer.isActive()
         assert window.session is None
-        for timer in window.findChildren(QTimer):
-            assert not timer.isActive() or timer.objectName() != "holoview-redraw"
+        ours = [t for t in window.findChildren(QTimer) if t.objectName().startswith("holoview")]
+        assert {t.objectName() for t in ours} >= {"holoview-redraw", "holoview-discovery"}
+        assert not [t.objectName() for t in ours if t.isActive()]

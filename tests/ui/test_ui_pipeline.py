@@ -79,3 +79,15 @@ def test_commands_change_settings_between_frames() -> None:
     pipeline.apply("pca", True)
     result = _run(pipeline, frames)[-1]
     assert "RB1" in result.labelled and pipeline.pca
+
+
+def test_reset_restarts_series_and_absolute_reference(monkeypatch) -> None:
+    monkeypatch.setattr(live_pipeline, "TREND_HZ", math.inf)
+    pipeline = LivePipeline(_experiment(), (128, 128))
+    frames = hologram_stack(6, (128, 128))
+    before = _run(pipeline, frames[:4])[-1]
+    assert np.nanmax(np.abs(before.fused_m)) > 5e-9
+    pipeline.apply("reset", None)
+    after = _run(pipeline, frames[4:5])[-1]
+    assert np.nanmax(np.abs(after.fused_m)) < 1e-12  # the new reference frame
+    assert after.trend_times_s is None  # fewer than three frames since the restart
