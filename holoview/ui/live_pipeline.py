@@ -1,7 +1,8 @@
 """What the demodulation worker does with each frame (glue over holoview.processing).
 
 Per frame: the display spectrum (at most :data:`SPECTRUM_HZ`), peak detection (at
-most :data:`PEAKS_HZ`; carriers drift slowly), the labelled peaks followed onto the
+most :data:`PEAKS_HZ`; carriers drift slowly; each of the two at most a
+:data:`SIDE_SHARE` of the worker's time), the labelled peaks followed onto the
 detected ones, the model's predicted carriers once two are labelled (and the
 detected peaks they match labelled too), the demodulated delta-h map of every
 labelled peak, the fused map, and the mean depth series with the evaporation rate.
@@ -35,6 +36,9 @@ logger = logging.getLogger(__name__)
 SPECTRUM_HZ = 10.0
 #: Highest rate of peak detection, Hz.
 PEAKS_HZ = 1.0
+#: Most of the worker's time the display spectrum and the peak detection may each take
+#: (their rates drop below the ones above when a frame is large or the machine slow).
+SIDE_SHARE = 0.1
 #: FFTW threads of the live worker. One: the GUI thread needs the other core, and a
 #: two-thread FFT whose second thread waits for a busy core takes 10-100 times longer.
 FFT_THREADS = 1
@@ -234,6 +238,8 @@ class LivePipeline:
         self._seq = 0
         self._spectrum: np.ndarray | None = None
         self._spectrum_at = -math.inf
+        self._spectrum_cost = 0.0
+        self._peaks_cost = 0.0
         self._peaks: list[Peak] = []
         self._peaks_at = -math.inf
         self._demod = DemodulationStage(frame_shape, saturation)
@@ -322,13 +328,17 @@ class LivePipeline:
         start = time.perf_counter()
         now = time.monotonic()
         e = self.experiment
-        if now - self._spectrum_at >= 1.0 / SPECTRUM_HZ:
+        if now - self._spectrum_at >= max(1.0 / SPECTRUM_HZ, self._spectrum_cost / SIDE_SHARE):
+            tick = time.perf_counter()
             self._spectrum = block_max(
                 display_spectrum(frame, threads=FFT_THREADS), SPECTRUM_DISPLAY_MAX
             )
+            self._spectrum_cost = time.perf_counter() - tick
             self._spectrum_at = now
-        if now - self._peaks_at >= 1.0 / PEAKS_HZ:
+        if now - self._peaks_at >= max(1.0 / PEAKS_HZ, self._peaks_cost / SIDE_SHARE):
+            tick = time.perf_counter()
             self._peaks = find_peaks(frame, radius=e.radius, threads=FFT_THREADS)
+            self._peaks_cost = time.perf_counter() - tick
             self._peaks_at = now
         key = (id(self._peaks), e)
         if key != self._labelling_key:
