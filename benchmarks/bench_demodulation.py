@@ -104,8 +104,12 @@ def bump(
     return height * np.exp(-((y - rows / 2) ** 2 + (x - cols / 2) ** 2) / (2 * sigma**2))
 
 
-def median_ms(fn: Callable[[], object], repeats: int, warmup: int = 3) -> float:
-    """Median wall time of ``fn`` in milliseconds."""
+def timed_ms(fn: Callable[[], object], repeats: int, warmup: int = 3) -> tuple[float, float]:
+    """Median and best (shortest) wall time of ``fn``, in milliseconds.
+
+    On a machine shared with other work the median carries the others' load; the best
+    of many calls is what the code takes when it has the cores to itself.
+    """
     for _ in range(warmup):
         fn()
     times = []
@@ -113,7 +117,22 @@ def median_ms(fn: Callable[[], object], repeats: int, warmup: int = 3) -> float:
         start = time.perf_counter()
         fn()
         times.append(time.perf_counter() - start)
-    return 1e3 * statistics.median(times)
+    return 1e3 * statistics.median(times), 1e3 * min(times)
+
+
+def target(
+    targets: list[tuple[str, str]],
+    what: str,
+    timing: tuple[float, float],
+    ok: Callable[[float], bool],
+    unit: Callable[[float], str],
+) -> None:
+    """Record a timing target as met or missed for the median and for the best time."""
+    verdicts = [
+        f"{'met' if ok(t) else 'MISSED'} ({name} {unit(t)})"
+        for name, t in zip(("median", "best"), timing, strict=True)
+    ]
+    targets.append((what, ", ".join(verdicts)))
 
 
 class Naive:
@@ -150,43 +169,49 @@ def machine() -> str:
     except OSError:
         pass
     load = ", ".join(f"{v:.2f}" for v in os.getloadavg())
-    return (
-        f"{platform.node()}: {model}, nproc {os.cpu_count()}, "
-        f"FFTW threads {default_threads()}, load average {load}"
-    )
+    return f"{platform.node()}: {model}, nproc {os.cpu_count()}, load average {load}"
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="1024 x 1024 only, fewer frames")
     parser.add_argument("--frames", type=int, default=60, help="frames timed per case (median)")
+    parser.add_argument(
+        "--threads",
+        type=int,
+        default=None,
+        help="FFTW threads of the frame's FFT (default: all cores, at most 4)",
+    )
     args = parser.parse_args(argv)
     os.environ.setdefault(
         "HOLOVIEW_CACHE_DIR", str(Path(tempfile.gettempdir()) / "holoview-bench-cache")
     )
     sizes = (1024,) if args.quick else (1024, 2048)
-    frames_timed = 20 if args.quick else args.frames
+    frames_timed = 30 if args.quick else args.frames
+    threads = args.threads or default_threads()
     rng = np.random.default_rng(2026)
-    print("machine:", machine())
-    targets: list[tuple[str, bool, str]] = []
+    print("machine:", machine(), f"| FFTW threads used: {threads}")
+    targets: list[tuple[str, str]] = []
 
     print("\n== one forward real FFT of the frame (float32)")
     fft_ms = {}
     for n in sizes:
         frame = rng.poisson(PHOTONS, (n, n)).astype(np.uint16)
-        plan = rfft2_plan((n, n), threads=default_threads())
+        plan = rfft2_plan((n, n), threads=threads)
         np.copyto(plan.input_array, frame, casting="unsafe")
-        fft_ms[n] = median_ms(plan, frames_timed * 2)
-        numpy_ms = median_ms(lambda f=frame: np.fft.rfft2(f.astype(np.float32)), 5, warmup=1)
-        display_ms = median_ms(lambda f=frame: display_spectrum(f), frames_timed)
+        fft_ms[n] = timed_ms(plan, frames_timed * 2)
+        numpy_ms = timed_ms(lambda f=frame: np.fft.rfft2(f.astype(np.float32)), 5, warmup=1)
+        display_ms = timed_ms(lambda f=frame: display_spectrum(f, threads=threads), frames_timed)
         print(
-            f"{n} x {n}: pyFFTW {fft_ms[n]:7.2f} ms   numpy {numpy_ms:7.2f} ms   "
-            f"display spectrum (FFT + log magnitude, centred) {display_ms:6.2f} ms"
+            f"{n} x {n}: pyFFTW {fft_ms[n][0]:6.2f} (best {fft_ms[n][1]:6.2f}) ms   "
+            f"numpy {numpy_ms[0]:6.2f} ms   display spectrum (FFT + centred log magnitude) "
+            f"{display_ms[0]:6.2f} (best {display_ms[1]:6.2f}) ms"
         )
 
-    print("\n== frames per second (median over frames); naive = full-size numpy, same run")
-    header = ("size", "peaks", "box", "reference", "unwrap", "ms", "fps", "naive fps", "ratio")
-    widths = (9, 5, 9, 9, 6, 8, 8, 10, 7)
+    print("\n== frames per second (median and best over frames); naive = full-size numpy, same run")
+    header = ("size", "peaks", "box", "reference", "unwrap", "ms", "fps", "best ms", "best fps")
+    header += ("naive fps", "ratio")
+    widths = (9, 5, 9, 9, 6, 8, 8, 8, 8, 10, 7)
     print(" ".join(f"{h:>{w}}" for h, w in zip(header, widths, strict=True)))
     for n in sizes:
         shape = (n, n)
@@ -194,10 +219,10 @@ def main(argv: list[str] | None = None) -> int:
             peaks = bench_peaks(count)
             flat = synth(shape, peaks, 0.0, rng)
             wrapped = synth(shape, peaks, bump(shape, 1.0e-6, n / 7), rng)
-            base = Demodulator(shape, peaks, wavelength=WAVELENGTH)
+            base = Demodulator(shape, peaks, wavelength=WAVELENGTH, threads=threads)
             naive = Naive(shape, peaks, base.radius)
             naive.process(flat)
-            naive_ms = median_ms(lambda nv=naive, a=flat, b=wrapped: nv.process(b), 2, warmup=1)
+            naive_ms, _ = timed_ms(lambda nv=naive, b=wrapped: nv.process(b), 2, warmup=1)
             for mode in REFERENCE_MODES:
                 for unwrap in ("never", "auto"):
                     demod = base.with_peaks(peaks, reference=mode, unwrap=unwrap)
@@ -210,34 +235,29 @@ def main(argv: list[str] | None = None) -> int:
                         s["k"] += 1
                         d.process(seq[s["k"] % 2])
 
-                    ms = median_ms(step, frames_timed)
-                    ratio = naive_ms / ms
+                    timing = timed_ms(step, frames_timed)
+                    ms, best = timing
                     box = f"{demod.box_shape[0]}x{demod.box_shape[1]}"
                     row = (f"{n}x{n}", count, box, mode, unwrap, f"{ms:.2f}", f"{1e3 / ms:.1f}")
-                    row += (f"{1e3 / naive_ms:.2f}", f"{ratio:.0f}x")
+                    row += (f"{best:.2f}", f"{1e3 / best:.1f}")
+                    row += (f"{1e3 / naive_ms:.2f}", f"{naive_ms / ms:.0f}x")
                     print(" ".join(f"{v:>{w}}" for v, w in zip(row, widths, strict=True)))
+                    if count == 4 and mode == "relative" and unwrap == "never":
+                        fps = 250 if n == 1024 else 60
+                        target(
+                            targets,
+                            f"{n}^2, 4 peaks, relative, no unwrap: >= {fps} fps",
+                            timing,
+                            lambda t, f=fps: 1e3 / t >= f,
+                            lambda t: f"{1e3 / t:.0f} fps",
+                        )
                     if n == 1024 and count == 4 and mode == "relative" and unwrap == "never":
-                        targets.append(
-                            (
-                                "1024^2, 4 peaks, relative, no unwrap: >= 250 fps",
-                                1e3 / ms >= 250,
-                                f"{1e3 / ms:.0f} fps",
-                            )
-                        )
-                        targets.append(
-                            (
-                                "  ... and no slower than 2x one forward rfft",
-                                ms <= 2 * fft_ms[n],
-                                f"{ms:.2f} ms vs 2 x {fft_ms[n]:.2f} ms",
-                            )
-                        )
-                    if n == 2048 and count == 4 and mode == "relative" and unwrap == "never":
-                        targets.append(
-                            (
-                                "2048^2, 4 peaks (relative): >= 60 fps",
-                                1e3 / ms >= 60,
-                                f"{1e3 / ms:.0f} fps",
-                            )
+                        target(
+                            targets,
+                            "  ... and no slower than 2 x one forward rfft (same statistic)",
+                            (ms / fft_ms[n][0], best / fft_ms[n][1]),
+                            lambda r: r <= 2,
+                            lambda r: f"{r:.2f} x",
                         )
 
     print("\n== unwrapping where wraps exist: 4 peaks on 256 x 256 boxes (1024 x 1024 frames)")
@@ -249,7 +269,13 @@ def main(argv: list[str] | None = None) -> int:
         use = peaks if with_alpha else [p.relabelled(p.label, None) for p in peaks]
         for mode in REFERENCE_MODES:
             demod = Demodulator(
-                shape, use, reference=mode, radius=0.124, unwrap="auto", wavelength=WAVELENGTH
+                shape,
+                use,
+                reference=mode,
+                radius=0.124,
+                unwrap="auto",
+                wavelength=WAVELENGTH,
+                threads=threads,
             )
             state = {"k": 0}
 
@@ -257,12 +283,19 @@ def main(argv: list[str] | None = None) -> int:
                 s["k"] += 1
                 d.process((flat, wrapped)[s["k"] % 2])
 
-            ms = median_ms(step, frames_timed)
+            timing = timed_ms(step, frames_timed)
             what = "alphas known (guided)" if with_alpha else "no alphas (each in space)"
-            print(f"{mode:>9}, {what:26}: {ms:7.2f} ms per frame, box {demod.box_shape}")
+            print(
+                f"{mode:>9}, {what:26}: {timing[0]:7.2f} ms per frame (best {timing[1]:6.2f}), "
+                f"box {demod.box_shape}"
+            )
             if with_alpha:
-                targets.append(
-                    (f"unwrap, 4 peaks, 256^2 boxes, {mode}: < 20 ms", ms < 20, f"{ms:.1f} ms")
+                target(
+                    targets,
+                    f"unwrap, 4 peaks, 256^2 boxes, {mode}: < 20 ms",
+                    timing,
+                    lambda t: t < 20,
+                    lambda t: f"{t:.1f} ms",
                 )
 
     print("\n== accuracy on simulated frames (1024 x 1024, 800 photons/pixel, relative reference)")
@@ -303,24 +336,25 @@ def main(argv: list[str] | None = None) -> int:
     best = min(float(np.sqrt(np.mean(np.square(e)))) for e in errors.values())
     print(f"fused: rms error {fused_rms * 1e9:7.3f} nm   (best single peak {best * 1e9:.3f} nm)")
     rb1 = float(np.sqrt(np.mean(np.square(errors["RB1"]))))
+    ratio = rb1 / bounds["RB1"]
+    verdict = "met" if ratio <= 1.2 else "MISSED"
     targets.append(
         (
-            "RB1 delta-h rms error within 1.2x the shot-noise bound",
-            rb1 <= 1.2 * bounds["RB1"],
-            f"ratio {rb1 / bounds['RB1']:.2f}",
+            "RB1 delta-h rms error within 1.2 x the shot-noise bound",
+            f"{verdict} (ratio {ratio:.2f})",
         )
     )
+    verdict = "met" if fused_rms < best else "MISSED"
     targets.append(
         (
             "fused map error below the best single peak's",
-            fused_rms < best,
-            f"{fused_rms * 1e9:.3f} vs {best * 1e9:.3f} nm",
+            f"{verdict} ({fused_rms * 1e9:.3f} vs {best * 1e9:.3f} nm)",
         )
     )
 
     print("\n== targets")
-    for what, ok, figure in targets:
-        print(f"[{'met' if ok else 'MISSED':>6}] {what}: {figure}")
+    for what, verdict in targets:
+        print(f"{what}: {verdict}")
     print("\nload average at the end:", ", ".join(f"{v:.2f}" for v in os.getloadavg()))
     return 0
 

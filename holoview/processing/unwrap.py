@@ -19,8 +19,16 @@ TWO_PI = 2.0 * np.pi
 
 
 def wrap(phase: np.ndarray | float) -> np.ndarray:
-    """Wrap phases (rad) into [-pi, pi)."""
-    return (np.asarray(phase) + np.pi) % TWO_PI - np.pi
+    """Wrap phases (rad) into [-pi, pi] (float32 stays float32).
+
+    ``p - 2 pi rint(p / 2 pi)``: four vectorised passes, several times faster than ``%``.
+    """
+    p = np.asarray(phase)
+    if p.dtype.kind != "f":
+        p = p.astype(np.float64)
+    turns = np.rint(p * p.dtype.type(1 / TWO_PI))
+    turns *= p.dtype.type(TWO_PI)
+    return p - turns
 
 
 def has_wraps(phase: np.ndarray, mask: np.ndarray | None = None) -> bool:
