@@ -51,7 +51,7 @@ class HologramView(QWidget):
             self.plot.getAxis(axis).enableAutoSIPrefix(False)
         # the screen shows fewer pixels than a camera has: downsampling before the
         # colour lookup keeps large frames cheap to draw (the readout uses raw values)
-        self.image = pg.ImageItem(axisOrder="row-major", autoDownsample=True)
+        self.image = pg.ImageItem(axisOrder="row-major", autoDownsample=False)
         self.overlay = pg.ImageItem(axisOrder="row-major", autoDownsample=True)
         self._overlay_shown = False
         self._histogram_at = -math.inf

@@ -66,6 +66,7 @@ class RecordingPanel(QWidget):
     def __init__(self, default_dir: Path | None = None, parent: QWidget | None = None) -> None:
         super().__init__(parent)
         self._recording = False
+        self._shown: tuple[RecordingProgress | None] | None = None
         folder = default_dir or Path.cwd()
         self.path_edit = QLineEdit(str(folder / "recording.h5"))
         browse = QToolButton()
@@ -123,7 +124,10 @@ class RecordingPanel(QWidget):
             self.startRequested.emit(self.request())
 
     def set_progress(self, progress: RecordingProgress | None) -> None:
-        """Show the recorder's progress (None: idle)."""
+        """Show the recorder's progress (None: idle); nothing is redone when unchanged."""
+        if self._shown == (progress,):
+            return
+        self._shown = (progress,)
         self._recording = progress is not None and progress.active
         self.record_button.setText("Stop recording" if self._recording else "Record")
         for widget in (self.path_edit, self.limit_box, self.duration_spin, self.frames_spin):

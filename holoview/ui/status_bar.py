@@ -52,15 +52,20 @@ class LiveStatusBar(QStatusBar):
             self.latency_label,
         ):
             self.addPermanentWidget(label)
+        self._figures: LiveFigures | None = None
         self.set_figures(LiveFigures())
 
     def set_figures(self, figures: LiveFigures) -> None:
-        """Show ``figures`` in the permanent fields."""
+        """Show ``figures`` in the permanent fields (nothing is redone when unchanged)."""
+        previous, self._figures = self._figures, figures
+        if figures == previous:
+            return
+        if previous is None or bool(figures.dropped) != bool(previous.dropped):
+            self.dropped_label.setStyleSheet("color: #c00000;" if figures.dropped else "")
         self.camera_label.setText(figures.camera)
         self.camera_fps_label.setText(f"camera {figures.camera_fps:5.1f} fps")
         self.processing_fps_label.setText(f"processing {figures.processing_fps:5.1f} fps")
         self.display_fps_label.setText(f"display {figures.display_fps:4.1f} fps")
         self.dropped_label.setText(f"dropped {figures.dropped}")
-        self.dropped_label.setStyleSheet("color: #c00000;" if figures.dropped else "")
         latency = "-" if figures.latency_s is None else f"{figures.latency_s * 1e3:4.0f} ms"
         self.latency_label.setText(f"latency {latency}")
