@@ -246,6 +246,14 @@ def _coherent(setup: Setup, label: str) -> tuple[complex, tuple[complex, complex
     return total, (moment[0], moment[1]), norm
 
 
+def predict_carriers(setup: Setup, max_order: int = 2) -> dict[str, tuple[float, float]]:
+    """Return every family's stored-twin carrier, cycles/pixel (unfolded), by label.
+
+    A shortcut for ``{f.label: f.carrier for f in predict_families(setup, max_order)}``.
+    """
+    return {f.label: f.carrier for f in predict_families(setup, max_order)}
+
+
 def coherent_amplitude(setup: Setup, label: str) -> float:
     """Return the amplitude of the spectral peak at ``label``'s carrier from the field sum.
 

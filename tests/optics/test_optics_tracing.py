@@ -56,7 +56,7 @@ def test_traced_frame_carriers_match_the_model() -> None:
     spec = spectrum(frame * np.outer(np.hanning(rows), np.hanning(cols)))
     noise = 1 / math.sqrt(setup.photons_per_pixel * frame.size)
     families = predict_families(setup, max_order=3, second_order=False)
-    checked = _isolated(families, setup.shape, floor=40 * noise)
+    checked = _isolated(setup, families, floor=40 * noise)
     assert {"RF", "RB1", "RB2"} <= {f.label for f in checked}
     for family in checked:
         fx, fy, _ = peak_near(spec, family.observed_carrier)
