@@ -271,10 +271,30 @@ def write_truth(
         table["peak_displacement_m"] = np.array([p[1:] for p in peaks]).reshape(-1, 2)
 
 
-def spectrum_figure(frame: np.ndarray, families: list[Family], size: int = 512) -> np.ndarray:
+def visible_amplitudes(setup: Setup, families: list[Family]) -> dict[str, float]:
+    """Return each family's peak size: the coherent field sum for first orders.
+
+    Pairs sharing a carrier add up (and cancel, at FB_j near a lossless mirror); a
+    second-order peak keeps its own amplitude.
+    """
+    from holoview.optics.families import coherent_amplitude
+
+    return {
+        f.label: f.amplitude if f.kind == "second-order" else coherent_amplitude(setup, f.label)
+        for f in families
+    }
+
+
+def spectrum_figure(
+    frame: np.ndarray,
+    families: list[Family],
+    size: int = 512,
+    amplitudes: dict[str, float] | None = None,
+) -> np.ndarray:
     """Return a BGR image: the frame beside its log spectrum, predicted carriers marked.
 
-    Each family of amplitude >= 1e-3 gets a circle at its observed carrier (stored
+    Each family whose peak (``amplitudes[label]``, default its own amplitude) is at
+    least 1e-3 gets a circle at its observed carrier (stored
     twin) labelled with its name (red: aliased, yellow: second order, green: the rest),
     and a small dot at its conjugate twin.
     """
@@ -298,7 +318,8 @@ def spectrum_figure(frame: np.ndarray, families: list[Family], size: int = 512) 
     width, height = target
     marks: dict[tuple[int, int], list[Family]] = {}
     for family in families:
-        if family.amplitude >= 1e-3:
+        size_of_peak = family.amplitude if amplitudes is None else amplitudes[family.label]
+        if size_of_peak >= 1e-3:
             fx, fy = family.observed_carrier
             marks.setdefault((round((0.5 + fx) * width), round((0.5 + fy) * height)), []).append(
                 family
@@ -342,9 +363,10 @@ def run(args: argparse.Namespace) -> int:
     setup = build_setup(args)
     config = build_config(args)
     families = predict_families(setup, max_order=MAX_ORDER)
+    visible = visible_amplitudes(setup, families)
     for family in families:
-        if family.aliased and family.amplitude >= 1e-3:
-            log = logger.warning if family.amplitude >= 1e-2 else logger.info
+        if family.aliased and visible[family.label] >= 1e-3:
+            log = logger.warning if visible[family.label] >= 1e-2 else logger.info
             log(
                 "%s carrier (%+.3f, %+.3f) cycles/pixel is past Nyquist; it appears folded "
                 "at (%+.3f, %+.3f)",
@@ -393,7 +415,11 @@ def run(args: argparse.Namespace) -> int:
         args=args,
         surface=surface,
     )
-    figure = None if figure_frame is None else spectrum_figure(figure_frame, families)
+    figure = (
+        None
+        if figure_frame is None
+        else spectrum_figure(figure_frame, families, amplitudes=visible)
+    )
     if args.png is not None and not cv2.imwrite(str(args.png), figure):
         raise InputError(f"could not write {args.png}")
     logger.info("wrote %d frames to %s", len(truths), args.out)
