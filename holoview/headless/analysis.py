@@ -1,0 +1,339 @@
+"""After the frames: which peak is which, depth series, fused depth, rates and flags.
+
+Everything here works on the per-frame carrier values a run kept
+(:class:`~holoview.headless.pipeline.RunData`), through :mod:`holoview.processing`:
+
+- auto mode: :func:`~holoview.processing.identify.identify_peaks` (temporal PCA with the
+  reference peak's label, de-aliasing from the phase steps) names every peak and gives
+  its prefactor: the model's for a family, its repeats and second orders, the PCA's
+  for a peak the model does not explain (left out of the fusion, as weak ones are). A
+  peak with a negative prefactor sits on the other twin and is flipped;
+- known prefactors (peaks file, labels): the PCA is computed for information when it
+  can be (two peaks, frames that move);
+- :func:`~holoview.processing.trends.track_depth`: depth per peak relative to the first
+  frame, aliasing in time, the fusion weighted by each series' noise, and the rates
+  with standard errors.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from holoview.errors import InputError
+from holoview.headless.inputs import Optics
+from holoview.headless.pipeline import RunData
+from holoview.headless.selection import Selection
+from holoview.processing.identify import Identification, PeakKind, identify_peaks
+from holoview.processing.pca import phase_pca
+from holoview.processing.trends import (
+    DepthTrack,
+    RateFit,
+    check_aliasing,
+    track_depth,
+    unwrap_in_time,
+)
+
+logger = logging.getLogger(__name__)
+
+#: A peak flagged ``low_amplitude`` in more than this fraction of its frames gets the flag.
+LOW_AMPLITUDE_SHARE = 0.5
+
+#: Peak kinds of the PCA whose model prefactor is trusted (and fused).
+_IDENTIFIED = (PeakKind.FAMILY, PeakKind.REPEAT, PeakKind.SECOND_ORDER)
+
+
+@dataclass(frozen=True)
+class PeakOutcome:
+    """One peak after the run.
+
+    Attributes
+    ----------
+    label : str
+    carrier : tuple of float
+        ``(fx, fy)``, cycles/pixel, on the stored twin (phase grows with height).
+    alpha : float or None
+        Prefactor on the stored twin (positive), None when unknown.
+    amplitude, snr : float
+        From the peak detection on the first frame (NaN for a peak not detected).
+    flags : tuple of str
+        Sorted: detection flags (``harmonic``, ``sum``, ``overlap``, ``near_nyquist``,
+        ``weak``), ``aliased_in_time``, ``phase_step`` (some frame stepped past 0.8 pi),
+        ``low_amplitude``, ``not_detected``, and from the PCA ``repeat``,
+        ``second_order``, ``unexplained``.
+    rate, rate_stderr : float or None
+        Fitted depth rate and its standard error, m/s.
+    noise_m : float or None
+        Noise of the depth series about its line, m (the fusion weight's).
+    used_in_fused : bool
+    pca_alpha, explained : float or None
+        The PCA's prefactor on the stored twin and the share of the peak's variance
+        along the principal component.
+    map_scale : float or None
+        Metres per radian of the demodulated phase (sign included): converts the
+        phase maps of an auto run.
+    """
+
+    label: str
+    carrier: tuple[float, float]
+    alpha: float | None
+    amplitude: float
+    snr: float
+    flags: tuple[str, ...]
+    rate: float | None
+    rate_stderr: float | None
+    noise_m: float | None
+    used_in_fused: bool
+    pca_alpha: float | None
+    explained: float | None
+    map_scale: float | None
+
+
+@dataclass(frozen=True)
+class Analysis:
+    """Series and summaries of a run.
+
+    Attributes
+    ----------
+    peaks : tuple of PeakOutcome
+        In demodulation order.
+    phases : ndarray, shape (N, M)
+        Mean phase per frame and peak, rad, unwrapped in time, from 0 at the first
+        frame, on the stored twin.
+    heights : ndarray, shape (N, M)
+        Mean height change, m (NaN for a peak without alpha).
+    fused : ndarray or None, shape (N,)
+        Fused mean height change, m.
+    fused_spread : ndarray or None, shape (N,)
+        Weighted rms deviation of the fused peaks from it, m.
+    fit : RateFit or None
+        The fused depth's line (None with fewer than three frames or nothing fused).
+    pca : dict or None
+        ``confidence``, ``reference`` (label), ``prefactors`` and ``explained`` per label,
+        ``n_samples``; None when not computed.
+    notes : tuple of str
+        What a reader of the summary should know.
+    """
+
+    peaks: tuple[PeakOutcome, ...]
+    phases: np.ndarray
+    heights: np.ndarray
+    fused: np.ndarray | None
+    fused_spread: np.ndarray | None
+    fit: RateFit | None
+    pca: dict[str, object] | None
+    notes: tuple[str, ...]
+
+
+def _auto_names(ident: Identification) -> list[str]:
+    """Unique labels: families by name, repeats ``RB1_2``, ..., the rest ``P<index>``."""
+    names: list[str | None] = [None] * len(ident.peaks)
+    taken: set[str] = set()
+    for kinds in ((PeakKind.FAMILY,), (PeakKind.SECOND_ORDER, PeakKind.REPEAT)):
+        for p in ident.peaks:
+            if p.kind not in kinds or not p.label:
+                continue
+            name, k = p.label, 1
+            while name in taken:
+                k += 1
+                name = f"{p.label}_{k}"
+            names[p.index] = name
+            taken.add(name)
+    return [name or f"P{i}" for i, name in enumerate(names)]
+
+
+def _identify(
+    phases: np.ndarray, data: RunData, selection: Selection, optics: Optics
+) -> Identification:
+    assert optics.n2 is not None
+    if phases.shape[0] < 3:
+        raise InputError("--auto needs at least three frames: the PCA follows the phases in time")
+    steps = check_aliasing(data.values).measured_step
+    amplitudes = [p.amplitude for p in selection.peaks]
+    try:
+        return identify_peaks(
+            phases,
+            optics.n1,
+            optics.n2,
+            reference=selection.reference,
+            reference_label=selection.reference_label,
+            amplitudes=amplitudes,
+            steps=steps,
+        )
+    except InputError as exc:
+        raise InputError(
+            f"--auto: the PCA cannot identify the peaks ({exc}); label them instead "
+            "(--label or --peaks)"
+        ) from exc
+
+
+def _informative_pca(phases: np.ndarray, labels: list[str], alphas: list[float | None]):
+    """PCA of peaks with known prefactors, against the brightest with one (or None)."""
+    known = [j for j, a in enumerate(alphas) if a is not None]
+    if len(labels) < 2 or phases.shape[0] < 3 or not known:
+        return None
+    try:
+        pca = phase_pca(phases)
+        reference = known[0]
+        prefactors = pca.prefactors(reference, float(alphas[reference]))  # type: ignore[arg-type]
+    except InputError as exc:
+        logger.info("no PCA: %s", exc)
+        return None
+    return {
+        "confidence": pca.confidence,
+        "reference": labels[reference],
+        "prefactors": dict(zip(labels, map(float, prefactors), strict=True)),
+        "explained": dict(zip(labels, map(float, pca.explained), strict=True)),
+        "n_samples": pca.n_samples,
+    }
+
+
+def analyse(data: RunData, selection: Selection, optics: Optics) -> Analysis:
+    """Name the peaks (auto mode), convert to depths, fuse, fit rates, set flags.
+
+    Raises
+    ------
+    InputError
+        In auto mode, when the PCA cannot identify the peaks (too few frames, no motion).
+    """
+    wavelength = optics.wavelength_m
+    assert wavelength is not None
+    n, m = data.values.shape
+    peaks = selection.peaks
+    flags: list[set[str]] = [set(p.flags) for p in peaks]
+    for j, p in enumerate(peaks):
+        if not p.amplitude >= 0:
+            flags[j].add("not_detected")
+        counts = data.peak_flags[j]
+        if counts["phase_step"]:
+            flags[j].add("phase_step")
+        if counts["low_amplitude"] > LOW_AMPLITUDE_SHARE * n:
+            flags[j].add("low_amplitude")
+    raw_phases = unwrap_in_time(data.values) if n >= 2 else np.zeros((n, m))
+    raw_phases = np.where(np.isfinite(data.values), raw_phases, np.nan)
+    signed: list[float | None] = [p.alpha for p in peaks]
+    labels = [p.label or f"P{j}" for j, p in enumerate(peaks)]
+    fusable = [a is not None for a in signed]
+    pca_alpha: list[float | None] = [None] * m
+    explained: list[float | None] = [None] * m
+    pca_info = None
+    notes: list[str] = list(selection.notes)
+    if selection.mode == "auto":
+        ident = _identify(raw_phases, data, selection, optics)
+        labels = _auto_names(ident)
+        for j, p in enumerate(ident.peaks):
+            explained[j] = p.explained
+            pca_alpha[j] = p.alpha
+            if p.aliased:
+                flags[j].add("aliased_in_time")
+            if p.kind in _IDENTIFIED and p.expected_alpha is not None:
+                signed[j] = math.copysign(p.expected_alpha, p.alpha)
+                fusable[j] = True
+                if p.kind is PeakKind.REPEAT:
+                    flags[j].add("repeat")
+                if p.kind is PeakKind.SECOND_ORDER:
+                    flags[j].add("second_order")
+            else:
+                finite = math.isfinite(p.alpha) and p.alpha != 0
+                signed[j] = p.alpha if finite else None
+                fusable[j] = False
+                flags[j].add("weak" if p.kind is PeakKind.WEAK else "unexplained")
+        pca_info = {
+            "confidence": ident.confidence,
+            "reference": labels[ident.reference],
+            "prefactors": {},
+            "explained": {},
+            "n_samples": ident.pca.n_samples,
+        }
+        if selection.reference is not None and selection.reference_label == "RB1":
+            notes.append(
+                "auto: the brightest peak was taken as RB1 on the twin with fx > 0; if the "
+                "heights have the wrong sign, give --anchor RB1=fx,fy on the other twin"
+            )
+    signs = np.array([-1.0 if (a is not None and a < 0) else 1.0 for a in signed])
+    alphas = [abs(a) if a is not None else None for a in signed]
+    phases = raw_phases * signs + 0.0  # no negative zeros in the files
+    values = np.where(signs < 0, np.conj(data.values), data.values)
+    if pca_info is not None:
+        pca_info["prefactors"] = {
+            labels[j]: float(a * signs[j]) for j, a in enumerate(pca_alpha) if a is not None
+        }
+        pca_info["explained"] = {
+            labels[j]: float(e) for j, e in enumerate(explained) if e is not None
+        }
+    else:
+        pca_info = _informative_pca(phases, labels, alphas)
+    heights = np.full((n, m), np.nan)
+    for j, a in enumerate(alphas):
+        if a is not None:
+            heights[:, j] = phases[:, j] * wavelength / (4 * np.pi * a)
+    known = [j for j, a in enumerate(alphas) if a is not None]
+    rates: list[tuple[float, float] | None] = [None] * m
+    noise_m: list[float | None] = [None] * m
+    used = [False] * m
+    fused = spread = None
+    fit = None
+    track: DepthTrack | None = None
+    if n >= 3 and known:
+        try:
+            track = track_depth(
+                values[:, known],
+                data.times,
+                [alphas[j] for j in known],
+                wavelength,
+                exclude=[not fusable[j] for j in known],
+            )
+        except InputError as exc:
+            notes.append(f"no fused depth: {exc}")
+            logger.warning("no fused depth: %s", exc)
+    if track is not None:
+        fused, spread, fit = track.fused.depth, track.fused.spread, track.fit
+        for k, j in enumerate(known):
+            peak_fit = track.peak_fits[k]
+            if peak_fit is not None:
+                rates[j] = (peak_fit.rate, peak_fit.stderr)
+            noise = float(track.fused.noise[k])
+            noise_m[j] = noise if math.isfinite(noise) else None
+            used[j] = bool(track.fused.used[k])
+            if track.aliasing.aliased[k]:
+                flags[j].add("aliased_in_time")
+    elif known and any(fusable[j] for j in known):
+        chosen = [j for j in known if fusable[j]]
+        fused = np.nanmean(heights[:, chosen], axis=1)
+        used = [j in chosen for j in range(m)]
+    outcomes = []
+    for j, p in enumerate(peaks):
+        carrier = p.carrier if signs[j] > 0 else p.flipped().carrier
+        scale = None
+        if signed[j] is not None:
+            scale = wavelength / (4 * np.pi * signed[j])
+        outcomes.append(
+            PeakOutcome(
+                label=labels[j],
+                carrier=(float(carrier[0]), float(carrier[1])),
+                alpha=alphas[j],
+                amplitude=float(p.amplitude),
+                snr=float(p.snr),
+                flags=tuple(sorted(flags[j])),
+                rate=None if rates[j] is None else rates[j][0],
+                rate_stderr=None if rates[j] is None else rates[j][1],
+                noise_m=noise_m[j],
+                used_in_fused=used[j],
+                pca_alpha=None if pca_alpha[j] is None else float(pca_alpha[j] * signs[j]),
+                explained=explained[j],
+                map_scale=scale,
+            )
+        )
+    return Analysis(
+        peaks=tuple(outcomes),
+        phases=phases,
+        heights=heights,
+        fused=fused,
+        fused_spread=spread,
+        fit=fit,
+        pca=pca_info,
+        notes=tuple(notes),
+    )

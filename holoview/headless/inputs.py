@@ -1,0 +1,322 @@
+"""The input of a headless run: the frame file, its optics and its frame times.
+
+Physical parameters come from a holoview recording's ``/setup`` attributes when it
+has them, else from the user's options. An option given explicitly overrides the
+recording (with a warning naming both values): a recording made with a wrong setting
+can still be processed right. Frame times come from the file's own timestamps (the
+camera clock, else host arrival times, or a video's frame rate); ``fps_hz`` replaces
+them with ``index / fps_hz``, and files without times (TIFF stacks, image folders)
+need it.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from types import TracebackType
+from typing import Any, Self
+
+import numpy as np
+
+from holoview.acquire.recording import RecordingReader
+from holoview.acquire.replay_files import FrameFile, open_frame_file
+from holoview.errors import InputError
+from holoview.optics.setup import FLUIDS
+
+logger = logging.getLogger(__name__)
+
+#: Refractive index above the surface when neither the file nor the user gives one (air).
+DEFAULT_N1 = FLUIDS["air"]
+
+
+@dataclass(frozen=True)
+class OpticsOptions:
+    """What the user gave on the command line (None: not given), SI units.
+
+    Attributes
+    ----------
+    wavelength_m : float or None
+        Laser wavelength in vacuum, m.
+    pixel_pitch_m : float or None
+        Object-side pixel pitch, m.
+    n1, n2 : float or None
+        Refractive indices above the surface and of the fluid.
+    fluid : str or None
+        A name of :data:`holoview.optics.setup.FLUIDS` setting ``n2``.
+    fps_hz : float or None
+        Frame rate, frames per second, replacing the file's timestamps.
+    """
+
+    wavelength_m: float | None = None
+    pixel_pitch_m: float | None = None
+    n1: float | None = None
+    n2: float | None = None
+    fluid: str | None = None
+    fps_hz: float | None = None
+
+
+@dataclass(frozen=True)
+class Optics:
+    """The physical parameters a run uses, and where each came from.
+
+    Attributes
+    ----------
+    wavelength_m : float or None
+        Laser wavelength, m (None: unknown; heights need it).
+    pixel_pitch_m : float or None
+        Object-side pixel pitch, m (None: unknown; maps are then in pixels only).
+    n1, n2 : float or None
+        Refractive indices above the surface and of the fluid (n2 None: unknown).
+    sources : dict of str to str
+        Per parameter, ``"recording"``, ``"option"`` or ``"default"``.
+    """
+
+    wavelength_m: float | None
+    pixel_pitch_m: float | None
+    n1: float
+    n2: float | None
+    sources: dict[str, str] = field(default_factory=dict)
+
+    def require(self, *names: str) -> None:
+        """Raise InputError naming the option to give for each parameter that is unknown."""
+        options = {
+            "wavelength_m": "--wavelength (m)",
+            "n2": "--n2 or --fluid",
+            "pixel_pitch_m": "--pixel-pitch (m)",
+        }
+        missing = [options[name] for name in names if getattr(self, name) is None]
+        if missing:
+            raise InputError(f"the input does not say {' and '.join(missing)}: give it")
+
+
+def _positive(name: str, value: float | None) -> float | None:
+    if value is None:
+        return None
+    if not (math.isfinite(value) and value > 0):
+        raise InputError(f"{name} must be a positive number, got {value}")
+    return float(value)
+
+
+def resolve_optics(setup: dict[str, Any], options: OpticsOptions) -> Optics:
+    """Combine a recording's setup with the user's options (options win, with a warning).
+
+    Parameters
+    ----------
+    setup : dict
+        The recording's ``/setup`` attributes (``wavelength_m``, ``pixel_pitch_m``,
+        ``n1``, ``n2``); empty for files that carry none.
+    options : OpticsOptions
+        The user's values.
+
+    Raises
+    ------
+    InputError
+        For a non-positive value, an unknown fluid, both ``n2`` and ``fluid``, or
+        ``n2`` not above ``n1``.
+    """
+    if options.fluid is not None and options.n2 is not None:
+        raise InputError("give --n2 or --fluid, not both")
+    n2_option = options.n2
+    if options.fluid is not None:
+        if options.fluid not in FLUIDS:
+            raise InputError(
+                f"unknown fluid {options.fluid!r}; choose one of {', '.join(sorted(FLUIDS))}"
+            )
+        n2_option = FLUIDS[options.fluid]
+    given = {
+        "wavelength_m": _positive("--wavelength", options.wavelength_m),
+        "pixel_pitch_m": _positive("--pixel-pitch", options.pixel_pitch_m),
+        "n1": _positive("--n1", options.n1),
+        "n2": _positive("--n2", n2_option),
+    }
+    values: dict[str, float | None] = {}
+    sources: dict[str, str] = {}
+    for name, option in given.items():
+        stored = setup.get(name)
+        stored_value = None
+        if stored is not None:
+            try:
+                stored_value = float(stored)
+            except (TypeError, ValueError):
+                logger.warning("the recording's %s (%r) is not a number; ignored", name, stored)
+            if stored_value is not None and not (math.isfinite(stored_value) and stored_value > 0):
+                logger.warning("the recording's %s (%r) is not positive; ignored", name, stored)
+                stored_value = None
+        if option is not None:
+            if stored_value is not None and not math.isclose(option, stored_value, rel_tol=1e-9):
+                logger.warning(
+                    "%s: the option's %.6g replaces the recording's %.6g",
+                    name,
+                    option,
+                    stored_value,
+                )
+            values[name], sources[name] = option, "option"
+        elif stored_value is not None:
+            values[name], sources[name] = stored_value, "recording"
+        else:
+            values[name], sources[name] = None, "unknown"
+    if values["n1"] is None:
+        values["n1"], sources["n1"] = DEFAULT_N1, "default"
+    n1, n2 = values["n1"], values["n2"]
+    assert n1 is not None
+    if n2 is not None and not n2 > n1:
+        raise InputError(f"n2 ({n2:g}) must be above n1 ({n1:g}): the fluid is below the air")
+    return Optics(
+        wavelength_m=values["wavelength_m"],
+        pixel_pitch_m=values["pixel_pitch_m"],
+        n1=n1,
+        n2=n2,
+        sources=sources,
+    )
+
+
+def parse_frame_range(text: str | None, n_frames: int) -> range:
+    """Return the frame indices ``START:STOP`` selects (Python slice rules, no step).
+
+    Parameters
+    ----------
+    text : str or None
+        ``"START:STOP"``, either side optional (``"100:"``, ``":500"``), negative
+        counting from the end; None for every frame.
+    n_frames : int
+        Frames in the file.
+
+    Raises
+    ------
+    InputError
+        For text that is not ``START:STOP`` with integers, or a range with no frame.
+    """
+    if text is None:
+        return range(n_frames)
+    start_text, sep, stop_text = text.partition(":")
+    if not sep:
+        raise InputError(f"--frames takes START:STOP (e.g. 0:500), got {text!r}")
+    try:
+        start = int(start_text) if start_text.strip() else None
+        stop = int(stop_text) if stop_text.strip() else None
+    except ValueError as exc:
+        raise InputError(f"--frames takes integers START:STOP, got {text!r}") from exc
+    selected = range(n_frames)[slice(start, stop)]
+    if len(selected) == 0:
+        raise InputError(f"--frames {text} selects no frame of the {n_frames} in the input")
+    return selected
+
+
+def _increasing(times: np.ndarray) -> bool:
+    return bool(np.all(np.isfinite(times)) and np.all(np.diff(times) > 0))
+
+
+class InputFile:
+    """A frame file opened for a headless run, with its metadata.
+
+    Parameters
+    ----------
+    path : str or Path
+        A holoview recording, a TIFF stack, a folder of TIFF/PNG images, or a video.
+
+    Attributes
+    ----------
+    path : Path
+    kind : str
+        ``"hdf5"``, ``"tiff"``, ``"folder"`` or ``"video"``.
+    frame_shape : tuple of int
+        ``(rows, cols)``, pixels.
+    dtype : numpy dtype
+    setup : dict
+        A recording's ``/setup`` attributes (empty for other files).
+    saturation : float or None
+        The largest value the camera gives (counts), from the recording's significant
+        bits or the integer dtype; None for real-valued frames.
+    info : dict
+        What ``summary.json`` says of the input (path, kind, frames, shape, dtype and,
+        for a recording, its uuid, source and creation time).
+
+    Raises
+    ------
+    InputError
+        For a missing, unreadable, empty or unknown file (one line naming it).
+    """
+
+    def __init__(self, path: str | Path) -> None:
+        self.path = Path(path)
+        if not self.path.exists():
+            raise InputError(f"{self.path}: no such file or folder")
+        self.setup: dict[str, Any] = {}
+        self._host_times: np.ndarray | None = None
+        self.info: dict[str, Any] = {"path": str(self.path)}
+        bits: int | None = None
+        if self.path.is_file() and self.path.suffix.lower() in (".h5", ".hdf5"):
+            with RecordingReader(self.path) as reader:
+                self.setup = dict(reader.setup)
+                self._host_times = np.asarray(reader.t_host, dtype=np.float64)
+                bits = reader.significant_bits
+                self.info.update(
+                    uuid=reader.uuid, source=reader.source, created_utc=reader.created_utc
+                )
+        self._file: FrameFile = open_frame_file(self.path)
+        self.kind = self._file.kind
+        self.frame_shape = self._file.frame_shape
+        self.dtype = np.dtype(self._file.dtype)
+        if self.dtype.kind in "ui":
+            bits = bits or 8 * self.dtype.itemsize
+            self.saturation: float | None = float(2**bits - 1)
+        else:
+            self.saturation = None
+        self.info.update(
+            kind=self.kind,
+            frames_in_file=len(self),
+            frame_shape=list(self.frame_shape),
+            dtype=str(self.dtype),
+        )
+
+    def __len__(self) -> int:
+        return len(self._file)
+
+    def read(self, index: int) -> np.ndarray:
+        """Return frame ``index`` as a new array (InputError when it cannot be read)."""
+        return self._file.read(index)
+
+    def times(self, frames: range, fps_hz: float | None = None) -> np.ndarray:
+        """Return the times of ``frames`` in s, from 0 at the first of them.
+
+        With ``fps_hz`` the times are ``(index - first) / fps_hz``; otherwise the file's
+        camera timestamps, else a recording's host arrival times, are used.
+
+        Raises
+        ------
+        InputError
+            When the file has no usable times and ``fps_hz`` is not given.
+        """
+        indices = np.asarray(frames, dtype=np.int64)
+        if fps_hz is not None:
+            if not (math.isfinite(fps_hz) and fps_hz > 0):
+                raise InputError(f"--fps must be a positive number, got {fps_hz}")
+            return (indices - indices[0]) / float(fps_hz)
+        device = np.array([self._file.t_device(int(i)) for i in indices], dtype=np.float64)
+        if _increasing(device):
+            return device - device[0]
+        if self._host_times is not None:
+            host = self._host_times[indices]
+            if _increasing(host):
+                logger.info("%s: no camera timestamps; using host arrival times", self.path)
+                return host - host[0]
+        if indices.size == 1:
+            return np.zeros(1)
+        raise InputError(f"{self.path} carries no usable frame times: give --fps")
+
+    def close(self) -> None:
+        """Release the file."""
+        self._file.close()
+
+    def __enter__(self) -> Self:
+        return self
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        self.close()

@@ -1,0 +1,433 @@
+"""The files a headless run writes: ``trends.csv``, ``summary.json`` and ``results.h5``.
+
+``trends.csv``
+    Long format, one row per frame and peak, header
+    ``frame,time_s,label,alpha,mean_phase_rad,mean_height_m``; then the fused estimate
+    under the label ``fused`` (its ``alpha`` and ``mean_phase_rad`` empty). ``frame`` is
+    the input's frame index, ``time_s`` from 0 at the first processed frame, phases
+    (rad) and heights (m) relative to the first frame. An empty field is a value not
+    known (a frame that could not be demodulated, a peak without alpha).
+``summary.json``
+    See :func:`summary_document`.
+``results.h5`` (format ``holoview-results`` 1.0)
+    Root attributes: ``format``, ``format_version``, ``holoview_version``,
+    ``created_utc``, ``input``, and the parameters (``wavelength_m``, ``n1``, ``n2``,
+    ``pixel_pitch_m``, ``reference``, ``window``, ``radius_cpp``, ``unwrap``).
+    ``/trends``: ``frame`` (N,), ``time_s`` (N,), ``label`` (M,), ``alpha`` (M,),
+    ``mean_phase_rad`` (N, M), ``mean_height_m`` (N, M), ``carrier_value`` (N, M,
+    complex, counts), ``phase_noise_rad`` (N, M), ``fused_height_m`` (N,),
+    ``fused_spread_m`` (N,), with ``--area`` ``fused_volume_m3`` (N,); each with a
+    ``unit`` attribute. ``/peaks``: ``label``, ``carrier_cpp`` (M, 2), ``alpha``,
+    ``amplitude``, ``snr``, ``rate_m_per_s``, ``rate_stderr_m_per_s``,
+    ``used_in_fused``, ``flags`` (comma-separated).
+    With maps, ``/maps/<label>`` and ``/maps/fused``: float32, metres, shape
+    ``(frames, rows, cols)`` at the demodulation box's resolution (pixel ``(p, q)`` at
+    frame position ``(p * pixel_step_px[0], q * pixel_step_px[1])``), NaN where not
+    trusted; attributes ``unit``, ``quantity`` (``delta_h``), ``reference`` and
+    ``reference_description``, ``label``, ``alpha``, ``carrier_cpp``, ``frame_shape_px``,
+    ``pixel_step_px``, ``pixel_size_m`` (when the pixel pitch is known), ``window``,
+    ``radius_cpp``. A peak without alpha keeps its phase map (``unit`` ``rad``,
+    ``quantity`` ``phase``).
+"""
+
+from __future__ import annotations
+
+import csv
+import datetime as _dt
+import json
+import math
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import h5py
+import numpy as np
+
+from holoview import __version__
+from holoview.headless.analysis import Analysis, PeakOutcome
+from holoview.headless.inputs import Optics
+from holoview.headless.pipeline import ProcessSettings, RunData, fuse_maps
+
+#: The header of ``trends.csv``, exactly.
+TRENDS_HEADER = ("frame", "time_s", "label", "alpha", "mean_phase_rad", "mean_height_m")
+
+#: Format name and version of ``results.h5`` and ``summary.json``.
+RESULTS_FORMAT = "holoview-results"
+SUMMARY_FORMAT = "holoview-process-summary"
+FORMAT_VERSION = "1.0"
+
+#: What each reference mode means, for the map attributes.
+REFERENCE_DESCRIPTIONS = {
+    "relative": "each frame against the previous one (the first frame is zero)",
+    "absolute": "each frame against the first processed frame",
+    "synthetic": "against a plane wave at the carrier (up to a global 2 pi)",
+}
+
+
+def _number(value: float | None, fmt: str = ".10g") -> str:
+    if value is None or not math.isfinite(value):
+        return ""
+    return format(value, fmt)
+
+
+def write_trends_csv(path: Path, data: RunData, analysis: Analysis) -> None:
+    """Write ``trends.csv`` (module docstring), one frame at a time."""
+    with open(path, "w", newline="", encoding="utf-8") as f:
+        writer = csv.writer(f, lineterminator="\n")
+        writer.writerow(TRENDS_HEADER)
+        for i, (frame, t) in enumerate(zip(data.frames, data.times, strict=True)):
+            time_text = _number(float(t))
+            for j, peak in enumerate(analysis.peaks):
+                writer.writerow(
+                    (
+                        int(frame),
+                        time_text,
+                        peak.label,
+                        _number(peak.alpha),
+                        _number(float(analysis.phases[i, j])),
+                        _number(float(analysis.heights[i, j]), ".9e"),
+                    )
+                )
+            if analysis.fused is not None:
+                fused = float(analysis.fused[i])
+                writer.writerow((int(frame), time_text, "fused", "", "", _number(fused, ".9e")))
+
+
+def _clean(value: Any) -> Any:
+    """JSON-ready: NaN and infinities to None, numpy scalars to Python, tuples to lists."""
+    if isinstance(value, dict):
+        return {str(k): _clean(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_clean(v) for v in value]
+    if isinstance(value, np.generic):
+        value = value.item()
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
+
+
+def _peak_entry(peak: PeakOutcome) -> dict[str, Any]:
+    return {
+        "carrier": list(peak.carrier),
+        "alpha": peak.alpha,
+        "amplitude": peak.amplitude,
+        "snr": peak.snr,
+        "rate_m_per_s": peak.rate,
+        "rate_stderr_m_per_s": peak.rate_stderr,
+        "noise_m": peak.noise_m,
+        "used_in_fused": peak.used_in_fused,
+        "flags": list(peak.flags),
+    }
+
+
+def summary_document(
+    *,
+    input_info: dict[str, Any],
+    frames: range,
+    optics: Optics,
+    settings: ProcessSettings,
+    selection_mode: str,
+    data: RunData,
+    analysis: Analysis,
+) -> dict[str, Any]:
+    """Return ``summary.json``'s content.
+
+    Keys: ``format``, ``format_version``, ``holoview_version``, ``created_utc``;
+    ``input`` (path, kind, frames in the file, frame shape, dtype, the processed
+    ``frames`` as ``[start, stop]``, and a recording's uuid, source, creation time);
+    ``parameters`` (``wavelength_m``, ``pixel_pitch_m``, ``n1``, ``n2`` and where each
+    came from, ``fps_hz`` (mean), ``reference``, ``window``, ``radius_cpp``,
+    ``unwrap``, ``maps``, ``area_m2``, ``peaks_from``); ``peaks`` (per label:
+    ``carrier`` [fx, fy] cycles/pixel, ``alpha``, ``amplitude``, ``snr``,
+    ``rate_m_per_s``, ``rate_stderr_m_per_s``, ``noise_m``, ``used_in_fused``,
+    ``flags``); ``fused`` (``rate_m_per_s``, ``rate_stderr_m_per_s``, ``labels``, with
+    an area ``volume_rate_m3_per_s`` and its ``volume_rate_stderr_m3_per_s``; None
+    when nothing was fused); ``pca`` (``confidence``, ``reference``, ``prefactors``,
+    ``explained``, ``n_samples``; None when not computed); ``frames`` (``processed``,
+    counts of ``nonfinite``, ``no_signal``, ``saturated`` frames); ``timing``
+    (seconds in all, reading, demodulating, frames per second); ``notes``.
+    Values not known are null.
+    """
+    n = len(data.frames)
+    duration = float(data.times[-1] - data.times[0]) if n > 1 else 0.0
+    fused = None
+    if analysis.fused is not None:
+        fused = {
+            "rate_m_per_s": analysis.fit.rate if analysis.fit else None,
+            "rate_stderr_m_per_s": analysis.fit.stderr if analysis.fit else None,
+            "labels": [p.label for p in analysis.peaks if p.used_in_fused],
+        }
+        if settings.area_m2 is not None and analysis.fit is not None:
+            fused["volume_rate_m3_per_s"] = analysis.fit.rate * settings.area_m2
+            fused["volume_rate_stderr_m3_per_s"] = analysis.fit.stderr * settings.area_m2
+    document = {
+        "format": SUMMARY_FORMAT,
+        "format_version": FORMAT_VERSION,
+        "holoview_version": __version__,
+        "created_utc": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
+        "input": {**input_info, "frames": [frames.start, frames.stop]},
+        "parameters": {
+            "wavelength_m": optics.wavelength_m,
+            "pixel_pitch_m": optics.pixel_pitch_m,
+            "n1": optics.n1,
+            "n2": optics.n2,
+            "optics_from": dict(optics.sources),
+            "fps_hz": (n - 1) / duration if duration > 0 else None,
+            "reference": settings.reference,
+            "window": settings.window,
+            "radius_cpp": data.radius,
+            "unwrap": settings.unwrap,
+            "maps": settings.maps,
+            "area_m2": settings.area_m2,
+            "peaks_from": selection_mode,
+        },
+        "peaks": {p.label: _peak_entry(p) for p in analysis.peaks},
+        "fused": fused,
+        "pca": analysis.pca,
+        "frames": {"processed": n, **data.frame_flags},
+        "timing": {
+            "seconds": data.wall_seconds,
+            "read_seconds": data.read_seconds,
+            "demodulate_seconds": data.demod_seconds,
+            "frames_per_second": n / data.wall_seconds if data.wall_seconds > 0 else None,
+        },
+        "notes": list(analysis.notes),
+    }
+    return _clean(document)
+
+
+def write_summary_json(path: Path, document: dict[str, Any]) -> None:
+    """Write ``summary.json`` (strict JSON: no NaN)."""
+    path.write_text(json.dumps(document, indent=2, allow_nan=False) + "\n", encoding="utf-8")
+
+
+class ResultsFile:
+    """``results.h5`` while a run writes it: maps frame by frame, the rest at the end.
+
+    Parameters
+    ----------
+    path : Path
+        The file to create (replaced if it exists).
+    labels : sequence of str
+        The selected peaks' labels during the run (auto mode renames them at the end).
+    n_frames : int
+        Frames to be processed.
+    box_shape : tuple of int
+        Shape of the maps.
+    maps : bool
+        Create the map datasets.
+    with_fused : bool
+        Create ``/maps/fused`` for the run to fill (known prefactors).
+    """
+
+    def __init__(
+        self,
+        path: Path,
+        *,
+        labels: Sequence[str],
+        n_frames: int,
+        box_shape: tuple[int, int],
+        maps: bool,
+        with_fused: bool,
+    ) -> None:
+        self.path = path
+        self._file = h5py.File(path, "w", libver=("v110", "latest"))
+        self._labels = list(labels)
+        self._maps: list[h5py.Dataset] = []
+        self._fused: h5py.Dataset | None = None
+        if maps:
+            group = self._file.create_group("maps")
+            self._maps = [
+                self._map_dataset(group, f"_peak{j}", n_frames, box_shape)
+                for j in range(len(self._labels))
+            ]
+            if with_fused:
+                self._fused = self._map_dataset(group, "fused", n_frames, box_shape)
+
+    @staticmethod
+    def _map_dataset(
+        group: h5py.Group, name: str, n_frames: int, box_shape: tuple[int, int]
+    ) -> h5py.Dataset:
+        return group.create_dataset(
+            name,
+            shape=(n_frames, *box_shape),
+            dtype=np.float32,
+            chunks=(1, *box_shape),
+            fillvalue=np.float32(np.nan),
+        )
+
+    def write_map(self, position: int, peak: int, values: np.ndarray) -> None:
+        """Store peak ``peak``'s map of the ``position``-th processed frame."""
+        if self._maps:
+            self._maps[peak][position] = values
+
+    def write_fused(self, position: int, values: np.ndarray) -> None:
+        """Store the fused map of the ``position``-th processed frame."""
+        if self._fused is not None:
+            self._fused[position] = values
+
+    def _convert_maps(self, data: RunData, analysis: Analysis) -> None:
+        """Auto mode: phase maps to delta-h with the PCA's prefactors, then fuse them."""
+        scales = [p.map_scale for p in analysis.peaks]
+        used = [j for j, p in enumerate(analysis.peaks) if p.used_in_fused]
+        fused_set = None
+        if used and "fused" not in self._file["maps"]:
+            n, by, bx = self._maps[0].shape
+            fused_set = self._map_dataset(self._file["maps"], "fused", n, (by, bx))
+        for position in range(self._maps[0].shape[0]):
+            maps = [dataset[position] for dataset in self._maps]
+            for j, scale in enumerate(scales):
+                if scale is not None:
+                    maps[j] = (maps[j] * np.float32(scale)).astype(np.float32)
+                    self._maps[j][position] = maps[j]
+            if fused_set is not None:
+                noises = [data.noise_rad[position, j] * abs(scales[j] or 0.0) for j in used]
+                fused_set[position] = fuse_maps([maps[j] for j in used], noises)
+        self._fused = fused_set
+
+    def finish(
+        self,
+        *,
+        data: RunData,
+        analysis: Analysis,
+        optics: Optics,
+        settings: ProcessSettings,
+        input_path: str,
+        frame_shape: tuple[int, int],
+        converted: bool,
+    ) -> None:
+        """Write the series, the peaks table and the attributes; name and convert the maps.
+
+        ``converted`` says the maps already hold delta-h (prefactors known during the
+        run); otherwise they hold phases and are converted here.
+        """
+        f = self._file
+        f.attrs.update(
+            {
+                "format": RESULTS_FORMAT,
+                "format_version": FORMAT_VERSION,
+                "holoview_version": __version__,
+                "created_utc": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
+                "input": input_path,
+                "wavelength_m": optics.wavelength_m or math.nan,
+                "pixel_pitch_m": optics.pixel_pitch_m or math.nan,
+                "n1": optics.n1,
+                "n2": optics.n2 or math.nan,
+                "reference": settings.reference,
+                "window": settings.window,
+                "radius_cpp": data.radius,
+                "unwrap": settings.unwrap,
+            }
+        )
+        self._write_trends(data, analysis, settings)
+        self._write_peaks(analysis)
+        if self._maps:
+            if converted:
+                fused_labels = [p.label for p in analysis.peaks]
+            else:
+                self._convert_maps(data, analysis)
+                fused_labels = [p.label for p in analysis.peaks if p.used_in_fused]
+            self._name_maps(
+                data=data,
+                analysis=analysis,
+                optics=optics,
+                settings=settings,
+                frame_shape=frame_shape,
+                fused_labels=fused_labels,
+            )
+
+    def _write_trends(self, data: RunData, analysis: Analysis, settings: ProcessSettings) -> None:
+        group = self._file.create_group("trends")
+        labels = [p.label for p in analysis.peaks]
+        series: dict[str, tuple[Any, str]] = {
+            "frame": (data.frames, ""),
+            "time_s": (data.times, "s"),
+            "label": (np.array(labels, dtype=h5py.string_dtype()), ""),
+            "alpha": (np.array([p.alpha or math.nan for p in analysis.peaks]), ""),
+            "mean_phase_rad": (analysis.phases, "rad"),
+            "mean_height_m": (analysis.heights, "m"),
+            "carrier_value": (data.values.astype(np.complex64), "counts"),
+            "phase_noise_rad": (data.noise_rad, "rad"),
+        }
+        if analysis.fused is not None:
+            series["fused_height_m"] = (analysis.fused, "m")
+            if analysis.fused_spread is not None:
+                series["fused_spread_m"] = (analysis.fused_spread, "m")
+            if settings.area_m2 is not None:
+                series["fused_volume_m3"] = (analysis.fused * settings.area_m2, "m^3")
+        for name, (values, unit) in series.items():
+            group[name] = values
+            group[name].attrs["unit"] = unit
+
+    def _write_peaks(self, analysis: Analysis) -> None:
+        group = self._file.create_group("peaks")
+        peaks = analysis.peaks
+        group["label"] = np.array([p.label for p in peaks], dtype=h5py.string_dtype())
+        group["carrier_cpp"] = np.array([p.carrier for p in peaks], dtype=np.float64)
+        for name, values in (
+            ("alpha", [p.alpha for p in peaks]),
+            ("amplitude", [p.amplitude for p in peaks]),
+            ("snr", [p.snr for p in peaks]),
+            ("rate_m_per_s", [p.rate for p in peaks]),
+            ("rate_stderr_m_per_s", [p.rate_stderr for p in peaks]),
+        ):
+            group[name] = np.array([math.nan if v is None else v for v in values])
+        group["used_in_fused"] = np.array([p.used_in_fused for p in peaks], dtype=bool)
+        group["flags"] = np.array([",".join(p.flags) for p in peaks], dtype=h5py.string_dtype())
+
+    def _name_maps(
+        self,
+        *,
+        data: RunData,
+        analysis: Analysis,
+        optics: Optics,
+        settings: ProcessSettings,
+        frame_shape: tuple[int, int],
+        fused_labels: list[str],
+    ) -> None:
+        group = self._file["maps"]
+        by, bx = data.box_shape
+        step = (frame_shape[0] / by, frame_shape[1] / bx)
+        common: dict[str, Any] = {
+            "reference": settings.reference,
+            "reference_description": REFERENCE_DESCRIPTIONS[settings.reference],
+            "frame_shape_px": list(frame_shape),
+            "pixel_step_px": list(step),
+            "window": settings.window,
+            "radius_cpp": data.radius,
+            "untrusted": "NaN",
+        }
+        if optics.pixel_pitch_m is not None:
+            common["pixel_size_m"] = [
+                step[0] * optics.pixel_pitch_m,
+                step[1] * optics.pixel_pitch_m,
+            ]
+        for j, peak in enumerate(analysis.peaks):
+            group.move(f"_peak{j}", peak.label)
+            attrs = group[peak.label].attrs
+            attrs.update(common)
+            height = peak.map_scale is not None
+            attrs.update(
+                {
+                    "label": peak.label,
+                    "unit": "m" if height else "rad",
+                    "quantity": "delta_h" if height else "phase",
+                    "alpha": peak.alpha or math.nan,
+                    "carrier_cpp": list(peak.carrier),
+                }
+            )
+        if "fused" in group:
+            group["fused"].attrs.update(common)
+            group["fused"].attrs.update(
+                {
+                    "label": "fused",
+                    "unit": "m",
+                    "quantity": "delta_h",
+                    "labels": ",".join(fused_labels),
+                }
+            )
+
+    def close(self) -> None:
+        """Close the file."""
+        if self._file.id.valid:
+            self._file.close()

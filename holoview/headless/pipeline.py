@@ -1,0 +1,289 @@
+"""The streaming loop of a headless run: frames through one Demodulator, series kept.
+
+Per frame, each selected peak gives its complex carrier value (whose phase is the
+spatially averaged phase, paper section 4.2) and its phase noise; they are kept for
+the whole run (a few numbers per frame and peak). Maps are not kept: with a
+:class:`MapSink` each frame's maps go to it at once, so memory stays bounded by
+the few frames the :class:`~holoview.headless.reader.FrameReader` reads ahead.
+
+Maps are at the demodulator's box resolution (pixel ``(p, q)`` at frame position
+``(p rows / by, q cols / bx)``), float32, NaN where the pixel is not trusted (its
+amplitude is below a quarter of the peak's). With known prefactors they are delta-h
+in metres and a fused map is made per frame; in auto mode (prefactors from the PCA
+after the run) they are phases in radians, converted by the sink afterwards.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from typing import Protocol
+
+import numpy as np
+
+from holoview.errors import InputError
+from holoview.headless.inputs import InputFile, Optics
+from holoview.headless.reader import DEFAULT_DEPTH, FrameReader
+from holoview.headless.selection import Selection
+from holoview.processing.demodulate import DemodResult, Demodulator
+from holoview.processing.heights import fuse
+
+logger = logging.getLogger(__name__)
+
+#: Per-frame peak flags counted over the run.
+COUNTED_PEAK_FLAGS = ("phase_step", "low_amplitude", "overlap")
+
+#: Frame-level flags counted over the run.
+COUNTED_FRAME_FLAGS = ("nonfinite", "no_signal", "saturated")
+
+
+@dataclass(frozen=True)
+class ProcessSettings:
+    """How a run demodulates (names as the ``holoview process`` options).
+
+    Attributes
+    ----------
+    reference : {"relative", "absolute", "synthetic"}
+        Reference mode of the maps (the mean-phase series is always relative to the
+        first frame).
+    window : {"raised-cosine", "top-hat", "tukey"}
+    radius : float or None
+        Window radius, cycles/pixel (None: automatic from the carriers).
+    unwrap : {"auto", "always", "never"}
+        Spatial unwrapping of the maps.
+    maps : bool
+        Write the delta-h maps.
+    area_m2 : float or None
+        Basin area, m^2, for volume rates.
+    threads : int or None
+        FFTW threads (None: the usable CPUs, at most 4).
+    read_ahead : int
+        Frames the reader thread reads ahead.
+    """
+
+    reference: str = "relative"
+    window: str = "raised-cosine"
+    radius: float | None = None
+    unwrap: str = "auto"
+    maps: bool = False
+    area_m2: float | None = None
+    threads: int | None = None
+    read_ahead: int = DEFAULT_DEPTH
+
+
+class MapSink(Protocol):
+    """Where each frame's maps go (``results.h5`` in a run)."""
+
+    def write_map(self, position: int, peak: int, values: np.ndarray) -> None:
+        """Store peak ``peak``'s map of the ``position``-th processed frame."""
+
+    def write_fused(self, position: int, values: np.ndarray) -> None:
+        """Store the fused map of the ``position``-th processed frame."""
+
+
+@dataclass
+class RunData:
+    """What the loop kept: per-frame series of every peak, and the last frame's maps.
+
+    Attributes
+    ----------
+    frames : ndarray of int64, shape (N,)
+        Input frame indices.
+    times : ndarray of float64, shape (N,)
+        Frame times, s, from 0.
+    values : ndarray of complex128, shape (N, M)
+        Carrier value per frame and peak (counts), demodulated on the selected twin;
+        NaN for a frame that could not be demodulated.
+    noise_rad : ndarray of float64, shape (N, M)
+        Per-pixel phase noise of each map, rad (0 for a reference frame).
+    frame_flags : dict of str to int
+        Frames flagged ``nonfinite``, ``no_signal``, ``saturated``.
+    peak_flags : list of dict of str to int
+        Per peak, frames flagged ``phase_step``, ``low_amplitude``, ``overlap``.
+    box_shape : tuple of int
+        Shape of every map, ``(by, bx)``.
+    radius : float
+        Window radius used, cycles/pixel.
+    last_maps : list of (ndarray or None)
+        Each peak's map of the last demodulated frame (m, or rad in auto mode).
+    last_fused : ndarray or None
+        The fused map of the last frame, m (None in auto mode or with one peak).
+    last_frame : int
+        Input index of the frame the last maps come from.
+    maps_in_metres : bool
+        Whether the maps are delta-h in m (every peak had alpha), else phases in rad.
+    read_seconds, demod_seconds, write_seconds, wall_seconds : float
+        Time reading the input (on the reader thread), demodulating, writing maps,
+        and in all, s.
+    """
+
+    frames: np.ndarray
+    times: np.ndarray
+    values: np.ndarray
+    noise_rad: np.ndarray
+    frame_flags: dict[str, int]
+    peak_flags: list[dict[str, int]]
+    box_shape: tuple[int, int]
+    radius: float
+    last_maps: list[np.ndarray | None] = field(default_factory=list)
+    last_fused: np.ndarray | None = None
+    last_frame: int = -1
+    maps_in_metres: bool = False
+    read_seconds: float = 0.0
+    demod_seconds: float = 0.0
+    write_seconds: float = 0.0
+    wall_seconds: float = 0.0
+
+
+def fuse_maps(maps: Sequence[np.ndarray], noises: Sequence[float]) -> np.ndarray:
+    """Fuse co-located maps (NaN: untrusted) weighted by ``1 / noise^2``.
+
+    Parameters
+    ----------
+    maps : sequence of ndarray, shape (by, bx)
+        Maps of one quantity (delta-h in m); not modified.
+    noises : sequence of float
+        Each map's noise (unit of the maps). When any is not a positive number (a
+        reference frame, whose maps are zero), the maps are averaged unweighted.
+
+    Returns
+    -------
+    ndarray of float32
+        NaN where no map is trusted. The maps are not co-registered: each peak images
+        a patch shifted by a fraction of a pixel to a few pixels (paper section 2).
+    """
+    sigma = np.asarray(noises, dtype=np.float64)
+    if not (np.all(np.isfinite(sigma)) and np.all(sigma > 0)):
+        sigma = np.ones(len(maps))
+    fused, _ = fuse(maps, list(sigma), masks=[np.isfinite(m) for m in maps])
+    return fused.astype(np.float32)
+
+
+def _trusted(result_map: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    return np.where(mask, result_map, np.float32(np.nan)).astype(np.float32, copy=False)
+
+
+def make_demodulator(
+    shape: tuple[int, int],
+    selection: Selection,
+    optics: Optics,
+    settings: ProcessSettings,
+    saturation: float | None = None,
+) -> Demodulator:
+    """Return the demodulator of a run (InputError for a radius or mode that cannot work)."""
+    return Demodulator(
+        shape,
+        selection.peaks,
+        window=settings.window,
+        radius=settings.radius,
+        reference=settings.reference,
+        unwrap=settings.unwrap,
+        wavelength=optics.wavelength_m,
+        saturation=saturation,
+        threads=settings.threads,
+    )
+
+
+def demodulate_frames(
+    source: InputFile,
+    frames: range,
+    times: np.ndarray,
+    demodulator: Demodulator,
+    *,
+    sink: MapSink | None = None,
+    read_ahead: int = DEFAULT_DEPTH,
+    progress: Callable[[int], None] | None = None,
+) -> RunData:
+    """Stream ``frames`` of ``source`` through ``demodulator``; keep the series.
+
+    Parameters
+    ----------
+    source : InputFile
+        The input (read from a ``holoview-reader`` thread during the call).
+    frames : range
+        Input frame indices to process.
+    times : ndarray, shape (len(frames),)
+        Their times, s.
+    demodulator : Demodulator
+        Built for the selected peaks (its reference starts at the first frame).
+    sink : MapSink, optional
+        Receives every frame's maps (and fused map when every peak has alpha).
+    read_ahead : int
+        Frames read ahead.
+    progress : callable, optional
+        Called with the number of frames done, after each frame.
+
+    Returns
+    -------
+    RunData
+    """
+    n, m = len(frames), len(demodulator.peaks)
+    values = np.full((n, m), np.nan + 0j, dtype=np.complex128)
+    noise = np.full((n, m), np.nan)
+    frame_flags = dict.fromkeys(COUNTED_FRAME_FLAGS, 0)
+    peak_flags = [dict.fromkeys(COUNTED_PEAK_FLAGS, 0) for _ in range(m)]
+    with_alpha = all(p.alpha is not None for p in demodulator.peaks)
+    data = RunData(
+        frames=np.asarray(frames, dtype=np.int64),
+        times=np.asarray(times, dtype=np.float64),
+        values=values,
+        noise_rad=noise,
+        frame_flags=frame_flags,
+        peak_flags=peak_flags,
+        box_shape=demodulator.box_shape,
+        radius=demodulator.radius,
+        last_maps=[None] * m,
+        maps_in_metres=with_alpha,
+    )
+    start = time.perf_counter()
+    reader = FrameReader(source.read, frames, depth=read_ahead)
+    with reader:
+        for position, (index, frame) in enumerate(reader):
+            t0 = time.perf_counter()
+            result = demodulator.process(frame)
+            t1 = time.perf_counter()
+            data.demod_seconds += t1 - t0
+            _record(data, position, result)
+            if result.peaks:
+                maps = [
+                    _trusted(r.delta_h if r.delta_h is not None else r.phase, r.mask)
+                    for r in result.peaks
+                ]
+                fused = None
+                if with_alpha and m >= 2:
+                    usable = [
+                        j for j, r in enumerate(result.peaks) if "phase_step" not in r.flags
+                    ] or list(range(m))
+                    fused = fuse_maps(
+                        [maps[j] for j in usable],
+                        [result.peaks[j].noise_height or math.nan for j in usable],
+                    )
+                if sink is not None:
+                    for j, values_map in enumerate(maps):
+                        sink.write_map(position, j, values_map)
+                    if fused is not None:
+                        sink.write_fused(position, fused)
+                data.last_maps, data.last_fused, data.last_frame = maps, fused, index
+            data.write_seconds += time.perf_counter() - t1
+            if progress is not None:
+                progress(position + 1)
+    data.read_seconds = reader.read_seconds
+    data.wall_seconds = time.perf_counter() - start
+    if not np.any(np.isfinite(values)):
+        raise InputError("no frame could be demodulated (every frame is NaN or infinite)")
+    return data
+
+
+def _record(data: RunData, position: int, result: DemodResult) -> None:
+    for flag in result.flags:
+        if flag in data.frame_flags:
+            data.frame_flags[flag] += 1
+    for j, r in enumerate(result.peaks):
+        data.values[position, j] = r.carrier_value
+        data.noise_rad[position, j] = r.noise
+        for flag in r.flags:
+            if flag in data.peak_flags[j]:
+                data.peak_flags[j][flag] += 1

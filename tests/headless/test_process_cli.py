@@ -1,0 +1,308 @@
+"""End-to-end: ``holoview process`` on simulated recordings, outputs checked against the truth."""
+
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+import tifffile
+from conftest import Simulated, run_cli
+
+from holoview.headless.outputs import TRENDS_HEADER
+
+FIRST_ORDER = {"RB1", "RF", "FB1", "RB2"}
+
+
+def read_trends(path: Path) -> tuple[list[str], list[dict[str, str]]]:
+    with open(path, newline="", encoding="utf-8") as f:
+        reader = csv.DictReader(f)
+        return list(reader.fieldnames or []), list(reader)
+
+
+def fused_series(rows: list[dict[str, str]]) -> tuple[np.ndarray, np.ndarray]:
+    fused = [r for r in rows if r["label"] == "fused"]
+    return (
+        np.array([float(r["time_s"]) for r in fused]),
+        np.array([float(r["mean_height_m"]) for r in fused]),
+    )
+
+
+def test_labels_mode_trends_rates_and_summary(
+    evaporation: Simulated, tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    out = tmp_path / "out"
+    status, stdout, _ = run_cli(
+        [
+            "process",
+            str(evaporation.path),
+            "--out",
+            str(out),
+            *evaporation.label_args("RB1", "FB1"),
+        ],
+        capsys,
+    )
+    assert status == 0
+    assert str(out) in stdout and "um/min" in stdout
+    assert sorted(p.name for p in out.iterdir()) == [
+        "report.png",
+        "results.h5",
+        "summary.json",
+        "trends.csv",
+    ]
+    header, rows = read_trends(out / "trends.csv")
+    assert tuple(header) == TRENDS_HEADER
+    summary = json.loads((out / "summary.json").read_text())
+    labels = list(summary["peaks"])
+    assert set(labels) >= FIRST_ORDER
+    assert len(rows) == evaporation.frames * (len(labels) + 1)
+    first = rows[: len(labels) + 1]
+    assert [r["label"] for r in first] == [*labels, "fused"]
+    assert all(r["frame"] == "0" and float(r["mean_height_m"]) == 0.0 for r in first)
+    # heights relative to the first frame follow the truth
+    times, fused = fused_series(rows)
+    np.testing.assert_allclose(times, evaporation.time_s - evaporation.time_s[0], atol=1e-9)
+    truth = evaporation.mean_height_m - evaporation.mean_height_m[0]
+    assert np.max(np.abs(fused - truth)) < 5e-9
+    # the fused rate against the truth, and its standard error
+    rate = summary["fused"]["rate_m_per_s"]
+    assert rate == pytest.approx(evaporation.rate, rel=0.01)
+    assert 0 < summary["fused"]["rate_stderr_m_per_s"] < 0.01 * abs(evaporation.rate)
+    for label in FIRST_ORDER:
+        peak = summary["peaks"][label]
+        assert peak["alpha"] == pytest.approx(evaporation.alphas[label], rel=1e-9)
+        np.testing.assert_allclose(peak["carrier"], evaporation.carriers[label], atol=2 / 128)
+        assert peak["rate_m_per_s"] == pytest.approx(evaporation.rate, rel=0.02)
+        assert set(peak) >= {"amplitude", "snr", "rate_stderr_m_per_s", "flags"}
+    # RB3 steps 3.5 rad per frame at 20 frames/s: flagged and left out of the fusion
+    if "RB3" in summary["peaks"]:
+        assert "aliased_in_time" in summary["peaks"]["RB3"]["flags"]
+        assert not summary["peaks"]["RB3"]["used_in_fused"]
+    assert summary["holoview_version"]
+    assert summary["input"]["kind"] == "hdf5"
+    assert summary["parameters"]["optics_from"]["wavelength_m"] == "recording"
+    assert summary["pca"]["confidence"] > 0.99
+
+
+def test_auto_mode_identifies_the_peaks_by_pca(
+    evaporation: Simulated, tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    out = tmp_path / "auto"
+    fx, fy = evaporation.carriers["RB1"]
+    argv = ["process", str(evaporation.path), "--out", str(out), "--auto", "4"]
+    status, _, _ = run_cli([*argv, "--anchor", f"RB1={fx},{fy}"], capsys)
+    assert status == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert set(summary["peaks"]) == FIRST_ORDER
+    assert summary["pca"]["confidence"] > 0.99
+    for label, value in summary["pca"]["prefactors"].items():
+        assert value == pytest.approx(evaporation.alphas[label], rel=0.02), label
+    assert summary["fused"]["rate_m_per_s"] == pytest.approx(evaporation.rate, rel=0.01)
+    # without the anchor the brightest peak is taken on the other twin: the sign flips
+    status, _, _ = run_cli([*argv[:3], str(tmp_path / "plain"), *argv[4:]], capsys)
+    assert status == 0
+    plain = json.loads((tmp_path / "plain" / "summary.json").read_text())
+    assert plain["fused"]["rate_m_per_s"] == pytest.approx(-evaporation.rate, rel=0.01)
+    assert any("--anchor" in note for note in plain["notes"])
+
+
+def test_maps_against_the_truth(
+    waves: Simulated, tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    """Absolute maps of standing waves: the fused delta-h map follows the true surface."""
+    out = tmp_path / "maps"
+    argv = ["process", str(waves.path), "--out", str(out), "--maps", "--reference", "absolute"]
+    status, _, _ = run_cli([*argv, *waves.label_args("RB1", "FB1"), "--frames", "0:40"], capsys)
+    assert status == 0
+    with h5py.File(out / "results.h5", "r") as f:
+        assert f.attrs["format"] == "holoview-results"
+        labels = [s.decode() for s in f["trends/label"][:]]
+        for name in [*labels, "fused"]:
+            maps = f["maps"][name]
+            assert maps.dtype == np.float32
+            assert maps.ndim == 3 and maps.shape[0] == 40
+            assert maps.attrs["unit"] == "m"
+            assert maps.attrs["reference"] == "absolute"
+        fused = f["maps/fused"][:]
+        step = f["maps/fused"].attrs["pixel_step_px"]
+    assert np.all(fused[0][np.isfinite(fused[0])] == 0)
+    assert waves.height_maps is not None
+    rows = (np.arange(fused.shape[1]) * step[0]).round().astype(int)
+    cols = (np.arange(fused.shape[2]) * step[1]).round().astype(int)
+    border = 3  # box pixels next to the frame edge carry the FFT's wrap-around
+    inner = (slice(border, -border), slice(border, -border))
+    for k in (20, 39):
+        truth = (waves.height_maps[k] - waves.height_maps[0])[np.ix_(rows, cols)][inner]
+        measured = fused[k][inner]
+        keep = np.isfinite(measured)
+        assert keep.mean() > 0.9
+        correlation = np.corrcoef(truth[keep], measured[keep])[0, 1]
+        assert correlation > 0.9
+        assert np.sqrt(np.mean((truth[keep] - measured[keep]) ** 2)) < 0.5 * np.std(truth[keep])
+
+
+def test_peaks_file_and_auto_maps_agree(
+    evaporation: Simulated, tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    """A peaks file and --auto give the same labelled maps (phase converted after the PCA)."""
+    peaks = {
+        "peaks": [
+            {"label": label, "carrier": list(evaporation.carriers[label])}
+            for label in ("RB1", "RF")
+        ]
+    }
+    (tmp_path / "peaks.json").write_text(json.dumps(peaks))
+    common = ["--maps", "--frames", "10:50"]
+    status, _, _ = run_cli(
+        [
+            "process",
+            str(evaporation.path),
+            "--out",
+            str(tmp_path / "file"),
+            "--peaks",
+            str(tmp_path / "peaks.json"),
+            *common,
+        ],
+        capsys,
+    )
+    assert status == 0
+    fx, fy = evaporation.carriers["RB1"]
+    status, _, _ = run_cli(
+        [
+            "process",
+            str(evaporation.path),
+            "--out",
+            str(tmp_path / "auto"),
+            "--auto",
+            "2",
+            "--anchor",
+            f"RB1={fx},{fy}",
+            *common,
+        ],
+        capsys,
+    )
+    assert status == 0
+    with (
+        h5py.File(tmp_path / "file" / "results.h5", "r") as a,
+        h5py.File(tmp_path / "auto" / "results.h5", "r") as b,
+    ):
+        assert set(a["maps"]) == set(b["maps"]) == {"RB1", "RF", "fused"}
+        np.testing.assert_array_equal(a["trends/frame"][:], np.arange(10, 50))
+        step = evaporation.rate / evaporation.fps
+        heights = a["trends/mean_height_m"][:]
+        for j, name in enumerate(("RB1", "RF")):
+            # relative maps: each frame's mean is the step of the mean height since the last
+            means = np.nanmean(a["maps"][name][1:], axis=(1, 2))
+            np.testing.assert_allclose(means, np.diff(heights[:, j]), atol=1e-9)
+            assert np.mean(means) == pytest.approx(step, rel=0.1)
+        for name in ("RB1", "RF", "fused"):
+            np.testing.assert_allclose(
+                a["maps"][name][1:], b["maps"][name][1:], atol=0.05 * abs(step)
+            )
+
+
+def test_tiff_stack_with_options_and_volume(
+    evaporation: Simulated, tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    with h5py.File(evaporation.path, "r") as f:
+        tifffile.imwrite(tmp_path / "stack.tif", f["frames"][:60])
+    out = tmp_path / "tiff"
+    argv = ["process", str(tmp_path / "stack.tif"), "--out", str(out), "--wavelength", "532e-9"]
+    argv += ["--fluid", "water", "--n1", "1.000293", "--fps", str(evaporation.fps)]
+    argv += ["--area", "0.01", *evaporation.label_args("RB1", "FB1")]
+    status, _, _ = run_cli(argv, capsys)
+    assert status == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["input"]["kind"] == "tiff"
+    assert summary["parameters"]["optics_from"]["n2"] == "option"
+    fused = summary["fused"]
+    assert fused["rate_m_per_s"] == pytest.approx(evaporation.rate, rel=0.01)
+    assert fused["volume_rate_m3_per_s"] == pytest.approx(0.01 * fused["rate_m_per_s"])
+    with h5py.File(out / "results.h5", "r") as f:
+        np.testing.assert_allclose(
+            f["trends/fused_volume_m3"][:], 0.01 * f["trends/fused_height_m"][:]
+        )
+
+
+def write_garbage(path: Path) -> Path:
+    path.write_bytes(b"not an hdf5 file at all")
+    return path
+
+
+@pytest.mark.parametrize(
+    ("make_args", "message"),
+    [
+        (lambda e, t: [str(t / "missing.h5")], "no such file"),
+        (lambda e, t: [str(write_garbage(t / "bad.h5"))], "not a readable HDF5"),
+        (lambda e, t: [str(e.path), "--wavelength", "-1"], "--wavelength must be a positive"),
+        (lambda e, t: [str(e.path), "--n2", "0.9"], "must be above n1"),
+        (lambda e, t: [str(e.path), "--frames", "500:"], "selects no frame"),
+        (lambda e, t: [str(e.path), "--frames", "a:b"], "--frames takes integers"),
+        (lambda e, t: [str(e.path), "--radius", "0.4"], "window radius"),
+        (lambda e, t: [str(e.path), "--area", "0"], "--area must be a positive"),
+        (lambda e, t: [str(e.path), "--anchor", "RB1=0.1,0.1", "--peaks", "x"], "with --auto"),
+        (lambda e, t: [str(e.path), "--auto", "4", "--peaks", "x.json"], "one way"),
+        (lambda e, t: [str(e.path), "--label", "RB1=0.2,0.1"], "at least two"),
+        (lambda e, t: [str(e.path), "--label", "RB1=0.9,0.1"], "outside the spectrum"),
+        (lambda e, t: [str(e.path), "--auto", "4", "--anchor", "RB1=0.01,0.4"], "no detected"),
+    ],
+)
+def test_bad_input_is_one_line_exit_2(
+    evaporation: Simulated,
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture,
+    make_args,
+    message: str,
+) -> None:
+    argv = ["process", *make_args(evaporation, tmp_path), "--out", str(tmp_path / "out")]
+    status, _, err = run_cli(argv, capsys)
+    assert status == 2
+    lines = err.strip().splitlines()
+    assert len(lines) == 1, err
+    assert lines[0].startswith("holoview process: error:")
+    assert message in lines[0]
+
+
+@pytest.mark.parametrize(
+    ("content", "message"),
+    [
+        ("{not json", "not valid JSON"),
+        ('{"peaks": []}', "expected"),
+        ('{"peaks": [{"label": "RB1"}]}', '"carrier"'),
+        ('{"peaks": [{"label": "RB1", "carrier": [0.7, 0.1]}]}', "outside the spectrum"),
+        ('{"peaks": [{"label": "RB1", "carrier": "here"}]}', "carrier must be [fx, fy]"),
+        ('{"peaks": [{"label": "XY9", "carrier": [0.2, 0.1]}]}', "give its alpha"),
+        ('{"peaks": [{"label": "RB1", "carrier": [0.2, 0.1], "alpha": 0}]}', "nonzero"),
+    ],
+)
+def test_bad_peaks_file_is_one_line_exit_2(
+    evaporation: Simulated,
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture,
+    content: str,
+    message: str,
+) -> None:
+    peaks = tmp_path / "peaks.json"
+    peaks.write_text(content)
+    argv = ["process", str(evaporation.path), "--out", str(tmp_path / "o"), "--peaks", str(peaks)]
+    status, _, err = run_cli(argv, capsys)
+    assert status == 2
+    assert len(err.strip().splitlines()) == 1, err
+    assert message in err
+
+
+def test_files_without_times_need_fps(
+    evaporation: Simulated, tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    with h5py.File(evaporation.path, "r") as f:
+        tifffile.imwrite(tmp_path / "stack.tif", f["frames"][:5])
+    argv = ["process", str(tmp_path / "stack.tif"), "--out", str(tmp_path / "o")]
+    status, _, err = run_cli([*argv, "--wavelength", "532e-9", "--fluid", "water"], capsys)
+    assert status == 2
+    assert "give --fps" in err
+    status, _, err = run_cli([*argv, "--fluid", "water", "--fps", "10"], capsys)
+    assert status == 2
+    assert "--wavelength" in err
