@@ -85,12 +85,22 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
         "(paper's forward model) into a new holoview recording, with a /truth group.",
     )
     parser.add_argument("out", type=Path, metavar="OUT.h5", help="the recording to create")
-    parser.add_argument("--scenario", choices=SCENARIOS, default="waves")
-    parser.add_argument("--size", type=int, default=512, metavar="N", help="N x N pixels")
-    parser.add_argument("--frames", type=int, default=50, metavar="N")
-    parser.add_argument("--fps", type=float, default=60.0, metavar="F", help="frames/s")
-    parser.add_argument("--seed", type=int, default=None, metavar="S")
-    parser.add_argument("--noise", choices=NOISE_MODELS, default="poisson")
+    parser.add_argument(
+        "--scenario", choices=SCENARIOS, default="waves", help="the surface (default waves)"
+    )
+    parser.add_argument(
+        "--size", type=int, default=512, metavar="N", help="N x N pixels (default 512)"
+    )
+    parser.add_argument("--frames", type=int, default=50, metavar="N", help="default 50")
+    parser.add_argument(
+        "--fps", type=float, default=60.0, metavar="F", help="frames/s (default 60)"
+    )
+    parser.add_argument(
+        "--seed", type=int, default=None, metavar="S", help="same seed, same recording"
+    )
+    parser.add_argument(
+        "--noise", choices=NOISE_MODELS, default="poisson", help="shot noise (default poisson)"
+    )
     parser.add_argument("--png", type=Path, metavar="PATH", help="save a frame and its spectrum")
     parser.add_argument("--png-frame", type=int, default=0, metavar="I", help="frame for --png")
     setup = parser.add_argument_group("setup (defaults: holoview.optics.setup.Setup)")
@@ -119,11 +129,11 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
         help="a beam-splitter ghost of the reference or probe arm (repeatable)",
     )
     physics = parser.add_argument_group("scenario physics (defaults: the paper's)")
-    physics.add_argument("--evaporation-um-per-min", type=float)
-    physics.add_argument("--injection-ul-per-s", type=float)
-    physics.add_argument("--basin-area-cm2", type=float)
-    physics.add_argument("--wave-rms-nm", type=float)
-    physics.add_argument("--vibration-rms-nm", type=float)
+    physics.add_argument("--evaporation-um-per-min", type=float, help="level fall, um/min")
+    physics.add_argument("--injection-ul-per-s", type=float, help="injected volume, uL/s")
+    physics.add_argument("--basin-area-cm2", type=float, help="basin area for injection, cm^2")
+    physics.add_argument("--wave-rms-nm", type=float, help="rms height of the waves, nm")
+    physics.add_argument("--vibration-rms-nm", type=float, help="rms reference air-path jitter, nm")
     return parser
 
 

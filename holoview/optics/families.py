@@ -34,6 +34,12 @@ between families (for example RB2 against RF, which lands on 2RB1) and saturatio
 add a few per cent that this leaves out; with ``gamma == 1`` first orders are exact
 and second orders are 0.
 
+A family's amplitude is its pair's own. What the spectrum shows at a carrier is the
+coherent sum of every pair there (:func:`coherent_amplitude`): at FB_j the pairs
+F B_j, B_(j+1) B_1, ... nearly cancel (exactly, for a lossless mirror), and so do the
+copies of FB_j that a probe-arm ghost makes against the probe (``"FB1~g0"``,
+``"F~g0B1"``, ``"B2B1~g0"``, ...), the probe and its ghost both being all-pass.
+
 Displacement ``delta_AB`` (m): the family's phase samples ``h(r + delta_AB)`` to first
 order, ``delta_AB = (kappa_A c_A - kappa_B c_B) / alpha`` with ``c`` the beams' walk-off
 centroids; RF has none, RB1 about ``-d m_b`` and FB1 about ``-(n2 - n1)/n2 d m_b``.
