@@ -23,6 +23,7 @@ import os
 import statistics
 import sys
 import tempfile
+import threading
 import time
 from pathlib import Path
 
@@ -37,6 +38,20 @@ def parse_label(text: str) -> tuple[str, float, float]:
     name, _, carrier = text.partition("=")
     fx, fy = (float(v) for v in carrier.split(","))
     return name, fx, fy
+
+
+def thread_cpu_seconds() -> dict[str, float]:
+    """CPU seconds used so far by each Python thread of this process, by thread name (Linux)."""
+    ticks = os.sysconf("SC_CLK_TCK")
+    out: dict[str, float] = {}
+    for thread in threading.enumerate():
+        try:
+            fields = Path(f"/proc/self/task/{thread.native_id}/stat").read_text().rsplit(")", 1)[1]
+        except OSError:
+            continue
+        utime, stime = (int(v) for v in fields.split()[11:13])
+        out[thread.name] = (utime + stime) / ticks
+    return out
 
 
 def percentile(values: list[float], q: float) -> float:
@@ -116,9 +131,11 @@ def main() -> int:
         gaps.clear()
         session = window.session
         cam0, seq0 = session.camera.frames, session.latest().seq
+        cpu0 = thread_cpu_seconds()
         t0 = time.monotonic()
         run_for(args.seconds)
         elapsed = time.monotonic() - t0
+        cpu1 = thread_cpu_seconds()
         camera_fps = (session.camera.frames - cam0) / elapsed
         processing_fps = (session.latest().seq - seq0) / elapsed
         labelled = sorted(session.latest().labelled)
@@ -148,6 +165,10 @@ def main() -> int:
         f"latency     median {statistics.median(latencies) * 1e3:5.1f} ms, "
         f"p95 {percentile(latencies, 0.95) * 1e3:5.1f} ms, max {max(latencies) * 1e3:5.1f} ms"
     )
+    shares = ", ".join(
+        f"{name} {100 * (cpu1[name] - cpu0.get(name, 0.0)) / elapsed:.0f}%" for name in sorted(cpu1)
+    )
+    print(f"CPU per thread (% of one core): {shares}")
     print(f"longest event-loop stall {stall * 1e3:5.1f} ms; dropped frames {dropped}")
     return 0
 
