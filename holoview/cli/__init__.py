@@ -19,7 +19,7 @@ from holoview import __version__
 from holoview.errors import HoloviewError
 
 #: Subcommand modules, in the order ``holoview --help`` lists them.
-COMMANDS: tuple[str, ...] = ("live", "record", "simulate", "process", "info")
+COMMANDS: tuple[str, ...] = ("live", "record", "simulate", "process", "peaks", "info")
 
 #: The subcommand run when none is given.
 DEFAULT_COMMAND = "live"
