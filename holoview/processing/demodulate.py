@@ -23,6 +23,7 @@ at a time. It creates no thread; FFTW may use ``threads`` internally.
 
 from __future__ import annotations
 
+import cmath
 import logging
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -578,7 +579,7 @@ class Demodulator:
         # mean phase: the field against the sub-bin plane wave, averaged
         value = complex(np.vdot(geo.ramp, field)) / field.size
         prev = self._prev_value[i]
-        step = 0.0 if prev is None else float(np.angle(value * np.conj(prev)))
+        step = 0.0 if prev is None else cmath.phase(value * prev.conjugate())
         if abs(step) > PHASE_STEP_LIMIT:
             flags.add("phase_step")
         self._prev_value[i] = value
@@ -587,10 +588,10 @@ class Demodulator:
         if self.reference == "synthetic":
             np.multiply(field, geo.ramp_conj, out=product)
             if prev is None:
-                self._unwrapped_mean[i] = float(np.angle(value))
+                self._unwrapped_mean[i] = cmath.phase(value)
             else:
                 self._unwrapped_mean[i] += step
-            mean_phase = float(np.angle(value))
+            mean_phase = cmath.phase(value)
         elif self._ref_conj[i] is None:
             flags.add("reference")
             self._ref_conj[i] = np.conj(field)
@@ -606,7 +607,7 @@ class Demodulator:
                 np.conjugate(field, out=ref_conj)
                 mean_phase = step
             else:
-                mean_phase = float(np.angle(value * np.conj(self._ref_value[i])))
+                mean_phase = cmath.phase(value * self._ref_value[i].conjugate())
         if product is None:
             phase = np.zeros(field.shape, dtype=np.float32)
         else:
