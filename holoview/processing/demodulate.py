@@ -17,6 +17,13 @@ Conventions (DESIGN.md):
   or :meth:`~Demodulator.reset_reference`, ``relative`` against the previous frame;
 - ``delta_h = phase wavelength / (4 pi alpha)`` in metres for peaks with alpha.
 
+Per peak and frame also: the trusted pixels (aperture, amplitude), the phase noise
+(rad, and m), and the complex value at the carrier alone, whose phase is the
+spatially averaged phase (paper section 4.2), unwrapped in time. Maps that wrap are
+unwrapped in space (Herraez et al. 2002) or against another peak's map scaled by
+the ratio of alphas (:meth:`Demodulator._unwrap`). Every returned array is new;
+frames and peaks are never modified.
+
 The demodulator keeps state (references, plans, buffers): use it from one thread
 at a time. It creates no thread; FFTW may use ``threads`` internally.
 """
@@ -380,6 +387,14 @@ class Demodulator:
             )
             for p in self.peaks
         ]
+        logger.debug(
+            "demodulating %d peak(s) of %s frames: %s window, radius %.4g cycles/pixel, box %s",
+            len(self.peaks),
+            self.shape,
+            window,
+            self.radius,
+            self.box_shape,
+        )
         self._aperture_box: np.ndarray | None = None
         if aperture is not None:
             ap = np.asarray(aperture, dtype=bool)
