@@ -39,7 +39,8 @@ function dominates.
 Measured (``benchmarks/bench_synthesis.py``, 2-core EPYC, six-mode standing waves):
 about 1.5 s at 256 x 256 (0.9 million rays) and 15-20 s at 1024 x 1024 (12 million
 rays), some 300-500x the fast synthesis; a uniform level takes about half as long
-(0.8 s at 256 x 256). Memory is about 1 kB per live ray. Use it to check the fast synthesiser, not to make data.
+(0.8 s at 256 x 256). Memory is about 1 kB per live ray. Use it to check the fast
+synthesiser, not to make data.
 """
 
 from __future__ import annotations
