@@ -492,13 +492,17 @@ class TrendStage:
         confidence = prefactors = None
         if pca and len(self._labels) >= 2 and names:
             reference_label = "RB1" if "RB1" in names else names[0]
-            ident = identify_peaks(
-                phases,
-                n1,
-                n2,
-                reference=self._labels.index(reference_label),
-                reference_label=reference_label,
-            )
-            confidence = ident.confidence
-            prefactors = {k: float(a) for k, a in zip(self._labels, ident.alphas, strict=True)}
+            try:
+                ident = identify_peaks(
+                    phases,
+                    n1,
+                    n2,
+                    reference=self._labels.index(reference_label),
+                    reference_label=reference_label,
+                )
+            except InputError as exc:
+                logger.debug("PCA identification not available: %s", exc)
+            else:
+                confidence = ident.confidence
+                prefactors = {k: float(a) for k, a in zip(self._labels, ident.alphas, strict=True)}
         return TrendSummary(times, series, rate, stderr, fit_line, confidence, prefactors)

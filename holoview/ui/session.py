@@ -25,7 +25,7 @@ from holoview.acquire.camera_thread import CameraThread
 from holoview.acquire.pixel_formats import PIXEL_FORMATS
 from holoview.acquire.recorder import Recorder
 from holoview.acquire.recording import RecordingWriter
-from holoview.acquire.ring import CLOSED, FrameRing, RingConsumer
+from holoview.acquire.ring import CLOSED, FrameRing, RingConsumer, RingStatus
 from holoview.acquire.source import Source
 from holoview.errors import HoloviewError, InputError
 from holoview.ui.live_pipeline import LivePipeline, LiveResult
@@ -101,6 +101,10 @@ class DemodWorker:
         """The newest result, or None before the first."""
         with self._lock:
             return self._latest
+
+    def status(self) -> RingStatus:
+        """The worker's ring accounting (acquired, skipped by design, transport losses)."""
+        return self._consumer.status()
 
     def rate_hz(self) -> float:
         """Frames processed per second over the last 32 frames."""
@@ -318,7 +322,7 @@ class LiveSession:
 
     def rates(self) -> tuple[float, float, int]:
         """Return (camera fps, processing fps, frames dropped: transport + recorder overflow)."""
-        status = self.worker._consumer.status()
+        status = self.worker.status()
         dropped = status.transport_lost
         if self.recorder is not None:
             dropped += self.recorder.status().dropped
