@@ -7,9 +7,9 @@ import pytest
 from processing_synth import BENCH, WAVELENGTH, bench_frame, bump, frame, intensity
 
 from holoview.errors import InputError
-from holoview.processing.demodulate import Demodulator, box_shape_for
+from holoview.processing.demodulate import Demodulator, box_shape_for, refine_carriers
 from holoview.processing.heights import height_to_phase
-from holoview.processing.peaks import Peak
+from holoview.processing.peaks import Peak, find_peaks
 from holoview.processing.resample import box_positions
 from holoview.processing.windows import radial_window
 
@@ -321,3 +321,21 @@ def test_upsample_checks_the_shape() -> None:
     demod = Demodulator(SHAPE, bench_peaks())
     with pytest.raises(InputError, match="box resolution"):
         demod.upsample(np.zeros((5, 5)))
+
+
+def test_refine_carriers_removes_the_residual_tilt() -> None:
+    rng = np.random.default_rng(33)
+    shape = (256, 256)
+    before, after = [], []
+    for _ in range(6):
+        carrier = (rng.uniform(0.1, 0.4), rng.uniform(-0.4, 0.4))
+        f = frame(shape, [carrier], [0.05], [rng.uniform(0, 6)], rng=rng)
+        found = find_peaks(f)[0].relabelled("X", alpha=1.0)
+        refined = refine_carriers(f, [found])[0]
+        assert (refined.label, refined.alpha, refined.amplitude) == ("X", 1.0, found.amplitude)
+        before.append(np.hypot(*(np.subtract(found.carrier, carrier) * shape)))
+        after.append(np.hypot(*(np.subtract(refined.carrier, carrier) * shape)))
+    assert max(after) < 0.01  # bins
+    assert np.mean(after) < np.mean(before) / 2
+    with pytest.raises(InputError, match="iterations"):
+        refine_carriers(f, [found], iterations=0)
