@@ -27,7 +27,7 @@ import threading
 import time
 from pathlib import Path
 
-from PyQt6.QtCore import QTimer
+from PyQt6.QtCore import QEventLoop, QTimer
 
 from holoview.ui.app import application
 from holoview.ui.main_window import MainWindow
@@ -70,6 +70,7 @@ def main() -> int:
     parser.add_argument("--label", action="append", type=parse_label, default=[])
     args = parser.parse_args()
     app = application()
+    app.setQuitOnLastWindowClosed(False)
     load_before = os.getloadavg()
     options: dict[str, object] = {}
     if args.source.startswith("sim"):
@@ -115,10 +116,9 @@ def main() -> int:
         ticker.start()
 
         def run_for(seconds: float) -> None:
-            end = time.monotonic() + seconds
-            while time.monotonic() < end:
-                app.processEvents()
-                time.sleep(0.001)
+            loop = QEventLoop()
+            QTimer.singleShot(int(seconds * 1000), loop.quit)
+            loop.exec()
 
         run_for(1.5)
         labels = args.label or default_labels(window)
