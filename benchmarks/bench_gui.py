@@ -169,6 +169,15 @@ def main() -> int:
         f"{name} {100 * (cpu1[name] - cpu0.get(name, 0.0)) / elapsed:.0f}%" for name in sorted(cpu1)
     )
     print(f"CPU per thread (% of one core): {shares}")
+    gui_cpu = cpu1.get("MainThread", 0.0) - cpu0.get("MainThread", 0.0)
+    demod_cpu = cpu1.get("holoview-demod", 0.0) - cpu0.get("holoview-demod", 0.0)
+    per_draw = gui_cpu / max(len(draws), 1)
+    per_frame = demod_cpu / max(processing_fps * elapsed, 1)
+    print(
+        f"CPU per displayed frame {per_draw * 1e3:5.1f} ms (GUI thread), per processed frame "
+        f"{per_frame * 1e3:5.1f} ms (worker): {args.fps:g} fps processing and 25 Hz display "
+        f"need {per_frame * args.fps + per_draw * 25:.2f} cores besides the camera"
+    )
     print(f"longest event-loop stall {stall * 1e3:5.1f} ms; dropped frames {dropped}")
     return 0
 
