@@ -127,6 +127,13 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
         "--radius", type=float, metavar="R", help="window radius, cycles/pixel (default: automatic)"
     )
     demod.add_argument("--unwrap", choices=("auto", "always", "never"), default="auto")
+    demod.add_argument(
+        "--threads",
+        type=int,
+        default=1,
+        metavar="N",
+        help="FFTW threads per frame (default 1; more only on an otherwise idle machine)",
+    )
     parser.add_argument("--maps", action="store_true", help="also write the delta-h maps")
     parser.add_argument("--frames", metavar="START:STOP", help="process these frames only")
     parser.add_argument("--area", type=float, metavar="M2", help="basin area, m^2 (volume rates)")
@@ -160,6 +167,8 @@ def run(args: argparse.Namespace) -> int:
     from holoview.headless.run import PeakChoice, process_file
     from holoview.headless.selection import parse_assignment
 
+    if args.threads < 1:
+        raise InputError(f"--threads must be at least 1, got {args.threads}")
     if args.auto is None and args.peaks is None and not args.label:
         args.auto = 4
         logger.info("no peaks chosen: --auto 4")
@@ -176,6 +185,7 @@ def run(args: argparse.Namespace) -> int:
         unwrap=args.unwrap,
         maps=args.maps,
         area_m2=args.area,
+        threads=args.threads,
     )
     bar, update = _progress_bar(args.quiet)
     with bar:

@@ -58,8 +58,10 @@ class ProcessSettings:
         Write the delta-h maps.
     area_m2 : float or None
         Basin area, m^2, for volume rates.
-    threads : int or None
-        FFTW threads (None: the usable CPUs, at most 4).
+    threads : int
+        FFTW threads per frame. One by default: the reader thread needs a core too,
+        and on a loaded two-core machine a two-thread FFT waiting for a busy core
+        took 450 ms instead of 10 ms per 1024 x 1024 frame.
     read_ahead : int
         Frames the reader thread reads ahead.
     """
@@ -70,7 +72,7 @@ class ProcessSettings:
     unwrap: str = "auto"
     maps: bool = False
     area_m2: float | None = None
-    threads: int | None = None
+    threads: int = 1
     read_ahead: int = DEFAULT_DEPTH
 
 

@@ -185,7 +185,7 @@ def process_file(
         selected = parse_frame_range(frames, len(source))
         times = source.times(selected, options.fps_hz)
         first = source.read(selected[0])
-        detected = find_peaks(first, radius=settings.radius)
+        detected = find_peaks(first, radius=settings.radius, threads=settings.threads)
         selection = choose_peaks(choice, detected, source.frame_shape, optics)
         demodulator = make_demodulator(
             source.frame_shape, selection, optics, settings, source.saturation
@@ -245,7 +245,7 @@ def process_file(
     if report:
         from holoview.headless.report import write_report
 
-        spectrum = display_spectrum(first)
+        spectrum = display_spectrum(first, threads=settings.threads)
         files.append(out_dir / REPORT_PNG)
         write_report(
             files[-1],

@@ -1,0 +1,228 @@
+"""Throughput and memory of ``holoview process`` on a long 1024 x 1024 recording.
+
+Run from the repository root::
+
+    .venv/bin/python benchmarks/bench_process.py              # 2000 frames, about 3 minutes
+    .venv/bin/python benchmarks/bench_process.py --frames 500 # quicker
+
+Writes a simulated recording (evaporating water, 12-bit in uint16, the default bench
+setup at 1024 x 1024, pooled shot noise) into a temporary folder under /tmp, then prints,
+with the machine and its load:
+
+1. reading alone: every frame read back through the same reader ``process`` uses
+   (the file is in the page cache, as it is right after recording);
+2. the demodulator alone on frames held in memory, for the same peaks, window and
+   threads as ``process`` chooses (the "demodulator's benchmark speed" here);
+3. ``holoview process`` end to end, in a child process, over the first 10 % of the
+   frames and over all of them, without and with ``--maps``: frames per second, the
+   reading share, and the peak resident memory (RSS) of each run, which must not grow
+   with the number of frames;
+4. the target: ``process`` time per frame at most the demodulator's plus the reading's.
+
+The recording and the outputs are deleted at the end. Timings on a shared machine are
+noisy: read the load average printed with them.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import shutil
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO))
+
+from holoview.acquire.recording import RecordingWriter  # noqa: E402
+from holoview.headless.inputs import InputFile, OpticsOptions, resolve_optics  # noqa: E402
+from holoview.headless.pipeline import ProcessSettings, make_demodulator  # noqa: E402
+from holoview.headless.run import PeakChoice, choose_peaks  # noqa: E402
+from holoview.optics.families import predict_families  # noqa: E402
+from holoview.optics.setup import Setup  # noqa: E402
+from holoview.optics.synthesis import HologramSynthesizer  # noqa: E402
+from holoview.processing.peaks import find_peaks  # noqa: E402
+
+SHAPE = (1024, 1024)
+FPS = 80.0
+RATE = -60e-6 / 60  # m/s, 60 um/min
+
+#: Runs ``holoview`` and reports its own peak RSS (kB) on the last line of stderr.
+CHILD = (
+    "import resource, sys\n"
+    "from holoview.cli import main\n"
+    "status = main(sys.argv[1:])\n"
+    "print('MAXRSS_KB', resource.getrusage(resource.RUSAGE_SELF).ru_maxrss, file=sys.stderr)\n"
+    "sys.exit(status)\n"
+)
+
+
+def machine() -> str:
+    model = platform.processor() or platform.machine()
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                model = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    load = ", ".join(f"{v:.2f}" for v in os.getloadavg())
+    return f"{platform.node()}: {model}, nproc {os.cpu_count()}, load average {load}"
+
+
+def write_recording(path: Path, frames: int, setup: Setup) -> float:
+    """Write the simulated recording; return the seconds it took."""
+    synthesiser = HologramSynthesizer(setup, noise="pooled")
+    rng = np.random.default_rng(1)
+    start = time.perf_counter()
+    with RecordingWriter(
+        path,
+        SHAPE,
+        "uint16",
+        setup=setup.as_attributes(),
+        settings={"frame_rate_hz": FPS},
+        source="bench_process",
+        significant_bits=12,
+        pixel_format="Mono12",
+    ) as writer:
+        for i in range(frames):
+            t = i / FPS
+            writer.append(synthesiser.render(RATE * t, rng=rng), i, t, time.time())
+    return time.perf_counter() - start
+
+
+def label_args(setup: Setup) -> list[str]:
+    truth = {f.label: f.observed_carrier for f in predict_families(setup, max_order=2)}
+    args = []
+    for label in ("RB1", "FB1"):
+        fx, fy = truth[label]
+        args += ["--label", f"{label}={fx:.6f},{fy:.6f}"]
+    return args
+
+
+def read_speed(path: Path) -> float:
+    """Seconds per frame reading every frame in order."""
+    with InputFile(path) as source:
+        start = time.perf_counter()
+        for i in range(len(source)):
+            source.read(i)
+        return (time.perf_counter() - start) / len(source)
+
+
+def demodulator_speed(path: Path, labels: list[str]) -> tuple[float, str]:
+    """Median seconds per frame of the demodulator alone, and a description of its peaks."""
+    with InputFile(path) as source:
+        optics = resolve_optics(source.setup, OpticsOptions())
+        frames = [source.read(i) for i in range(32)]
+        shape = source.frame_shape
+        saturation = source.saturation
+    parsed = {}
+    for k in range(0, len(labels), 2):
+        name, _, carrier = labels[k + 1].partition("=")
+        fx, fy = (float(v) for v in carrier.split(","))
+        parsed[name] = (fx, fy)
+    selection = choose_peaks(PeakChoice(labels=parsed), find_peaks(frames[0]), shape, optics)
+    demodulator = make_demodulator(shape, selection, optics, ProcessSettings(), saturation)
+    for frame in frames[:4]:
+        demodulator.process(frame)
+    times = []
+    for _ in range(4):
+        for frame in frames:
+            t0 = time.perf_counter()
+            demodulator.process(frame)
+            times.append(time.perf_counter() - t0)
+    peaks = ", ".join(p.label or "?" for p in selection.peaks)
+    description = f"{len(selection.peaks)} peaks ({peaks}), boxes {demodulator.box_shape}"
+    return statistics.median(times), description
+
+
+def run_process(path: Path, out: Path, args: list[str]) -> tuple[dict, float, float]:
+    """Run ``holoview process`` in a child; return its summary, wall seconds, peak RSS (MB)."""
+    argv = ["-q", "process", str(path), "--out", str(out), *args]
+    start = time.perf_counter()
+    done = subprocess.run(
+        [sys.executable, "-c", CHILD, *argv],
+        cwd=REPO,
+        capture_output=True,
+        text=True,
+        check=False,
+    )
+    wall = time.perf_counter() - start
+    if done.returncode != 0:
+        raise SystemExit(f"holoview process failed:\n{done.stderr}")
+    rss_kb = next(
+        int(line.split()[1]) for line in done.stderr.splitlines() if line.startswith("MAXRSS_KB")
+    )
+    summary = json.loads((out / "summary.json").read_text())
+    return summary, wall, rss_kb / 1024
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--frames", type=int, default=2000, help="frames in the recording")
+    args = parser.parse_args(argv)
+    setup = Setup(shape=SHAPE)
+    folder = Path(tempfile.mkdtemp(prefix="holoview-bench-process-", dir="/tmp"))
+    try:
+        path = folder / "evaporation.h5"
+        print(machine())
+        seconds = write_recording(path, args.frames, setup)
+        size_gb = path.stat().st_size / 1e9
+        print(
+            f"recording: {args.frames} frames of {SHAPE[0]} x {SHAPE[1]} uint16 "
+            f"({size_gb:.2f} GB) written in {seconds:.1f} s"
+        )
+        labels = label_args(setup)
+        read_s = read_speed(path)
+        print(f"1. reading alone: {read_s * 1e3:.2f} ms/frame ({1 / read_s:.0f} frames/s)")
+        demod_s, described = demodulator_speed(path, labels)
+        print(
+            f"2. demodulator alone (frames in memory), {described}: "
+            f"{demod_s * 1e3:.2f} ms/frame ({1 / demod_s:.0f} frames/s, median)"
+        )
+        print("3. holoview process (child process; time from summary.json, RSS = peak resident)")
+        short = max(10, args.frames // 10)
+        runs = [
+            (f"first {short} frames", [*labels, "--frames", f"0:{short}"]),
+            (f"all {args.frames} frames", labels),
+            (f"all {args.frames} frames --maps", [*labels, "--maps"]),
+        ]
+        results = []
+        for name, extra in runs:
+            summary, wall, rss = run_process(path, folder / "out", extra)
+            timing = summary["timing"]
+            n = summary["frames"]["processed"]
+            per_frame = timing["seconds"] / n
+            results.append((per_frame, rss))
+            print(
+                f"   {name:<28} {1 / per_frame:7.1f} frames/s ({per_frame * 1e3:.2f} ms/frame; "
+                f"reading {timing['read_seconds'] / timing['seconds']:.0%} of the loop on its "
+                f"thread, demodulating {timing['demodulate_seconds'] / timing['seconds']:.0%}); "
+                f"command {wall:.1f} s in all; peak RSS {rss:.0f} MB"
+            )
+            shutil.rmtree(folder / "out")
+        budget = demod_s + read_s
+        ratio = results[1][0] / budget
+        growth = results[1][1] / results[0][1]
+        print(
+            f"4. target: process {results[1][0] * 1e3:.2f} ms/frame against demodulator + "
+            f"reading {budget * 1e3:.2f} ms/frame: ratio {ratio:.2f} "
+            f"({'met' if ratio <= 1.05 else 'missed'}, <= 1 wanted); "
+            f"RSS {results[0][1]:.0f} MB for {short} frames, {results[1][1]:.0f} MB for "
+            f"{args.frames}: x{growth:.2f} ({'bounded' if growth < 1.2 else 'GROWS'})"
+        )
+    finally:
+        shutil.rmtree(folder, ignore_errors=True)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
