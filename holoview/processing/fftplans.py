@@ -28,7 +28,8 @@ import pyfftw
 
 logger = logging.getLogger(__name__)
 
-#: Planner effort used when wisdom does not already cover a shape.
+#: Planner effort used when wisdom does not already cover a shape (a test suite may
+#: set ``"FFTW_ESTIMATE"``: plans in microseconds, transforms a little slower).
 PLANNER_EFFORT = "FFTW_MEASURE"
 
 #: How many plans the per-process cache keeps before dropping the least recently used.
@@ -170,7 +171,7 @@ def _plan(kind: str, shape: tuple[int, int], threads: int, effort: str) -> pyfft
 
 
 def rfft2_plan(
-    shape: tuple[int, int], *, threads: int = 1, effort: str = PLANNER_EFFORT
+    shape: tuple[int, int], *, threads: int = 1, effort: str | None = None
 ) -> pyfftw.FFTW:
     """Return the calling thread's plan of a float32 -> complex64 2-D real FFT.
 
@@ -184,21 +185,22 @@ def rfft2_plan(
         Frame shape ``(rows, cols)`` in pixels.
     threads : int
         FFTW threads used inside the transform.
-    effort : str
-        FFTW planner flag used when the wisdom does not cover this transform.
+    effort : str, optional
+        FFTW planner flag used when the wisdom does not cover this transform; by
+        default :data:`PLANNER_EFFORT`.
     """
-    return _plan("rfft2", (int(shape[0]), int(shape[1])), int(threads), effort)
+    return _plan("rfft2", (int(shape[0]), int(shape[1])), int(threads), effort or PLANNER_EFFORT)
 
 
 def ifft2_plan(
-    shape: tuple[int, int], *, threads: int = 1, effort: str = PLANNER_EFFORT
+    shape: tuple[int, int], *, threads: int = 1, effort: str | None = None
 ) -> pyfftw.FFTW:
     """Return the calling thread's plan of a complex64 2-D inverse FFT.
 
     Fill ``plan.input_array`` and call ``plan()`` (normalised by 1 / size) or
     ``plan.execute()`` (unnormalised, one pass less); the result is ``plan.output_array``.
     """
-    return _plan("ifft2", (int(shape[0]), int(shape[1])), int(threads), effort)
+    return _plan("ifft2", (int(shape[0]), int(shape[1])), int(threads), effort or PLANNER_EFFORT)
 
 
 def default_threads() -> int:
