@@ -60,6 +60,12 @@ logger = logging.getLogger(__name__)
 REFERENCE_MODES: tuple[str, ...] = ("synthetic", "absolute", "relative")
 UNWRAP_MODES: tuple[str, ...] = ("auto", "always", "never")
 
+#: Flags a :class:`PeakResult` can carry (see its documentation).
+PEAK_RESULT_FLAGS: tuple[str, ...] = ("reference", "phase_step", "low_amplitude", "overlap")
+
+#: Flags a :class:`DemodResult` can carry (see its documentation).
+FRAME_FLAGS: tuple[str, ...] = ("nonfinite", "no_signal", "saturated", "reference")
+
 #: A mean-phase step per frame (rad) beyond which a peak is flagged ``"phase_step"``.
 PHASE_STEP_LIMIT = 0.8 * np.pi
 

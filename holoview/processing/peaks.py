@@ -53,6 +53,7 @@ ANNULUS_BINS = (5, 12)
 #: Tolerance (bins) when matching a peak to a harmonic or a sum of other carriers.
 RELATION_TOLERANCE_BINS = 1.5
 
+#: Every flag :func:`find_peaks` can put on a peak (see the module documentation).
 FLAGS: tuple[str, ...] = ("harmonic", "sum", "overlap", "near_nyquist", "weak")
 
 
