@@ -402,11 +402,13 @@ class Demodulator:
             self.radius,
             self.box_shape,
         )
+        self.aperture: np.ndarray | None = None
         self._aperture_box: np.ndarray | None = None
         if aperture is not None:
-            ap = np.asarray(aperture, dtype=bool)
+            ap = np.array(aperture, dtype=bool)  # a copy: the caller's mask may change
             if ap.shape != self.shape:
                 raise InputError(f"aperture mask has shape {ap.shape}, frames have {self.shape}")
+            self.aperture = _readonly(ap)
             self._aperture_box = resample_mask(ap, self.box_shape)
         n_box = self.box_shape[0] * self.box_shape[1]
         self._angle_workspace = AngleWorkspace(self.box_shape)
@@ -463,6 +465,7 @@ class Demodulator:
         carriers unless given in ``changes``; references start over.
         """
         settings: dict[str, object] = {
+            "aperture": self.aperture,
             "window": self.window,
             "reference": self.reference,
             "unwrap": self.unwrap,
@@ -473,10 +476,7 @@ class Demodulator:
             "threads": self.threads,
         }
         settings.update(changes)
-        new = Demodulator(self.shape, peaks, **settings)  # type: ignore[arg-type]
-        if "aperture" not in changes and self._aperture_box is not None:
-            new._aperture_box = resample_mask(self._aperture_box, new.box_shape)
-        return new
+        return Demodulator(self.shape, peaks, **settings)  # type: ignore[arg-type]
 
     def area_fraction(self, i: int) -> float:
         """Return peak ``i``'s window area fraction ``sum |W|^2 / (rows cols)`` (DESIGN.md)."""

@@ -7,7 +7,13 @@ import pytest
 from processing_synth import BENCH, WAVELENGTH, bench_frame, bump, frame, intensity
 
 from holoview.errors import InputError
-from holoview.processing.demodulate import Demodulator, box_shape_for, refine_carriers
+from holoview.processing.demodulate import (
+    FRAME_FLAGS,
+    PEAK_RESULT_FLAGS,
+    Demodulator,
+    box_shape_for,
+    refine_carriers,
+)
 from holoview.processing.heights import height_to_phase
 from holoview.processing.peaks import Peak, find_peaks
 from holoview.processing.resample import box_positions
@@ -211,6 +217,10 @@ def test_non_square_frames_and_aperture() -> None:
         assert r.field.shape == r.phase.shape == r.mask.shape == result.box_shape
         assert r.mask.mean() < 0.6  # the disc covers about 31 % of the frame
     assert result.by_label("FB1").peak.label == "FB1"
+    narrower = demod.with_peaks(peaks[:2], radius=0.04)
+    assert narrower.aperture is not None and narrower.box_shape != demod.box_shape
+    r = narrower.process(bench_frame(shape, 0.0, rng=rng)).peaks[0]
+    assert r.mask.mean() < 0.6
     with pytest.raises(KeyError):
         result.by_label("nope")
 
@@ -242,8 +252,10 @@ def test_flagged_frames_keep_the_stream_going() -> None:
     nan_result = demod.process(bad)
     np.testing.assert_array_equal(bad, kept)
     assert nan_result.flags == {"nonfinite"} and nan_result.peaks == ()
+    assert nan_result.flags <= set(FRAME_FLAGS)
     constant = demod.process(np.full(SHAPE, 4095, np.uint16))
-    assert {"no_signal", "saturated"} <= constant.flags
+    assert {"no_signal", "saturated"} <= constant.flags <= set(FRAME_FLAGS)
+    assert all(r.flags <= set(PEAK_RESULT_FLAGS) for r in constant.peaks)
     assert all("low_amplitude" in r.flags and not r.mask.any() for r in constant.peaks)
     # the reference survived: a good frame still compares with the first one
     good = demod.process(bench_frame(SHAPE, 0.0, rng=rng))
