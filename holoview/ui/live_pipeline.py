@@ -49,7 +49,7 @@ FOLLOW_DISTANCE = 0.02
 #: Depth series kept for the trends plot, frames (10 minutes at 60 frames/s).
 TREND_LENGTH = 36000
 #: Highest rate at which depths, rate and PCA are recomputed from the series, Hz.
-TREND_HZ = 4.0
+TREND_HZ = 2.0
 #: Families whose predicted carriers are drawn and matched once two peaks are labelled.
 PREDICTED_FAMILIES: tuple[str, ...] = ("RF", "RB1", "FB1", "RB2", "FB2")
 
