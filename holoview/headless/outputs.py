@@ -56,6 +56,9 @@ RESULTS_FORMAT = "holoview-results"
 SUMMARY_FORMAT = "holoview-process-summary"
 FORMAT_VERSION = "1.0"
 
+#: Frames of maps gathered before one write per dataset (fewer, larger HDF5 writes).
+MAP_BATCH = 16
+
 #: What each reference mode means, for the map attributes.
 REFERENCE_DESCRIPTIONS = {
     "relative": "each frame against the previous one (the first frame is zero)",
@@ -243,6 +246,32 @@ class ResultsFile:
             ]
             if with_fused:
                 self._fused = self._map_dataset(group, "fused", n_frames, box_shape)
+        # maps of MAP_BATCH frames, written together: one buffer per dataset (fused last)
+        self._block = -1
+        self._buffers = [
+            np.empty((MAP_BATCH, *box_shape), np.float32)
+            for _ in range(len(self._maps) + (self._fused is not None))
+        ]
+
+    def _buffer(self, position: int) -> int:
+        """Make the buffers hold ``position``'s block (writing the previous); return its row."""
+        block = position // MAP_BATCH
+        if block != self._block:
+            self._flush()
+            self._block = block
+            for buffer in self._buffers:
+                buffer.fill(np.nan)
+        return position - block * MAP_BATCH
+
+    def _flush(self) -> None:
+        if self._block < 0:
+            return
+        datasets = [*self._maps, *([self._fused] if self._fused is not None else [])]
+        for dataset, buffer in zip(datasets, self._buffers, strict=True):
+            start = self._block * MAP_BATCH
+            stop = min(start + MAP_BATCH, dataset.shape[0])
+            dataset[start:stop] = buffer[: stop - start]
+        self._block = -1
 
     @staticmethod
     def _map_dataset(
@@ -259,12 +288,12 @@ class ResultsFile:
     def write_map(self, position: int, peak: int, values: np.ndarray) -> None:
         """Store peak ``peak``'s map of the ``position``-th processed frame."""
         if self._maps:
-            self._maps[peak][position] = values
+            self._buffers[peak][self._buffer(position)] = values
 
     def write_fused(self, position: int, values: np.ndarray) -> None:
         """Store the fused map of the ``position``-th processed frame."""
         if self._fused is not None:
-            self._fused[position] = values
+            self._buffers[-1][self._buffer(position)] = values
 
     def _convert_maps(self, data: RunData, analysis: Analysis) -> None:
         """Auto mode: phase maps to delta-h with the PCA's prefactors, then fuse them."""
@@ -301,6 +330,7 @@ class ResultsFile:
         ``converted`` says the maps already hold delta-h (prefactors known during the
         run); otherwise they hold phases and are converted here.
         """
+        self._flush()
         f = self._file
         f.attrs.update(
             {
@@ -428,6 +458,9 @@ class ResultsFile:
             )
 
     def close(self) -> None:
-        """Close the file."""
+        """Write the maps still buffered and close the file."""
         if self._file.id.valid:
-            self._file.close()
+            try:
+                self._flush()
+            finally:
+                self._file.close()

@@ -168,6 +168,28 @@ def _trusted(result_map: np.ndarray, mask: np.ndarray) -> np.ndarray:
     return np.where(mask, result_map, np.float32(np.nan)).astype(np.float32, copy=False)
 
 
+def frame_maps(
+    result: DemodResult, with_alpha: bool
+) -> tuple[list[np.ndarray | None], np.ndarray | None]:
+    """Return one frame's maps (NaN where untrusted) and, with every alpha known, the fused map.
+
+    Maps are delta-h in m for peaks with alpha, else phases in rad. The fused map leaves
+    out the peaks whose mean phase stepped past 0.8 pi since the previous frame.
+    """
+    maps: list[np.ndarray | None] = [
+        _trusted(r.delta_h if r.delta_h is not None else r.phase, r.mask) for r in result.peaks
+    ]
+    fused = None
+    if with_alpha and len(maps) >= 2:
+        usable = [j for j, r in enumerate(result.peaks) if "phase_step" not in r.flags]
+        usable = usable or list(range(len(maps)))
+        fused = fuse_maps(
+            [maps[j] for j in usable],  # type: ignore[misc]
+            [result.peaks[j].noise_height or math.nan for j in usable],
+        )
+    return maps, fused
+
+
 def make_demodulator(
     shape: tuple[int, int],
     selection: Selection,
@@ -241,6 +263,7 @@ def demodulate_frames(
         maps_in_metres=with_alpha,
     )
     start = time.perf_counter()
+    last: DemodResult | None = None
     reader = FrameReader(source.read, frames, depth=read_ahead)
     with reader:
         for position, (index, frame) in enumerate(reader):
@@ -250,28 +273,18 @@ def demodulate_frames(
             data.demod_seconds += t1 - t0
             _record(data, position, result)
             if result.peaks:
-                maps = [
-                    _trusted(r.delta_h if r.delta_h is not None else r.phase, r.mask)
-                    for r in result.peaks
-                ]
-                fused = None
-                if with_alpha and m >= 2:
-                    usable = [
-                        j for j, r in enumerate(result.peaks) if "phase_step" not in r.flags
-                    ] or list(range(m))
-                    fused = fuse_maps(
-                        [maps[j] for j in usable],
-                        [result.peaks[j].noise_height or math.nan for j in usable],
-                    )
+                last, data.last_frame = result, index
                 if sink is not None:
+                    maps, fused = frame_maps(result, with_alpha)
                     for j, values_map in enumerate(maps):
                         sink.write_map(position, j, values_map)
                     if fused is not None:
                         sink.write_fused(position, fused)
-                data.last_maps, data.last_fused, data.last_frame = maps, fused, index
             data.write_seconds += time.perf_counter() - t1
             if progress is not None:
                 progress(position + 1)
+    if last is not None:
+        data.last_maps, data.last_fused = frame_maps(last, with_alpha)
     data.read_seconds = reader.read_seconds
     data.wall_seconds = time.perf_counter() - start
     if not np.any(np.isfinite(values)):

@@ -256,9 +256,13 @@ def legend(
     *,
     scale: float = 0.45,
 ) -> None:
-    """Draw legend lines ``(text, colour, thickness)`` downwards from ``origin`` (top-left)."""
+    """Draw legend lines ``(text, colour, thickness)`` downwards from ``origin`` (top-left).
+
+    An entry of thickness 0 is a line of text without a sample (a note on the one above).
+    """
     x, y = origin
     for content, colour, thickness in entries:
-        cv2.line(image, (x, y), (x + 26, y), colour, thickness + 1, cv2.LINE_AA)
+        if thickness > 0:
+            cv2.line(image, (x, y), (x + 26, y), colour, thickness + 1, cv2.LINE_AA)
         text(image, content, (x + 34, y), scale=scale, valign="middle")
         y += 20

@@ -47,7 +47,7 @@ WIDTH = 1700
 SPECTRUM_SIDE = 470
 MAP_SIDE = 230
 #: Width of one map cell (map, colour bar, margins), pixels.
-MAP_CELL = 330
+MAP_CELL = 320
 #: Metres per second to micrometres per minute.
 UM_PER_MIN = 60e6
 
@@ -146,18 +146,17 @@ def _trend_panel(
         ylabel=f"mean height change ({unit})",
         title="depth trends (relative to the first frame)",
     )
-    entries = []
+    entries: list[tuple[str, tuple[int, int, int], int]] = []
     for j, peak in enumerate(analysis.peaks):
         colour = PALETTE[j % len(PALETTE)]
         axes.line(times, analysis.heights[:, j] * factor, colour, thickness=1)
-        why = ""
-        if not peak.used_in_fused:
-            reasons = [f for f in ("aliased_in_time", "weak", "unexplained") if f in peak.flags]
-            why = f" [not fused: {', '.join(reasons) or 'excluded'}]"
         alpha = f"{peak.alpha:.4g}" if peak.alpha is not None else "?"
         entries.append(
-            (f"{peak.label} (alpha {alpha}): {_rate(peak.rate, peak.rate_stderr)}{why}", colour, 1)
+            (f"{peak.label} (alpha {alpha}): {_rate(peak.rate, peak.rate_stderr)}", colour, 1)
         )
+        if not peak.used_in_fused:
+            reasons = [f for f in ("aliased_in_time", "weak", "unexplained") if f in peak.flags]
+            entries.append((f"   not fused: {', '.join(reasons) or 'excluded'}", WHITE, 0))
     if analysis.fused is not None:
         axes.line(times, analysis.fused * factor, BLACK, thickness=2)
         entries.append((f"fused: {_rate(*_fit(analysis))}", BLACK, 2))
@@ -296,7 +295,7 @@ def write_report(
         radius=data.radius,
         origin=(100, 100),
     )
-    _trend_panel(image, data, analysis, (720, 100, 560, SPECTRUM_SIDE))
+    _trend_panel(image, data, analysis, (720, 100, 540, SPECTRUM_SIDE))
     rows, cols = spectrum.shape
     field_text = ""
     if optics.pixel_pitch_m is not None:
