@@ -6,6 +6,7 @@ import csv
 import json
 from pathlib import Path
 
+import cv2
 import h5py
 import numpy as np
 import pytest
@@ -81,7 +82,23 @@ def test_labels_mode_trends_rates_and_summary(
     if "RB3" in summary["peaks"]:
         assert "aliased_in_time" in summary["peaks"]["RB3"]["flags"]
         assert not summary["peaks"]["RB3"]["used_in_fused"]
+    assert set(summary) >= {
+        "format",
+        "holoview_version",
+        "input",
+        "parameters",
+        "peaks",
+        "fused",
+        "pca",
+        "frames",
+    }
     assert summary["holoview_version"]
+    assert summary["frames"]["processed"] == evaporation.frames
+    with h5py.File(out / "results.h5", "r") as f:
+        assert f["trends/mean_height_m"].shape == (evaporation.frames, len(labels))
+        assert f["trends/mean_height_m"].attrs["unit"] == "m"
+        assert [s.decode() for s in f["peaks/label"][:]] == labels
+        np.testing.assert_allclose(f["trends/fused_height_m"][:], fused, rtol=1e-6, atol=1e-15)
     assert summary["input"]["kind"] == "hdf5"
     assert summary["parameters"]["optics_from"]["wavelength_m"] == "recording"
     assert summary["pca"]["confidence"] > 0.99
@@ -204,19 +221,28 @@ def test_peaks_file_and_auto_maps_agree(
             )
 
 
-def test_tiff_stack_with_options_and_volume(
-    evaporation: Simulated, tmp_path: Path, capsys: pytest.CaptureFixture
+@pytest.mark.parametrize("kind", ["tiff", "folder"])
+def test_image_files_with_options_and_volume(
+    evaporation: Simulated, tmp_path: Path, capsys: pytest.CaptureFixture, kind: str
 ) -> None:
     with h5py.File(evaporation.path, "r") as f:
-        tifffile.imwrite(tmp_path / "stack.tif", f["frames"][:60])
-    out = tmp_path / "tiff"
-    argv = ["process", str(tmp_path / "stack.tif"), "--out", str(out), "--wavelength", "532e-9"]
+        frames = f["frames"][:60]
+    if kind == "tiff":
+        path = tmp_path / "stack.tif"
+        tifffile.imwrite(path, frames)
+    else:
+        path = tmp_path / "images"
+        path.mkdir()
+        for i, frame in enumerate(frames):
+            assert cv2.imwrite(str(path / f"frame{i}.png"), frame)
+    out = tmp_path / "out"
+    argv = ["process", str(path), "--out", str(out), "--wavelength", "532e-9"]
     argv += ["--fluid", "water", "--n1", "1.000293", "--fps", str(evaporation.fps)]
     argv += ["--area", "0.01", *evaporation.label_args("RB1", "FB1")]
     status, _, _ = run_cli(argv, capsys)
     assert status == 0
     summary = json.loads((out / "summary.json").read_text())
-    assert summary["input"]["kind"] == "tiff"
+    assert summary["input"]["kind"] == kind
     assert summary["parameters"]["optics_from"]["n2"] == "option"
     fused = summary["fused"]
     assert fused["rate_m_per_s"] == pytest.approx(evaporation.rate, rel=0.01)
@@ -225,6 +251,8 @@ def test_tiff_stack_with_options_and_volume(
         np.testing.assert_allclose(
             f["trends/fused_volume_m3"][:], 0.01 * f["trends/fused_height_m"][:]
         )
+        assert f["trends/fused_volume_m3"].attrs["unit"] == "m^3"
+        assert "maps" not in f
 
 
 def write_garbage(path: Path) -> Path:
