@@ -663,7 +663,7 @@ class Demodulator:
         The guide is the peak with a known alpha and the smallest ``|alpha| / amplitude``
         (fewest wraps, least noise); when its map has wraps it is unwrapped in space
         (:func:`~holoview.processing.unwrap.unwrap_spatial`, Herraez et al. 2002, on a
-        2x decimated map for boxes of 128 pixels or more). Every other wrapped map of
+        decimated map, see :meth:`_unwrap_in_space`). Every other wrapped map of
         a peak with alpha is then unwrapped against the guide scaled by the ratio of
         alphas (:func:`~holoview.processing.unwrap.unwrap_guided`), which costs a few
         array passes instead of a spatial unwrap. Peaks without alpha are unwrapped
@@ -672,11 +672,10 @@ class Demodulator:
         need = [p.live and (self.unwrap == "always" or has_wraps(p.phase, p.mask)) for p in partial]
         if not any(need):
             return
-        coarse = 2 if min(self.box_shape) >= 128 else 1
         guide = self._guide_index(partial)
         if guide is not None and need[guide]:
             g = partial[guide]
-            g.phase, g.unwrapped = unwrap_spatial(g.phase, g.mask, decimate=coarse)
+            g.phase, g.unwrapped = self._unwrap_in_space(g.phase, g.mask)
         for i, part in enumerate(partial):
             if not need[i] or i == guide:
                 continue
@@ -686,7 +685,20 @@ class Demodulator:
                 part.phase = unwrap_guided(part.phase, partial[guide].phase * ratio, part.mask)
                 part.unwrapped = True
             else:
-                part.phase, part.unwrapped = unwrap_spatial(part.phase, part.mask, decimate=coarse)
+                part.phase, part.unwrapped = self._unwrap_in_space(part.phase, part.mask)
+
+    def _unwrap_in_space(self, phase: np.ndarray, mask: np.ndarray) -> tuple[np.ndarray, bool]:
+        """Herraez on a decimated map (coarse grid of 64 pixels or more), finer if that fails.
+
+        A map still wrapped after the coarse pass moved more than pi between coarse
+        samples somewhere: it is done again on a twice finer grid, down to every pixel.
+        """
+        decimate = max(1, min(self.box_shape) // 64)
+        while True:
+            unwrapped, changed = unwrap_spatial(phase, mask, decimate=decimate)
+            if decimate == 1 or not has_wraps(unwrapped, mask):
+                return unwrapped, changed
+            decimate //= 2
 
     def _finish(self, i: int, part: _Partial) -> PeakResult:
         """Set the map's 2 pi offset, estimate the noise, convert to height."""
