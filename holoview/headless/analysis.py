@@ -170,7 +170,9 @@ def _identify(
         ) from exc
 
 
-def _informative_pca(phases: np.ndarray, labels: list[str], alphas: list[float | None]):
+def _informative_pca(
+    phases: np.ndarray, labels: list[str], alphas: list[float | None]
+) -> dict[str, object] | None:
     """PCA of peaks with known prefactors, against the brightest with one (or None)."""
     known = [j for j, a in enumerate(alphas) if a is not None]
     if len(labels) < 2 or phases.shape[0] < 3 or not known:
@@ -191,6 +193,81 @@ def _informative_pca(phases: np.ndarray, labels: list[str], alphas: list[float |
     }
 
 
+@dataclass
+class _Naming:
+    """Per peak: label, signed alpha on the demodulated twin, fusable, PCA alpha and share."""
+
+    labels: list[str]
+    signed: list[float | None]
+    fusable: list[bool]
+    pca_alpha: list[float | None]
+    explained: list[float | None]
+    ident: Identification | None = None
+
+
+def _given_names(selection: Selection) -> _Naming:
+    peaks = selection.peaks
+    m = len(peaks)
+    return _Naming(
+        labels=[p.label or f"P{j}" for j, p in enumerate(peaks)],
+        signed=[p.alpha for p in peaks],
+        fusable=[p.alpha is not None for p in peaks],
+        pca_alpha=[None] * m,
+        explained=[None] * m,
+    )
+
+
+def _pca_names(ident: Identification, flags: list[set[str]]) -> _Naming:
+    """Labels and prefactors from the PCA identification (module docstring); adds flags."""
+    m = len(ident.peaks)
+    naming = _Naming(
+        labels=_auto_names(ident),
+        signed=[None] * m,
+        fusable=[False] * m,
+        pca_alpha=[p.alpha for p in ident.peaks],
+        explained=[p.explained for p in ident.peaks],
+        ident=ident,
+    )
+    for j, p in enumerate(ident.peaks):
+        if p.aliased:
+            flags[j].add("aliased_in_time")
+        if p.kind in _IDENTIFIED and p.expected_alpha is not None:
+            naming.signed[j] = math.copysign(p.expected_alpha, p.alpha)
+            naming.fusable[j] = True
+            if p.kind is PeakKind.REPEAT:
+                flags[j].add("repeat")
+            if p.kind is PeakKind.SECOND_ORDER:
+                flags[j].add("second_order")
+        else:
+            if math.isfinite(p.alpha) and p.alpha != 0:
+                naming.signed[j] = p.alpha
+            flags[j].add("weak" if p.kind is PeakKind.WEAK else "unexplained")
+    return naming
+
+
+def _run_flags(selection: Selection, data: RunData) -> list[set[str]]:
+    """Detection flags of each peak, and those the run raised often enough."""
+    n = data.values.shape[0]
+    flags: list[set[str]] = [set(p.flags) for p in selection.peaks]
+    for j, p in enumerate(selection.peaks):
+        if not p.amplitude >= 0:
+            flags[j].add("not_detected")
+        counts = data.peak_flags[j]
+        if counts["phase_step"]:
+            flags[j].add("phase_step")
+        if counts["low_amplitude"] > LOW_AMPLITUDE_SHARE * n:
+            flags[j].add("low_amplitude")
+    return flags
+
+
+def _mean_over_peaks(heights: np.ndarray) -> np.ndarray:
+    """Per frame, the mean of the finite heights (NaN where none)."""
+    finite = np.isfinite(heights)
+    count = finite.sum(axis=1)
+    total = np.where(finite, heights, 0.0).sum(axis=1)
+    return np.where(count > 0, total / np.maximum(count, 1), np.nan)
+
+
 def analyse(data: RunData, selection: Selection, optics: Optics) -> Analysis:
     """Name the peaks (auto mode), convert to depths, fuse, fit rates, set flags.
 
@@ -202,67 +279,32 @@ def analyse(data: RunData, selection: Selection, optics: Optics) -> Analysis:
     wavelength = optics.wavelength_m
     assert wavelength is not None
     n, m = data.values.shape
-    peaks = selection.peaks
-    flags: list[set[str]] = [set(p.flags) for p in peaks]
-    for j, p in enumerate(peaks):
-        if not p.amplitude >= 0:
-            flags[j].add("not_detected")
-        counts = data.peak_flags[j]
-        if counts["phase_step"]:
-            flags[j].add("phase_step")
-        if counts["low_amplitude"] > LOW_AMPLITUDE_SHARE * n:
-            flags[j].add("low_amplitude")
+    flags = _run_flags(selection, data)
     raw_phases = unwrap_in_time(data.values) if n >= 2 else np.zeros((n, m))
     raw_phases = np.where(np.isfinite(data.values), raw_phases, np.nan)
-    signed: list[float | None] = [p.alpha for p in peaks]
-    labels = [p.label or f"P{j}" for j, p in enumerate(peaks)]
-    fusable = [a is not None for a in signed]
-    pca_alpha: list[float | None] = [None] * m
-    explained: list[float | None] = [None] * m
-    pca_info = None
-    notes: list[str] = list(selection.notes)
     if selection.mode == "auto":
-        ident = _identify(raw_phases, data, selection, optics)
-        labels = _auto_names(ident)
-        for j, p in enumerate(ident.peaks):
-            explained[j] = p.explained
-            pca_alpha[j] = p.alpha
-            if p.aliased:
-                flags[j].add("aliased_in_time")
-            if p.kind in _IDENTIFIED and p.expected_alpha is not None:
-                signed[j] = math.copysign(p.expected_alpha, p.alpha)
-                fusable[j] = True
-                if p.kind is PeakKind.REPEAT:
-                    flags[j].add("repeat")
-                if p.kind is PeakKind.SECOND_ORDER:
-                    flags[j].add("second_order")
-            else:
-                finite = math.isfinite(p.alpha) and p.alpha != 0
-                signed[j] = p.alpha if finite else None
-                fusable[j] = False
-                flags[j].add("weak" if p.kind is PeakKind.WEAK else "unexplained")
-        pca_info = {
-            "confidence": ident.confidence,
-            "reference": labels[ident.reference],
-            "prefactors": {},
-            "explained": {},
-            "n_samples": ident.pca.n_samples,
-        }
-        if selection.reference is not None and selection.reference_label == "RB1":
-            notes.append(
-                "auto: the brightest peak was taken as RB1 on the twin with fx > 0; if the "
-                "heights have the wrong sign, give --anchor RB1=fx,fy on the other twin"
-            )
+        naming = _pca_names(_identify(raw_phases, data, selection, optics), flags)
+    else:
+        naming = _given_names(selection)
+    labels, signed, fusable = naming.labels, naming.signed, naming.fusable
+    # a peak with a negative prefactor is stored on its other twin (DESIGN.md)
     signs = np.array([-1.0 if (a is not None and a < 0) else 1.0 for a in signed])
     alphas = [abs(a) if a is not None else None for a in signed]
     phases = raw_phases * signs + 0.0  # no negative zeros in the files
     values = np.where(signs < 0, np.conj(data.values), data.values)
-    if pca_info is not None:
-        pca_info["prefactors"] = {
-            labels[j]: float(a * signs[j]) for j, a in enumerate(pca_alpha) if a is not None
-        }
-        pca_info["explained"] = {
-            labels[j]: float(e) for j, e in enumerate(explained) if e is not None
+    if naming.ident is not None:
+        pca_info: dict[str, object] | None = {
+            "confidence": naming.ident.confidence,
+            "reference": labels[naming.ident.reference],
+            "prefactors": {
+                labels[j]: float(a * signs[j])
+                for j, a in enumerate(naming.pca_alpha)
+                if a is not None
+            },
+            "explained": {
+                labels[j]: float(e) for j, e in enumerate(naming.explained) if e is not None
+            },
+            "n_samples": naming.ident.pca.n_samples,
         }
     else:
         pca_info = _informative_pca(phases, labels, alphas)
@@ -276,6 +318,7 @@ def analyse(data: RunData, selection: Selection, optics: Optics) -> Analysis:
     used = [False] * m
     fused = spread = None
     fit = None
+    notes = list(selection.notes)
     track: DepthTrack | None = None
     if n >= 3 and known:
         try:
@@ -300,16 +343,14 @@ def analyse(data: RunData, selection: Selection, optics: Optics) -> Analysis:
             used[j] = bool(track.fused.used[k])
             if track.aliasing.aliased[k]:
                 flags[j].add("aliased_in_time")
-    elif known and any(fusable[j] for j in known):
+    elif n < 3 and any(fusable[j] for j in known):
         chosen = [j for j in known if fusable[j]]
-        fused = np.nanmean(heights[:, chosen], axis=1)
+        fused = _mean_over_peaks(heights[:, chosen])
         used = [j in chosen for j in range(m)]
     outcomes = []
-    for j, p in enumerate(peaks):
+    for j, p in enumerate(selection.peaks):
         carrier = p.carrier if signs[j] > 0 else p.flipped().carrier
-        scale = None
-        if signed[j] is not None:
-            scale = wavelength / (4 * np.pi * signed[j])
+        pca_alpha = naming.pca_alpha[j]
         outcomes.append(
             PeakOutcome(
                 label=labels[j],
@@ -322,9 +363,9 @@ def analyse(data: RunData, selection: Selection, optics: Optics) -> Analysis:
                 rate_stderr=None if rates[j] is None else rates[j][1],
                 noise_m=noise_m[j],
                 used_in_fused=used[j],
-                pca_alpha=None if pca_alpha[j] is None else float(pca_alpha[j] * signs[j]),
-                explained=explained[j],
-                map_scale=scale,
+                pca_alpha=None if pca_alpha is None else float(pca_alpha * signs[j]),
+                explained=naming.explained[j],
+                map_scale=None if signed[j] is None else wavelength / (4 * np.pi * signed[j]),
             )
         )
     return Analysis(

@@ -341,7 +341,13 @@ def select_auto(
         peaks.append(peak.relabelled(f"P{rank}"))
     if len(indices) < count:
         logger.warning("--auto %d: only %d significant peaks detected", count, len(indices))
-    return Selection("auto", tuple(peaks), reference=reference, reference_label=label)
+    notes = ()
+    if anchor is None:
+        notes = (
+            "auto: the brightest peak was taken as RB1 on the twin with fx > 0; if the "
+            "heights have the wrong sign, give --anchor RB1=fx,fy on the other twin",
+        )
+    return Selection("auto", tuple(peaks), reference=reference, reference_label=label, notes=notes)
 
 
 def describe_peaks(

@@ -118,6 +118,7 @@ def test_auto_mode_identifies_the_peaks_by_pca(
     for label, value in summary["pca"]["prefactors"].items():
         assert value == pytest.approx(evaporation.alphas[label], rel=0.02), label
     assert summary["fused"]["rate_m_per_s"] == pytest.approx(evaporation.rate, rel=0.01)
+    assert not any("--anchor" in note for note in summary["notes"])
     # without the anchor the brightest peak is taken on the other twin: the sign flips
     status, _, _ = run_cli([*argv[:3], str(tmp_path / "plain"), *argv[4:]], capsys)
     assert status == 0
