@@ -82,13 +82,13 @@ class Optics:
     def require(self, *names: str) -> None:
         """Raise InputError naming the option to give for each parameter that is unknown."""
         options = {
-            "wavelength_m": "--wavelength (m)",
-            "n2": "--n2 or --fluid",
-            "pixel_pitch_m": "--pixel-pitch (m)",
+            "wavelength_m": "the laser wavelength is not known: give --wavelength (m)",
+            "n2": "the fluid's refractive index is not known: give --n2 or --fluid",
+            "pixel_pitch_m": "the pixel pitch is not known: give --pixel-pitch (m)",
         }
         missing = [options[name] for name in names if getattr(self, name) is None]
         if missing:
-            raise InputError(f"the input does not say {' and '.join(missing)}: give it")
+            raise InputError("; ".join(missing))
 
 
 def _positive(name: str, value: float | None) -> float | None:

@@ -44,6 +44,7 @@ import h5py
 import numpy as np
 
 from holoview import __version__
+from holoview.errors import InputError
 from holoview.headless.analysis import Analysis, PeakOutcome
 from holoview.headless.inputs import Optics
 from holoview.headless.pipeline import ProcessSettings, RunData, fuse_maps
@@ -234,7 +235,10 @@ class ResultsFile:
         with_fused: bool,
     ) -> None:
         self.path = path
-        self._file = h5py.File(path, "w", libver=("v110", "latest"))
+        try:
+            self._file = h5py.File(path, "w", libver=("v110", "latest"))
+        except OSError as exc:
+            raise InputError(f"{path}: cannot be written ({exc})") from exc
         self._labels = list(labels)
         self._maps: list[h5py.Dataset] = []
         self._fused: h5py.Dataset | None = None

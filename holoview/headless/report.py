@@ -60,7 +60,7 @@ REFERENCE_TITLES = {
 
 def _rate(rate: float | None, stderr: float | None) -> str:
     if rate is None or not math.isfinite(rate):
-        return "no rate"
+        return "n/a"
     return f"{rate * UM_PER_MIN:+.4g} +- {(stderr or 0.0) * UM_PER_MIN:.2g} um/min"
 
 
@@ -172,6 +172,8 @@ def _trend_panel(
             )
             entries.append(("fitted line of the fused depth", (0, 0, 200), 2))
     legend(image, (left + width + 20, top + 10), entries)
+    if times.size < 3:
+        text(image, "fewer than three frames: no trend", (left + 20, top + 30), scale=0.55)
 
 
 def _fit(analysis: Analysis) -> tuple[float | None, float | None]:
@@ -282,7 +284,7 @@ def write_report(
     n2 = f"{optics.n2:.4g}" if optics.n2 is not None else "?"
     text(
         image,
-        f"fused depth rate {fit_text}   |   wavelength {(optics.wavelength_m or 0) * 1e9:.1f} nm, "
+        f"fused depth rate: {fit_text}   |   wavelength {(optics.wavelength_m or 0) * 1e9:.1f} nm, "
         f"n1 {optics.n1:.4g}, n2 {n2}, window {settings.window}, reference {settings.reference}",
         (20, 62),
         scale=0.55,

@@ -240,8 +240,11 @@ def process_file(
             analysis=analysis,
         )
     files = [out_dir / TRENDS_CSV, out_dir / SUMMARY_JSON, out_dir / RESULTS_H5]
-    write_trends_csv(files[0], data, analysis)
-    write_summary_json(files[1], summary)
+    try:
+        write_trends_csv(files[0], data, analysis)
+        write_summary_json(files[1], summary)
+    except OSError as exc:
+        raise InputError(f"--out {out_dir}: cannot write the results ({exc})") from exc
     if report:
         from holoview.headless.report import write_report
 

@@ -335,3 +335,23 @@ def test_files_without_times_need_fps(
     status, _, err = run_cli([*argv, "--fluid", "water", "--fps", "10"], capsys)
     assert status == 2
     assert "--wavelength" in err
+
+
+def test_output_folder_that_is_a_file_is_one_line_exit_2(
+    evaporation: Simulated, tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    (tmp_path / "taken").write_text("")
+    argv = ["process", str(evaporation.path), "--out", str(tmp_path / "taken"), "--frames", ":5"]
+    status, _, err = run_cli([*argv, *evaporation.label_args("RB1", "FB1")], capsys)
+    assert status == 2
+    assert "is a file" in err
+
+
+def test_quiet_prints_nothing(
+    evaporation: Simulated, tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    argv = ["process", str(evaporation.path), "--out", str(tmp_path / "q"), "--frames", ":10"]
+    status, out, err = run_cli([*argv, *evaporation.label_args("RB1", "FB1"), "-q"], capsys)
+    assert status == 0
+    assert out == "" and err == ""
+    assert (tmp_path / "q" / "trends.csv").is_file()
