@@ -304,6 +304,7 @@ def main(argv: list[str] | None = None) -> int:
     positions = box_positions(demod.box_shape, shape)
     truth = bump(shape, 5e-9, 120, positions)
     errors: dict[str, list[float]] = {p.label: [] for p in peaks}
+    estimates: dict[str, list[float]] = {p.label: [] for p in peaks}
     bounds = {}
     fused_errors = []
     demod.process(synth(shape, peaks, 0.0, rng))
@@ -320,6 +321,7 @@ def main(argv: list[str] | None = None) -> int:
             bounds[r.peak.label] = bound_phase * WAVELENGTH / (4 * np.pi * r.peak.alpha)
             maps.append(r.delta_h)
             noises.append(r.noise_height)
+            estimates[r.peak.label].append(r.noise_height)
         fused, _ = fuse(maps, noises)
         fused_errors.append(float(np.sqrt(np.mean((fused - sign * truth) ** 2))))
     print(
@@ -330,7 +332,8 @@ def main(argv: list[str] | None = None) -> int:
         bound = bounds[label]
         print(
             f"{label:>4}: rms error {rms * 1e9:7.3f} nm   bound {bound * 1e9:7.3f} nm   "
-            f"ratio {rms / bound:5.2f}"
+            f"ratio {rms / bound:5.2f}   per-frame noise estimate "
+            f"{statistics.median(estimates[label]) * 1e9:7.3f} nm"
         )
     fused_rms = float(np.sqrt(np.mean(np.square(fused_errors))))
     best = min(float(np.sqrt(np.mean(np.square(e)))) for e in errors.values())
