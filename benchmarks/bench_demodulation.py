@@ -2,7 +2,7 @@
 
 Run from the repository root::
 
-    .venv/bin/python benchmarks/bench_demodulation.py            # full run, about 2 minutes
+    .venv/bin/python benchmarks/bench_demodulation.py            # full run, 3 to 5 minutes
     .venv/bin/python benchmarks/bench_demodulation.py --quick    # 1024 x 1024 only
 
 Prints, with the machine (CPU model, cores, load average) and medians over frames:
@@ -175,7 +175,7 @@ def machine() -> str:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="1024 x 1024 only, fewer frames")
-    parser.add_argument("--frames", type=int, default=60, help="frames timed per case (median)")
+    parser.add_argument("--frames", type=int, default=100, help="frames timed per case (median)")
     parser.add_argument(
         "--threads",
         type=int,
