@@ -3,7 +3,8 @@
 Heights arrive in metres and are shown in nanometres with a perceptual colour map
 (viridis); phases arrive in radians and are shown with a cyclic one (CET-C6) over
 [-pi, pi]. A line drawn on the first map is mirrored (dashed) on the others, and
-the profile below overlays every map's curve along it (the paper's figure 4g).
+the profile below overlays every map's curve along it (the paper's figure 4g), on
+the colour bar's range.
 """
 
 from __future__ import annotations
@@ -122,6 +123,8 @@ class SurfaceView(QWidget):
         self.profile.setLabel("bottom", "position along the line", units="px")
         self.profile.setLabel("left", "delta h (nm)")
         self.profile.getAxis("left").enableAutoSIPrefix(False)
+        self.profile.disableAutoRange()
+        self._profile_ranges: tuple | None = None
         self.profile.addLegend(offset=(5, 5))
         self.curves: dict[str, pg.PlotDataItem] = {}
         splitter = QSplitter(Qt.Orientation.Vertical)
@@ -318,8 +321,16 @@ class SurfaceView(QWidget):
         if self.line_roi is not None and not self._line_placed:
             self._line_placed = True
             self._place_line_roi()
+        length = 1.0
         for name, (x, y) in self.profile_curves().items():
             self.curves[name].setData(x, y)
+            length = max(length, float(x[-1]))
+        # fixed ranges (the line's length, the colour range) instead of auto-ranging
+        # every frame: the axes are then regenerated only when these change
+        ranges = ((0.0, length), self._current_levels())
+        if ranges != self._profile_ranges:
+            self._profile_ranges = ranges
+            self.profile.setRange(xRange=ranges[0], yRange=ranges[1], padding=0.02)
         (x0, y0), (x1, y1) = self._line
         for name, mirror in self._mirrors.items():
             rows, cols = self._data[name].shape
