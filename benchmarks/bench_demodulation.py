@@ -5,7 +5,7 @@ Run from the repository root::
     .venv/bin/python benchmarks/bench_demodulation.py            # full run, 3 to 5 minutes
     .venv/bin/python benchmarks/bench_demodulation.py --quick    # 1024 x 1024 only
 
-Prints, with the machine (CPU model, cores, load average) and medians over frames:
+Prints, with the machine (CPU model, cores, load average), medians and best over frames:
 
 1. one planned forward real FFT of the frame (pyFFTW) and numpy's, for scale;
 2. frames per second for 1024 x 1024 and 2048 x 2048, 4 and 16 peaks, each reference
