@@ -7,7 +7,7 @@ import time
 
 import numpy as np
 import pyqtgraph as pg
-from PyQt6.QtCore import QPointF, pyqtSignal
+from PyQt6.QtCore import QPointF, QRectF, pyqtSignal
 from PyQt6.QtWidgets import QHBoxLayout, QLabel, QPushButton, QVBoxLayout, QWidget
 
 #: Percentiles used by the auto-levels button (low, high).
@@ -49,12 +49,14 @@ class HologramView(QWidget):
         self.plot.setLabel("left", "row", units="px")
         for axis in ("bottom", "left"):
             self.plot.getAxis(axis).enableAutoSIPrefix(False)
-        # the screen shows fewer pixels than a camera has: downsampling before the
-        # colour lookup keeps large frames cheap to draw (the readout uses raw values)
-        self.image = pg.ImageItem(axisOrder="row-major", autoDownsample=False)
-        self.overlay = pg.ImageItem(axisOrder="row-major", autoDownsample=True)
+        # large frames are subsampled to the screen's resolution before drawing
+        # (set_frame); the readout always uses the raw values
+        self.image = pg.ImageItem(axisOrder="row-major")
+        self.overlay = pg.ImageItem(axisOrder="row-major")
         self._overlay_shown = False
         self._histogram_at = -math.inf
+        self._step = 1
+        self._rect = QRectF()
         self.overlay.setZValue(10)
         self.plot.addItem(self.image)
         self.plot.addItem(self.overlay)
@@ -109,13 +111,39 @@ class HologramView(QWidget):
         self._saturation_value = value
         self._update_overlay()
 
+    def display_step(self) -> int:
+        """Frame pixels per screen pixel, rounded down (1 when zoomed in or not shown)."""
+        if self._frame is None or not self.plot.vb.isVisible():
+            return 1
+        try:
+            px, py = self.plot.vb.viewPixelSize()
+        except (ZeroDivisionError, np.linalg.LinAlgError):
+            return 1
+        size = min(px, py)
+        return max(1, int(size)) if math.isfinite(size) else 1
+
+    def _shown(self, array: np.ndarray, step: int) -> tuple[np.ndarray, QRectF]:
+        """Every ``step``-th pixel of ``array`` and the frame rectangle it covers.
+
+        Drawing a large frame on a smaller screen area shows every n-th pixel anyway;
+        taking them here spares the colour lookup and the scaling of the others.
+        """
+        rows, cols = (array.shape[0] // step) * step, (array.shape[1] // step) * step
+        return array[:rows:step, :cols:step], QRectF(0, 0, cols, rows)
+
     def set_frame(self, frame: np.ndarray) -> None:
         """Show ``frame`` (rows, cols) with the current levels (the first frame sets them)."""
         first = self._frame is None or self._frame.shape != frame.shape
         self._frame = frame
         if self._levels is None:
             self._levels = self._percentile_levels(frame)
-        self.image.setImage(frame, autoLevels=False, levels=self._levels)
+        self._step = 1 if first else self.display_step()
+        shown, rect = self._shown(frame, self._step)
+        self.image.setImage(shown, autoLevels=False, levels=self._levels)
+        if rect != self._rect:
+            self._rect = rect
+            self.image.setRect(rect)
+            self.overlay.setRect(rect)
         now = time.monotonic()
         if first or now - self._histogram_at >= HISTOGRAM_INTERVAL_S:
             self._histogram_at = now
@@ -163,8 +191,17 @@ class HologramView(QWidget):
                 self._overlay_shown = False
             return
         self._overlay_shown = True
-        rgba = np.zeros((*mask.shape, 4), dtype=np.uint8)
-        rgba[mask] = SATURATION_RGBA
+        step = self._step
+        shown, _ = self._shown(mask, step)
+        shown = shown.copy()
+        for dy in range(step):
+            for dx in range(step):
+                if dy or dx:  # a saturated pixel anywhere in a block marks the block
+                    shown |= mask[
+                        dy : shown.shape[0] * step : step, dx : shown.shape[1] * step : step
+                    ]
+        rgba = np.zeros((*shown.shape, 4), dtype=np.uint8)
+        rgba[shown] = SATURATION_RGBA
         self.overlay.setImage(rgba, autoLevels=False)
 
     def saturated_count(self) -> int:

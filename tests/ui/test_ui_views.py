@@ -188,3 +188,21 @@ def test_rate_meter() -> None:
         meter.tick(now=i / 30)
     assert meter.rate(now=1.0) == pytest.approx(30.0, rel=0.05)
     assert meter.rate(now=5.0) == 0.0
+
+
+@pytest.mark.qt_log_ignore(r"This plugin does not support propagateSizeHints\(\)")
+def test_hologram_subsampled_to_the_screen_keeps_saturation(qtbot) -> None:
+    view = HologramView()
+    qtbot.addWidget(view)
+    view.resize(300, 300)
+    view.show()
+    frame = np.full((1024, 1024), 100, np.uint16)
+    frame[501, 733] = 4095  # one saturated pixel, off the subsampling grid
+    view.set_saturation_value(4095)
+    view.set_frame(frame)
+    view.set_frame(frame)  # the second frame uses the view's scale
+    step = view.display_step()
+    assert step >= 2
+    assert view.image.image.shape == (1024 // step, 1024 // step)
+    assert view.overlay.image[501 // step, 733 // step, 0] == 255
+    assert view.readout_at(733.5, 501.5) == "row 501, column 733: 4095"
