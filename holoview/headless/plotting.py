@@ -89,9 +89,18 @@ def nice_ticks(low: float, high: float, count: int = 5) -> list[float]:
     return ticks
 
 
-def tick_text(value: float) -> str:
-    """A tick label: short, no trailing zeros."""
-    return f"{value:.4g}"
+def tick_labels(ticks: Sequence[float]) -> list[str]:
+    """Labels of evenly spaced ticks with just enough decimals to tell them apart."""
+    if len(ticks) < 2:
+        return [f"{t:.4g}" for t in ticks]
+    step = abs(ticks[1] - ticks[0])
+    decimals = max(0, -math.floor(math.log10(step)))
+    if abs(round(step * 10**decimals) - step * 10**decimals) > 1e-6:
+        decimals += 1
+    big = max(abs(t) for t in ticks)
+    if big >= 1e6 or (big < 1e-3 and big > 0):
+        return [f"{t:.3g}" for t in ticks]
+    return [f"{t:.{decimals}f}" for t in ticks]
 
 
 def padded_limits(values: np.ndarray, fraction: float = 0.05) -> tuple[float, float]:
@@ -144,20 +153,22 @@ class Axes:
         """Draw the box, ticks, tick labels, grid, axis labels and title."""
         img = self.image
         right, bottom = self.left + self.width, self.top + self.height
-        for value in nice_ticks(min(self.xlim), max(self.xlim), count=max(3, self.width // 110)):
+        xticks = nice_ticks(min(self.xlim), max(self.xlim), count=max(3, self.width // 110))
+        for value, label in zip(xticks, tick_labels(xticks), strict=True):
             px = round(float(self.to_px(value, self.ylim[0])[0]))
             if grid:
                 cv2.line(img, (px, self.top), (px, bottom), LIGHT, 1)
             cv2.line(img, (px, bottom), (px, bottom + 5), BLACK, 1)
-            text(img, tick_text(value), (px, bottom + 8), scale=0.42, align="centre", valign="top")
-        for value in nice_ticks(min(self.ylim), max(self.ylim), count=max(3, self.height // 60)):
+            text(img, label, (px, bottom + 8), scale=0.42, align="centre", valign="top")
+        yticks = nice_ticks(min(self.ylim), max(self.ylim), count=max(3, self.height // 60))
+        for value, label in zip(yticks, tick_labels(yticks), strict=True):
             py = round(float(self.to_px(self.xlim[0], value)[1]))
             if grid:
                 cv2.line(img, (self.left, py), (right, py), LIGHT, 1)
             cv2.line(img, (self.left - 5, py), (self.left, py), BLACK, 1)
             text(
                 img,
-                tick_text(value),
+                label,
                 (self.left - 8, py),
                 scale=0.42,
                 align="right",
@@ -242,10 +253,11 @@ def colour_bar(
     ramp = np.linspace(high, low, height)[:, None] * np.ones((1, width))
     image[top : top + height, left : left + width] = colour_image(ramp, low, high, colormap)
     cv2.rectangle(image, (left, top), (left + width, top + height), BLACK, 1)
-    for value in nice_ticks(low, high, count=4):
+    ticks = nice_ticks(low, high, count=4)
+    for value, tick in zip(ticks, tick_labels(ticks), strict=True):
         py = round(top + (high - value) / (high - low) * height) if high > low else top
         cv2.line(image, (left + width, py), (left + width + 4, py), BLACK, 1)
-        text(image, tick_text(value), (left + width + 7, py), scale=0.4, valign="middle")
+        text(image, tick, (left + width + 7, py), scale=0.4, valign="middle")
     text(image, label, (left, top - 8), scale=0.42)
 
 
