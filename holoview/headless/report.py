@@ -193,7 +193,8 @@ def _last_maps(data: RunData, analysis: Analysis) -> list[tuple[str, np.ndarray,
             metres = values * np.float32(peak.map_scale)
         heights.append(metres)
         if metres is not None:
-            panels.append((peak.label, metres * 1e9, "nm"))
+            title = peak.label if peak.used_in_fused else f"{peak.label} (not fused)"
+            panels.append((title, metres * 1e9, "nm"))
         elif values is not None:
             panels.append((f"{peak.label} phase", values, "rad"))
     fused = data.last_fused
