@@ -46,7 +46,7 @@ logger = logging.getLogger(__name__)
 MAX_ORDER = 3
 
 #: A label usable as a CSV value and an HDF5 name (``fused`` is reserved).
-LABEL_PATTERN = re.compile(r"[A-Za-z0-9_.+~-]{1,32}")
+LABEL_PATTERN = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.+~-]{0,31}")
 
 #: First-order family labels: the peaks the labels mode demodulates.
 FIRST_ORDER = re.compile(r"RF|RB[1-9]\d*|FB[1-9]\d*")
@@ -96,8 +96,8 @@ def check_label(label: str, where: str) -> str:
     """Return ``label`` if it can name a series, a CSV row and an HDF5 dataset."""
     if not isinstance(label, str) or not LABEL_PATTERN.fullmatch(label) or label == "fused":
         raise InputError(
-            f"{where}: label {label!r} is not usable (letters, digits and _.+~- only, "
-            "at most 32, not 'fused')"
+            f"{where}: label {label!r} is not usable (a letter or digit, then letters, "
+            "digits and _.+~-, at most 32 characters, not 'fused')"
         )
     return label
 
@@ -224,6 +224,7 @@ def select_from_entries(
     """Peaks from a peaks file: snapped to detected peaks, alpha from the label or given."""
     peaks: list[Peak] = []
     notes: list[str] = []
+    taken: dict[int, str] = {}
     skipped = 0
     for i, entry in enumerate(entries):
         where = f"peak {i}" + (f" ({entry.label})" if entry.label else "")
@@ -241,6 +242,9 @@ def select_from_entries(
             peak = Peak(entry.carrier, math.nan, math.nan)
         else:
             index, twin = found
+            if index in taken:
+                raise InputError(f"{where}: names the same detected peak as {taken[index]}")
+            taken[index] = label
             peak = detected[index].flipped() if twin else detected[index]
         peaks.append(peak.relabelled(label, alpha))
     if skipped:

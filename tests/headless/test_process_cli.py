@@ -305,6 +305,12 @@ def test_bad_input_is_one_line_exit_2(
         ('{"peaks": [{"label": "RB1", "carrier": "here"}]}', "carrier must be [fx, fy]"),
         ('{"peaks": [{"label": "XY9", "carrier": [0.2, 0.1]}]}', "give its alpha"),
         ('{"peaks": [{"label": "RB1", "carrier": [0.2, 0.1], "alpha": 0}]}', "nonzero"),
+        ('{"peaks": [{"label": "..", "carrier": [0.2, 0.1], "alpha": 1}]}', "not usable"),
+        (
+            '{"peaks": [{"label": "A", "carrier": [0.2, -0.06], "alpha": 1},'
+            ' {"label": "B", "carrier": [-0.2, 0.06], "alpha": 2}]}',
+            "same detected peak as A",
+        ),
     ],
 )
 def test_bad_peaks_file_is_one_line_exit_2(
