@@ -235,6 +235,9 @@ class LivePipeline:
         self.experiment = experiment
         self.frame_shape = frame_shape
         self.pca = False
+        #: Detect peaks inside :meth:`process`; the live worker turns this off and feeds
+        #: :meth:`set_peaks` from its own peak thread instead.
+        self.detect_inline = True
         self._seq = 0
         self._spectrum: np.ndarray | None = None
         self._spectrum_at = -math.inf
@@ -323,6 +326,24 @@ class LivePipeline:
         self._matched = kept
         return chosen, predicted, notes
 
+    def peaks_due(self, now: float | None = None) -> bool:
+        """Whether peak detection is due (at most :data:`PEAKS_HZ`, :data:`SIDE_SHARE`)."""
+        now = time.monotonic() if now is None else now
+        return now - self._peaks_at >= max(1.0 / PEAKS_HZ, self._peaks_cost / SIDE_SHARE)
+
+    def peaks_started(self) -> None:
+        """Note that a detection started now (on another thread)."""
+        self._peaks_at = time.monotonic()
+
+    def peaks_done(self, cost_s: float) -> None:
+        """Note what the last detection cost, seconds (it spaces the next one)."""
+        self._peaks_at = time.monotonic()
+        self._peaks_cost = cost_s
+
+    def set_peaks(self, peaks: list[Peak]) -> None:
+        """Use newly detected peaks from the next frame on."""
+        self._peaks = list(peaks)
+
     def process(self, frame: np.ndarray, meta: FrameMeta) -> LiveResult:
         """Process one frame; raise HoloviewError for a problem the operator can fix."""
         start = time.perf_counter()
@@ -335,11 +356,10 @@ class LivePipeline:
             )
             self._spectrum_cost = time.perf_counter() - tick
             self._spectrum_at = now
-        if now - self._peaks_at >= max(1.0 / PEAKS_HZ, self._peaks_cost / SIDE_SHARE):
+        if self.detect_inline and self.peaks_due(now):
             tick = time.perf_counter()
-            self._peaks = find_peaks(frame, radius=e.radius, threads=FFT_THREADS)
-            self._peaks_cost = time.perf_counter() - tick
-            self._peaks_at = now
+            self.set_peaks(find_peaks(frame, radius=e.radius, threads=FFT_THREADS))
+            self.peaks_done(time.perf_counter() - tick)
         key = (id(self._peaks), e)
         if key != self._labelling_key:
             self._labelling = self.labelled_peaks()

@@ -28,7 +28,8 @@ from holoview.acquire.recording import RecordingWriter
 from holoview.acquire.ring import CLOSED, FrameRing, RingConsumer, RingStatus
 from holoview.acquire.source import Source
 from holoview.errors import HoloviewError, InputError
-from holoview.ui.live_pipeline import LivePipeline, LiveResult
+from holoview.processing.peaks import Peak, find_peaks
+from holoview.ui.live_pipeline import FFT_THREADS, LivePipeline, LiveResult
 from holoview.ui.recording_panel import RecordingProgress, RecordRequest
 from holoview.ui.settings import ExperimentSettings
 
@@ -55,6 +56,80 @@ class RecordingLimitWriter(RecordingWriter):
             super().append(frame, frame_id, t_device, t_host)
 
 
+class PeakWorker:
+    """Find the peaks of one frame at a time on a thread named ``holoview-peaks``.
+
+    Peak detection takes much longer than demodulating a frame; on its own thread it
+    never holds up the frames behind it. :meth:`submit` hands over a frame when the
+    thread is idle; :meth:`take` returns each result once.
+    """
+
+    def __init__(self) -> None:
+        self._cond = threading.Condition()
+        self._job: tuple[np.ndarray, float] | None = None
+        self._result: tuple[list[Peak], float] | None = None
+        self._error: str | None = None
+        self._busy = False
+        self._stop = False
+        self._thread = threading.Thread(target=self._run, name="holoview-peaks", daemon=True)
+
+    def start(self) -> None:
+        """Start the thread."""
+        self._thread.start()
+
+    def stop(self, timeout: float = 5.0) -> None:
+        """Ask the thread to stop (after the detection under way) and join it."""
+        with self._cond:
+            self._stop = True
+            self._cond.notify()
+        if self._thread.ident is not None:
+            self._thread.join(timeout)
+
+    def submit(self, frame: np.ndarray, radius: float) -> bool:
+        """Detect the peaks of ``frame`` (not modified) with window radius ``radius``.
+
+        Returns False, doing nothing, while a detection is under way.
+        """
+        with self._cond:
+            if self._busy:
+                return False
+            self._busy = True
+            self._job = (frame, radius)
+            self._cond.notify()
+            return True
+
+    def take(self) -> tuple[list[Peak], float] | str | None:
+        """The newest (peaks, seconds it took), an error message, or None; each once."""
+        with self._cond:
+            out: tuple[list[Peak], float] | str | None = self._error or self._result
+            self._result, self._error = None, None
+            return out
+
+    def _run(self) -> None:
+        while True:
+            with self._cond:
+                while self._job is None and not self._stop:
+                    self._cond.wait()
+                if self._stop:
+                    return
+                frame, radius = self._job  # type: ignore[misc]
+                self._job = None
+            tick = time.perf_counter()
+            try:
+                peaks = find_peaks(frame, radius=radius, threads=FFT_THREADS)
+            except HoloviewError as exc:
+                with self._cond:
+                    self._error, self._busy = f"peak detection: {exc}", False
+                continue
+            except Exception:  # a bug: log it, keep the window running
+                logger.exception("peak detection failed")
+                with self._cond:
+                    self._error, self._busy = "peak detection failed (see the log)", False
+                continue
+            with self._cond:
+                self._result, self._busy = (peaks, time.perf_counter() - tick), False
+
+
 class DemodWorker:
     """Run a pipeline on the newest frame of a ring, on a thread named ``holoview-demod``.
 
@@ -68,6 +143,8 @@ class DemodWorker:
 
     def __init__(self, ring: FrameRing, pipeline: LivePipeline) -> None:
         self.pipeline = pipeline
+        pipeline.detect_inline = False
+        self.peaks = PeakWorker()
         self._consumer: RingConsumer = ring.consumer("processing", mode="newest")
         self._commands: queue.SimpleQueue[tuple[str, Any]] = queue.SimpleQueue()
         self._lock = threading.Lock()
@@ -79,14 +156,16 @@ class DemodWorker:
         self._thread = threading.Thread(target=self._run, name="holoview-demod", daemon=True)
 
     def start(self) -> None:
-        """Start the thread."""
+        """Start the thread (and its peak thread)."""
+        self.peaks.start()
         self._thread.start()
 
     def stop(self, timeout: float = 5.0) -> None:
-        """Ask the thread to stop and join it."""
+        """Ask the thread to stop and join it (and its peak thread)."""
         self._stop.set()
         if self._thread.ident is not None:
             self._thread.join(timeout)
+        self.peaks.stop(timeout)
 
     @property
     def running(self) -> bool:
@@ -139,6 +218,17 @@ class DemodWorker:
             except HoloviewError as exc:
                 self._report(str(exc))
 
+    def _exchange_peaks(self, pixels: np.ndarray) -> None:
+        """Hand the newest detected peaks to the pipeline; start a detection when due."""
+        found = self.peaks.take()
+        if isinstance(found, str):
+            self._report(found)
+        elif found is not None:
+            self.pipeline.set_peaks(found[0])
+            self.pipeline.peaks_done(found[1])
+        if self.pipeline.peaks_due() and self.peaks.submit(pixels, self.pipeline.experiment.radius):
+            self.pipeline.peaks_started()
+
     def _run(self) -> None:
         try:
             while not self._stop.is_set():
@@ -149,6 +239,7 @@ class DemodWorker:
                 if item is None:
                     continue
                 pixels, meta = item
+                self._exchange_peaks(pixels)
                 try:
                     result = self.pipeline.process(pixels, meta)
                 except HoloviewError as exc:
