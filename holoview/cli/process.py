@@ -198,6 +198,13 @@ def run(args: argparse.Namespace) -> int:
             frames=args.frames,
             progress=update,
         )
+    if outcome.data.interrupted:
+        print(
+            f"holoview process: interrupted; {outcome.out} holds the results of the "
+            f"{len(outcome.data.frames)} frames done",
+            file=sys.stderr,
+        )
+        return 130
     if not args.quiet:
         fit = outcome.analysis.fit
         used = [p.label for p in outcome.analysis.peaks if p.used_in_fused]

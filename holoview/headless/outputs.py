@@ -127,7 +127,6 @@ def _peak_entry(peak: PeakOutcome) -> dict[str, Any]:
 def summary_document(
     *,
     input_info: dict[str, Any],
-    frames: range,
     optics: Optics,
     settings: ProcessSettings,
     selection_mode: str,
@@ -138,7 +137,8 @@ def summary_document(
 
     Keys: ``format``, ``format_version``, ``holoview_version``, ``created_utc``;
     ``input`` (path, kind, frames in the file, frame shape, dtype, the processed
-    ``frames`` as ``[start, stop]``, and a recording's uuid, source, creation time);
+    ``frames`` as ``[start, stop]``, ``interrupted``, and a recording's uuid, source,
+    creation time);
     ``parameters`` (``wavelength_m``, ``pixel_pitch_m``, ``n1``, ``n2`` and where each
     came from, ``fps_hz`` (mean), ``reference``, ``window``, ``radius_cpp``,
     ``unwrap``, ``maps``, ``area_m2``, ``peaks_from``); ``peaks`` (per label:
@@ -169,7 +169,11 @@ def summary_document(
         "format_version": FORMAT_VERSION,
         "holoview_version": __version__,
         "created_utc": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
-        "input": {**input_info, "frames": [frames.start, frames.stop]},
+        "input": {
+            **input_info,
+            "frames": [int(data.frames[0]), int(data.frames[-1]) + 1],
+            "interrupted": data.interrupted,
+        },
         "parameters": {
             "wavelength_m": optics.wavelength_m,
             "pixel_pitch_m": optics.pixel_pitch_m,
@@ -284,6 +288,7 @@ class ResultsFile:
         return group.create_dataset(
             name,
             shape=(n_frames, *box_shape),
+            maxshape=(None, *box_shape),
             dtype=np.float32,
             chunks=(1, *box_shape),
             fillvalue=np.float32(np.nan),
@@ -335,6 +340,8 @@ class ResultsFile:
         run); otherwise they hold phases and are converted here.
         """
         self._flush()
+        for dataset in [*self._maps, *([self._fused] if self._fused is not None else [])]:
+            dataset.resize(len(data.frames), axis=0)  # fewer after an interruption
         f = self._file
         f.attrs.update(
             {

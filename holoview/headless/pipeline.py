@@ -117,6 +117,8 @@ class RunData:
         Input index of the frame the last maps come from.
     maps_in_metres : bool
         Whether the maps are delta-h in m (every peak had alpha), else phases in rad.
+    interrupted : bool
+        The run was interrupted (Ctrl-C): the series hold the frames done before.
     read_seconds, demod_seconds, write_seconds, wall_seconds : float
         Time reading the input (on the reader thread), demodulating, writing maps,
         and in all, s.
@@ -134,6 +136,7 @@ class RunData:
     last_fused: np.ndarray | None = None
     last_frame: int = -1
     maps_in_metres: bool = False
+    interrupted: bool = False
     read_seconds: float = 0.0
     demod_seconds: float = 0.0
     write_seconds: float = 0.0
@@ -243,6 +246,9 @@ def demodulate_frames(
     Returns
     -------
     RunData
+        After an interruption (KeyboardInterrupt) with at least one frame done, the
+        series of the frames done and ``interrupted`` set; with none done, the
+        interruption is raised again.
     """
     n, m = len(frames), len(demodulator.peaks)
     values = np.full((n, m), np.nan + 0j, dtype=np.complex128)
@@ -264,30 +270,40 @@ def demodulate_frames(
     )
     start = time.perf_counter()
     last: DemodResult | None = None
+    done = 0
     reader = FrameReader(source.read, frames, depth=read_ahead)
-    with reader:
-        for position, (index, frame) in enumerate(reader):
-            t0 = time.perf_counter()
-            result = demodulator.process(frame)
-            t1 = time.perf_counter()
-            data.demod_seconds += t1 - t0
-            _record(data, position, result)
-            if result.peaks:
-                last, data.last_frame = result, index
-                if sink is not None:
-                    maps, fused = frame_maps(result, with_alpha)
-                    for j, values_map in enumerate(maps):
-                        sink.write_map(position, j, values_map)
-                    if fused is not None:
-                        sink.write_fused(position, fused)
-            data.write_seconds += time.perf_counter() - t1
-            if progress is not None:
-                progress(position + 1)
+    try:
+        with reader:
+            for position, (index, frame) in enumerate(reader):
+                t0 = time.perf_counter()
+                result = demodulator.process(frame)
+                t1 = time.perf_counter()
+                data.demod_seconds += t1 - t0
+                _record(data, position, result)
+                if result.peaks:
+                    last, data.last_frame = result, index
+                    if sink is not None:
+                        maps, fused = frame_maps(result, with_alpha)
+                        for j, values_map in enumerate(maps):
+                            sink.write_map(position, j, values_map)
+                        if fused is not None:
+                            sink.write_fused(position, fused)
+                data.write_seconds += time.perf_counter() - t1
+                done = position + 1
+                if progress is not None:
+                    progress(done)
+    except KeyboardInterrupt:
+        if done == 0:
+            raise
+        logger.warning("interrupted after %d of %d frames: results of those", done, n)
+        data.interrupted = True
+        data.frames, data.times = data.frames[:done], data.times[:done]
+        data.values, data.noise_rad = data.values[:done], data.noise_rad[:done]
     if last is not None:
         data.last_maps, data.last_fused = frame_maps(last, with_alpha)
     data.read_seconds = reader.read_seconds
     data.wall_seconds = time.perf_counter() - start
-    if not np.any(np.isfinite(values)):
+    if not np.any(np.isfinite(data.values)):
         raise InputError("no frame could be demodulated (every frame is NaN or infinite)")
     return data
 

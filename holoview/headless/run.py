@@ -232,7 +232,6 @@ def process_file(
             results.close()
         summary = summary_document(
             input_info=source.info,
-            frames=selected,
             optics=optics,
             settings=settings,
             selection_mode=selection.mode,
@@ -258,6 +257,7 @@ def process_file(
             analysis=analysis,
             settings=settings,
             optics=optics,
-            title=f"{Path(input_path).name}: frames {selected.start}..{selected.stop - 1}",
+            title=f"{Path(input_path).name}: frames {data.frames[0]}..{data.frames[-1]}"
+            + (" (interrupted)" if data.interrupted else ""),
         )
     return ProcessOutcome(out_dir, selection, data, analysis, summary, tuple(files))
