@@ -101,7 +101,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
         "--auto",
         type=int,
         metavar="N",
-        help="the N strongest peaks, identified by temporal PCA (brightest: RB1)",
+        help="the N strongest peaks, identified by temporal PCA, the brightest as RB1 "
+        "(the default, with N = 4)",
     )
     peaks.add_argument(
         "--anchor",
