@@ -1,7 +1,9 @@
 """Headless processing of a recording: the offline replay and test mode of DESIGN.md.
 
 The same processing as the GUI (:mod:`holoview.processing`), with no display, in a
-plain loop over the frames of a file, usable from scripts and on a server:
+plain loop over the frames of a file, usable from scripts and on a server.
+:func:`holoview.headless.run.process_file` runs it all (``holoview process`` calls it);
+the pieces:
 
 - :mod:`~holoview.headless.inputs` opens the input (a holoview recording, a TIFF
   stack, a folder of images or a video) and settles the optics and the frame times
@@ -9,10 +11,13 @@ plain loop over the frames of a file, usable from scripts and on a server:
 - :mod:`~holoview.headless.selection` chooses the peaks to demodulate: from a JSON
   file, from two labels and the model, or the N strongest identified by PCA;
 - :mod:`~holoview.headless.pipeline` streams the frames through one
-  :class:`~holoview.processing.demodulate.Demodulator` (memory bounded by a few frames)
-  and turns the peak series into depths, rates and flags;
+  :class:`~holoview.processing.demodulate.Demodulator`, read ahead by
+  :mod:`~holoview.headless.reader` (memory bounded by a few frames);
+- :mod:`~holoview.headless.analysis` names the peaks (PCA), converts to depths, fuses
+  them and fits the rates;
 - :mod:`~holoview.headless.outputs` writes ``trends.csv``, ``summary.json`` and
-  ``results.h5``, and :mod:`~holoview.headless.report` draws ``report.png``.
+  ``results.h5``, and :mod:`~holoview.headless.report` draws ``report.png`` with the
+  OpenCV helpers of :mod:`~holoview.headless.plotting`.
 
-No Qt here: the report is drawn with OpenCV.
+No Qt here (an import-linter contract enforces it).
 """

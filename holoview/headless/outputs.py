@@ -10,7 +10,7 @@
 ``summary.json``
     See :func:`summary_document`.
 ``results.h5`` (format ``holoview-results`` 1.0)
-    Root attributes: ``format``, ``format_version``, ``holoview_version``,
+    Root attributes: ``format``, ``format_version``, ``uuid``, ``holoview_version``,
     ``created_utc``, ``input``, and the parameters (``wavelength_m``, ``n1``, ``n2``,
     ``pixel_pitch_m``, ``reference``, ``window``, ``radius_cpp``, ``unwrap``).
     ``/trends``: ``frame`` (N,), ``time_s`` (N,), ``label`` (M,), ``alpha`` (M,),
@@ -36,6 +36,7 @@ import csv
 import datetime as _dt
 import json
 import math
+import uuid
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -347,6 +348,7 @@ class ResultsFile:
             {
                 "format": RESULTS_FORMAT,
                 "format_version": FORMAT_VERSION,
+                "uuid": str(uuid.uuid4()),
                 "holoview_version": __version__,
                 "created_utc": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
                 "input": input_path,
