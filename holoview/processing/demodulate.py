@@ -99,7 +99,9 @@ class PeakResult:
     mask : ndarray of bool, shape (by, bx)
         Trusted pixels: inside the aperture, amplitude high enough.
     noise : float
-        Phase noise per pixel (rad), estimated from neighbour differences.
+        Phase noise per pixel (rad), estimated from neighbour differences (see
+        :meth:`Demodulator._noise`); 0 on a reference frame, NaN with fewer than
+        two usable differences.
     noise_height : float or None
         ``noise`` converted to height (m) like ``delta_h``.
     unwrapped : bool
