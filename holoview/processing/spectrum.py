@@ -9,8 +9,6 @@ complex conjugate of the value at ``+f``.
 
 from __future__ import annotations
 
-from functools import lru_cache
-
 import numpy as np
 
 from holoview.processing.fftplans import default_threads, rfft2_plan
@@ -59,13 +57,6 @@ def frequencies(shape: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
     )
 
 
-@lru_cache(maxsize=16)
-def _row_orders(rows: int) -> tuple[np.ndarray, np.ndarray]:
-    """Row indices of the half spectrum that give the centred rows, and their mirror."""
-    r = np.arange(rows)
-    return (r - rows // 2) % rows, (rows // 2 - r) % rows
-
-
 def log_magnitude(half: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
     """Return ``log(1 + |S|)`` of a half spectrum expanded to the centred full spectrum.
 
@@ -87,12 +78,15 @@ def log_magnitude(half: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
     magnitude = np.abs(half).astype(np.float32, copy=False)
     magnitude += np.float32(1.0)
     np.log(magnitude, out=magnitude)  # log(1 + |S|); np.log1p is 6 times slower here
-    centred_rows, mirrored_rows = _row_orders(rows)
     out = np.empty((rows, cols), dtype=np.float32)
-    right = cols - cols // 2
-    out[:, cols // 2 :] = magnitude.take(centred_rows, axis=0)[:, :right]
-    # left half: the point mirror, value at (-fy, -fx); columns cols//2 .. 1 reversed
-    out[:, : cols // 2] = magnitude.take(mirrored_rows, axis=0)[:, cols // 2 : 0 : -1]
+    c, r = cols // 2, rows // 2
+    right = cols - c
+    # right half, fx >= 0: the half spectrum with its rows rolled to centre fy = 0
+    out[r:, c:] = magnitude[: rows - r, :right]
+    out[:r, c:] = magnitude[rows - r :, :right]
+    # left half, fx < 0: the point mirror, value at (-fy, -fx), rows and columns reversed
+    out[: r + 1, :c] = magnitude[r::-1, c:0:-1]
+    out[r + 1 :, :c] = magnitude[rows - 1 : r : -1, c:0:-1]
     return out
 
 
