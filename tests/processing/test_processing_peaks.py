@@ -205,3 +205,19 @@ def test_real_holograms_carrier_found_twin_rejected(
     twin = np.array([-fx, -fy])
     for p in peaks:
         assert np.hypot(*(np.array(p.carrier) - twin)) > 0.01, "the twin must not be listed"
+
+
+def test_real_hologram_twin_demodulates_to_the_conjugate(real_data: Path) -> None:
+    # a real frame's spectrum is Hermitian: the twin's field is the conjugate field
+    from holoview.processing.demodulate import Demodulator
+
+    image = tifffile.imread(real_data / "paramecium_oa_oof.tif")
+    main = find_peaks(image)[0]
+    results = [
+        Demodulator(image.shape, [peak], radius=0.08, reference="synthetic").process(image)
+        for peak in (main, main.flipped())
+    ]
+    field, twin = results[0].peaks[0].field, results[1].peaks[0].field
+    scale = np.abs(field).max()
+    np.testing.assert_allclose(twin, np.conj(field), atol=1e-4 * scale, rtol=0)
+    assert results[0].peaks[0].mask.mean() > 0.9 and np.isfinite(results[0].peaks[0].noise)
