@@ -85,6 +85,9 @@ def main() -> int:
             source_options=options,
         )
         window.show()
+        while window.opening:
+            app.processEvents()
+            time.sleep(0.01)
         if window.session is None:
             print(f"cannot start {args.source}: {window.banner_text}", file=sys.stderr)
             return 1

@@ -66,6 +66,9 @@ def main() -> int:
         )
         window.resize(1800, 1000)
         window.show()
+        while window.opening:
+            app.processEvents()
+            time.sleep(0.01)
 
         def save(name: str) -> None:
             path = args.out / f"{name}.png"

@@ -152,6 +152,13 @@ class MainWindow(QMainWindow):
         self.timer.setObjectName("holoview-redraw")
         self.timer.setInterval(int(1000 / REDRAW_HZ))
         self.timer.timeout.connect(self.redraw)
+        self._opening: threading.Thread | None = None
+        self._opening_spec = ""
+        self._opening_outcome: list = []
+        self.open_timer = QTimer(self)
+        self.open_timer.setObjectName("holoview-open")
+        self.open_timer.setInterval(20)
+        self.open_timer.timeout.connect(self._opened)
         self._discovery: threading.Thread | None = None
         self._discovery_result: list = []
         self.discovery_timer = QTimer(self)
@@ -250,22 +257,59 @@ class MainWindow(QMainWindow):
 
     # ---- source ------------------------------------------------------------
     def start_source(self, spec: str) -> None:
-        """Open and start ``spec``; a failure is shown, and the window stays usable."""
+        """Open and start ``spec`` on a thread; the window stays responsive meanwhile.
+
+        Opening a camera or timing the simulator can take a second. When it is done
+        (:attr:`opening` is False again) the views follow the new source, or the banner
+        says why it could not start.
+        """
+        if self._opening is not None:
+            self.show_message(f"still opening {self._opening_spec}; try again when it is open")
+            return
         self.stop_source()
-        try:
-            self.session = LiveSession(
-                spec,
-                self.experiment,
-                source_options=self.source_options if spec == self._optioned_source else None,
-            )
-            self.session.start()
-        except HoloviewError as exc:
-            if self.session is not None:
-                self.session.close()
-            self.session = None
-            self.show_message(f"cannot start {spec}: {exc}")
+        options = self.source_options if spec == self._optioned_source else None
+        experiment = self.experiment
+        outcome: list = []
+
+        def open_session() -> None:
+            session = None
+            try:
+                session = LiveSession(spec, experiment, source_options=options)
+                session.start()
+                outcome.append(session)
+            except HoloviewError as exc:
+                if session is not None:
+                    session.close()
+                outcome.append(f"cannot start {spec}: {exc}")
+            except Exception:  # a bug: keep the traceback in the log, the window running
+                logger.exception("opening %s failed", spec)
+                if session is not None:
+                    session.close()
+                outcome.append(f"cannot start {spec}: internal error (see the log)")
+
+        self._opening = threading.Thread(target=open_session, name="holoview-open", daemon=True)
+        self._opening_spec, self._opening_outcome = spec, outcome
+        self.source_panel.set_opening(spec)
+        self._opening.start()
+        self.open_timer.start()
+
+    @property
+    def opening(self) -> bool:
+        """True while a source is being opened."""
+        return self._opening is not None
+
+    def _opened(self) -> None:
+        if self._opening is None or self._opening.is_alive():
+            return
+        self._opening.join()
+        self._opening = None
+        self.open_timer.stop()
+        outcome = self._opening_outcome[0] if self._opening_outcome else "opening failed"
+        if isinstance(outcome, str):
+            self.show_message(outcome)
             self.source_panel.set_streaming(False)
             return
+        self.session = outcome
         self._last_seq = -1
         self._drawn = None
         self._adopt_source_setup(self.session.source_setup())
@@ -578,6 +622,13 @@ class MainWindow(QMainWindow):
         """Stop every thread and timer, remember the layout, then close."""
         self.timer.stop()
         self.discovery_timer.stop()
+        self.open_timer.stop()
+        if self._opening is not None:
+            self._opening.join()
+            self._opening = None
+            for outcome in self._opening_outcome:
+                if isinstance(outcome, LiveSession):
+                    outcome.close()
         if self._discovery is not None:
             self._discovery.join()
             self._discovery = None

@@ -134,10 +134,17 @@ class SourcePanel(QWidget):
         elif self.current_source():
             self.startRequested.emit(self.current_source())
 
+    def set_opening(self, spec: str) -> None:
+        """Show that ``spec`` is being opened; nothing can be started meanwhile."""
+        self.state_label.setText(f"opening {spec}...")
+        self.start_button.setEnabled(False)
+        self.source_box.setEnabled(False)
+
     def set_streaming(self, streaming: bool, description: str = "") -> None:
         """Show whether the source streams; lock the settings that cannot change then."""
         self._streaming = streaming
         self.start_button.setText("Stop" if streaming else "Start")
+        self.start_button.setEnabled(True)
         self.state_label.setText(description or ("streaming" if streaming else "stopped"))
         self.source_box.setEnabled(not streaming)
         self.refresh_button.setEnabled(not streaming)

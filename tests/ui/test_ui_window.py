@@ -9,6 +9,7 @@ import h5py
 import numpy as np
 import pytest
 import tifffile
+from PyQt6.QtCore import QTimer
 
 from holoview.acquire.recording import RecordingReader
 from holoview.ui.main_window import MainWindow
@@ -32,7 +33,12 @@ def _window(qtbot, open_windows, tmp_path: Path, source: str, **kwargs) -> MainW
     qtbot.addWidget(window)
     open_windows.append(window)
     window.show()
+    _wait_opened(qtbot, window)
     return window
+
+
+def _wait_opened(qtbot, window: MainWindow) -> None:
+    qtbot.waitUntil(lambda: not window.opening, timeout=20000)
 
 
 def _wait_frames(qtbot, window: MainWindow, n: int = 2) -> None:
@@ -102,6 +108,7 @@ def test_bad_sources_show_a_message_and_the_window_stays(qtbot, open_windows, tm
     assert window.session is None
     assert "cannot start" in window.banner_text
     window.start_source(f"replay:{tmp_path / 'missing.h5'}")
+    _wait_opened(qtbot, window)
     assert window.session is None and "missing.h5" in window.banner_text
 
 
@@ -135,6 +142,7 @@ def test_layout_is_remembered_and_close_stops_every_thread(
 def test_camera_that_is_gone_shows_a_message(qtbot, open_windows, tmp_path):
     window = _window(qtbot, open_windows, tmp_path, "sim", autostart=False)
     window.start_source("aravis:no-such-camera-here")
+    _wait_opened(qtbot, window)
     assert window.session is None and "cannot start aravis" in window.banner_text
 
 
@@ -207,6 +215,8 @@ def test_exports_snapshot_and_shortcuts(qtbot, open_windows, tmp_path, hologram_
     window.start_action.trigger()
     assert window.session is None and not window.timer.isActive()
     window.start_action.trigger()
+    assert window.opening
+    _wait_opened(qtbot, window)
     assert window.session is not None and window.timer.isActive()
 
 
@@ -253,3 +263,32 @@ def test_roi_locked_while_streaming_restarts_the_stream(qtbot, open_windows, tmp
     assert window.session.running and window.session.source.frame_shape == (160, 128)
     qtbot.waitUntil(lambda: window.hologram.image.image.shape == (160, 128), timeout=5000)
     assert window.source_panel.editor("roi").text() == "left 32, top 16, 128 x 160 px"
+
+
+def test_opening_a_slow_source_does_not_freeze_the_window(
+    qtbot, open_windows, tmp_path, monkeypatch
+):
+    import time as _time
+
+    from holoview.ui import session
+
+    from .flaky_source import FlakySource
+
+    def open_slowly(spec, opts):
+        _time.sleep(0.6)  # a camera that takes its time to answer
+        source = FlakySource()
+        source.open()
+        return source
+
+    monkeypatch.setattr(session, "_open_source", open_slowly)
+    window = _window(qtbot, open_windows, tmp_path, "sim", autostart=False)
+    ticks = []
+    window.start_source("sim")
+    assert window.opening and not window.source_panel.start_button.isEnabled()
+    timer = QTimer()
+    timer.timeout.connect(lambda: ticks.append(_time.monotonic()))
+    timer.start(10)
+    _wait_opened(qtbot, window)
+    timer.stop()
+    assert len(ticks) > 20 and max(np.diff(ticks)) < 0.1  # the event loop kept running
+    assert window.session is not None and window.source_panel.start_button.isEnabled()
