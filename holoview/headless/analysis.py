@@ -68,6 +68,9 @@ class PeakOutcome:
         Fitted depth rate and its standard error, m/s.
     noise_m : float or None
         Noise of the depth series about its line, m (the fusion weight's).
+    map_noise_rad, map_noise_m : float or None
+        Median over the frames of the per-pixel noise of the peak's map, rad and m
+        (reference frames, whose maps are zero, left out).
     used_in_fused : bool
     pca_alpha, explained : float or None
         The PCA's prefactor on the stored twin and the share of the peak's variance
@@ -86,6 +89,8 @@ class PeakOutcome:
     rate: float | None
     rate_stderr: float | None
     noise_m: float | None
+    map_noise_rad: float | None
+    map_noise_m: float | None
     used_in_fused: bool
     pca_alpha: float | None
     explained: float | None
@@ -347,8 +352,11 @@ def analyse(data: RunData, selection: Selection, optics: Optics) -> Analysis:
         chosen = [j for j in known if fusable[j]]
         fused = _mean_over_peaks(heights[:, chosen])
         used = [j in chosen for j in range(m)]
+    live = np.where(data.noise_rad > 0, data.noise_rad, np.nan)
     outcomes = []
     for j, p in enumerate(selection.peaks):
+        column = live[:, j][np.isfinite(live[:, j])]
+        map_noise = float(np.median(column)) if column.size else None
         carrier = p.carrier if signs[j] > 0 else p.flipped().carrier
         pca_alpha = naming.pca_alpha[j]
         outcomes.append(
@@ -362,6 +370,10 @@ def analyse(data: RunData, selection: Selection, optics: Optics) -> Analysis:
                 rate=None if rates[j] is None else rates[j][0],
                 rate_stderr=None if rates[j] is None else rates[j][1],
                 noise_m=noise_m[j],
+                map_noise_rad=map_noise,
+                map_noise_m=None
+                if map_noise is None or alphas[j] is None
+                else map_noise * wavelength / (4 * np.pi * alphas[j]),
                 used_in_fused=used[j],
                 pca_alpha=None if pca_alpha is None else float(pca_alpha * signs[j]),
                 explained=naming.explained[j],

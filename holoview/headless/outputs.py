@@ -120,6 +120,8 @@ def _peak_entry(peak: PeakOutcome) -> dict[str, Any]:
         "rate_m_per_s": peak.rate,
         "rate_stderr_m_per_s": peak.rate_stderr,
         "noise_m": peak.noise_m,
+        "map_noise_rad": peak.map_noise_rad,
+        "map_noise_m": peak.map_noise_m,
         "used_in_fused": peak.used_in_fused,
         "flags": list(peak.flags),
     }
@@ -144,7 +146,8 @@ def summary_document(
     came from, ``fps_hz`` (mean), ``reference``, ``window``, ``radius_cpp``,
     ``unwrap``, ``maps``, ``area_m2``, ``peaks_from``); ``peaks`` (per label:
     ``carrier`` [fx, fy] cycles/pixel, ``alpha``, ``amplitude``, ``snr``,
-    ``rate_m_per_s``, ``rate_stderr_m_per_s``, ``noise_m``, ``used_in_fused``,
+    ``rate_m_per_s``, ``rate_stderr_m_per_s``, ``noise_m`` (of the depth series),
+    ``map_noise_rad`` and ``map_noise_m`` (per map pixel, median), ``used_in_fused``,
     ``flags``); ``fused`` (``rate_m_per_s``, ``rate_stderr_m_per_s``, ``labels``, with
     an area ``volume_rate_m3_per_s`` and its ``volume_rate_stderr_m3_per_s``; None
     when nothing was fused); ``pca`` (``confidence``, ``reference``, ``prefactors``,

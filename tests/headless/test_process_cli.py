@@ -78,6 +78,10 @@ def test_labels_mode_trends_rates_and_summary(
         np.testing.assert_allclose(peak["carrier"], evaporation.carriers[label], atol=2 / 128)
         assert peak["rate_m_per_s"] == pytest.approx(evaporation.rate, rel=0.02)
         assert set(peak) >= {"amplitude", "snr", "rate_stderr_m_per_s", "flags"}
+        # the map noise in height is the phase noise through the peak's alpha
+        to_height = evaporation.wavelength / (4 * np.pi * peak["alpha"])
+        assert 0 < peak["map_noise_rad"] < 1
+        assert peak["map_noise_m"] == pytest.approx(peak["map_noise_rad"] * to_height)
     # RB3 steps 3.5 rad per frame at 20 frames/s: flagged and left out of the fusion
     if "RB3" in summary["peaks"]:
         assert "aliased_in_time" in summary["peaks"]["RB3"]["flags"]
