@@ -35,23 +35,22 @@ import dataclasses
 import logging
 from collections.abc import Sequence
 from dataclasses import dataclass
-from functools import lru_cache
 
 import numpy as np
 import pyfftw
 
 from holoview.errors import InputError
+from holoview.processing.boxes import BoxGeometry, box_geometry, box_shape_for
 from holoview.processing.fastmath import AngleWorkspace, angle
-from holoview.processing.fftplans import default_threads, fft_friendly, ifft2_plan, rfft2_plan
+from holoview.processing.fftplans import default_threads, ifft2_plan, rfft2_plan
 from holoview.processing.frames import MIN_SIDE
 from holoview.processing.peaks import MIN_RADIUS_BINS, Peak
-from holoview.processing.resample import box_positions, resample_mask, upsample
+from holoview.processing.resample import resample_mask, upsample
 from holoview.processing.unwrap import TWO_PI, has_wraps, unwrap_guided, unwrap_spatial
 from holoview.processing.windows import (
     DEFAULT_TAPER,
     auto_radius,
     check_kind,
-    radial_window,
     wrap_frequency,
 )
 
@@ -169,20 +168,6 @@ class DemodResult:
         raise KeyError(label)
 
 
-@dataclass(frozen=True)
-class _Geometry:
-    """Where a peak's box comes from in the half spectrum, and its window."""
-
-    index: np.ndarray  # flat indices into the half spectrum, box layout
-    conjugate: np.ndarray | None  # bool per box bin, or None when no bin needs conjugating
-    all_conjugate: bool
-    window: np.ndarray  # float32, scaled so the field comes out in counts
-    ramp: np.ndarray  # complex64 unit modulus: the sub-bin plane wave on the box grid
-    ramp_conj: np.ndarray  # its conjugate
-    noise_gain: float  # variance of a second difference along a row over the noise variance
-    area_fraction: float
-
-
 @dataclass
 class _Partial:
     """A peak's results between demodulation and unwrapping (mutable, internal)."""
@@ -197,77 +182,6 @@ class _Partial:
     flags: set[str]
     live: bool  # False for a reference frame: the phase is zero by definition
     unwrapped: bool = False
-
-
-def _readonly(array: np.ndarray) -> np.ndarray:
-    array.setflags(write=False)
-    return array
-
-
-@lru_cache(maxsize=256)
-def _geometry(
-    frame_shape: tuple[int, int],
-    box_shape: tuple[int, int],
-    *,
-    carrier: tuple[float, float],
-    kind: str,
-    radius: float,
-    taper: float,
-) -> _Geometry:
-    rows, cols = frame_shape
-    by, bx = box_shape
-    fx, fy = carrier
-    k0y, k0x = round(fy * rows), round(fx * cols)
-    dy = np.fft.fftfreq(by, 1.0 / by).round().astype(np.int64)
-    dx = np.fft.fftfreq(bx, 1.0 / bx).round().astype(np.int64)
-    ky = (k0y + dy) % rows
-    kx = (k0x + dx) % cols
-    half_cols = cols // 2 + 1
-    direct_x = kx <= cols // 2
-    src_rows = np.where(direct_x[None, :], ky[:, None], (-ky[:, None]) % rows)
-    src_cols = np.where(direct_x, kx, (cols - kx) % cols)[None, :]
-    index = (src_rows * half_cols + src_cols).astype(np.intp).ravel()
-    conjugate = np.broadcast_to(~direct_x[None, :], (by, bx)).ravel()
-    freq_y = wrap_frequency((k0y + dy) / rows - fy)
-    freq_x = wrap_frequency((k0x + dx) / cols - fx)
-    rho = np.hypot(freq_y[:, None], freq_x[None, :])
-    w = radial_window(kind, rho, radius, taper=taper)
-    area = float(np.sum(w * w) / (rows * cols))
-    power = w * w
-    total = power.sum()
-    rho1 = float((power * np.cos(TWO_PI * dx / bx)[None, :]).sum() / total)
-    rho2 = float((power * np.cos(2 * TWO_PI * dx / bx)[None, :]).sum() / total)
-    # the box's inverse FFT runs unnormalised (execute): 1 / (by bx) is folded in here too,
-    # so that the field comes out in counts
-    scale = 1.0 / (rows * cols)
-    y, x = box_positions(box_shape, frame_shape)
-    sub_y = fy - k0y / rows
-    sub_x = fx - k0x / cols
-    ramp = np.exp(1j * TWO_PI * (sub_y * y[:, None] + sub_x * x[None, :])).astype(np.complex64)
-    return _Geometry(
-        index=_readonly(index),
-        conjugate=None if not conjugate.any() or conjugate.all() else _readonly(conjugate.copy()),
-        all_conjugate=bool(conjugate.all()),
-        window=_readonly((w * scale).astype(np.float32).ravel()),
-        ramp=_readonly(ramp),
-        ramp_conj=_readonly(np.conj(ramp)),
-        noise_gain=max(6.0 - 8.0 * rho1 + 2.0 * rho2, 1e-6),
-        area_fraction=area,
-    )
-
-
-def box_shape_for(frame_shape: tuple[int, int], radius: float) -> tuple[int, int]:
-    """Return the FFT-friendly box shape holding a window of ``radius`` (cycles/pixel).
-
-    Each side is the smallest size with prime factors 2, 3, 5 covering the window's
-    diameter in bins plus two, or the frame's side when that is not smaller.
-    """
-    sides = []
-    for n in frame_shape:
-        need = int(np.ceil(2 * radius * n)) + 2
-        size = fft_friendly(need)
-        sides.append(n if size >= n else size)
-    return sides[0], sides[1]
 
 
 def _check_peaks(peaks: Sequence[Peak]) -> tuple[Peak, ...]:
@@ -385,8 +299,8 @@ class Demodulator:
         )
         self._overlapping = self._check_radius(carriers)
         self.box_shape = box_shape_for(self.shape, self.radius)
-        self._geometry = [
-            _geometry(
+        self._boxes = [
+            box_geometry(
                 self.shape,
                 self.box_shape,
                 carrier=(float(p.carrier[0]), float(p.carrier[1])),
@@ -410,7 +324,8 @@ class Demodulator:
             ap = np.array(aperture, dtype=bool)  # a copy: the caller's mask may change
             if ap.shape != self.shape:
                 raise InputError(f"aperture mask has shape {ap.shape}, frames have {self.shape}")
-            self.aperture = _readonly(ap)
+            ap.setflags(write=False)
+            self.aperture = ap
             self._aperture_box = resample_mask(ap, self.box_shape)
         n_box = self.box_shape[0] * self.box_shape[1]
         self._angle_workspace = AngleWorkspace(self.box_shape)
@@ -482,7 +397,7 @@ class Demodulator:
 
     def area_fraction(self, i: int) -> float:
         """Return peak ``i``'s window area fraction ``sum |W|^2 / (rows cols)`` (DESIGN.md)."""
-        return self._geometry[i].area_fraction
+        return self._boxes[i].area_fraction
 
     def upsample(self, box_map: np.ndarray) -> np.ndarray:
         """Return a box-resolution map (field, unwrapped phase, delta-h) on the frame grid."""
@@ -574,7 +489,7 @@ class Demodulator:
     def _demodulate(self, i: int, flat: np.ndarray, box_plan: pyfftw.FFTW, mean: float) -> _Partial:
         """Cut, window and invert peak ``i``'s box; phase against the reference (wrapped)."""
         peak = self.peaks[i]
-        geo = self._geometry[i]
+        geo = self._boxes[i]
         box = box_plan.input_array.reshape(-1)
         np.take(flat, geo.index, out=box)
         if geo.all_conjugate:
@@ -714,7 +629,7 @@ class Demodulator:
             offset = TWO_PI * round((part.target - level) / TWO_PI)
             if offset:
                 phase += np.float32(offset)
-        noise = self._noise(phase, part.mask, self._geometry[i]) if part.live else 0.0
+        noise = self._noise(phase, part.mask, self._boxes[i]) if part.live else 0.0
         to_height = None
         if peak.alpha is not None and self.wavelength is not None:
             to_height = self.wavelength / (4 * np.pi * peak.alpha)
@@ -734,7 +649,7 @@ class Demodulator:
         )
 
     @staticmethod
-    def _noise(phase: np.ndarray, mask: np.ndarray, geo: _Geometry) -> float:
+    def _noise(phase: np.ndarray, mask: np.ndarray, geo: BoxGeometry) -> float:
         """Phase noise (rad) from the spread of second differences along every 4th or 8th row.
 
         Second differences cancel the surface's slope; for noise shaped by the
@@ -813,7 +728,7 @@ def refine_carriers(
             raise InputError("frame holds NaN or infinite pixels")
         (by, bx), (rows, cols) = demod.box_shape, demod.shape
         moved = []
-        for peak, geo, r in zip(current, demod._geometry, result.peaks, strict=True):
+        for peak, geo, r in zip(current, demod._boxes, result.peaks, strict=True):
             residual = (r.field * geo.ramp_conj)[2:-2, 2:-2]
             along_x = np.vdot(residual[:, :-1], residual[:, 1:])
             along_y = np.vdot(residual[:-1, :], residual[1:, :])

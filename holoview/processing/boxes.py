@@ -1,0 +1,118 @@
+"""Where each peak's box comes from in the half spectrum, its window, and its constants.
+
+A peak's box is a small ``(by, bx)`` patch of the spectrum centred on the FFT bin
+nearest the carrier, laid out with that bin at index ``(0, 0)`` (FFT order), so that
+its inverse FFT is the field with the carrier moved to the origin. Bins with
+``fx < 0`` are not in the real FFT's half spectrum: they are read at ``-f`` and
+conjugated. Geometries are cached by frame shape, box shape, carrier and window:
+rebuilding a demodulator for relabelled peaks reuses them.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+
+from holoview.processing.fftplans import fft_friendly
+from holoview.processing.resample import box_positions
+from holoview.processing.unwrap import TWO_PI
+from holoview.processing.windows import radial_window, wrap_frequency
+
+
+@dataclass(frozen=True)
+class BoxGeometry:
+    """Where a peak's box comes from in the half spectrum, and its window (read-only arrays)."""
+
+    index: np.ndarray  # flat indices into the half spectrum, box layout
+    conjugate: np.ndarray | None  # bool per box bin, or None when no bin needs conjugating
+    all_conjugate: bool
+    window: np.ndarray  # float32, scaled so the field comes out in counts
+    ramp: np.ndarray  # complex64 unit modulus: the sub-bin plane wave on the box grid
+    ramp_conj: np.ndarray  # its conjugate
+    noise_gain: float  # variance of a second difference along a row over the noise variance
+    area_fraction: float
+
+
+def _readonly(array: np.ndarray) -> np.ndarray:
+    array.setflags(write=False)
+    return array
+
+
+@lru_cache(maxsize=256)
+def box_geometry(
+    frame_shape: tuple[int, int],
+    box_shape: tuple[int, int],
+    *,
+    carrier: tuple[float, float],
+    kind: str,
+    radius: float,
+    taper: float,
+) -> BoxGeometry:
+    """Return the cached geometry of a peak's box.
+
+    Parameters
+    ----------
+    frame_shape, box_shape : tuple of int
+        ``(rows, cols)`` of the frame and of the box, pixels.
+    carrier : tuple of float
+        ``(fx, fy)``, cycles/pixel.
+    kind, radius, taper
+        The window (:func:`~holoview.processing.windows.radial_window`), radius in
+        cycles/pixel.
+    """
+    rows, cols = frame_shape
+    by, bx = box_shape
+    fx, fy = carrier
+    k0y, k0x = round(fy * rows), round(fx * cols)
+    dy = np.fft.fftfreq(by, 1.0 / by).round().astype(np.int64)
+    dx = np.fft.fftfreq(bx, 1.0 / bx).round().astype(np.int64)
+    ky = (k0y + dy) % rows
+    kx = (k0x + dx) % cols
+    half_cols = cols // 2 + 1
+    direct_x = kx <= cols // 2
+    src_rows = np.where(direct_x[None, :], ky[:, None], (-ky[:, None]) % rows)
+    src_cols = np.where(direct_x, kx, (cols - kx) % cols)[None, :]
+    index = (src_rows * half_cols + src_cols).astype(np.intp).ravel()
+    conjugate = np.broadcast_to(~direct_x[None, :], (by, bx)).ravel()
+    freq_y = wrap_frequency((k0y + dy) / rows - fy)
+    freq_x = wrap_frequency((k0x + dx) / cols - fx)
+    rho = np.hypot(freq_y[:, None], freq_x[None, :])
+    w = radial_window(kind, rho, radius, taper=taper)
+    area = float(np.sum(w * w) / (rows * cols))
+    power = w * w
+    total = power.sum()
+    rho1 = float((power * np.cos(TWO_PI * dx / bx)[None, :]).sum() / total)
+    rho2 = float((power * np.cos(2 * TWO_PI * dx / bx)[None, :]).sum() / total)
+    # the box's inverse FFT runs unnormalised (execute): 1 / (by bx) is folded in here too,
+    # so that the field comes out in counts
+    scale = 1.0 / (rows * cols)
+    y, x = box_positions(box_shape, frame_shape)
+    sub_y = fy - k0y / rows
+    sub_x = fx - k0x / cols
+    ramp = np.exp(1j * TWO_PI * (sub_y * y[:, None] + sub_x * x[None, :])).astype(np.complex64)
+    return BoxGeometry(
+        index=_readonly(index),
+        conjugate=None if not conjugate.any() or conjugate.all() else _readonly(conjugate.copy()),
+        all_conjugate=bool(conjugate.all()),
+        window=_readonly((w * scale).astype(np.float32).ravel()),
+        ramp=_readonly(ramp),
+        ramp_conj=_readonly(np.conj(ramp)),
+        noise_gain=max(6.0 - 8.0 * rho1 + 2.0 * rho2, 1e-6),
+        area_fraction=area,
+    )
+
+
+def box_shape_for(frame_shape: tuple[int, int], radius: float) -> tuple[int, int]:
+    """Return the FFT-friendly box shape holding a window of ``radius`` (cycles/pixel).
+
+    Each side is the smallest size with prime factors 2, 3, 5 covering the window's
+    diameter in bins plus two, or the frame's side when that is not smaller.
+    """
+    sides = []
+    for n in frame_shape:
+        need = int(np.ceil(2 * radius * n)) + 2
+        size = fft_friendly(need)
+        sides.append(n if size >= n else size)
+    return sides[0], sides[1]
