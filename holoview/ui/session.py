@@ -4,8 +4,10 @@ No Qt here: the window polls :meth:`LiveSession.latest` from its redraw timer an
 sends commands with the setters, which the worker applies between frames. The
 worker (a thread named ``holoview-demod``) takes the *newest* frame from the ring,
 runs a :class:`~holoview.ui.live_pipeline.LivePipeline` on it and publishes the
-result under a lock; the recorder (``holoview-recorder``) takes *every* frame. All
-threads stop with a sentinel (the ring closes) and are joined by :meth:`close`.
+result under a lock; peak detection, much slower than a frame, runs beside it on
+``holoview-peaks``; the recorder (``holoview-recorder``) takes *every* frame. All
+threads stop with a sentinel (the ring closes, or a stop flag) and are joined by
+:meth:`LiveSession.close`.
 """
 
 from __future__ import annotations
