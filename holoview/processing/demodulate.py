@@ -65,6 +65,9 @@ PEAK_RESULT_FLAGS: tuple[str, ...] = ("reference", "phase_step", "low_amplitude"
 #: Flags a :class:`DemodResult` can carry (see its documentation).
 FRAME_FLAGS: tuple[str, ...] = ("nonfinite", "no_signal", "saturated", "reference")
 
+#: Box size (bins) from which a box's inverse FFT uses the frame FFT's threads.
+LARGE_BOX = 256 * 256
+
 #: A mean-phase step per frame (rad) beyond which a peak is flagged ``"phase_step"``.
 PHASE_STEP_LIMIT = 0.8 * np.pi
 
@@ -328,6 +331,8 @@ class Demodulator:
             self.aperture = ap
             self._aperture_box = resample_mask(ap, self.box_shape)
         n_box = self.box_shape[0] * self.box_shape[1]
+        #: boxes of 256 x 256 bins or more are worth FFTW's threads; smaller ones are not
+        self._box_threads = self.threads if n_box >= LARGE_BOX else 1
         self._angle_workspace = AngleWorkspace(self.box_shape)
         self._product = np.empty(self.box_shape, dtype=np.complex64)
         self._magnitude = np.empty(self.box_shape, dtype=np.float32)
@@ -464,7 +469,7 @@ class Demodulator:
         if self.saturation is not None and (array[::4, ::4] >= self.saturation).any():
             frame_flags.add("saturated")
         flat = half.reshape(-1)
-        box_plan = ifft2_plan(self.box_shape, threads=1)
+        box_plan = ifft2_plan(self.box_shape, threads=self._box_threads)
         partial = [self._demodulate(i, flat, box_plan, mean) for i in range(len(self.peaks))]
         if self.unwrap != "never":
             self._unwrap(partial)
