@@ -46,7 +46,14 @@ from holoview.processing.fftplans import default_threads, ifft2_plan, rfft2_plan
 from holoview.processing.frames import MIN_SIDE
 from holoview.processing.peaks import MIN_RADIUS_BINS, Peak
 from holoview.processing.resample import resample_mask, upsample
-from holoview.processing.unwrap import TWO_PI, has_wraps, unwrap_guided, unwrap_spatial
+from holoview.processing.unwrap import (
+    EDGE,
+    TWO_PI,
+    has_wraps,
+    phase_ratio,
+    unwrap_guided,
+    unwrap_spatial,
+)
 from holoview.processing.windows import (
     DEFAULT_TAPER,
     auto_radius,
@@ -185,6 +192,13 @@ class _Partial:
     flags: set[str]
     live: bool  # False for a reference frame: the phase is zero by definition
     unwrapped: bool = False
+
+
+def _wrapped_inside(phase: np.ndarray, mask: np.ndarray) -> bool:
+    """Whether a map has wraps away from its edge (:data:`~holoview.processing.unwrap.EDGE`)."""
+    e = EDGE if min(phase.shape) > 4 * EDGE else 0
+    inner = (slice(e, phase.shape[0] - e), slice(e, phase.shape[1] - e))
+    return has_wraps(phase[inner], mask[inner])
 
 
 def _check_peaks(peaks: Sequence[Peak]) -> tuple[Peak, ...]:
@@ -569,56 +583,73 @@ class Demodulator:
         )
 
     def _guide_index(self, partial: list[_Partial]) -> int | None:
-        """The peak whose map guides the others: alpha known, fewest wraps per unit noise."""
-        best, score = None, np.inf
-        for i, peak in enumerate(self.peaks):
-            if peak.alpha is None or peak.amplitude <= 0 or not partial[i].mask.any():
-                continue
-            s = abs(peak.alpha) / peak.amplitude
-            if s < score:
-                best, score = i, s
-        return best
+        """The peak whose map guides the others.
+
+        Among peaks with trusted pixels: the one with a known alpha and the smallest
+        ``|alpha| / amplitude`` (fewest wraps per unit of noise); with no alpha
+        known, the brightest.
+        """
+        candidates = [i for i, part in enumerate(partial) if part.live and part.valid]
+        with_alpha = [i for i in candidates if self.peaks[i].alpha is not None]
+        if with_alpha:
+            return min(
+                with_alpha,
+                key=lambda i: abs(self.peaks[i].alpha) / max(self.peaks[i].amplitude, 1e-30),  # type: ignore[arg-type]
+            )
+        if candidates:
+            return max(candidates, key=lambda i: self.peaks[i].amplitude)
+        return None
 
     def _unwrap(self, partial: list[_Partial]) -> None:
-        """Unwrap the maps that need it: one spatially, the others guided by it when possible.
+        """Unwrap the maps that need it: one in space, the others guided by it.
 
-        The guide is the peak with a known alpha and the smallest ``|alpha| / amplitude``
-        (fewest wraps, least noise); when its map has wraps it is unwrapped in space
+        The guide (:meth:`_guide_index`), when its map has wraps, is unwrapped in space
         (:func:`~holoview.processing.unwrap.unwrap_spatial`, Herraez et al. 2002, on a
-        decimated map, see :meth:`_unwrap_in_space`). Every other wrapped map of
-        a peak with alpha is then unwrapped against the guide scaled by the ratio of
-        alphas (:func:`~holoview.processing.unwrap.unwrap_guided`), which costs a few
-        array passes instead of a spatial unwrap. Peaks without alpha are unwrapped
+        decimated map, see :meth:`_unwrap_in_space`). Every other wrapped map is then
+        unwrapped against the guide scaled by the ratio of the two alphas
+        (:func:`~holoview.processing.unwrap.unwrap_guided`), a few array passes
+        instead of a spatial unwrap. When an alpha is unknown the ratio is measured
+        from the two maps' gradients (:func:`~holoview.processing.unwrap.phase_ratio`),
+        and a map still wrapped after that (another surface, or none) is unwrapped
         in space.
         """
         need = [p.live and (self.unwrap == "always" or has_wraps(p.phase, p.mask)) for p in partial]
         if not any(need):
             return
         guide = self._guide_index(partial)
-        if guide is not None and need[guide]:
-            g = partial[guide]
+        if guide is None:
+            return  # no trusted pixel anywhere: nothing worth unwrapping
+        g = partial[guide]
+        if need[guide]:
             g.phase, g.unwrapped = self._unwrap_in_space(g.phase, g.mask)
+        guide_alpha = self.peaks[guide].alpha
         for i, part in enumerate(partial):
-            if not need[i] or i == guide:
+            if not need[i] or i == guide or not part.valid:
                 continue
             alpha = self.peaks[i].alpha
-            if guide is not None and alpha is not None and partial[guide].live:
-                ratio = alpha / self.peaks[guide].alpha  # type: ignore[operator]
-                part.phase = unwrap_guided(part.phase, partial[guide].phase * ratio, part.mask)
+            if alpha is not None and guide_alpha is not None:
+                part.phase = unwrap_guided(part.phase, g.phase * (alpha / guide_alpha), part.mask)
                 part.unwrapped = True
-            else:
+                continue
+            ratio = phase_ratio(part.phase, g.phase, part.mask & g.mask)
+            guided = unwrap_guided(part.phase, g.phase * np.float32(ratio), part.mask)
+            if _wrapped_inside(guided, part.mask):
                 part.phase, part.unwrapped = self._unwrap_in_space(part.phase, part.mask)
+            else:
+                part.phase, part.unwrapped = guided, True
 
     def _unwrap_in_space(self, phase: np.ndarray, mask: np.ndarray) -> tuple[np.ndarray, bool]:
         """Herraez on a decimated map (coarse grid of 64 pixels or more), finer if that fails.
 
-        A map still wrapped after the coarse pass moved more than pi between coarse
-        samples somewhere: it is done again on a twice finer grid, down to every pixel.
+        A map still wrapped after the coarse pass (away from the box's edge, where a
+        non-periodic frame leaves the field unreliable) moved more than pi between
+        coarse samples somewhere: it is done again on a twice finer grid, down to
+        every pixel.
         """
         decimate = max(1, min(self.box_shape) // 64)
         while True:
             unwrapped, changed = unwrap_spatial(phase, mask, decimate=decimate)
-            if decimate == 1 or not has_wraps(unwrapped, mask):
+            if decimate == 1 or not _wrapped_inside(unwrapped, mask):
                 return unwrapped, changed
             decimate //= 2
 

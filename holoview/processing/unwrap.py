@@ -11,11 +11,18 @@ from __future__ import annotations
 import warnings
 
 import numpy as np
+from scipy import ndimage
 from skimage.restoration import unwrap_phase
 
 from holoview.errors import InputError
 
 TWO_PI = 2.0 * np.pi
+
+#: Pixels at a map's edge left out of :func:`phase_ratio`.
+EDGE = 3
+
+#: Width (pixels) of the box filter :func:`phase_ratio` smooths the guide with.
+GUIDE_SMOOTHING = 5
 
 
 def wrap(phase: np.ndarray | float) -> np.ndarray:
@@ -140,6 +147,57 @@ def unwrap_guided(
         sample = difference
     constant = float(np.angle(np.mean(np.exp(1j * sample))))
     return (g + constant + wrap(difference - constant)).astype(np.float32)
+
+
+def phase_ratio(phase: np.ndarray, guide: np.ndarray, mask: np.ndarray | None = None) -> float:
+    """Estimate ``r`` in ``phase ~ r guide + constant`` from the maps' gradients.
+
+    Neighbour differences of the wrapped ``phase`` (wrapped again, so valid while
+    the phase moves less than pi per pixel) are regressed on those of the unwrapped
+    ``guide`` smoothed over :data:`GUIDE_SMOOTHING` pixels (the noise of a regressor
+    would bias the slope low), by least squares through zero on every 4th row,
+    leaving out an edge of :data:`EDGE` pixels (where a non-periodic frame's field
+    dips) and guide steps over pi/2. Between two peaks that see the same surface,
+    ``r`` is the ratio of their alphas (paper eq. 3); about 1 % here for maps of a
+    few hundred pixels.
+
+    Parameters
+    ----------
+    phase : ndarray, shape (rows, cols)
+        Wrapped phase (rad); not modified.
+    guide : ndarray, shape (rows, cols)
+        Unwrapped phase (rad) of another peak.
+    mask : ndarray of bool, optional
+        Pixels trusted in both.
+
+    Returns
+    -------
+    float
+        The ratio; 0 when the guide is flat (every ratio fits then).
+    """
+    if np.shape(phase) != np.shape(guide) or np.ndim(phase) != 2:
+        raise InputError(
+            f"phase {np.shape(phase)} and guide {np.shape(guide)} must be 2-D of one shape"
+        )
+    rows, cols = np.shape(phase)
+    e = EDGE if min(rows, cols) > 4 * EDGE else 0
+    inner = (slice(e, rows - e, 4), slice(e, cols - e))
+    p = np.asarray(phase)[inner]
+    # a noisy regressor biases the slope low (errors in variables): smooth the guide
+    g = ndimage.uniform_filter1d(np.asarray(guide, dtype=np.float32), GUIDE_SMOOTHING, axis=0)
+    g = ndimage.uniform_filter1d(g[inner], GUIDE_SMOOTHING, axis=1)
+    dp = wrap(p[:, 1:] - p[:, :-1])
+    dg = g[:, 1:] - g[:, :-1]
+    keep = np.abs(dg) < np.pi / 2  # a steeper guide is noise or an edge, not surface
+    if mask is not None:
+        m = np.asarray(mask, dtype=bool)[inner]
+        keep &= m[:, 1:] & m[:, :-1]
+    dp = dp * keep
+    dg = dg * keep
+    energy = float(np.vdot(dg, dg))
+    if energy <= 0:
+        return 0.0
+    return float(np.vdot(dg, dp)) / energy
 
 
 def unwrap_temporal(phases: np.ndarray, *, axis: int = 0) -> np.ndarray:

@@ -22,6 +22,7 @@ from holoview.processing.resample import box_positions, resample_mask, upsample
 from holoview.processing.unwrap import (
     aperture_mask,
     has_wraps,
+    phase_ratio,
     unwrap_guided,
     unwrap_spatial,
     unwrap_temporal,
@@ -130,6 +131,20 @@ def test_guided_unwrap_across_peaks() -> None:
     np.testing.assert_allclose(result - offset, truth, atol=1e-5)
     with pytest.raises(InputError, match="one shape"):
         unwrap_guided(np.zeros((3, 3)), np.zeros((4, 4)))
+
+
+def test_phase_ratio_from_gradients() -> None:
+    y, x = np.mgrid[:64, :80]
+    surface = np.exp(-((x - 40) ** 2 + (y - 32) ** 2) / (2 * 12**2))
+    guide = 6.0 * surface
+    wrapped = wrap(2.5 * guide + 1.0 + np.random.default_rng(42).normal(0, 0.05, guide.shape))
+    assert phase_ratio(wrapped, guide) == pytest.approx(2.5, rel=0.03)
+    assert phase_ratio(wrapped, np.zeros_like(guide)) == 0.0
+    mask = np.zeros(guide.shape, bool)
+    mask[:, :40] = True
+    assert phase_ratio(wrapped, guide, mask) == pytest.approx(2.5, rel=0.03)
+    with pytest.raises(InputError, match="one shape"):
+        phase_ratio(np.zeros((4, 4)), np.zeros((4, 5)))
 
 
 def test_temporal_unwrap() -> None:
