@@ -319,7 +319,7 @@ def main(argv: list[str] | None = None) -> int:
                 d.process((flat, wrapped)[s["k"] % 2])
 
             timing = timed_ms(step, frames_timed)
-            what = "alphas known (guided)" if with_alpha else "no alphas (each in space)"
+            what = "alphas known (guided)" if with_alpha else "no alphas (ratios measured)"
             print(
                 f"{mode:>9}, {what:26}: {timing[0]:7.2f} ms per frame (best {timing[1]:6.2f}), "
                 f"box {demod.box_shape}"
