@@ -26,9 +26,7 @@ class BoxGeometry:
     """Where a peak's box comes from in the half spectrum, and its window (read-only arrays)."""
 
     index: np.ndarray  # flat indices into the half spectrum, box layout
-    conjugate: np.ndarray | None  # bool per box bin, or None when no bin needs conjugating
-    all_conjugate: bool
-    window: np.ndarray  # float32, scaled so the field comes out in counts
+    weights: np.ndarray  # float32 (re, im) pairs per bin: the window, -window on conjugated im
     ramp: np.ndarray  # complex64 unit modulus: the sub-bin plane wave on the box grid
     ramp_conj: np.ndarray  # its conjugate
     noise_gain: float  # variance of a second difference along a row over the noise variance
@@ -80,23 +78,27 @@ def box_geometry(
     freq_x = wrap_frequency((k0x + dx) / cols - fx)
     rho = np.hypot(freq_y[:, None], freq_x[None, :])
     w = radial_window(kind, rho, radius, taper=taper)
-    area = float(np.sum(w * w) / (rows * cols))
     power = w * w
     total = power.sum()
+    area = float(total / (rows * cols))
     rho1 = float((power * np.cos(TWO_PI * dx / bx)[None, :]).sum() / total)
     rho2 = float((power * np.cos(2 * TWO_PI * dx / bx)[None, :]).sum() / total)
     # the box's inverse FFT runs unnormalised (execute): 1 / (by bx) is folded in here too,
     # so that the field comes out in counts
     scale = 1.0 / (rows * cols)
+    # window and conjugation in one multiply of the box seen as (re, im) float32 pairs:
+    # (w, w) for a bin read directly, (w, -w) for a bin read at -f and conjugated
+    scaled = (w * scale).astype(np.float32).ravel()
+    weights = np.empty(2 * scaled.size, dtype=np.float32)
+    weights[0::2] = scaled
+    weights[1::2] = np.where(conjugate, -scaled, scaled)
     y, x = box_positions(box_shape, frame_shape)
     sub_y = fy - k0y / rows
     sub_x = fx - k0x / cols
     ramp = np.exp(1j * TWO_PI * (sub_y * y[:, None] + sub_x * x[None, :])).astype(np.complex64)
     return BoxGeometry(
         index=_readonly(index),
-        conjugate=None if not conjugate.any() or conjugate.all() else _readonly(conjugate.copy()),
-        all_conjugate=bool(conjugate.all()),
-        window=_readonly((w * scale).astype(np.float32).ravel()),
+        weights=_readonly(weights),
         ramp=_readonly(ramp),
         ramp_conj=_readonly(np.conj(ramp)),
         noise_gain=max(6.0 - 8.0 * rho1 + 2.0 * rho2, 1e-6),

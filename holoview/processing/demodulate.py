@@ -511,11 +511,8 @@ class Demodulator:
         geo = self._boxes[i]
         box = box_plan.input_array.reshape(-1)
         np.take(flat, geo.index, out=box)
-        if geo.all_conjugate:
-            np.conjugate(box, out=box)
-        elif geo.conjugate is not None:
-            np.conjugate(box, out=box, where=geo.conjugate)
-        np.multiply(box, geo.window, out=box)
+        pairs = box.view(np.float32)  # window and conjugation in one pass (BoxGeometry)
+        np.multiply(pairs, geo.weights, out=pairs)
         box_plan.execute()
         field = box_plan.output_array.copy()
         flags: set[str] = set()
