@@ -656,9 +656,12 @@ class Demodulator:
         phase = part.phase
         if part.live and part.valid:
             # put the map's 2 pi offset where the time-unwrapped mean phase says
-            weights = self._weights
-            np.copyto(weights, part.mask.reshape(-1))
-            level = float(np.dot(phase.reshape(-1), weights)) / part.valid
+            if part.valid == phase.size:
+                level = float(np.mean(phase))
+            else:
+                weights = self._weights
+                np.copyto(weights, part.mask.reshape(-1))
+                level = float(np.dot(phase.reshape(-1), weights)) / part.valid
             offset = TWO_PI * round((part.target - level) / TWO_PI)
             if offset:
                 phase += np.float32(offset)
