@@ -9,6 +9,7 @@ import pyqtgraph as pg
 from PyQt6.QtCore import Qt, pyqtSignal
 from PyQt6.QtWidgets import QCheckBox, QHBoxLayout, QLabel, QPushButton, QVBoxLayout, QWidget
 
+from holoview.ui.legends import side_legend
 from holoview.ui.surface_view import CURVE_COLOURS, FUSED
 
 #: Metres per second to micrometres per minute.
@@ -42,7 +43,7 @@ class TrendsView(QWidget):
         self.plot.setLabel("bottom", "time", units="s")
         self.plot.setLabel("left", "mean depth change (nm)")
         self.plot.getAxis("left").enableAutoSIPrefix(False)
-        self.plot.addLegend(offset=(-10, 10))
+        self.legend = side_legend(self.plot.getPlotItem())
         self.plot.showGrid(x=True, y=True, alpha=0.3)
         self.curves: dict[str, pg.PlotDataItem] = {}
         self.fit_curve = pg.PlotDataItem(pen=pg.mkPen("y", width=1, style=Qt.PenStyle.DotLine))
