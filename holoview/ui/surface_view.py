@@ -27,6 +27,7 @@ from PyQt6.QtWidgets import (
     QWidget,
 )
 
+from holoview.ui.legends import side_legend
 from holoview.ui.settings import PEAK_LABELS, REFERENCE_MODES
 
 FUSED = "fused"
@@ -37,6 +38,9 @@ PHASE_CMAP = "CET-C6"
 CURVE_COLOURS = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2")
 #: Seconds between colour-range updates while "follow" is on.
 FOLLOW_INTERVAL_S = 0.5
+#: Entries per column of the profile's legend (more go in further columns), so
+#: that the legend fits the short profile plot.
+LEGEND_ROWS = 3
 #: Default line, as fractions of (width, height): a horizontal diameter.
 DEFAULT_LINE = ((0.05, 0.5), (0.95, 0.5))
 
@@ -125,7 +129,7 @@ class SurfaceView(QWidget):
         self.profile.getAxis("left").enableAutoSIPrefix(False)
         self.profile.disableAutoRange()
         self._profile_ranges: tuple | None = None
-        self.profile.addLegend(offset=(5, 5))
+        self.profile_legend = side_legend(self.profile.getPlotItem())
         self.curves: dict[str, pg.PlotDataItem] = {}
         splitter = QSplitter(Qt.Orientation.Vertical)
         splitter.addWidget(self.graphics)
@@ -249,6 +253,7 @@ class SurfaceView(QWidget):
         for curve in self.curves.values():
             self.profile.removeItem(curve)
         self.curves.clear()
+        self.profile_legend.setColumnCount(max(1, -(-len(names) // LEGEND_ROWS)))
         for i, name in enumerate(names):
             pen = (
                 pg.mkPen("w", width=2, style=Qt.PenStyle.DashLine)

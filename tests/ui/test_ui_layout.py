@@ -7,6 +7,7 @@ import pytest
 
 pytest.importorskip("pyqtgraph")
 
+from holoview.ui.surface_view import FUSED, SurfaceView
 from holoview.ui.trends_view import TrendsView
 
 pytestmark = [
@@ -34,3 +35,24 @@ def test_trends_legend_lists_every_series_beside_the_data(qtbot) -> None:
     data_area = view.plot.getPlotItem().vb.sceneBoundingRect()
     # right of the data area (to within the pixel its border pen takes)
     assert view.legend.sceneBoundingRect().left() >= data_area.right() - 1.0
+
+
+def _maps(seed: int = 0) -> dict[str, np.ndarray]:
+    rng = np.random.default_rng(seed)
+    return {n: rng.normal(size=(48, 48)) * 1e-9 for n in NAMES if n != FUSED}
+
+
+def test_profile_legend_shows_every_entry_in_a_short_profile(qtbot) -> None:
+    view = SurfaceView()
+    maps = _maps()
+    view.set_maps(maps, maps["RB1"])
+    _show(qtbot, view, 680, 560)
+    view.profile.resize(view.profile.width(), 110)
+    qtbot.wait(50)
+    legend = view.profile_legend
+    assert [label.text for _, label in legend.items] == list(NAMES)
+    visible = view.profile.sceneRect()
+    for _, label in legend.items:
+        assert visible.contains(label.sceneBoundingRect()), label.text
+    data_area = view.profile.getPlotItem().vb.sceneBoundingRect()
+    assert legend.sceneBoundingRect().left() >= data_area.right() - 1.0
