@@ -15,7 +15,7 @@ from collections.abc import Mapping
 
 import numpy as np
 import pyqtgraph as pg
-from PyQt6.QtCore import Qt, pyqtSignal
+from PyQt6.QtCore import QEvent, QObject, Qt, pyqtSignal
 from PyQt6.QtWidgets import (
     QCheckBox,
     QComboBox,
@@ -38,6 +38,11 @@ PHASE_CMAP = "CET-C6"
 CURVE_COLOURS = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2")
 #: Seconds between colour-range updates while "follow" is on.
 FOLLOW_INTERVAL_S = 0.5
+#: Map titles: font size, and the height they take above a map, pixels.
+TITLE_SIZE = "9pt"
+TITLE_HEIGHT_PX = 22.0
+#: Width the colour bar takes beside the maps before it is first laid out, pixels.
+COLOUR_BAR_WIDTH_PX = 90.0
 #: Entries per column of the profile's legend (more go in further columns), so
 #: that the legend fits the short profile plot.
 LEGEND_ROWS = 3
@@ -57,6 +62,27 @@ def sample_line(
     x = np.clip(np.linspace(start[0], end[0], n) * cols, 0, cols - 1).astype(int)
     y = np.clip(np.linspace(start[1], end[1], n) * rows, 0, rows - 1).astype(int)
     return image[y, x]
+
+
+def best_columns(n: int, width: float, height: float, title: float = 0.0) -> int:
+    """Return the number of columns in which ``n`` square maps are largest.
+
+    Parameters
+    ----------
+    n : int
+        Number of maps (at least one).
+    width, height : float
+        Area the maps share, pixels.
+    title : float
+        Height of the title above each map, pixels.
+    """
+    n = max(1, n)
+
+    def side(columns: int) -> float:
+        rows = -(-n // columns)
+        return min(width / columns, height / rows - title)
+
+    return max(range(1, n + 1), key=lambda c: (side(c), -c))
 
 
 def ordered_names(names: object) -> list[str]:
@@ -119,6 +145,10 @@ class SurfaceView(QWidget):
         controls.addWidget(self.stats_label)
 
         self.graphics = pg.GraphicsLayoutWidget()
+        self.graphics.ci.setContentsMargins(2, 2, 2, 2)
+        self.graphics.ci.setSpacing(2)
+        self.graphics.installEventFilter(self)
+        self._columns = 0
         self.colour_bar = pg.ColorBarItem(
             values=(-1.0, 1.0), colorMap=pg.colormap.get(HEIGHT_CMAP), label="delta h (nm)"
         )
@@ -224,28 +254,25 @@ class SurfaceView(QWidget):
         """Lay out one plot per name, reusing the plots of names already shown."""
         self._clear_line_items()
         layout = self.graphics.ci
-        for item in [*self.plots.values(), self.colour_bar]:
-            if item in layout.items:
-                layout.removeItem(item)
         for name in [n for n in self.plots if n not in names]:
+            if self.plots[name] in layout.items:
+                layout.removeItem(self.plots[name])
             del self.plots[name], self.images[name]
         for name in names:
             if name not in self.plots:
-                plot = pg.PlotItem(title=name)
+                plot = pg.PlotItem()
+                plot.setTitle(name, size=TITLE_SIZE)
                 plot.setAspectLocked(True)
                 plot.invertY(True)
                 plot.hideAxis("left")
                 plot.hideAxis("bottom")
+                plot.getViewBox().setDefaultPadding(0.0)
                 image = pg.ImageItem(axisOrder="row-major")
                 plot.addItem(image)
                 self.plots[name] = plot
                 self.images[name] = image
-        columns = 3 if len(names) > 4 else 2
-        for i, name in enumerate(names):
-            layout.addItem(self.plots[name], row=i // columns, col=i % columns)
-        layout.addItem(
-            self.colour_bar, row=0, col=columns, rowspan=max(1, -(-len(names) // columns))
-        )
+        self._columns = 0
+        self._lay_out(names)
         self.colour_bar.setImageItem([self.images[n] for n in names])
         self._apply_cmap()
         self._names = names
@@ -261,6 +288,34 @@ class SurfaceView(QWidget):
                 else pg.mkPen(CURVE_COLOURS[i % len(CURVE_COLOURS)], width=1.5)
             )
             self.curves[name] = self.profile.plot([], [], pen=pen, name=name)
+
+    def _lay_out(self, names: list[str]) -> None:
+        """Put the maps in the number of columns that makes them largest, then the bar."""
+        bar_width = self.colour_bar.width() if self._columns else COLOUR_BAR_WIDTH_PX
+        columns = best_columns(
+            len(names),
+            max(1.0, self.graphics.width() - bar_width),
+            max(1.0, self.graphics.height()),
+            TITLE_HEIGHT_PX,
+        )
+        if columns == self._columns:
+            return
+        self._columns = columns
+        layout = self.graphics.ci
+        for item in [*self.plots.values(), self.colour_bar]:
+            if item in layout.items:
+                layout.removeItem(item)
+        for i, name in enumerate(names):
+            layout.addItem(self.plots[name], row=i // columns, col=i % columns)
+        layout.addItem(
+            self.colour_bar, row=0, col=columns, rowspan=max(1, -(-len(names) // columns))
+        )
+
+    def eventFilter(self, watched: QObject, event: QEvent) -> bool:
+        """Re-arrange the maps when their area changes size."""
+        if watched is self.graphics and event.type() == QEvent.Type.Resize and self._names:
+            self._lay_out(self._names)
+        return super().eventFilter(watched, event)
 
     def _clear_line_items(self) -> None:
         """Take the line and its mirrors off the maps (before any map goes)."""

@@ -7,7 +7,7 @@ import pytest
 
 pytest.importorskip("pyqtgraph")
 
-from holoview.ui.surface_view import FUSED, SurfaceView
+from holoview.ui.surface_view import FUSED, SurfaceView, best_columns
 from holoview.ui.trends_view import TrendsView
 
 pytestmark = [
@@ -56,3 +56,28 @@ def test_profile_legend_shows_every_entry_in_a_short_profile(qtbot) -> None:
         assert visible.contains(label.sceneBoundingRect()), label.text
     data_area = view.profile.getPlotItem().vb.sceneBoundingRect()
     assert legend.sceneBoundingRect().left() >= data_area.right() - 1.0
+
+
+def test_best_columns_makes_square_maps_largest() -> None:
+    assert best_columns(6, 1200.0, 300.0) == 6  # one row in a wide strip
+    assert best_columns(6, 300.0, 900.0) == 1  # one column in a tall strip
+    assert best_columns(6, 600.0, 400.0) == 3
+    assert best_columns(4, 400.0, 400.0) == 2
+    assert best_columns(1, 10.0, 10.0) == 1
+
+
+@pytest.mark.parametrize("size", [(680, 560), (1200, 420)])
+def test_maps_fill_their_cells(qtbot, size: tuple[int, int]) -> None:
+    view = SurfaceView()
+    maps = _maps()
+    view.set_maps(maps, maps["RB1"])
+    _show(qtbot, view, *size)
+    qtbot.wait(50)
+    for name in NAMES:
+        plot = view.plots[name]
+        image = view.images[name].sceneBoundingRect()
+        cell = plot.getViewBox().sceneBoundingRect()
+        # aspect locked: the image spans the cell's smaller side (to within a pixel)
+        assert abs(image.width() - image.height()) <= 2.0
+        assert min(image.width(), image.height()) >= min(cell.width(), cell.height()) - 2.0
+        assert image.width() > 0.14 * size[0]
