@@ -88,6 +88,8 @@ class SpectrumView(QWidget):
         self.graphics = pg.GraphicsLayoutWidget()
         self.plot = self.graphics.addPlot()
         self.plot.setAspectLocked(True)
+        self._pad = (0.0, 0.0)
+        self.plot.getViewBox().sigResized.connect(self._keep_square)
         self.plot.invertY(True)
         self.plot.setLabel("bottom", "fx", units="cycles/px")
         self.plot.setLabel("left", "fy", units="cycles/px")
@@ -152,6 +154,22 @@ class SpectrumView(QWidget):
         else:
             self.image.setImage(spectrum, autoLevels=False, levels=self._levels)
             self.image.setRect(QRectF(-0.5, -0.5, 1.0, 1.0))
+
+    def _keep_square(self) -> None:
+        """Pad the plot so that its data area is square and centred.
+
+        With the aspect ratio locked, a square data area shows the spectrum's
+        -0.5..0.5 cycles/px on both axes and nothing beyond it.
+        """
+        rect = self.plot.getViewBox().geometry()
+        width = rect.width() + 2.0 * self._pad[0]
+        height = rect.height() + 2.0 * self._pad[1]
+        side = min(width, height)
+        pad = ((width - side) / 2.0, (height - side) / 2.0)
+        if max(abs(pad[0] - self._pad[0]), abs(pad[1] - self._pad[1])) < 0.5:
+            return
+        self._pad = pad
+        self.graphics.ci.setContentsMargins(pad[0], pad[1], pad[0], pad[1])
 
     def auto_levels(self) -> None:
         """Reset the spectrum levels from the current image."""

@@ -7,6 +7,7 @@ import pytest
 
 pytest.importorskip("pyqtgraph")
 
+from holoview.ui.spectrum_view import SpectrumView
 from holoview.ui.surface_view import FUSED, SurfaceView, best_columns
 from holoview.ui.trends_view import TrendsView
 
@@ -81,3 +82,15 @@ def test_maps_fill_their_cells(qtbot, size: tuple[int, int]) -> None:
         assert abs(image.width() - image.height()) <= 2.0
         assert min(image.width(), image.height()) >= min(cell.width(), cell.height()) - 2.0
         assert image.width() > 0.14 * size[0]
+
+
+@pytest.mark.parametrize("size", [(700, 420), (420, 700)])
+def test_spectrum_shows_its_bounds_and_no_more(qtbot, size: tuple[int, int]) -> None:
+    view = SpectrumView()
+    rng = np.random.default_rng(2)
+    view.set_spectrum(rng.normal(size=(64, 64)).astype(np.float32))
+    _show(qtbot, view, *size)
+    qtbot.wait(50)
+    x_range, y_range = view.plot.viewRange()
+    assert x_range == pytest.approx([-0.5, 0.5], abs=0.01)
+    assert y_range == pytest.approx([-0.5, 0.5], abs=0.01)
