@@ -11,6 +11,10 @@ Three parts, drawn with OpenCV (:mod:`holoview.headless.plotting`):
    (um/min, with its standard error) and why a peak was left out of the fusion;
 3. the delta-h map of every peak and the fused map of the last frame (nm, colour
    bar; grey where not trusted), titled with the reference mode.
+
+Under them, in red, the run's notes (``summary.json``'s ``notes``): the caveats a
+reader must not miss, such as an automatic identification whose global sign is
+a guess.
 """
 
 from __future__ import annotations
@@ -48,6 +52,10 @@ SPECTRUM_SIDE = 470
 MAP_SIDE = 230
 #: Width of one map cell (map, colour bar, margins), pixels.
 MAP_CELL = 320
+#: Height of one line of the notes under the maps, pixels.
+NOTE_LINE = 26
+#: Colour of the notes (BGR): the caveats a reader must not miss.
+NOTE_RED = (30, 30, 200)
 #: Metres per second to micrometres per minute.
 UM_PER_MIN = 60e6
 
@@ -278,7 +286,8 @@ def write_report(
     per_row = max(1, (WIDTH - 60) // MAP_CELL)
     map_rows = -(-len(panels) // per_row)
     maps_top = 100 + SPECTRUM_SIDE + 150
-    height = maps_top + map_rows * (MAP_SIDE + 70) + 20
+    notes_top = maps_top + map_rows * (MAP_SIDE + 70)
+    height = notes_top + NOTE_LINE * len(analysis.notes) + 20
     image = np.full((height, WIDTH, 3), 255, np.uint8)
     text(image, title, (20, 32), scale=0.7, thickness=2)
     fit_text = _rate(*_fit(analysis))
@@ -314,5 +323,13 @@ def write_report(
         f"delta-h maps of frame {data.last_frame}, {REFERENCE_TITLES[settings.reference]}"
         f"{field_text}; grey: untrusted",
     )
+    for i, note in enumerate(analysis.notes):
+        text(
+            image,
+            f"note: {note}",
+            (20, notes_top + NOTE_LINE * (i + 1)),
+            scale=0.55,
+            colour=NOTE_RED,
+        )
     if not cv2.imwrite(str(path), image):
         raise InputError(f"could not write {path}")
