@@ -24,6 +24,8 @@ from holoview.ui.settings import PEAK_LABELS
 LABEL_COLOUR = "#33ddff"
 #: Pen colour of model-predicted carriers.
 PREDICTED_COLOUR = "#ffd24d"
+#: Margin around the spectrum plot, pixels, so that the end tick labels show.
+SPECTRUM_MARGIN_PX = 10.0
 #: Choice returned by the label menu to remove a label.
 CLEAR = "\x00clear"
 
@@ -89,6 +91,8 @@ class SpectrumView(QWidget):
         self.plot = self.graphics.addPlot()
         self.plot.setAspectLocked(True)
         self._pad = (0.0, 0.0)
+        m = SPECTRUM_MARGIN_PX
+        self.graphics.ci.setContentsMargins(m, m, m, m)
         self.plot.getViewBox().sigResized.connect(self._keep_square)
         self.plot.invertY(True)
         self.plot.setLabel("bottom", "fx", units="cycles/px")
@@ -169,7 +173,8 @@ class SpectrumView(QWidget):
         if max(abs(pad[0] - self._pad[0]), abs(pad[1] - self._pad[1])) < 0.5:
             return
         self._pad = pad
-        self.graphics.ci.setContentsMargins(pad[0], pad[1], pad[0], pad[1])
+        m = SPECTRUM_MARGIN_PX
+        self.graphics.ci.setContentsMargins(pad[0] + m, pad[1] + m, pad[0] + m, pad[1] + m)
 
     def auto_levels(self) -> None:
         """Reset the spectrum levels from the current image."""
