@@ -8,7 +8,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
-from conftest import Simulated, run_cli
+from headless_sim import Simulated, run_cli
 
 from holoview.headless.plotting import nice_ticks, tick_labels
 from holoview.headless.report import WIDTH

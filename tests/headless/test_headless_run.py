@@ -8,7 +8,7 @@ from pathlib import Path
 
 import h5py
 import pytest
-from conftest import Simulated
+from headless_sim import Simulated
 
 from holoview.headless.pipeline import ProcessSettings
 from holoview.headless.run import PeakChoice, process_file

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import Simulated, run_cli
+from headless_sim import Simulated, run_cli
 
 
 def test_table_lists_the_detected_peaks(

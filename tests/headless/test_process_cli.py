@@ -11,7 +11,7 @@ import h5py
 import numpy as np
 import pytest
 import tifffile
-from conftest import Simulated, run_cli
+from headless_sim import Simulated, run_cli
 
 from holoview.headless.outputs import TRENDS_HEADER
 
