@@ -156,10 +156,9 @@ def _progress_bar(quiet: bool):
 
 
 def _rate_text(rate: float | None, stderr: float | None) -> str:
-    if rate is None:
-        return "no rate"
-    per_min = 60e6
-    return f"{rate * per_min:+.4g} +- {(stderr or 0.0) * per_min:.2g} um/min"
+    from holoview.processing.trends import format_rate
+
+    return "no rate" if rate is None else format_rate(rate, stderr, ascii=True)
 
 
 def run(args: argparse.Namespace) -> int:

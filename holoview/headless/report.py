@@ -19,7 +19,6 @@ a guess.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -44,6 +43,7 @@ from holoview.headless.plotting import (
     text,
 )
 from holoview.processing.peaks import Peak
+from holoview.processing.trends import format_rate
 
 #: Canvas width, pixels.
 WIDTH = 1700
@@ -56,20 +56,12 @@ MAP_CELL = 320
 NOTE_LINE = 26
 #: Colour of the notes (BGR): the caveats a reader must not miss.
 NOTE_RED = (30, 30, 200)
-#: Metres per second to micrometres per minute.
-UM_PER_MIN = 60e6
 
 REFERENCE_TITLES = {
     "relative": "against the previous frame",
     "absolute": "against the first frame",
     "synthetic": "against a plane wave (up to 2 pi)",
 }
-
-
-def _rate(rate: float | None, stderr: float | None) -> str:
-    if rate is None or not math.isfinite(rate):
-        return "n/a"
-    return f"{rate * UM_PER_MIN:+.4g} +- {(stderr or 0.0) * UM_PER_MIN:.2g} um/min"
 
 
 def _spectrum_panel(
@@ -159,15 +151,14 @@ def _trend_panel(
         colour = PALETTE[j % len(PALETTE)]
         axes.line(times, analysis.heights[:, j] * factor, colour, thickness=1)
         alpha = f"{peak.alpha:.4g}" if peak.alpha is not None else "?"
-        entries.append(
-            (f"{peak.label} (alpha {alpha}): {_rate(peak.rate, peak.rate_stderr)}", colour, 1)
-        )
+        rate = format_rate(peak.rate, peak.rate_stderr, ascii=True)
+        entries.append((f"{peak.label} (alpha {alpha}): {rate}", colour, 1))
         if not peak.used_in_fused:
             reasons = [f for f in ("aliased_in_time", "weak", "unexplained") if f in peak.flags]
             entries.append((f"   not fused: {', '.join(reasons) or 'excluded'}", WHITE, 0))
     if analysis.fused is not None:
         axes.line(times, analysis.fused * factor, BLACK, thickness=2)
-        entries.append((f"fused: {_rate(*_fit(analysis))}", BLACK, 2))
+        entries.append((f"fused: {format_rate(*_fit(analysis), ascii=True)}", BLACK, 2))
         if analysis.fit is not None:
             ends = (float(times[0]), float(times[-1]))
             fit = analysis.fit
@@ -290,7 +281,7 @@ def write_report(
     height = notes_top + NOTE_LINE * len(analysis.notes) + 20
     image = np.full((height, WIDTH, 3), 255, np.uint8)
     text(image, title, (20, 32), scale=0.7, thickness=2)
-    fit_text = _rate(*_fit(analysis))
+    fit_text = format_rate(*_fit(analysis), ascii=True)
     n2 = f"{optics.n2:.4g}" if optics.n2 is not None else "?"
     text(
         image,

@@ -28,6 +28,7 @@ This module turns those numbers into physics:
 from __future__ import annotations
 
 import logging
+import math
 from dataclasses import dataclass
 from typing import Literal
 
@@ -633,3 +634,38 @@ def track_depth(
     return DepthTrack(
         times=t, depths=depths, aliasing=final, fused=fused, fit=fit, peak_fits=peak_fits
     )
+
+
+#: Metres per second to micrometres per minute.
+UM_PER_MIN_PER_M_PER_S = 60e6
+
+
+def format_rate(
+    rate_m_per_s: float | None, stderr_m_per_s: float | None, *, ascii: bool = False
+) -> str:
+    """Return a rate with its standard error in micrometres per minute, for people.
+
+    Both are rounded to the second significant digit of the standard error, so the
+    uncertainty never reads as zero: ``-0.81580 ± 0.00013 µm/min``.
+
+    Parameters
+    ----------
+    rate_m_per_s, stderr_m_per_s : float or None
+        Rate and its standard error, metres per second. A missing or non-finite rate
+        gives ``"n/a"``; a missing standard error is shown with three decimals.
+    ascii : bool
+        Write ``+-`` and ``um/min`` (for renderers without those glyphs).
+
+    Returns
+    -------
+    str
+    """
+    if rate_m_per_s is None or not math.isfinite(rate_m_per_s):
+        return "n/a"
+    rate = rate_m_per_s * UM_PER_MIN_PER_M_PER_S
+    err = abs(stderr_m_per_s or 0.0) * UM_PER_MIN_PER_M_PER_S
+    decimals = 3
+    if err > 0 and math.isfinite(err):
+        decimals = min(12, max(0, 1 - math.floor(math.log10(err))))
+    plus_minus, unit = ("+-", "um/min") if ascii else ("±", "µm/min")
+    return f"{rate:+.{decimals}f} {plus_minus} {err:.{decimals}f} {unit}"

@@ -9,18 +9,9 @@ import pyqtgraph as pg
 from PyQt6.QtCore import Qt, pyqtSignal
 from PyQt6.QtWidgets import QCheckBox, QHBoxLayout, QLabel, QPushButton, QVBoxLayout, QWidget
 
+from holoview.processing.trends import format_rate
 from holoview.ui.legends import side_legend
 from holoview.ui.surface_view import CURVE_COLOURS, FUSED
-
-#: Metres per second to micrometres per minute.
-M_PER_S_TO_UM_PER_MIN = 1e6 * 60.0
-
-
-def format_rate(rate_m_per_s: float, stderr_m_per_s: float) -> str:
-    """Return ``rate ± stderr`` in micrometres per minute, e.g. ``0.816 ± 0.002 um/min``."""
-    rate = rate_m_per_s * M_PER_S_TO_UM_PER_MIN
-    err = stderr_m_per_s * M_PER_S_TO_UM_PER_MIN
-    return f"{rate:.3f} ± {err:.3f} µm/min"
 
 
 class TrendsView(QWidget):

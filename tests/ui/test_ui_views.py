@@ -9,12 +9,13 @@ import pytest
 
 pytest.importorskip("pyqtgraph")
 
+from holoview.processing.trends import format_rate
 from holoview.ui.hologram_view import HologramView
 from holoview.ui.peak_geometry import snap_to_peak, swallowed_neighbour, window_warnings
 from holoview.ui.rates import RateMeter
 from holoview.ui.spectrum_view import CLEAR, SpectrumView
 from holoview.ui.surface_view import FUSED, SurfaceView, sample_line
-from holoview.ui.trends_view import TrendsView, format_rate
+from holoview.ui.trends_view import TrendsView
 
 pytestmark = pytest.mark.gui
 
@@ -177,7 +178,7 @@ def test_trends_show_rate_in_um_per_min(qtbot) -> None:
     assert view.curves["RB1"].yData[-1] == pytest.approx(-90.0)
     view.set_rate(-1.36e-8, 2e-11, ([0, 9], [0, -1.2e-7]))
     assert format_rate(-1.36e-8, 2e-11) in view.rate_label.text()
-    assert format_rate(-1.36e-8, 2e-11) == "-0.816 ± 0.001 µm/min"
+    assert format_rate(-1.36e-8, 2e-11) == "-0.8160 ± 0.0012 µm/min"
     view.set_pca(0.9994, {"RB1": 0.333})
     assert "99.94 %" in view.pca_label.text()
 
