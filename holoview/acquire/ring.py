@@ -6,7 +6,11 @@ each at its own pace, in one of two modes:
 - ``"every"`` (the recorder): every frame in order; a frame overwritten before the
   consumer read it is counted in its ``dropped``;
 - ``"newest"`` (processing, display): the newest frame not read yet; the frames
-  passed over are counted in ``skipped``, which is by design, not a loss.
+  passed over are counted in ``skipped``, which is by design, not a loss. With
+  ``max_lag=k`` such a consumer reads in order while at most ``k`` frames wait behind
+  the one it takes, and skips only beyond that: a worker that keeps up on average
+  then rides out a slow frame without losing any, at a cost of at most ``k`` frame
+  periods of latency.
 
 The producer never waits for a consumer. It reserves a slot under a lock, copies
 the frame into it outside the lock, and publishes it under the lock; a consumer
@@ -162,7 +166,9 @@ class FrameRing:
             self._closed = True
             self._cond.notify_all()
 
-    def consumer(self, name: str, mode: Literal["every", "newest"] = "newest") -> RingConsumer:
+    def consumer(
+        self, name: str, mode: Literal["every", "newest"] = "newest", *, max_lag: int = 0
+    ) -> RingConsumer:
         """Return a new consumer that starts with the next frame put.
 
         Parameters
@@ -171,11 +177,16 @@ class FrameRing:
             For logs and status displays (``"recorder"``, ``"processing"``).
         mode : {"every", "newest"}
             ``"every"``: every frame in order (drops counted); ``"newest"``: the newest.
+        max_lag : int
+            ``"newest"`` only: frames allowed to wait behind the one read before the
+            consumer skips ahead (0: always the newest).
         """
         if mode not in ("every", "newest"):
             raise InputError(f"consumer mode must be 'every' or 'newest', got {mode!r}")
+        if max_lag < 0 or (max_lag and mode != "newest"):
+            raise InputError(f"max_lag must be >= 0 and only for 'newest', got {max_lag}")
         with self._cond:
-            consumer = RingConsumer(self, name, mode, start=self._published)
+            consumer = RingConsumer(self, name, mode, start=self._published, max_lag=max_lag)
             self._consumers.append(consumer)
         return consumer
 
@@ -188,10 +199,11 @@ class FrameRing:
 class RingConsumer:
     """One reader of a :class:`FrameRing` with its own cursor; make it with ``ring.consumer``."""
 
-    def __init__(self, ring: FrameRing, name: str, mode: str, start: int) -> None:
+    def __init__(self, ring: FrameRing, name: str, mode: str, start: int, max_lag: int = 0) -> None:
         self.ring = ring
         self.name = name
         self.mode = mode
+        self.max_lag = max_lag
         self._next = start
         self._start = start
         self._read = 0
@@ -251,7 +263,7 @@ class RingConsumer:
                     ring._cond.wait(remaining)
                 oldest = max(0, ring._reserved - ring.capacity)
                 if self.mode == "newest":
-                    seq = ring._published - 1
+                    seq = max(self._next, ring._published - 1 - self.max_lag, oldest)
                     self._skipped += seq - self._next
                 else:
                     seq = max(self._next, oldest)

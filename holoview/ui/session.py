@@ -2,9 +2,11 @@
 
 No Qt here: the window polls :meth:`LiveSession.latest` from its redraw timer and
 sends commands with the setters, which the worker applies between frames. The
-worker (a thread named ``holoview-demod``) takes the *newest* frame from the ring,
-runs a :class:`~holoview.ui.live_pipeline.LivePipeline` on it and publishes the
-result under a lock; peak detection, much slower than a frame, runs beside it on
+worker (a thread named ``holoview-demod``) takes the *newest* frame from the ring
+(in order while at most :data:`PROCESSING_MAX_LAG` frames wait, so one slow frame
+costs a little latency rather than a gap in the series), runs a
+:class:`~holoview.ui.live_pipeline.LivePipeline` on it and publishes the result
+under a lock; peak detection, much slower than a frame, runs beside it on
 ``holoview-peaks``; the recorder (``holoview-recorder``) takes *every* frame. All
 threads stop with a sentinel (the ring closes, or a stop flag) and are joined by
 :meth:`LiveSession.close`.
@@ -132,13 +134,18 @@ class PeakWorker:
                 self._result, self._busy = (peaks, time.perf_counter() - tick), False
 
 
+#: Frames the worker may fall behind the newest before it skips (2: 33 ms at 60 frames/s).
+PROCESSING_MAX_LAG = 2
+
+
 class DemodWorker:
     """Run a pipeline on the newest frame of a ring, on a thread named ``holoview-demod``.
 
     Parameters
     ----------
     ring : FrameRing
-        Frames to process (a ``"newest"`` consumer is made at construction).
+        Frames to process (a ``"newest"`` consumer with :data:`PROCESSING_MAX_LAG`
+        is made at construction).
     pipeline : LivePipeline
         What to do with each frame; commands are applied between frames.
     """
@@ -147,7 +154,9 @@ class DemodWorker:
         self.pipeline = pipeline
         pipeline.detect_inline = False
         self.peaks = PeakWorker()
-        self._consumer: RingConsumer = ring.consumer("processing", mode="newest")
+        self._consumer: RingConsumer = ring.consumer(
+            "processing", mode="newest", max_lag=PROCESSING_MAX_LAG
+        )
         self._commands: queue.SimpleQueue[tuple[str, Any]] = queue.SimpleQueue()
         self._lock = threading.Lock()
         self._latest: LiveResult | None = None
