@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import argparse
 import os
-import platform
 import shutil
 import statistics
 import sys
@@ -34,6 +33,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from machine import machine
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
@@ -43,18 +43,6 @@ from holoview.acquire.recorder import Recorder  # noqa: E402
 from holoview.acquire.recording import RecordingReader  # noqa: E402
 from holoview.acquire.ring import FrameRing  # noqa: E402
 from holoview.acquire.simulated import SimulatedSource  # noqa: E402
-
-
-def machine() -> str:
-    """CPU model, cores and load average, for reading the figures."""
-    model = platform.processor() or "unknown CPU"
-    try:
-        with open("/proc/cpuinfo", encoding="ascii", errors="replace") as f:
-            model = next(line.split(":", 1)[1].strip() for line in f if "model name" in line)
-    except (OSError, StopIteration):
-        pass
-    load = ", ".join(f"{x:.2f}" for x in os.getloadavg())
-    return f"{model}, {os.cpu_count()} cores, load average {load}"
 
 
 def disk_write_speed(folder: Path, megabytes: int = 1024) -> float:
