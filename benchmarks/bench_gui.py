@@ -124,7 +124,7 @@ def main() -> int:
             loop.exec()
 
         run_for(1.5)
-        labels = args.label or default_labels(window)
+        labels = args.label or window.suggested_labels()
         for name, fx, fy in labels:
             window.label_peak(name, fx, fy)
         run_for(args.warmup)
@@ -183,19 +183,6 @@ def main() -> int:
     )
     print(f"longest event-loop stall {stall * 1e3:5.1f} ms; dropped frames {dropped}")
     return 0
-
-
-def default_labels(window: MainWindow) -> list[tuple[str, float, float]]:
-    """RB1 and FB1 where the simulator's setup puts them, else the two brightest peaks."""
-    from holoview.optics.families import predict_families
-
-    setup = getattr(window.session.source, "sim_setup", None) if window.session else None
-    if setup is not None:
-        families = {f.label: f.carrier for f in predict_families(setup)}
-        return [(name, *families[name]) for name in ("RB1", "FB1")]
-    result = window._last_result
-    peaks = result.peaks[:2] if result else []
-    return [(name, *c) for name, c in zip(("RB1", "FB1"), peaks, strict=False)]
 
 
 if __name__ == "__main__":

@@ -398,6 +398,22 @@ class MainWindow(QMainWindow):
         except OSError as exc:
             self.show_message(f"cannot save experiment settings to {self.experiment_path}: {exc}")
 
+    def suggested_labels(self) -> list[tuple[str, float, float]]:
+        """Return ``(label, fx, fy)`` for RB1 and FB1, for scripted runs.
+
+        Where the simulated camera's setup puts them when the source is the simulator;
+        otherwise the two brightest detected peaks, the brightest taken as RB1 (the
+        paper's procedure). Fewer than two when fewer peaks were detected.
+        """
+        from holoview.optics.families import predict_families
+
+        setup = getattr(self.session.source, "sim_setup", None) if self.session else None
+        if setup is not None:
+            families = {f.label: f.carrier for f in predict_families(setup)}
+            return [(name, *families[name]) for name in ("RB1", "FB1")]
+        peaks = self._last_result.peaks[:2] if self._last_result else []
+        return [(name, *c) for name, c in zip(("RB1", "FB1"), peaks, strict=False)]
+
     def label_peak(self, label: str, fx: float, fy: float) -> None:
         """Name the peak at ``(fx, fy)`` cycles per pixel ``label``."""
         self._set_experiment(self.experiment.with_peak(LabelledPeak(label, fx, fy)))

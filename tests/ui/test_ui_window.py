@@ -173,6 +173,7 @@ def test_window_on_the_simulated_source_labels_and_updates_maps(qtbot, open_wind
     assert window.hologram.image.image.shape == (256, 256)
     assert window.experiment.n2 == pytest.approx(window.session.source.sim_setup.n2)
     families = {f.label: f.carrier for f in predict_families(window.session.source.sim_setup)}
+    assert window.suggested_labels() == [(name, *families[name]) for name in ("RB1", "FB1")]
     qtbot.waitUntil(lambda: len(window.spectrum._peaks) >= 3, timeout=10000)
     for name in ("RB1", "FB1"):
         window.spectrum.choose_label = lambda carrier, current, name=name: name
@@ -185,6 +186,17 @@ def test_window_on_the_simulated_source_labels_and_updates_maps(qtbot, open_wind
     _wait_frames(qtbot, window, 3)
     assert not np.array_equal(before, window.surface.map_data("RB1"))
     assert window.status.camera_fps_label.text().startswith("camera")
+
+
+def test_suggested_labels_off_the_simulator_are_the_two_brightest_peaks(
+    qtbot, open_windows, tmp_path, hologram_file
+):
+    window = _window(qtbot, open_windows, tmp_path, f"replay:{hologram_file}")
+    qtbot.waitUntil(lambda: len(window.suggested_labels()) == 2, timeout=10000)
+    (rb1, *rb1_carrier), (fb1, *fb1_carrier) = window.suggested_labels()
+    assert (rb1, fb1) == ("RB1", "FB1")
+    assert rb1_carrier == pytest.approx(RB1, abs=1 / 256)
+    assert fb1_carrier == pytest.approx(FB1, abs=1 / 256)
 
 
 def _labelled_window(qtbot, open_windows, tmp_path, hologram_file) -> MainWindow:
