@@ -443,7 +443,10 @@ class Demodulator:
             )
         return array
 
-    def _flagged(self, flags: set[str], mean: float) -> DemodResult:
+    def _result(
+        self, flags: set[str], mean: float, peaks: tuple[PeakResult, ...] = ()
+    ) -> DemodResult:
+        """This frame's result: ``peaks`` (none for a frame flagged unusable) and flags."""
         return DemodResult(
             index=self._index,
             reference=self.reference,
@@ -451,7 +454,7 @@ class Demodulator:
             frame_shape=self.shape,
             box_shape=self.box_shape,
             radius=self.radius,
-            peaks=(),
+            peaks=peaks,
             flags=frozenset(flags),
         )
 
@@ -477,7 +480,7 @@ class Demodulator:
         half = plan.output_array
         dc = float(half[0, 0].real)
         if not np.isfinite(dc):
-            return self._flagged({"nonfinite"}, float("nan"))
+            return self._result({"nonfinite"}, float("nan"))
         mean = dc / (rows * cols)
         frame_flags: set[str] = set()
         if self.saturation is not None and (array[::4, ::4] >= self.saturation).any():
@@ -492,16 +495,7 @@ class Demodulator:
             frame_flags.add("no_signal")
         if any("reference" in r.flags for r in results):
             frame_flags.add("reference")
-        result = DemodResult(
-            index=self._index,
-            reference=self.reference,
-            mean_counts=mean,
-            frame_shape=self.shape,
-            box_shape=self.box_shape,
-            radius=self.radius,
-            peaks=results,
-            flags=frozenset(frame_flags),
-        )
+        result = self._result(frame_flags, mean, results)
         self._index += 1
         return result
 
