@@ -1,9 +1,10 @@
-"""Phase unwrapping in space and time, and masks of pixels worth unwrapping.
+"""Spatial phase unwrapping, and masks of pixels worth unwrapping.
 
 Spatial unwrapping is Herraez et al. 2002 (Appl. Opt. 41, 7437), as implemented
 by :func:`skimage.restoration.unwrap_phase`; it costs 20-40 times a whole
 demodulation, so :func:`unwrap_spatial` first checks cheaply whether the map has
-any wrap at all and returns it unchanged when not.
+any wrap at all and returns it unchanged when not. Mean phases are unwrapped in
+time by :func:`holoview.processing.trends.unwrap_in_time`.
 """
 
 from __future__ import annotations
@@ -198,22 +199,6 @@ def phase_ratio(phase: np.ndarray, guide: np.ndarray, mask: np.ndarray | None = 
     if energy <= 0:
         return 0.0
     return float(np.vdot(dg, dp)) / energy
-
-
-def unwrap_temporal(phases: np.ndarray, *, axis: int = 0) -> np.ndarray:
-    """Unwrap a series of phases (rad) in time: steps beyond pi become steps below it.
-
-    Parameters
-    ----------
-    phases : ndarray
-        Phases in time order along ``axis`` (e.g. the mean phase per frame); not modified.
-
-    Returns
-    -------
-    ndarray of float64
-        Continuous phases, equal to the input at the first sample.
-    """
-    return np.unwrap(np.asarray(phases, dtype=np.float64), axis=axis)
 
 
 def amplitude_mask(field: np.ndarray, threshold: float) -> np.ndarray:

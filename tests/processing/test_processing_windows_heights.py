@@ -25,7 +25,6 @@ from holoview.processing.unwrap import (
     phase_ratio,
     unwrap_guided,
     unwrap_spatial,
-    unwrap_temporal,
     wrap,
 )
 from holoview.processing.windows import (
@@ -145,11 +144,6 @@ def test_phase_ratio_from_gradients() -> None:
     assert phase_ratio(wrapped, guide, mask) == pytest.approx(2.5, rel=0.03)
     with pytest.raises(InputError, match="one shape"):
         phase_ratio(np.zeros((4, 4)), np.zeros((4, 5)))
-
-
-def test_temporal_unwrap() -> None:
-    phases = np.cumsum(np.full(30, 0.9))
-    np.testing.assert_allclose(unwrap_temporal(wrap(phases)), phases - phases[0] + wrap(phases[0]))
 
 
 def test_aperture_mask() -> None:
