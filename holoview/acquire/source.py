@@ -31,7 +31,7 @@ from typing import Any, NamedTuple, Self
 
 import numpy as np
 
-from holoview.errors import HoloviewError, InputError
+from holoview.errors import HoloviewError, InputError, finite_number
 
 logger = logging.getLogger(__name__)
 
@@ -256,12 +256,7 @@ class Setting:
                     f"{name} {tuple(roi)} must have left, top >= 0 and a positive size"
                 )
             return roi
-        try:
-            number = float(value)
-        except (TypeError, ValueError) as exc:
-            raise InputError(f"{name} must be a number, got {value!r}") from exc
-        if not math.isfinite(number):
-            raise InputError(f"{name} must be finite, got {value!r}")
+        number = finite_number(name, value)
         limits = self.limits()
         low = limits[0] if limits else 0.0
         step = self.increment()

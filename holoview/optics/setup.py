@@ -20,11 +20,10 @@ Geometry and sign conventions used throughout :mod:`holoview.optics`:
 
 from __future__ import annotations
 
-import math
 from dataclasses import asdict, dataclass, fields
 from typing import Any
 
-from holoview.errors import InputError
+from holoview.errors import InputError, finite_number
 
 #: Refractive indices near 532-589 nm, room temperature. Water and isopropanol are the
 #: paper's values (section 4.2); air is 1.000293 (standard air at 589 nm); ethanol
@@ -45,19 +44,8 @@ MAX_TILT = 0.05
 GHOST_ARMS = ("reference", "probe")
 
 
-def _finite(name: str, value: float) -> float:
-    """Return ``value`` as a float, or raise InputError naming ``name`` if not finite."""
-    try:
-        number = float(value)
-    except (TypeError, ValueError) as exc:
-        raise InputError(f"{name} must be a number, got {value!r}") from exc
-    if not math.isfinite(number):
-        raise InputError(f"{name} must be finite, got {value!r}")
-    return number
-
-
 def _positive(name: str, value: float, unit: str = "") -> float:
-    number = _finite(name, value)
+    number = finite_number(name, value)
     if number <= 0:
         raise InputError(f"{name} must be positive, got {number:g}{unit}")
     return number
@@ -69,7 +57,7 @@ def _tilt(name: str, value: Any) -> tuple[float, float]:
         mx, my = value
     except (TypeError, ValueError) as exc:
         raise InputError(f"{name} must be a pair (m_x, m_y) in rad, got {value!r}") from exc
-    tilt = (_finite(f"{name}[0]", mx), _finite(f"{name}[1]", my))
+    tilt = (finite_number(f"{name}[0]", mx), finite_number(f"{name}[1]", my))
     if max(abs(tilt[0]), abs(tilt[1])) > MAX_TILT:
         raise InputError(
             f"{name} = ({tilt[0]:.3g}, {tilt[1]:.3g}) rad is beyond the small-angle model "
@@ -101,7 +89,7 @@ class Ghost:
         if self.arm not in GHOST_ARMS:
             raise InputError(f"ghost arm must be one of {GHOST_ARMS}, got {self.arm!r}")
         object.__setattr__(self, "tilt", _tilt("ghost tilt", self.tilt))
-        amplitude = _finite("ghost amplitude", self.amplitude)
+        amplitude = finite_number("ghost amplitude", self.amplitude)
         if not 0 < amplitude < 1:
             raise InputError(f"ghost amplitude must be in (0, 1), got {amplitude:g}")
         object.__setattr__(self, "amplitude", amplitude)
@@ -182,9 +170,9 @@ class Setup:
             )
         put(self, "m_r", _tilt("m_r", self.m_r))
         put(self, "m_b", _tilt("m_b", self.m_b))
-        put(self, "delta_H", _finite("delta_H", self.delta_H))
+        put(self, "delta_H", finite_number("delta_H", self.delta_H))
         put(self, "depth", _positive("depth", self.depth, " m"))
-        reflectivity = _finite("mirror_reflectivity", self.mirror_reflectivity)
+        reflectivity = finite_number("mirror_reflectivity", self.mirror_reflectivity)
         if not 0 <= reflectivity <= 1:
             raise InputError(f"mirror_reflectivity must be in [0, 1], got {reflectivity:g}")
         put(self, "mirror_reflectivity", reflectivity)
