@@ -3,9 +3,10 @@
 It reads the ring as an ``"every"`` consumer, so it gets every frame in order and
 counts exactly the frames the ring overwrote before it could write them. It
 flushes the file at least every ``flush_interval_s`` of the writer, also when no
-frame comes. It stops when the ring closes (after writing what remains), on
-:meth:`Recorder.stop`, or on a write error (kept in :attr:`Recorder.error`); in
-every case it closes the file, so everything written stays readable.
+frame comes. It stops when the ring closes (after writing what remains), once it
+has written ``max_frames``, on :meth:`Recorder.stop`, or on a write error (kept in
+:attr:`Recorder.error`); in every case it closes the file, so everything written
+stays readable.
 """
 
 from __future__ import annotations
@@ -48,9 +49,16 @@ class Recorder:
         and records from the next frame put.
     writer : RecordingWriter
         An open writer whose frame shape and dtype are the ring's.
+    max_frames : int, optional
+        Stop after writing this many frames (None: until stopped or the ring closes).
     """
 
-    def __init__(self, ring: FrameRing, writer: RecordingWriter) -> None:
+    def __init__(
+        self, ring: FrameRing, writer: RecordingWriter, *, max_frames: int | None = None
+    ) -> None:
+        if max_frames is not None and max_frames < 1:
+            writer.close()
+            raise InputError(f"max_frames must be at least 1, got {max_frames}")
         if writer.frame_shape != ring.frame_shape or writer.dtype != ring.dtype:
             writer.close()
             raise InputError(
@@ -59,6 +67,7 @@ class Recorder:
             )
         self.ring = ring
         self.writer = writer
+        self.max_frames = max_frames
         self._consumer = ring.consumer("recorder", mode="every")
         #: The error that ended recording early, or None.
         self.error: BaseException | None = None
@@ -74,18 +83,23 @@ class Recorder:
         source: Source,
         *,
         setup: Mapping[str, object] | None = None,
+        max_frames: int | None = None,
     ) -> Recorder:
         """Return a recorder to a new file at ``path`` that describes ``source``.
 
         The file gets the source's name, every setting the source reads back, with
-        its unit, the source's pixel format, and the setup: the source's own
-        (:attr:`Source.setup`) updated with ``setup``.
+        its unit (a value HDF5 cannot hold as an attribute is left out, with a
+        warning), the source's pixel format, and the setup: the source's own
+        (:attr:`Source.setup`) updated with ``setup``. ``max_frames`` as for
+        :class:`Recorder`.
         """
         infos = source.describe_settings()
-        settings = {
-            name: (tuple(value) if isinstance(value, tuple) else value, infos[name].unit)
-            for name, value in source.get_all().items()
-        }
+        settings = {}
+        for name, value in source.get_all().items():
+            if not isinstance(value, int | float | str | bool | tuple):
+                logger.warning("setting %s (%s) is not recorded", name, type(value).__name__)
+                continue
+            settings[name] = (tuple(value) if isinstance(value, tuple) else value, infos[name].unit)
         pixel_format = settings.get("pixel_format", (None, ""))[0]
         writer = RecordingWriter(
             path,
@@ -97,7 +111,7 @@ class Recorder:
             pixel_format=pixel_format if isinstance(pixel_format, str) else None,
             significant_bits=_significant_bits(pixel_format),
         )
-        return cls(ring, writer)
+        return cls(ring, writer, max_frames=max_frames)
 
     @property
     def written(self) -> int:
@@ -152,6 +166,8 @@ class Recorder:
                     continue
                 pixels, meta = item
                 writer.append(pixels, meta.frame_id, meta.t_device, meta.t_host)
+                if self.max_frames is not None and len(writer) >= self.max_frames:
+                    break
         except OSError as exc:
             self.error = RecordingWriteError(f"writing {writer.path} failed: {exc}")
             logger.error("%s", self.error)

@@ -28,7 +28,6 @@ import numpy as np
 from holoview.acquire.camera_thread import CameraThread
 from holoview.acquire.pixel_formats import PIXEL_FORMATS
 from holoview.acquire.recorder import Recorder
-from holoview.acquire.recording import RecordingWriter
 from holoview.acquire.ring import CLOSED, FrameRing, RingConsumer, RingStatus
 from holoview.acquire.source import Source
 from holoview.errors import HoloviewError, InputError
@@ -45,19 +44,6 @@ __all__ = ["LiveResult", "LiveSession", "discover_sources"]
 RING_BYTES = 256 * 2**20
 #: Most messages kept for the window between two redraws.
 MAX_MESSAGES = 20
-
-
-class RecordingLimitWriter(RecordingWriter):
-    """A :class:`RecordingWriter` that ignores frames past ``max_frames`` (None: no cap)."""
-
-    def __init__(self, *args: Any, max_frames: int | None = None, **kwargs: Any) -> None:
-        super().__init__(*args, **kwargs)
-        self.max_frames = max_frames
-
-    def append(self, frame: np.ndarray, frame_id: int, t_device: float, t_host: float) -> None:
-        """Append a frame unless the cap is reached."""
-        if self.max_frames is None or len(self) < self.max_frames:
-            super().append(frame, frame_id, t_device, t_host)
 
 
 class PeakWorker:
@@ -444,32 +430,18 @@ class LiveSession:
         if request.path.suffix.lower() not in (".h5", ".hdf5"):
             raise InputError(f"recording file {request.path.name} must end in .h5 or .hdf5")
         e = self.experiment
-        infos = self.source.describe_settings()
-        settings = {
-            name: (tuple(value) if isinstance(value, tuple) else value, infos[name].unit)
-            for name, value in self.source.get_all().items()
-            if _storable(value)
-        }
-        pixel_format = settings.get("pixel_format", (None, ""))[0]
-        known_format = PIXEL_FORMATS.get(pixel_format) if isinstance(pixel_format, str) else None
-        writer = RecordingLimitWriter(
+        self.recorder = Recorder.for_source(
+            self.ring,
             request.path,
-            self.source.frame_shape,
-            self.source.dtype,
+            self.source,
             setup={
-                **self.source.setup,
                 "wavelength_m": e.wavelength_m,
                 "pixel_pitch_m": e.pixel_pitch_m,
                 "n1": e.n1,
                 "n2": e.n2,
             },
-            settings=settings,
-            source=self.source.name,
-            pixel_format=known_format.name if known_format else None,
-            significant_bits=known_format.bits if known_format else None,
             max_frames=request.frames,
         )
-        self.recorder = Recorder(self.ring, writer)
         self.recorder.start()
         self._request = request
         self._recording_started = time.monotonic()
@@ -485,16 +457,18 @@ class LiveSession:
                 self._messages.append(str(self.recorder.error))
 
     def recording_progress(self) -> RecordingProgress | None:
-        """The recording's progress; stops it once its duration or frame count is reached."""
+        """The recording's progress; stops it once its duration is reached.
+
+        A frame-count recording stops by itself (the recorder's ``max_frames``).
+        """
         recorder, request = self.recorder, self._request
         if recorder is None or request is None:
             return None
         if recorder.running:
             self._recording_elapsed = time.monotonic() - self._recording_started
-            done_frames = request.frames is not None and recorder.written >= request.frames
             limit_s = request.duration_s
             done_time = limit_s is not None and self._recording_elapsed >= limit_s
-            if done_frames or done_time or not self.camera.running:
+            if done_time or not self.camera.running:
                 self.stop_recording()
         return RecordingProgress(
             path=request.path,
@@ -503,10 +477,6 @@ class LiveSession:
             dropped=recorder.status().dropped,
             active=recorder.running,
         )
-
-
-def _storable(value: Any) -> bool:
-    return isinstance(value, int | float | str | bool | tuple)
 
 
 def _open_source(spec: str, options: Mapping[str, Any]) -> Source:

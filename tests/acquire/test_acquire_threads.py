@@ -139,6 +139,23 @@ def test_recorder_overrun_is_counted_exactly(tmp_path: Path) -> None:
         assert (np.diff(ids) > 0).all()
 
 
+def test_recorder_stops_itself_after_max_frames(tmp_path: Path) -> None:
+    ring = FrameRing(64, (16, 24), np.uint16)
+    writer = RecordingWriter(tmp_path / "r.h5", (16, 24), np.uint16)
+    recorder = Recorder(ring, writer, max_frames=7)
+    recorder.start()
+    with CountingSource(n_frames=20) as source:
+        camera = CameraThread(source, ring)
+        camera.start()
+        assert camera.join(timeout=30)
+    assert recorder.join(timeout=30)
+    assert recorder.error is None
+    with RecordingReader(tmp_path / "r.h5") as reader:
+        np.testing.assert_array_equal(reader.frame_ids, np.arange(7))  # not the 20 acquired
+    with pytest.raises(InputError, match="max_frames"):
+        Recorder(ring, RecordingWriter(tmp_path / "bad.h5", (16, 24), np.uint16), max_frames=0)
+
+
 def test_stop_drains_what_the_ring_had_acquired(tmp_path: Path) -> None:
     ring = FrameRing(16, (16, 24), np.uint16)
     recorder = Recorder(ring, RecordingWriter(tmp_path / "r.h5", (16, 24), np.uint16))
