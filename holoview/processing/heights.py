@@ -4,7 +4,9 @@ Each peak images a laterally shifted patch of the surface (paper section 2:
 ``h_AB(r) = h(r + delta_AB)``). :func:`estimate_displacement` measures that shift
 between two maps by sub-pixel cross-correlation, :func:`shift_map` undoes it, and
 :func:`fuse` combines co-registered maps weighted by their noise, with the
-per-pixel uncertainty. :func:`plain_average` and :func:`rms_spread` are the
+per-pixel uncertainty. For a stream of noisy maps, where one map pair holds too
+little structure, :mod:`holoview.processing.coregister` measures the shifts from
+many frames at once. :func:`plain_average` and :func:`rms_spread` are the
 paper's average and shaded spread (its Fig. 3g), kept for comparison.
 """
 

@@ -1,0 +1,254 @@
+"""Co-registration of the peaks' maps: measured displacements, accumulated over frames.
+
+Each hologram images a laterally shifted patch of the surface (paper section 2,
+``h_AB(r) = h(r + delta_AB)``), so the peaks' maps must be moved onto one grid
+before they are fused. :class:`DisplacementEstimator` measures each map's shift
+against a reference peak's map from their cross-power spectrum, summed over frames:
+the surface's structure adds up coherently from frame to frame, the peaks'
+independent noise does not (maps of opposite signs, such as phases of peaks whose
+alphas differ in sign, are recognised), so a shift too small to see in one noisy relative map
+(a fraction of a pixel) becomes measurable over tens of frames. A surface without
+structure (uniform evaporation) gives no measurable shift, and needs none.
+
+Estimate: with ``moving(r) = reference(r - d)`` the summed cross-power
+``C(k) = sum_t F_ref(k) conj(F_moving(k))`` is ``|F_ref|^2 exp(2 pi i k.d)``. The
+whole-pixel part of ``d`` is the peak of the cross-correlation (the inverse FFT of
+``C``); the rest is a weighted least-squares fit of the remaining phase ramp over
+the coherent bins, weights ``|C|``, which also gives its standard error.
+Maps are mean-subtracted inside their trusted pixels and Hann-windowed first.
+Shifts are in pixels of the maps' grid, ``(dy, dx)``, with the convention of
+:func:`~holoview.processing.heights.estimate_displacement`: :func:`coregister`
+moves each map by ``-d`` onto the reference's grid.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import ndimage
+
+from holoview.errors import InputError
+
+#: A shift is taken as measured when both standard errors are below this (pixels).
+MAX_STDERR = 0.1
+
+#: Bins whose coherence ``|C| / sqrt(P_ref P_moving)`` is below this are left out of the fit.
+MIN_COHERENCE = 0.5
+
+#: Fewest coherent bins a fit needs.
+MIN_BINS = 8
+
+
+@dataclass(frozen=True)
+class Displacement:
+    """One map's shift against the reference map.
+
+    Attributes
+    ----------
+    shift : tuple of float
+        ``(dy, dx)`` in pixels of the maps' grid: ``map(r) ~ reference(r - shift)``;
+        ``(0, 0)`` when not measured.
+    stderr : tuple of float
+        Standard errors of ``shift`` (pixels); infinite when not measured.
+    measured : bool
+        Whether both standard errors are below :data:`MAX_STDERR`.
+    bins : int
+        Coherent spectral bins the fit used.
+    """
+
+    shift: tuple[float, float]
+    stderr: tuple[float, float]
+    measured: bool
+    bins: int
+
+
+_UNMEASURED = Displacement((0.0, 0.0), (float("inf"), float("inf")), False, 0)
+
+
+def _hann(n: int) -> np.ndarray:
+    return np.hanning(n + 2)[1:-1]  # no zero at the ends: every pixel counts
+
+
+class DisplacementEstimator:
+    """Sum the maps' cross-power spectra frame after frame; estimate their shifts.
+
+    Parameters
+    ----------
+    shape : tuple of int
+        ``(rows, cols)`` of every map.
+    count : int
+        Maps per frame (peaks), at least 2.
+    reference : int
+        Index of the map the others are registered to.
+    """
+
+    def __init__(self, shape: tuple[int, int], count: int, reference: int = 0) -> None:
+        rows, cols = int(shape[0]), int(shape[1])
+        if min(rows, cols) < 8:
+            raise InputError(f"maps of shape {shape} are too small to co-register (>= 8 x 8)")
+        if count < 2:
+            raise InputError(f"co-registration needs at least 2 maps, got {count}")
+        if not 0 <= reference < count:
+            raise InputError(f"reference map {reference} is not one of the {count} maps")
+        self.shape = (rows, cols)
+        self.count = int(count)
+        self.reference = int(reference)
+        self.frames = 0
+        self._window = np.outer(_hann(rows), _hann(cols))
+        spectrum_shape = (rows, cols // 2 + 1)
+        self._cross = np.zeros((count, *spectrum_shape), dtype=np.complex128)
+        self._power = np.zeros((count, *spectrum_shape), dtype=np.float64)
+
+    def reset(self) -> None:
+        """Forget every frame added."""
+        self.frames = 0
+        self._cross[...] = 0
+        self._power[...] = 0
+
+    def _spectrum(self, values: np.ndarray) -> np.ndarray:
+        trusted = np.isfinite(values)
+        if not trusted.any():
+            return np.zeros(self._cross.shape[1:], dtype=np.complex128)
+        centred = np.where(trusted, values - values[trusted].mean(), 0.0)
+        return np.fft.rfft2(centred * self._window)
+
+    def add(self, maps: Sequence[np.ndarray]) -> None:
+        """Add one frame's maps (NaN where untrusted; not modified).
+
+        Raises
+        ------
+        InputError
+            For another number of maps or another shape.
+        """
+        if len(maps) != self.count:
+            raise InputError(f"{len(maps)} maps given, the estimator holds {self.count}")
+        arrays = [np.asarray(m, dtype=np.float64) for m in maps]
+        for array in arrays:
+            if array.shape != self.shape:
+                raise InputError(f"map of shape {array.shape}; the estimator holds {self.shape}")
+        spectra = [self._spectrum(a) for a in arrays]
+        ref = spectra[self.reference]
+        for j, spectrum in enumerate(spectra):
+            self._cross[j] += ref * np.conj(spectrum)
+            self._power[j] += (spectrum * np.conj(spectrum)).real
+        self.frames += 1
+
+    def displacements(self) -> list[Displacement]:
+        """Return each map's shift against the reference (the reference's own is zero)."""
+        out = []
+        for j in range(self.count):
+            if j == self.reference:
+                out.append(Displacement((0.0, 0.0), (0.0, 0.0), True, 0))
+            else:
+                out.append(self._fit(j))
+        return out
+
+    def _fit(self, j: int) -> Displacement:
+        rows, cols = self.shape
+        cross = self._cross[j]
+        if self.frames == 0 or not np.any(cross):
+            return _UNMEASURED
+        # whole pixels: the cross-correlation peaks at -d (see the module documentation),
+        # negative for maps of opposite signs (phases of peaks with alphas of both signs)
+        correlation = np.fft.irfft2(cross, s=self.shape)
+        py, px = np.unravel_index(int(np.argmax(np.abs(correlation))), self.shape)
+        if correlation[py, px] < 0:
+            cross = -cross
+        d0 = (-(((py + rows // 2) % rows) - rows // 2), -(((px + cols // 2) % cols) - cols // 2))
+        ky = np.fft.fftfreq(rows)[:, None]
+        kx = np.fft.rfftfreq(cols)[None, :]
+        residual = cross * np.exp(-2j * np.pi * (ky * d0[0] + kx * d0[1]))
+        with np.errstate(invalid="ignore", divide="ignore"):
+            coherence = np.abs(cross) / np.sqrt(self._power[self.reference] * self._power[j])
+        use = coherence >= MIN_COHERENCE
+        use[0, 0] = False
+        n = int(np.count_nonzero(use))
+        if n < MIN_BINS:
+            return _UNMEASURED
+        weights = np.abs(residual[use])
+        phase = np.angle(residual[use])
+        design = (
+            2
+            * np.pi
+            * np.stack(
+                [np.broadcast_to(ky, use.shape)[use], np.broadcast_to(kx, use.shape)[use]], axis=1
+            )
+        )
+        weighted = design * weights[:, None]
+        normal = design.T @ weighted
+        try:
+            covariance_unit = np.linalg.inv(normal)
+        except np.linalg.LinAlgError:
+            return _UNMEASURED
+        fine = covariance_unit @ (weighted.T @ phase)
+        misfit = phase - design @ fine
+        dof = max(n - 2, 1)
+        scale = float(np.sum(weights * misfit**2) / dof)
+        stderr = np.sqrt(np.diag(covariance_unit) * scale)
+        shift = (float(d0[0] + fine[0]), float(d0[1] + fine[1]))
+        err = (float(stderr[0]), float(stderr[1]))
+        measured = bool(np.all(np.isfinite(stderr)) and max(err) < MAX_STDERR)
+        if not measured:
+            return Displacement((0.0, 0.0), err, False, n)
+        return Displacement(shift, err, True, n)
+
+
+def _fill_untrusted(array: np.ndarray, trusted: np.ndarray) -> np.ndarray:
+    """Return ``array`` (float64) with untrusted pixels set to a local trusted average.
+
+    Normalised convolution with a Gaussian of 2 pixels; pixels with no trusted
+    neighbour within its reach take the trusted mean.
+    """
+    values = np.where(trusted, array, 0.0).astype(np.float64)
+    weight = ndimage.gaussian_filter(trusted.astype(np.float64), 2.0)
+    local = np.full(array.shape, values[trusted].mean())
+    reached = weight > 1e-3
+    local[reached] = ndimage.gaussian_filter(values, 2.0)[reached] / weight[reached]
+    return np.where(trusted, values, local)
+
+
+def coregister(
+    maps: Sequence[np.ndarray], shifts: Sequence[tuple[float, float]]
+) -> list[np.ndarray]:
+    """Return the maps moved by ``-shift`` each onto the reference grid (NaN: untrusted).
+
+    Cubic-spline interpolation: maps at the box resolution hold detail up to near
+    their Nyquist frequency, which linear interpolation would damp by up to half at
+    a half-pixel shift (measured: 3 % rms error on waves 7 pixels and longer, against
+    0.03 % for the spline). Untrusted pixels are filled from their trusted neighbours
+    for the move (a step there would ring into the spline), and stay untrusted: a
+    pixel is trusted after the move only where every pixel it lies between was. A
+    zero shift returns the map as float32, unmoved.
+
+    Parameters
+    ----------
+    maps : sequence of ndarray, shape (rows, cols)
+        Maps (NaN where untrusted); not modified.
+    shifts : sequence of (dy, dx)
+        Each map's :attr:`Displacement.shift`, pixels.
+
+    Returns
+    -------
+    list of ndarray
+        The moved maps, float32.
+    """
+    if len(maps) != len(shifts):
+        raise InputError(f"{len(maps)} maps but {len(shifts)} shifts")
+    out = []
+    for values, (dy, dx) in zip(maps, shifts, strict=True):
+        array = np.asarray(values, dtype=np.float32)
+        if dy == 0 and dx == 0:
+            out.append(array)
+            continue
+        trusted = np.isfinite(array)
+        if not trusted.any():
+            out.append(np.full(array.shape, np.nan, dtype=np.float32))
+            continue
+        filled = _fill_untrusted(array, trusted)
+        moved = ndimage.shift(filled, (-dy, -dx), order=3, mode="nearest").astype(np.float32)
+        coverage = ndimage.shift(trusted.astype(np.float32), (-dy, -dx), order=1, mode="nearest")
+        moved[coverage < 0.999] = np.nan
+        out.append(moved)
+    return out

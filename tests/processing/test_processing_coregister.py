@@ -1,0 +1,112 @@
+"""Displacements between the peaks' maps, measured over frames, and co-registration."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from holoview.errors import InputError
+from holoview.processing.coregister import MAX_STDERR, DisplacementEstimator, coregister
+
+SHAPE = (96, 80)
+YY, XX = np.mgrid[: SHAPE[0], : SHAPE[1]].astype(float)
+
+
+def waves(t: float, y: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """A moving surface of six plane waves (unit amplitude each)."""
+    total = np.zeros(np.broadcast(y, x).shape)
+    for k in range(6):
+        r = np.random.default_rng(k)
+        ky, kx = r.uniform(-0.1, 0.1, 2)
+        total += np.cos(2 * np.pi * (ky * y + kx * x) - r.uniform(0.5, 2.0) * t + k)
+    return total
+
+
+def frames_of(shifts: list[tuple[float, float]], noise: float, count: int, seed: int = 1):
+    rng = np.random.default_rng(seed)
+    for t in range(count):
+        yield [waves(t, YY - dy, XX - dx) + noise * rng.normal(size=SHAPE) for dy, dx in shifts]
+
+
+@pytest.mark.parametrize("noise", [0.1, 2.0])
+def test_known_shifts_are_measured_to_a_few_hundredths_of_a_pixel(noise: float) -> None:
+    truth = [(0.0, 0.0), (0.37, -1.23), (-2.6, 0.15), (0.05, 0.02)]
+    estimator = DisplacementEstimator(SHAPE, len(truth))
+    for maps in frames_of(truth, noise, 40):
+        maps[1][:6] = np.nan  # untrusted rows are left out, not taken as zero height
+        estimator.add(maps)
+    found = estimator.displacements()
+    assert found[0].shift == (0.0, 0.0) and found[0].measured
+    for (dy, dx), d in zip(truth[1:], found[1:], strict=True):
+        assert d.measured, d
+        assert d.shift == pytest.approx((dy, dx), abs=0.05)
+        assert max(d.stderr) < MAX_STDERR
+
+
+def test_maps_of_opposite_sign_give_the_same_shift() -> None:
+    estimator = DisplacementEstimator(SHAPE, 2)
+    for a, b in frames_of([(0.0, 0.0), (0.8, -0.4)], 0.3, 30):
+        estimator.add([a, -2.5 * b])
+    d = estimator.displacements()[1]
+    assert d.measured
+    assert d.shift == pytest.approx((0.8, -0.4), abs=0.05)
+
+
+def test_noise_alone_or_a_flat_surface_gives_no_shift() -> None:
+    rng = np.random.default_rng(7)
+    noisy = DisplacementEstimator(SHAPE, 2)
+    flat = DisplacementEstimator(SHAPE, 2)
+    for _ in range(30):
+        noisy.add([rng.normal(size=SHAPE), rng.normal(size=SHAPE)])
+        flat.add([np.full(SHAPE, 3e-9), np.full(SHAPE, 3e-9)])
+    for estimator in (noisy, flat):
+        d = estimator.displacements()[1]
+        assert not d.measured and d.shift == (0.0, 0.0)
+    assert DisplacementEstimator(SHAPE, 2).displacements()[1].measured is False
+
+
+def test_reset_forgets_the_frames() -> None:
+    estimator = DisplacementEstimator(SHAPE, 2)
+    for maps in frames_of([(0.0, 0.0), (1.0, 0.0)], 0.1, 10):
+        estimator.add(maps)
+    assert estimator.displacements()[1].measured
+    estimator.reset()
+    assert estimator.frames == 0 and not estimator.displacements()[1].measured
+
+
+def test_coregister_moves_a_map_back_and_keeps_untrusted_pixels_untrusted() -> None:
+    d = (0.4, -1.3)
+    reference = waves(0.0, YY, XX)
+    moving = waves(0.0, YY - d[0], XX - d[1])
+    moving[40, 40] = np.nan
+    original = moving.copy()
+    back, same = coregister([moving, reference], [d, (0.0, 0.0)])
+    np.testing.assert_array_equal(moving, original)  # input not modified
+    inner = (slice(4, -4), slice(4, -4))
+    error = np.sqrt(np.nanmean((back - reference)[inner] ** 2))
+    assert error < 0.005 * np.std(reference)  # cubic spline; waves of 7 pixels and longer
+    assert np.sqrt(np.nanmean((moving - reference)[inner] ** 2)) > 10 * error  # it did move
+    # back(r) = moving(r + d): the NaN at (40, 40) now spoils (39.6, 41.3)
+    assert np.isnan(back[39:41, 41:43]).all()
+    assert np.count_nonzero(np.isnan(back[inner])) <= 4
+    np.testing.assert_array_equal(same, reference.astype(np.float32))
+    assert back.dtype == np.float32
+
+
+@pytest.mark.parametrize(
+    ("call", "message"),
+    [
+        (lambda: DisplacementEstimator(SHAPE, 1), "at least 2 maps"),
+        (lambda: DisplacementEstimator((4, 40), 2), "too small"),
+        (lambda: DisplacementEstimator(SHAPE, 2, reference=2), "reference map 2"),
+        (lambda: DisplacementEstimator(SHAPE, 2).add([np.zeros(SHAPE)]), "1 maps given"),
+        (
+            lambda: DisplacementEstimator(SHAPE, 2).add([np.zeros(SHAPE), np.zeros((8, 8))]),
+            "shape (8, 8)",
+        ),
+        (lambda: coregister([np.zeros(SHAPE)], []), "1 maps but 0 shifts"),
+    ],
+)
+def test_bad_input_is_named(call, message: str) -> None:
+    with pytest.raises(InputError, match=message.replace("(", r"\(").replace(")", r"\)")):
+        call()
