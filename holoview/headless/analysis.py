@@ -132,6 +132,15 @@ class Analysis:
     pca: dict[str, object] | None
     notes: tuple[str, ...]
 
+    def map_fusion_scales(self) -> list[float | None]:
+        """Per peak, metres per radian if its maps go into the fused map, else None.
+
+        The peaks used in the fused depth, or every peak with a height map when none is.
+        """
+        scales = [p.map_scale for p in self.peaks]
+        used = [s if p.used_in_fused else None for p, s in zip(self.peaks, scales, strict=True)]
+        return used if any(s is not None for s in used) else scales
+
 
 def _auto_names(ident: Identification) -> list[str]:
     """Unique labels: families by name, repeats ``RB1_2``, ..., the rest ``P<index>``."""

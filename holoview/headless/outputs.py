@@ -48,7 +48,7 @@ from holoview import __version__
 from holoview.errors import InputError
 from holoview.headless.analysis import Analysis, PeakOutcome
 from holoview.headless.inputs import Optics
-from holoview.headless.pipeline import ProcessSettings, RunData, fuse_maps
+from holoview.headless.pipeline import ProcessSettings, RunData, fuse_frame
 
 #: The header of ``trends.csv``, exactly.
 TRENDS_HEADER = ("frame", "time_s", "label", "alpha", "mean_phase_rad", "mean_height_m")
@@ -127,6 +127,24 @@ def _peak_entry(peak: PeakOutcome) -> dict[str, Any]:
     }
 
 
+def _displacement_entry(
+    data: RunData, j: int, frame_shape: tuple[int, int], pixel_pitch_m: float | None
+) -> dict[str, Any] | None:
+    """A peak's measured shift against the first peak, in map and frame pixels (and m)."""
+    if not data.displacements:
+        return None
+    shift = data.displacements[j]
+    step = (frame_shape[0] / data.box_shape[0], frame_shape[1] / data.box_shape[1])
+    frame_px = [shift.shift[0] * step[0], shift.shift[1] * step[1]]
+    return {
+        "measured": shift.measured,
+        "shift_map_px": list(shift.shift),
+        "stderr_map_px": list(shift.stderr),
+        "shift_frame_px": frame_px,
+        "shift_m": None if pixel_pitch_m is None else [v * pixel_pitch_m for v in frame_px],
+    }
+
+
 def summary_document(
     *,
     input_info: dict[str, Any],
@@ -135,6 +153,7 @@ def summary_document(
     selection_mode: str,
     data: RunData,
     analysis: Analysis,
+    frame_shape: tuple[int, int],
 ) -> dict[str, Any]:
     """Return ``summary.json``'s content.
 
@@ -148,7 +167,10 @@ def summary_document(
     ``carrier`` [fx, fy] cycles/pixel, ``alpha``, ``amplitude``, ``snr``,
     ``rate_m_per_s``, ``rate_stderr_m_per_s``, ``noise_m`` (of the depth series),
     ``map_noise_rad`` and ``map_noise_m`` (per map pixel, median), ``used_in_fused``,
-    ``flags``); ``fused`` (``rate_m_per_s``, ``rate_stderr_m_per_s``, ``labels``, with
+    ``flags``, ``displacement``: its measured shift ``(dy, dx)`` against the first
+    peak, ``shift_map_px`` and ``stderr_map_px`` in map pixels, ``shift_frame_px``,
+    ``shift_m`` with a pixel pitch, ``measured`` (False: too uncertain, not applied;
+    null with one peak)); ``fused`` (``rate_m_per_s``, ``rate_stderr_m_per_s``, ``labels``, with
     an area ``volume_rate_m3_per_s`` and its ``volume_rate_stderr_m3_per_s``; None
     when nothing was fused); ``pca`` (``confidence``, ``reference``, ``prefactors``,
     ``explained``, ``n_samples``; None when not computed); ``frames`` (``processed``,
@@ -193,7 +215,13 @@ def summary_document(
             "area_m2": settings.area_m2,
             "peaks_from": selection_mode,
         },
-        "peaks": {p.label: _peak_entry(p) for p in analysis.peaks},
+        "peaks": {
+            p.label: {
+                **_peak_entry(p),
+                "displacement": _displacement_entry(data, j, frame_shape, optics.pixel_pitch_m),
+            }
+            for j, p in enumerate(analysis.peaks)
+        },
         "fused": fused,
         "pca": analysis.pca,
         "frames": {"processed": n, **data.frame_flags},
@@ -228,8 +256,6 @@ class ResultsFile:
         Shape of the maps.
     maps : bool
         Create the map datasets.
-    with_fused : bool
-        Create ``/maps/fused`` for the run to fill (known prefactors).
     """
 
     def __init__(
@@ -240,7 +266,6 @@ class ResultsFile:
         n_frames: int,
         box_shape: tuple[int, int],
         maps: bool,
-        with_fused: bool,
     ) -> None:
         self.path = path
         try:
@@ -249,21 +274,15 @@ class ResultsFile:
             raise InputError(f"{path}: cannot be written ({exc})") from exc
         self._labels = list(labels)
         self._maps: list[h5py.Dataset] = []
-        self._fused: h5py.Dataset | None = None
         if maps:
             group = self._file.create_group("maps")
             self._maps = [
                 self._map_dataset(group, f"_peak{j}", n_frames, box_shape)
                 for j in range(len(self._labels))
             ]
-            if with_fused:
-                self._fused = self._map_dataset(group, "fused", n_frames, box_shape)
-        # maps of MAP_BATCH frames, written together: one buffer per dataset (fused last)
+        # maps of MAP_BATCH frames, written together: one buffer per dataset
         self._block = -1
-        self._buffers = [
-            np.empty((MAP_BATCH, *box_shape), np.float32)
-            for _ in range(len(self._maps) + (self._fused is not None))
-        ]
+        self._buffers = [np.empty((MAP_BATCH, *box_shape), np.float32) for _ in self._maps]
 
     def _buffer(self, position: int) -> int:
         """Make the buffers hold ``position``'s block (writing the previous); return its row."""
@@ -278,8 +297,7 @@ class ResultsFile:
     def _flush(self) -> None:
         if self._block < 0:
             return
-        datasets = [*self._maps, *([self._fused] if self._fused is not None else [])]
-        for dataset, buffer in zip(datasets, self._buffers, strict=True):
+        for dataset, buffer in zip(self._maps, self._buffers, strict=True):
             start = self._block * MAP_BATCH
             stop = min(start + MAP_BATCH, dataset.shape[0])
             dataset[start:stop] = buffer[: stop - start]
@@ -303,29 +321,34 @@ class ResultsFile:
         if self._maps:
             self._buffers[peak][self._buffer(position)] = values
 
-    def write_fused(self, position: int, values: np.ndarray) -> None:
-        """Store the fused map of the ``position``-th processed frame."""
-        if self._fused is not None:
-            self._buffers[-1][self._buffer(position)] = values
+    def _finish_maps(self, data: RunData, analysis: Analysis, converted: bool) -> list[str]:
+        """Convert phase maps to delta-h (auto mode), then fuse each frame's; return the labels.
 
-    def _convert_maps(self, data: RunData, analysis: Analysis) -> None:
-        """Auto mode: phase maps to delta-h with the PCA's prefactors, then fuse them."""
-        scales = [p.map_scale for p in analysis.peaks]
-        used = [j for j, p in enumerate(analysis.peaks) if p.used_in_fused]
+        The fused map (``/maps/fused``) takes the peaks used in the fused depth (every
+        peak in metres when none is), co-registered by the run's measured
+        displacements (:func:`~holoview.headless.pipeline.fuse_frame`).
+        """
+        peaks = analysis.peaks
+        scales = [p.map_scale for p in peaks]
+        fuse_scales = analysis.map_fusion_scales()
+        fusing = [s is not None for s in fuse_scales]
+        n, by, bx = self._maps[0].shape
         fused_set = None
-        if used and "fused" not in self._file["maps"]:
-            n, by, bx = self._maps[0].shape
+        if sum(fusing) >= 2:
             fused_set = self._map_dataset(self._file["maps"], "fused", n, (by, bx))
-        for position in range(self._maps[0].shape[0]):
-            maps = [dataset[position] for dataset in self._maps]
+        for position in range(n):
+            maps: list[np.ndarray | None] = [dataset[position] for dataset in self._maps]
             for j, scale in enumerate(scales):
-                if scale is not None:
+                if scale is None:
+                    maps[j] = None
+                elif not converted:
                     maps[j] = (maps[j] * np.float32(scale)).astype(np.float32)
                     self._maps[j][position] = maps[j]
             if fused_set is not None:
-                noises = [data.noise_rad[position, j] * abs(scales[j] or 0.0) for j in used]
-                fused_set[position] = fuse_maps([maps[j] for j in used], noises)
-        self._fused = fused_set
+                fused = fuse_frame(data, position, maps, fuse_scales)
+                if fused is not None:
+                    fused_set[position] = fused
+        return [p.label for p, use in zip(peaks, fusing, strict=True) if use]
 
     def finish(
         self,
@@ -344,7 +367,7 @@ class ResultsFile:
         run); otherwise they hold phases and are converted here.
         """
         self._flush()
-        for dataset in [*self._maps, *([self._fused] if self._fused is not None else [])]:
+        for dataset in self._maps:
             dataset.resize(len(data.frames), axis=0)  # fewer after an interruption
         f = self._file
         f.attrs.update(
@@ -368,11 +391,7 @@ class ResultsFile:
         self._write_trends(data, analysis, settings)
         self._write_peaks(analysis)
         if self._maps:
-            if converted:
-                fused_labels = [p.label for p in analysis.peaks]
-            else:
-                self._convert_maps(data, analysis)
-                fused_labels = [p.label for p in analysis.peaks if p.used_in_fused]
+            fused_labels = self._finish_maps(data, analysis, converted)
             self._name_maps(
                 data=data,
                 analysis=analysis,
@@ -462,6 +481,15 @@ class ResultsFile:
                     "carrier_cpp": list(peak.carrier),
                 }
             )
+            if data.displacements:
+                shift = data.displacements[j]
+                attrs.update(
+                    {
+                        "displacement_px": list(shift.shift),
+                        "displacement_stderr_px": list(shift.stderr),
+                        "displacement_measured": shift.measured,
+                    }
+                )
         if "fused" in group:
             group["fused"].attrs.update(common)
             group["fused"].attrs.update(
@@ -470,6 +498,7 @@ class ResultsFile:
                     "unit": "m",
                     "quantity": "delta_h",
                     "labels": ",".join(fused_labels),
+                    "grid_of": analysis.peaks[0].label,
                 }
             )
 

@@ -9,14 +9,16 @@ the few frames the :class:`~holoview.headless.reader.FrameReader` reads ahead.
 Maps are at the demodulator's box resolution (pixel ``(p, q)`` at frame position
 ``(p rows / by, q cols / bx)``), float32, NaN where the pixel is not trusted (its
 amplitude is below a quarter of the peak's). With known prefactors they are delta-h
-in metres and a fused map is made per frame; in auto mode (prefactors from the PCA
-after the run) they are phases in radians, converted by the sink afterwards.
+in metres; in auto mode (prefactors from the PCA after the run) they are phases in
+radians, converted by the sink afterwards. The peaks' displacements against the first
+peak are measured over the run (:mod:`holoview.processing.coregister`, on up to
+:data:`COREGISTER_FRAMES` frames spread over it), so fused maps, made after the run
+(:func:`fuse_frame`), are co-registered.
 """
 
 from __future__ import annotations
 
 import logging
-import math
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -28,6 +30,7 @@ from holoview.errors import InputError
 from holoview.headless.inputs import InputFile, Optics
 from holoview.headless.reader import DEFAULT_DEPTH, FrameReader
 from holoview.headless.selection import Selection
+from holoview.processing.coregister import Displacement, DisplacementEstimator, coregister
 from holoview.processing.demodulate import DemodResult, Demodulator
 from holoview.processing.heights import fuse
 
@@ -38,6 +41,9 @@ COUNTED_PEAK_FLAGS = ("phase_step", "low_amplitude", "overlap")
 
 #: Frame-level flags counted over the run.
 COUNTED_FRAME_FLAGS = ("nonfinite", "no_signal", "saturated")
+
+#: Frames, spread over a run, whose maps measure the peaks' displacements.
+COREGISTER_FRAMES = 200
 
 
 @dataclass(frozen=True)
@@ -82,9 +88,6 @@ class MapSink(Protocol):
     def write_map(self, position: int, peak: int, values: np.ndarray) -> None:
         """Store peak ``peak``'s map of the ``position``-th processed frame."""
 
-    def write_fused(self, position: int, values: np.ndarray) -> None:
-        """Store the fused map of the ``position``-th processed frame."""
-
 
 @dataclass
 class RunData:
@@ -101,6 +104,9 @@ class RunData:
         NaN for a frame that could not be demodulated.
     noise_rad : ndarray of float64, shape (N, M)
         Per-pixel phase noise of each map, rad (0 for a reference frame).
+    phase_steps : ndarray of bool, shape (N, M)
+        Whether the peak's mean phase stepped past 0.8 pi at that frame (its map is
+        then left out of the fused map).
     frame_flags : dict of str to int
         Frames flagged ``nonfinite``, ``no_signal``, ``saturated``.
     peak_flags : list of dict of str to int
@@ -111,10 +117,11 @@ class RunData:
         Window radius used, cycles/pixel.
     last_maps : list of (ndarray or None)
         Each peak's map of the last demodulated frame (m, or rad in auto mode).
-    last_fused : ndarray or None
-        The fused map of the last frame, m (None in auto mode or with one peak).
     last_frame : int
         Input index of the frame the last maps come from.
+    displacements : list of Displacement
+        Each peak's measured shift against the first peak, in map pixels (empty
+        with one peak).
     maps_in_metres : bool
         Whether the maps are delta-h in m (every peak had alpha), else phases in rad.
     interrupted : bool
@@ -128,13 +135,14 @@ class RunData:
     times: np.ndarray
     values: np.ndarray
     noise_rad: np.ndarray
+    phase_steps: np.ndarray
     frame_flags: dict[str, int]
     peak_flags: list[dict[str, int]]
     box_shape: tuple[int, int]
     radius: float
     last_maps: list[np.ndarray | None] = field(default_factory=list)
-    last_fused: np.ndarray | None = None
     last_frame: int = -1
+    displacements: list[Displacement] = field(default_factory=list)
     maps_in_metres: bool = False
     interrupted: bool = False
     read_seconds: float = 0.0
@@ -143,8 +151,12 @@ class RunData:
     wall_seconds: float = 0.0
 
 
-def fuse_maps(maps: Sequence[np.ndarray], noises: Sequence[float]) -> np.ndarray:
-    """Fuse co-located maps (NaN: untrusted) weighted by ``1 / noise^2``.
+def fuse_maps(
+    maps: Sequence[np.ndarray],
+    noises: Sequence[float],
+    shifts: Sequence[tuple[float, float]] | None = None,
+) -> np.ndarray:
+    """Fuse maps (NaN: untrusted) weighted by ``1 / noise^2``, co-registered first.
 
     Parameters
     ----------
@@ -153,44 +165,71 @@ def fuse_maps(maps: Sequence[np.ndarray], noises: Sequence[float]) -> np.ndarray
     noises : sequence of float
         Each map's noise (unit of the maps). When any is not a positive number (a
         reference frame, whose maps are zero), the maps are averaged unweighted.
+    shifts : sequence of (dy, dx), optional
+        Each map's displacement (map pixels, :class:`~holoview.processing.coregister.Displacement`);
+        the maps are moved onto the grid of the map whose shift is zero.
 
     Returns
     -------
     ndarray of float32
-        NaN where no map is trusted. The maps are not co-registered: each peak images
-        a patch shifted by a fraction of a pixel to a few pixels (paper section 2).
+        NaN where no map is trusted.
     """
     sigma = np.asarray(noises, dtype=np.float64)
     if not (np.all(np.isfinite(sigma)) and np.all(sigma > 0)):
         sigma = np.ones(len(maps))
+    if shifts is not None:
+        maps = coregister(maps, shifts)
     fused, _ = fuse(maps, list(sigma), masks=[np.isfinite(m) for m in maps])
     return fused.astype(np.float32)
+
+
+def fuse_frame(
+    data: RunData,
+    position: int,
+    maps: Sequence[np.ndarray | None],
+    scales: Sequence[float | None],
+) -> np.ndarray | None:
+    """Return the fused delta-h map (m) of the ``position``-th frame, co-registered.
+
+    Parameters
+    ----------
+    data : RunData
+        The run (noise, phase steps and displacements).
+    position : int
+        The frame's position in the run.
+    maps : sequence of (ndarray or None)
+        Each peak's delta-h map of that frame, m (None: not in metres).
+    scales : sequence of (float or None)
+        Metres per radian of each peak to fuse (None: left out).
+
+    Returns
+    -------
+    ndarray of float32 or None
+        None with fewer than two peaks to fuse. Peaks whose mean phase stepped at this
+        frame are left out, unless every one did.
+    """
+    chosen = [j for j, s in enumerate(scales) if s is not None and maps[j] is not None]
+    steady = [j for j in chosen if not data.phase_steps[position, j]]
+    chosen = steady or chosen
+    if len(chosen) < 2:
+        return None
+    shifts = None
+    if data.displacements:
+        shifts = [data.displacements[j].shift for j in chosen]
+    return fuse_maps(
+        [maps[j] for j in chosen],  # type: ignore[misc]
+        [data.noise_rad[position, j] * abs(scales[j]) for j in chosen],  # type: ignore[arg-type]
+        shifts,
+    )
 
 
 def _trusted(result_map: np.ndarray, mask: np.ndarray) -> np.ndarray:
     return np.where(mask, result_map, np.float32(np.nan)).astype(np.float32, copy=False)
 
 
-def frame_maps(
-    result: DemodResult, with_alpha: bool
-) -> tuple[list[np.ndarray | None], np.ndarray | None]:
-    """Return one frame's maps (NaN where untrusted) and, with every alpha known, the fused map.
-
-    Maps are delta-h in m for peaks with alpha, else phases in rad. The fused map leaves
-    out the peaks whose mean phase stepped past 0.8 pi since the previous frame.
-    """
-    maps: list[np.ndarray | None] = [
-        _trusted(r.delta_h if r.delta_h is not None else r.phase, r.mask) for r in result.peaks
-    ]
-    fused = None
-    if with_alpha and len(maps) >= 2:
-        usable = [j for j, r in enumerate(result.peaks) if "phase_step" not in r.flags]
-        usable = usable or list(range(len(maps)))
-        fused = fuse_maps(
-            [maps[j] for j in usable],  # type: ignore[misc]
-            [result.peaks[j].noise_height or math.nan for j in usable],
-        )
-    return maps, fused
+def frame_maps(result: DemodResult) -> list[np.ndarray]:
+    """Return one frame's maps, NaN where untrusted: delta-h in m with alpha, else phase in rad."""
+    return [_trusted(r.delta_h if r.delta_h is not None else r.phase, r.mask) for r in result.peaks]
 
 
 def make_demodulator(
@@ -253,6 +292,8 @@ def demodulate_frames(
     n, m = len(frames), len(demodulator.peaks)
     values = np.full((n, m), np.nan + 0j, dtype=np.complex128)
     noise = np.full((n, m), np.nan)
+    estimator = DisplacementEstimator(demodulator.box_shape, m) if m >= 2 else None
+    every = max(1, n // COREGISTER_FRAMES)
     frame_flags = dict.fromkeys(COUNTED_FRAME_FLAGS, 0)
     peak_flags = [dict.fromkeys(COUNTED_PEAK_FLAGS, 0) for _ in range(m)]
     with_alpha = all(p.alpha is not None for p in demodulator.peaks)
@@ -261,6 +302,7 @@ def demodulate_frames(
         times=np.asarray(times, dtype=np.float64),
         values=values,
         noise_rad=noise,
+        phase_steps=np.zeros((n, m), dtype=bool),
         frame_flags=frame_flags,
         peak_flags=peak_flags,
         box_shape=demodulator.box_shape,
@@ -282,12 +324,14 @@ def demodulate_frames(
                 _record(data, position, result)
                 if result.peaks:
                     last, data.last_frame = result, index
-                    if sink is not None:
-                        maps, fused = frame_maps(result, with_alpha)
-                        for j, values_map in enumerate(maps):
-                            sink.write_map(position, j, values_map)
-                        if fused is not None:
-                            sink.write_fused(position, fused)
+                    measure = estimator is not None and position % every == 0
+                    if sink is not None or measure:
+                        maps = frame_maps(result)
+                        if sink is not None:
+                            for j, values_map in enumerate(maps):
+                                sink.write_map(position, j, values_map)
+                        if measure:
+                            estimator.add(maps)  # type: ignore[union-attr]
                 data.write_seconds += time.perf_counter() - t1
                 done = position + 1
                 if progress is not None:
@@ -299,8 +343,11 @@ def demodulate_frames(
         data.interrupted = True
         data.frames, data.times = data.frames[:done], data.times[:done]
         data.values, data.noise_rad = data.values[:done], data.noise_rad[:done]
+        data.phase_steps = data.phase_steps[:done]
     if last is not None:
-        data.last_maps, data.last_fused = frame_maps(last, with_alpha)
+        data.last_maps = list(frame_maps(last))
+    if estimator is not None:
+        data.displacements = estimator.displacements()
     data.read_seconds = reader.read_seconds
     data.wall_seconds = time.perf_counter() - start
     if not np.any(np.isfinite(data.values)):
@@ -315,6 +362,7 @@ def _record(data: RunData, position: int, result: DemodResult) -> None:
     for j, r in enumerate(result.peaks):
         data.values[position, j] = r.carrier_value
         data.noise_rad[position, j] = r.noise
+        data.phase_steps[position, j] = "phase_step" in r.flags
         for flag in r.flags:
             if flag in data.peak_flags[j]:
                 data.peak_flags[j][flag] += 1

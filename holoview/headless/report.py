@@ -28,7 +28,7 @@ import numpy as np
 from holoview.errors import InputError
 from holoview.headless.analysis import Analysis
 from holoview.headless.inputs import Optics
-from holoview.headless.pipeline import ProcessSettings, RunData, fuse_maps
+from holoview.headless.pipeline import ProcessSettings, RunData, fuse_frame
 from holoview.headless.plotting import (
     BLACK,
     GREY,
@@ -196,17 +196,8 @@ def _last_maps(data: RunData, analysis: Analysis) -> list[tuple[str, np.ndarray,
             panels.append((title, metres * 1e9, "nm"))
         elif values is not None:
             panels.append((f"{peak.label} phase", values, "rad"))
-    fused = data.last_fused
-    if fused is None:
-        used = [
-            j for j, p in enumerate(analysis.peaks) if p.used_in_fused and heights[j] is not None
-        ]
-        if len(used) >= 2:
-            position = int(np.flatnonzero(data.frames == data.last_frame)[0])
-            noises = [
-                data.noise_rad[position, j] * abs(analysis.peaks[j].map_scale or 0.0) for j in used
-            ]
-            fused = fuse_maps([heights[j] for j in used], noises)  # type: ignore[misc]
+    position = int(np.flatnonzero(data.frames == data.last_frame)[0])
+    fused = fuse_frame(data, position, heights, analysis.map_fusion_scales())
     if fused is not None:
         panels.append(("fused", fused * 1e9, "nm"))
     return panels

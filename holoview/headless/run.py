@@ -199,14 +199,12 @@ def process_file(
             demodulator.box_shape,
         )
         _prepare_out(out_dir)
-        known = all(p.alpha is not None for p in selection.peaks)
         results = ResultsFile(
             out_dir / RESULTS_H5,
             labels=[p.label or f"P{j}" for j, p in enumerate(selection.peaks)],
             n_frames=len(selected),
             box_shape=demodulator.box_shape,
             maps=settings.maps,
-            with_fused=known and len(selection.peaks) >= 2,
         )
         try:
             data = demodulate_frames(
@@ -237,6 +235,7 @@ def process_file(
             selection_mode=selection.mode,
             data=data,
             analysis=analysis,
+            frame_shape=source.frame_shape,
         )
     files = [out_dir / TRENDS_CSV, out_dir / SUMMARY_JSON, out_dir / RESULTS_H5]
     try:

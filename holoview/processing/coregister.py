@@ -6,9 +6,10 @@ before they are fused. :class:`DisplacementEstimator` measures each map's shift
 against a reference peak's map from their cross-power spectrum, summed over frames:
 the surface's structure adds up coherently from frame to frame, the peaks'
 independent noise does not (maps of opposite signs, such as phases of peaks whose
-alphas differ in sign, are recognised), so a shift too small to see in one noisy relative map
-(a fraction of a pixel) becomes measurable over tens of frames. A surface without
-structure (uniform evaporation) gives no measurable shift, and needs none.
+alphas differ in sign, are recognised), so a shift too small to see in one noisy
+relative map (a fraction of a pixel) becomes measurable over tens of frames. A
+surface without structure (uniform evaporation) gives no measurable shift, and
+needs none.
 
 Estimate: with ``moving(r) = reference(r - d)`` the summed cross-power
 ``C(k) = sum_t F_ref(k) conj(F_moving(k))`` is ``|F_ref|^2 exp(2 pi i k.d)``. The
@@ -16,6 +17,22 @@ whole-pixel part of ``d`` is the peak of the cross-correlation (the inverse FFT 
 ``C``); the rest is a weighted least-squares fit of the remaining phase ramp over
 the coherent bins, weights ``|C|``, which also gives its standard error.
 Maps are mean-subtracted inside their trusted pixels and Hann-windowed first.
+
+The window stays put while the surface moves under it, which pulls a single
+estimate towards zero: by a few per cent for detail a few pixels across, but on a
+simulated standing wave a box long the shift came out at a third of the model's.
+So the estimate is iterated as frames come: each frame's moving maps are first
+co-registered with the current estimate, and after :data:`UPDATE_EVERY` frames
+(then twice as many each time, up to :data:`MAX_UPDATE_EVERY`: later updates,
+smaller, average more frames) the residual shift measured on them is added to it
+and the sums start again. The residual, and with it the pull, shrinks at each
+update. On detail a few pixels across the first update is within 0.02 pixel of the
+model's displacement.
+
+A residual counts as measured when the cross-correlation's peak stands out of what
+the maps' noise alone would give (:data:`MIN_SIGNIFICANCE`) and its standard
+errors are below :data:`MAX_STDERR`; a surface without structure in common leaves
+the estimate where it was (zero at first).
 Shifts are in pixels of the maps' grid, ``(dy, dx)``, with the convention of
 :func:`~holoview.processing.heights.estimate_displacement`: :func:`coregister`
 moves each map by ``-d`` onto the reference's grid.
@@ -39,6 +56,21 @@ MIN_COHERENCE = 0.5
 
 #: Fewest coherent bins a fit needs.
 MIN_BINS = 8
+
+#: Frames summed before the first update of the current estimate.
+UPDATE_EVERY = 10
+
+#: Most frames summed between two updates.
+MAX_UPDATE_EVERY = 80
+
+#: The normalised correlation peak must exceed this many times its noise-only spread,
+#: ``1 / sqrt(n_eff frames / NOISE_AREA)`` with ``n_eff`` the window's effective
+#: pixel count.
+MIN_SIGNIFICANCE = 8.0
+
+#: Pixels over which a map's noise is correlated (the spectral window's footprint);
+#: conservative, so that noise alone is not taken for structure.
+NOISE_AREA = 4.0
 
 
 @dataclass(frozen=True)
@@ -72,7 +104,7 @@ def _hann(n: int) -> np.ndarray:
 
 
 class DisplacementEstimator:
-    """Sum the maps' cross-power spectra frame after frame; estimate their shifts.
+    """Estimate the maps' shifts from frame after frame, iteratively (module documentation).
 
     Parameters
     ----------
@@ -82,9 +114,18 @@ class DisplacementEstimator:
         Maps per frame (peaks), at least 2.
     reference : int
         Index of the map the others are registered to.
+    update_every : int
+        Frames summed before the first update of the current estimate (then twice as
+        many each time, up to :data:`MAX_UPDATE_EVERY`).
     """
 
-    def __init__(self, shape: tuple[int, int], count: int, reference: int = 0) -> None:
+    def __init__(
+        self,
+        shape: tuple[int, int],
+        count: int,
+        reference: int = 0,
+        update_every: int = UPDATE_EVERY,
+    ) -> None:
         rows, cols = int(shape[0]), int(shape[1])
         if min(rows, cols) < 8:
             raise InputError(f"maps of shape {shape} are too small to co-register (>= 8 x 8)")
@@ -92,27 +133,42 @@ class DisplacementEstimator:
             raise InputError(f"co-registration needs at least 2 maps, got {count}")
         if not 0 <= reference < count:
             raise InputError(f"reference map {reference} is not one of the {count} maps")
+        if update_every < 1:
+            raise InputError(f"update_every must be >= 1 frame, got {update_every}")
         self.shape = (rows, cols)
         self.count = int(count)
         self.reference = int(reference)
-        self.frames = 0
+        self.update_every = int(update_every)
         self._window = np.outer(_hann(rows), _hann(cols))
+        squared = self._window**2
+        #: independent pixels the window leaves, for white noise
+        self._n_eff = float(squared.sum() ** 2 / (squared**2).sum())
+        self._energy = np.zeros(count)
         spectrum_shape = (rows, cols // 2 + 1)
         self._cross = np.zeros((count, *spectrum_shape), dtype=np.complex128)
         self._power = np.zeros((count, *spectrum_shape), dtype=np.float64)
+        self.reset()
 
     def reset(self) -> None:
-        """Forget every frame added."""
+        """Forget every frame added and the current estimate."""
+        #: Frames added since construction or :meth:`reset`.
         self.frames = 0
+        self._interval = self.update_every
+        self._start_sums()
+        self._current = [(0.0, 0.0)] * self.count
+        self._last = [_UNMEASURED] * self.count
+
+    def _start_sums(self) -> None:
+        self._summed = 0
         self._cross[...] = 0
         self._power[...] = 0
+        self._energy[...] = 0
 
-    def _spectrum(self, values: np.ndarray) -> np.ndarray:
+    def _windowed(self, values: np.ndarray) -> np.ndarray:
         trusted = np.isfinite(values)
         if not trusted.any():
-            return np.zeros(self._cross.shape[1:], dtype=np.complex128)
-        centred = np.where(trusted, values - values[trusted].mean(), 0.0)
-        return np.fft.rfft2(centred * self._window)
+            return np.zeros(self.shape)
+        return np.where(trusted, values - values[trusted].mean(), 0.0) * self._window
 
     def add(self, maps: Sequence[np.ndarray]) -> None:
         """Add one frame's maps (NaN where untrusted; not modified).
@@ -124,36 +180,74 @@ class DisplacementEstimator:
         """
         if len(maps) != self.count:
             raise InputError(f"{len(maps)} maps given, the estimator holds {self.count}")
-        arrays = [np.asarray(m, dtype=np.float64) for m in maps]
-        for array in arrays:
-            if array.shape != self.shape:
-                raise InputError(f"map of shape {array.shape}; the estimator holds {self.shape}")
-        spectra = [self._spectrum(a) for a in arrays]
+        for values in maps:
+            if np.shape(values) != self.shape:
+                raise InputError(
+                    f"map of shape {np.shape(values)}; the estimator holds {self.shape}"
+                )
+        windowed = [
+            self._windowed(np.asarray(m, np.float64)) for m in coregister(maps, self._current)
+        ]
+        spectra = [np.fft.rfft2(w) for w in windowed]
         ref = spectra[self.reference]
         for j, spectrum in enumerate(spectra):
             self._cross[j] += ref * np.conj(spectrum)
             self._power[j] += (spectrum * np.conj(spectrum)).real
+            self._energy[j] += float(np.vdot(windowed[j], windowed[j]))
         self.frames += 1
+        self._summed += 1
+        if self._summed >= self._interval:
+            self._update()
+            self._interval = min(2 * self._interval, max(self.update_every, MAX_UPDATE_EVERY))
+
+    def _update(self) -> None:
+        """Add each measured residual to the current estimate; start the sums again."""
+        for j, residual in enumerate(self._residuals()):
+            if residual.measured:
+                dy, dx = self._current[j]
+                self._current[j] = (dy + residual.shift[0], dx + residual.shift[1])
+                self._last[j] = residual
+        self._start_sums()
+
+    def _residuals(self) -> list[Displacement]:
+        return [
+            _UNMEASURED if j == self.reference or self._summed == 0 else self._fit(j)
+            for j in range(self.count)
+        ]
 
     def displacements(self) -> list[Displacement]:
-        """Return each map's shift against the reference (the reference's own is zero)."""
+        """Return each map's shift against the reference (the reference's own is zero).
+
+        The current estimate plus the residual measured on the frames summed since the
+        last update, when that is measured. ``stderr`` is the latest measured
+        residual's; ``measured`` says whether any update or the residual was.
+        """
         out = []
-        for j in range(self.count):
+        for j, residual in enumerate(self._residuals()):
             if j == self.reference:
                 out.append(Displacement((0.0, 0.0), (0.0, 0.0), True, 0))
-            else:
-                out.append(self._fit(j))
+                continue
+            dy, dx = self._current[j]
+            last = self._last[j]
+            if residual.measured:
+                dy, dx = dy + residual.shift[0], dx + residual.shift[1]
+                last = residual
+            out.append(Displacement((dy, dx), last.stderr, last.measured, last.bins))
         return out
 
     def _fit(self, j: int) -> Displacement:
         rows, cols = self.shape
         cross = self._cross[j]
-        if self.frames == 0 or not np.any(cross):
+        energy = self._energy[self.reference] * self._energy[j]
+        if not energy > 0:
             return _UNMEASURED
         # whole pixels: the cross-correlation peaks at -d (see the module documentation),
         # negative for maps of opposite signs (phases of peaks with alphas of both signs)
         correlation = np.fft.irfft2(cross, s=self.shape)
         py, px = np.unravel_index(int(np.argmax(np.abs(correlation))), self.shape)
+        peak = abs(float(correlation[py, px])) / np.sqrt(energy)
+        if peak < MIN_SIGNIFICANCE / np.sqrt(self._n_eff * self._summed / NOISE_AREA):
+            return _UNMEASURED
         if correlation[py, px] < 0:
             cross = -cross
         d0 = (-(((py + rows // 2) % rows) - rows // 2), -(((px + cols // 2) % cols) - cols // 2))

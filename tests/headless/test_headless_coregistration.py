@@ -1,0 +1,77 @@
+"""Co-registration in a headless run: displacements measured, reported, used by the fused map."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+from headless_sim import Simulated, run_cli
+
+from holoview.headless.pipeline import RunData, fuse_frame
+from holoview.processing.coregister import Displacement, coregister
+from holoview.processing.heights import fuse
+
+
+def test_displacements_are_reported_and_stored_with_the_maps(
+    waves: Simulated, tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    out = tmp_path / "run"
+    argv = ["process", str(waves.path), "--out", str(out), "--maps", "--frames", "0:60"]
+    status, _, err = run_cli([*argv, *waves.label_args("RB1", "FB1")], capsys)
+    assert status == 0, err
+    summary = json.loads((out / "summary.json").read_text())
+    labels = list(summary["peaks"])
+    first = summary["peaks"][labels[0]]["displacement"]
+    assert first["measured"] and first["shift_map_px"] == [0.0, 0.0]
+    with h5py.File(out / "results.h5", "r") as f:
+        step = f["maps/fused"].attrs["pixel_step_px"]
+        assert f["maps/fused"].attrs["grid_of"] == labels[0]
+        pitch = f.attrs["pixel_pitch_m"]
+        for label in labels:
+            entry = summary["peaks"][label]["displacement"]
+            attrs = f["maps"][label].attrs
+            np.testing.assert_allclose(attrs["displacement_px"], entry["shift_map_px"])
+            assert bool(attrs["displacement_measured"]) == entry["measured"]
+            np.testing.assert_allclose(
+                entry["shift_frame_px"], np.multiply(entry["shift_map_px"], step)
+            )
+            np.testing.assert_allclose(
+                entry["shift_m"], np.multiply(entry["shift_frame_px"], pitch)
+            )
+            if not entry["measured"]:
+                assert entry["shift_map_px"] == [0.0, 0.0]
+
+
+def run_data(steps: list[list[bool]], shifts: list[tuple[float, float]]) -> RunData:
+    n, m = len(steps), len(steps[0])
+    return RunData(
+        frames=np.arange(n),
+        times=np.arange(n, dtype=float),
+        values=np.ones((n, m), complex),
+        noise_rad=np.full((n, m), 0.1),
+        phase_steps=np.array(steps),
+        frame_flags={},
+        peak_flags=[{} for _ in range(m)],
+        box_shape=(32, 32),
+        radius=0.1,
+        displacements=[Displacement(s, (0.01, 0.01), True, 50) for s in shifts],
+    )
+
+
+def test_fuse_frame_moves_the_maps_and_leaves_out_a_peak_that_stepped() -> None:
+    rng = np.random.default_rng(0)
+    maps = [rng.normal(size=(32, 32)).astype(np.float32) for _ in range(3)]
+    shifts = [(0.0, 0.0), (0.5, -0.25), (1.0, 2.0)]
+    scales = [1e-9, 2e-9, 3e-9]
+    data = run_data([[False, False, False], [False, True, False], [True, True, True]], shifts)
+    for position, chosen in ((0, [0, 1, 2]), (1, [0, 2]), (2, [0, 1, 2])):
+        fused = fuse_frame(data, position, maps, scales)
+        moved = coregister([maps[j] for j in chosen], [shifts[j] for j in chosen])
+        expected, _ = fuse(
+            moved, [0.1 * scales[j] for j in chosen], masks=[np.isfinite(m) for m in moved]
+        )
+        np.testing.assert_allclose(fused, expected, rtol=1e-5, equal_nan=True)
+    assert fuse_frame(data, 0, maps, [1e-9, None, None]) is None  # one peak: nothing to fuse
