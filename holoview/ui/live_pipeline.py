@@ -5,7 +5,9 @@ most :data:`PEAKS_HZ`; carriers drift slowly; each of the two at most a
 :data:`SIDE_SHARE` of the worker's time), the labelled peaks followed onto the
 detected ones, the model's predicted carriers once two are labelled (and the
 detected peaks they match labelled too), the demodulated delta-h map of every
-labelled peak, the fused map, and the mean depth series with the evaporation rate.
+labelled peak, the peaks' displacements (measured at most :data:`COREGISTER_HZ`,
+:mod:`holoview.processing.coregister`), the fused map co-registered by them, and
+the mean depth series with the evaporation rate.
 All the numbers come from :mod:`holoview.processing` and :mod:`holoview.optics`;
 this module only decides when to call what, and packs a :class:`LiveResult`.
 """
@@ -22,8 +24,9 @@ import numpy as np
 from holoview.acquire.source import FrameMeta
 from holoview.errors import HoloviewError, InputError
 from holoview.optics.families import alpha_of
+from holoview.processing.coregister import Displacement, DisplacementEstimator, coregister
 from holoview.processing.demodulate import DemodResult, Demodulator
-from holoview.processing.heights import fuse, plain_average
+from holoview.processing.heights import fuse
 from holoview.processing.labelling import label_peaks
 from holoview.processing.peaks import Peak, find_peaks
 from holoview.processing.spectrum import display_spectrum
@@ -50,6 +53,8 @@ FOLLOW_DISTANCE = 0.02
 TREND_LENGTH = 36000
 #: Highest rate at which depths, rate and PCA are recomputed from the series, Hz.
 TREND_HZ = 2.0
+#: Highest rate at which maps are added to the displacement estimate, Hz.
+COREGISTER_HZ = 10.0
 #: Families whose predicted carriers are drawn and matched once two peaks are labelled.
 PREDICTED_FAMILIES: tuple[str, ...] = ("RF", "RB1", "FB1", "RB2", "FB2")
 
@@ -62,6 +67,8 @@ class LiveResult:
 
     Arrays are shared, never modified after publication. Heights in metres, phases
     in radians, carriers and radius in cycles per pixel, times in seconds.
+    ``shifts_px`` holds the measured displacements ``(dy, dx)`` of the height maps
+    against the map ``grid_of``, in camera pixels; the fused map is on that map's grid.
     """
 
     seq: int
@@ -77,6 +84,8 @@ class LiveResult:
     heights_m: dict[str, np.ndarray] = field(default_factory=dict)
     fused_m: np.ndarray | None = None
     phases_rad: dict[str, np.ndarray] = field(default_factory=dict)
+    shifts_px: dict[str, tuple[float, float]] = field(default_factory=dict)
+    grid_of: str | None = None
     trend_times_s: np.ndarray | None = None
     trend_depths_m: dict[str, np.ndarray] = field(default_factory=dict)
     rate_m_per_s: float | None = None
@@ -194,22 +203,55 @@ class DemodulationStage:
         return self._demod.process(frame)
 
 
-def fuse_maps(result: DemodResult) -> np.ndarray | None:
+def fuse_maps(
+    result: DemodResult, displacements: list[Displacement] | None = None
+) -> np.ndarray | None:
     """Fuse the delta-h maps of a frame (:mod:`holoview.processing.heights`).
 
     Each peak is weighted by ``1 / noise_height^2`` over its trusted pixels; on a
-    frame with no noise estimate (a reference frame) the maps are averaged. None
-    with fewer than two height maps.
+    frame with no noise estimate (a reference frame) the trusted pixels are averaged. With
+    ``displacements`` (one per peak with a height map, in order) the maps are first
+    co-registered onto the first one's grid. None with fewer than two height maps.
     """
-    maps = [r for r in result.peaks if r.delta_h is not None]
-    if len(maps) < 2:
+    peaks = [r for r in result.peaks if r.delta_h is not None]
+    if len(peaks) < 2:
         return None
-    noises = [r.noise_height for r in maps]
-    if all(n is not None and np.isfinite(n) and n > 0 for n in noises):
-        fused, _ = fuse([r.delta_h for r in maps], noises, masks=[r.mask for r in maps])
-    else:
-        fused = plain_average([r.delta_h for r in maps])
+    maps = [np.where(r.mask, r.delta_h, np.nan) for r in peaks]
+    if displacements is not None:
+        maps = coregister(maps, [d.shift for d in displacements])
+    noises = [r.noise_height for r in peaks]
+    if not all(n is not None and np.isfinite(n) and n > 0 for n in noises):
+        noises = [1.0] * len(maps)
+    fused, _ = fuse(maps, noises, masks=[np.isfinite(m) for m in maps])
     return fused.astype(np.float32)
+
+
+class Coregistration:
+    """The displacements of the labelled peaks' height maps, measured as frames come.
+
+    A new estimate starts whenever the peaks with height maps or the map shape change;
+    maps are added at most :data:`COREGISTER_HZ` times a second.
+    """
+
+    def __init__(self) -> None:
+        self._estimator: DisplacementEstimator | None = None
+        self._key: tuple | None = None
+        self._added_at = -math.inf
+
+    def update(self, result: DemodResult, now: float) -> list[Displacement] | None:
+        """Add the frame's height maps when due; return one displacement per height map."""
+        peaks = [r for r in result.peaks if r.delta_h is not None]
+        if len(peaks) < 2:
+            return None
+        key = (tuple(r.peak.label for r in peaks), result.box_shape)
+        if key != self._key or self._estimator is None:
+            self._estimator = DisplacementEstimator(result.box_shape, len(peaks))
+            self._key = key
+            self._added_at = -math.inf
+        if now - self._added_at >= 1.0 / COREGISTER_HZ and not result.flags & {"reference"}:
+            self._estimator.add([np.where(r.mask, r.delta_h, np.nan) for r in peaks])
+            self._added_at = now
+        return self._estimator.displacements()
 
 
 class LivePipeline:
@@ -246,6 +288,7 @@ class LivePipeline:
         self._peaks: list[Peak] = []
         self._peaks_at = -math.inf
         self._demod = DemodulationStage(frame_shape, saturation)
+        self._coregistration = Coregistration()
         self._trends = TrendStage()
         self._trend: TrendSummary | None = None
         self._trend_at = -math.inf
@@ -368,6 +411,8 @@ class LivePipeline:
         demod = self._demod.run(frame, peaks, e)
         heights: dict[str, np.ndarray] = {}
         phases: dict[str, np.ndarray] = {}
+        shifts: dict[str, tuple[float, float]] = {}
+        grid_of = None
         fused = None
         trend = None
         if demod is not None:
@@ -376,7 +421,17 @@ class LivePipeline:
                 phases[name] = r.phase
                 if r.delta_h is not None:
                     heights[name] = r.delta_h
-            fused = fuse_maps(demod)
+            displacements = self._coregistration.update(demod, now)
+            fused = fuse_maps(demod, displacements)
+            if displacements is not None:
+                grid_of = next(iter(heights))
+                step = (
+                    demod.frame_shape[0] / demod.box_shape[0],
+                    demod.frame_shape[1] / demod.box_shape[1],
+                )
+                for name, d in zip(heights, displacements, strict=True):
+                    if d.measured:
+                        shifts[name] = (d.shift[0] * step[0], d.shift[1] * step[1])
             self._trends.add(
                 meta.t_host, {r.peak.label or "?": r.carrier_value for r in demod.peaks}
             )
@@ -404,6 +459,8 @@ class LivePipeline:
             heights_m=heights,
             fused_m=fused,
             phases_rad=phases,
+            shifts_px=shifts,
+            grid_of=grid_of,
             trend_times_s=None if trend is None else trend.times_s,
             trend_depths_m={} if trend is None else trend.depths_m,
             rate_m_per_s=None if trend is None else trend.rate_m_per_s,

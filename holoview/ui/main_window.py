@@ -605,7 +605,13 @@ class MainWindow(QMainWindow):
         self.spectrum.set_model(result.labelled, result.predicted, result.radius)
         self.spectrum.set_notes(result.notes)
         if result.heights_m or result.phases_rad:
-            self.surface.set_maps(result.heights_m, result.fused_m, result.phases_rad)
+            self.surface.set_maps(
+                result.heights_m,
+                result.fused_m,
+                result.phases_rad,
+                result.shifts_px,
+                result.grid_of,
+            )
         if result.trend_times_s is not None and (
             previous is None or result.trend_times_s is not previous.trend_times_s
         ):

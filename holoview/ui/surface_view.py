@@ -191,6 +191,8 @@ class SurfaceView(QWidget):
         heights_m: Mapping[str, np.ndarray],
         fused_m: np.ndarray | None = None,
         phases_rad: Mapping[str, np.ndarray] | None = None,
+        shifts_px: Mapping[str, tuple[float, float]] | None = None,
+        grid_of: str | None = None,
     ) -> None:
         """Show one map per label and the fused map.
 
@@ -202,6 +204,12 @@ class SurfaceView(QWidget):
             The fused delta-h, metres.
         phases_rad : mapping of str to ndarray, optional
             Phase per labelled peak, radians (shown in phase mode).
+        shifts_px : mapping of str to (dy, dx), optional
+            Measured displacement of each map against the map ``grid_of``, camera
+            pixels: in each map's tooltip; the fused map's title says it is
+            co-registered.
+        grid_of : str, optional
+            The map whose grid the others are moved onto for the fused map.
         """
         if self._mode == "phase" and phases_rad:
             data = {k: np.asarray(v, dtype=np.float32) for k, v in phases_rad.items()}
@@ -219,7 +227,27 @@ class SurfaceView(QWidget):
             self.auto_range()
         for name, image in self.images.items():
             image.setImage(data[name], autoLevels=False, levels=self._current_levels())
+        self._show_shifts(shifts_px or {}, grid_of)
         self._update_profile()
+
+    def _show_shifts(
+        self, shifts_px: Mapping[str, tuple[float, float]], grid_of: str | None
+    ) -> None:
+        """Title the fused map by whether it is co-registered; shifts in the tooltips."""
+        moved = any(v != (0.0, 0.0) for v in shifts_px.values())
+        for name, plot in self.plots.items():
+            if name == FUSED:
+                title = f"{FUSED} (on {grid_of}'s grid)" if moved and grid_of else FUSED
+                if plot.titleLabel.text != title:
+                    plot.setTitle(title, size=TITLE_SIZE)
+                continue
+            shift = shifts_px.get(name)
+            plot.setToolTip(
+                "displacement not measured yet"
+                if shift is None
+                else f"displacement against {grid_of}: dy {shift[0]:+.2f}, dx {shift[1]:+.2f} "
+                "camera pixels"
+            )
 
     def map_data(self, name: str) -> np.ndarray:
         """Return the array shown for ``name`` (nm or rad)."""

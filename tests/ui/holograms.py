@@ -23,19 +23,33 @@ def carriers() -> dict[str, tuple[float, float]]:
     return {k: model[k] for k in FAMILIES}
 
 
-def hologram_stack(n: int, shape: tuple[int, int] = (256, 256), seed: int = 0) -> np.ndarray:
-    """Return ``n`` 12-bit frames holding the four families, a bump rising 5 nm per frame."""
+def hologram_stack(
+    n: int,
+    shape: tuple[int, int] = (256, 256),
+    seed: int = 0,
+    shifts: dict[str, tuple[float, float]] | None = None,
+) -> np.ndarray:
+    """Return ``n`` 12-bit frames holding the four families, a bump rising 5 nm per frame.
+
+    ``shifts`` gives families a displacement ``(dy, dx)`` in pixels: they image the
+    bump at ``r + shift`` (paper section 2).
+    """
     rng = np.random.default_rng(seed)
     rows, cols = shape
     y, x = np.mgrid[0:rows, 0:cols].astype(np.float64)
-    bump = np.exp(-((x - cols / 2) ** 2 + (y - rows / 2) ** 2) / (2 * (cols / 8) ** 2))
+
+    def bump(dy: float, dx: float) -> np.ndarray:
+        r2 = (x + dx - cols / 2) ** 2 + (y + dy - rows / 2) ** 2
+        return np.exp(-r2 / (2 * (cols / 8) ** 2))
+
+    bumps = {name: bump(*(shifts or {}).get(name, (0.0, 0.0))) for name in FAMILIES}
     frames = np.empty((n, rows, cols), np.uint16)
     for t in range(n):
-        h = bump * 5e-9 * t
         image = np.ones(shape)
         for amplitude, (name, (fx, fy)) in zip(
             (0.2, 0.12, 0.08, 0.05), carriers().items(), strict=True
         ):
+            h = bumps[name] * 5e-9 * t
             phase = (
                 2 * np.pi * (fx * x + fy * y)
                 + 4 * np.pi * alpha_of(name, N1, N2) * h / WAVELENGTH_M

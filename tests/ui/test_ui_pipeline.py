@@ -63,6 +63,23 @@ def test_two_labels_bring_predicted_peaks_maps_and_trend(monkeypatch) -> None:
     assert last.spectrum is not None and last.spectrum.shape == (128, 128)
 
 
+def test_maps_are_co_registered_by_their_measured_displacements(monkeypatch) -> None:
+    """Families imaging the bump at shifted places: the shifts are measured, in camera pixels,
+    against the first labelled peak, and the fused map is put on its grid."""
+    monkeypatch.setattr(live_pipeline, "COREGISTER_HZ", math.inf)  # every frame
+    images = {"RB1": (0.5, -0.5), "RF": (3.0, -2.0), "RB2": (-2.0, 1.5)}
+    frames = hologram_stack(40, (128, 128), shifts=images)
+    results = _run(LivePipeline(_experiment(), (128, 128)), frames)
+    assert results[0].shifts_px == {"RB1": (0.0, 0.0)}  # a reference frame: nothing measured
+    last = results[-1]
+    assert last.grid_of == "RB1" and last.fused_m is not None
+    assert last.shifts_px["RB1"] == (0.0, 0.0)
+    for name in ("FB1", "RF", "RB2"):
+        image = images.get(name, (0.0, 0.0))
+        expected = (images["RB1"][0] - image[0], images["RB1"][1] - image[1])
+        assert last.shifts_px[name] == pytest.approx(expected, abs=0.4), name
+
+
 def test_custom_label_has_phase_but_no_height() -> None:
     frames = hologram_stack(3, (128, 128))
     experiment = _experiment(peaks=(LabelledPeak("mine", *RB1),))

@@ -169,6 +169,20 @@ def test_surface_maps_in_nm_profiles_and_cyclic_phase(qtbot) -> None:
     assert view.colour_bar.getAxis("left").labelText == "phase (rad)"
 
 
+def test_fused_title_and_tooltips_tell_the_co_registration(qtbot) -> None:
+    view = SurfaceView()
+    qtbot.addWidget(view)
+    maps = {"RB1": np.zeros((16, 16)), "RF": np.ones((16, 16)) * 1e-9}
+    view.set_maps(maps, maps["RB1"])
+    assert view.plots[FUSED].titleLabel.text == FUSED
+    assert view.plots["RF"].toolTip() == "displacement not measured yet"
+    view.set_maps(
+        maps, maps["RB1"], shifts_px={"RB1": (0.0, 0.0), "RF": (1.25, -0.5)}, grid_of="RB1"
+    )
+    assert view.plots[FUSED].titleLabel.text == "fused (on RB1's grid)"
+    assert "dy +1.25, dx -0.50 camera pixels" in view.plots["RF"].toolTip()
+
+
 def test_trends_show_rate_in_um_per_min(qtbot) -> None:
     view = TrendsView()
     qtbot.addWidget(view)
