@@ -26,7 +26,10 @@
     trusted; attributes ``unit``, ``quantity`` (``delta_h``), ``reference`` and
     ``reference_description``, ``label``, ``alpha``, ``carrier_cpp``, ``frame_shape_px``,
     ``pixel_step_px``, ``pixel_size_m`` (when the pixel pitch is known), ``window``,
-    ``radius_cpp``. A peak without alpha keeps its phase map (``unit`` ``rad``,
+    ``radius_cpp``, per peak its measured shift against the first peak
+    (``displacement_px``, ``displacement_stderr_px``, ``displacement_measured``), and
+    for ``fused`` its ``labels`` and ``grid_of`` (the maps are moved onto that peak's
+    grid before fusing). A peak without alpha keeps its phase map (``unit`` ``rad``,
     ``quantity`` ``phase``).
 """
 
