@@ -40,6 +40,7 @@ moves each map by ``-d`` onto the reference's grid.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -289,8 +290,44 @@ class DisplacementEstimator:
         return Displacement(shift, err, True, n)
 
 
+def _bspline_weights(t: float) -> tuple[float, float, float, float]:
+    """Cubic B-spline weights of the coefficients at -1, 0, 1, 2 for an offset t in [0, 1)."""
+    return (
+        (1.0 - t) ** 3 / 6.0,
+        (3.0 * t**3 - 6.0 * t**2 + 4.0) / 6.0,
+        (-3.0 * t**3 + 3.0 * t**2 + 3.0 * t + 1.0) / 6.0,
+        t**3 / 6.0,
+    )
+
+
+def _taps(shift: float, size: int) -> list[tuple[np.ndarray, float]]:
+    """Source indices (edges held) and weights moving a signal by ``shift`` pixels.
+
+    ``output(i) = sum_k weight_k coefficients(index_k(i))``: one tap of weight 1 for a
+    whole-pixel shift, else the four B-spline taps around ``i - shift``.
+    """
+    start = -shift
+    whole = math.floor(start)
+    index = np.arange(size) + whole
+    t = start - whole
+    if t == 0:
+        return [(np.clip(index, 0, size - 1), 1.0)]
+    weights = _bspline_weights(t)
+    return [
+        (np.clip(index + k, 0, size - 1), w) for k, w in zip((-1, 0, 1, 2), weights, strict=True)
+    ]
+
+
+def _move(values: np.ndarray, shift: float, axis: int) -> np.ndarray:
+    """Interpolate spline ``values`` moved by ``shift`` along ``axis`` (float32)."""
+    out = np.zeros(values.shape, dtype=np.float32)
+    for index, weight in _taps(shift, values.shape[axis]):
+        out += np.float32(weight) * np.take(values, index, axis=axis)
+    return out
+
+
 def _fill_untrusted(array: np.ndarray, trusted: np.ndarray) -> np.ndarray:
-    """Return ``array`` (float64) with untrusted pixels set to a local trusted average.
+    """Return ``array`` (float32) with untrusted pixels set to a local trusted average.
 
     Normalised convolution with a Gaussian of 2 pixels; pixels with no trusted
     neighbour within its reach take the trusted mean.
@@ -300,7 +337,15 @@ def _fill_untrusted(array: np.ndarray, trusted: np.ndarray) -> np.ndarray:
     local = np.full(array.shape, values[trusted].mean())
     reached = weight > 1e-3
     local[reached] = ndimage.gaussian_filter(values, 2.0)[reached] / weight[reached]
-    return np.where(trusted, values, local)
+    return np.where(trusted, values, local).astype(np.float32)
+
+
+def _spoiled(untrusted: np.ndarray, shift: float, axis: int) -> np.ndarray:
+    """Where a move by ``shift`` along ``axis`` reads any untrusted pixel."""
+    out = np.zeros(untrusted.shape, dtype=bool)
+    for index, _ in _taps(shift, untrusted.shape[axis]):
+        out |= np.take(untrusted, index, axis=axis)
+    return out
 
 
 def coregister(
@@ -308,13 +353,15 @@ def coregister(
 ) -> list[np.ndarray]:
     """Return the maps moved by ``-shift`` each onto the reference grid (NaN: untrusted).
 
-    Cubic-spline interpolation: maps at the box resolution hold detail up to near
-    their Nyquist frequency, which linear interpolation would damp by up to half at
-    a half-pixel shift (measured: 3 % rms error on waves 7 pixels and longer, against
-    0.03 % for the spline). Untrusted pixels are filled from their trusted neighbours
-    for the move (a step there would ring into the spline), and stay untrusted: a
-    pixel is trusted after the move only where every pixel it lies between was. A
-    zero shift returns the map as float32, unmoved.
+    Cubic-spline interpolation (a separable prefilter, then four taps per axis): maps
+    at the box resolution hold detail up to near their Nyquist frequency, which
+    linear interpolation would damp by up to half at a half-pixel shift. Measured on
+    waves 7 pixels and longer: 3 % rms error for linear interpolation, 0.2 % for
+    cubic convolution (Keys), 0.03 % for the spline; cubic convolution also biased
+    the iterated displacements by 0.02 map pixels where the spline did not. Untrusted
+    pixels are filled from their trusted neighbours for the prefilter and stay
+    untrusted, with every pixel whose four taps per axis read one. A zero shift
+    returns the map as float32, unmoved.
 
     Parameters
     ----------
@@ -337,12 +384,14 @@ def coregister(
             out.append(array)
             continue
         trusted = np.isfinite(array)
+        whole = bool(trusted.all())
         if not trusted.any():
             out.append(np.full(array.shape, np.nan, dtype=np.float32))
             continue
-        filled = _fill_untrusted(array, trusted)
-        moved = ndimage.shift(filled, (-dy, -dx), order=3, mode="nearest").astype(np.float32)
-        coverage = ndimage.shift(trusted.astype(np.float32), (-dy, -dx), order=1, mode="nearest")
-        moved[coverage < 0.999] = np.nan
+        filled = array if whole else _fill_untrusted(array, trusted)
+        coefficients = ndimage.spline_filter(filled, order=3, output=np.float32, mode="mirror")
+        moved = _move(_move(coefficients, -dy, 0), -dx, 1)
+        if not whole:
+            moved[_spoiled(_spoiled(~trusted, -dy, 0), -dx, 1)] = np.nan
         out.append(moved)
     return out
