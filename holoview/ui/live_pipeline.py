@@ -54,7 +54,7 @@ TREND_LENGTH = 36000
 #: Highest rate at which depths, rate and PCA are recomputed from the series, Hz.
 TREND_HZ = 2.0
 #: Highest rate at which maps are added to the displacement estimate, Hz.
-COREGISTER_HZ = 10.0
+COREGISTER_HZ = 2.0
 #: Families whose predicted carriers are drawn and matched once two peaks are labelled.
 PREDICTED_FAMILIES: tuple[str, ...] = ("RF", "RB1", "FB1", "RB2", "FB2")
 
@@ -211,14 +211,16 @@ def fuse_maps(
     Each peak is weighted by ``1 / noise_height^2`` over its trusted pixels; on a
     frame with no noise estimate (a reference frame) the trusted pixels are averaged. With
     ``displacements`` (one per peak with a height map, in order) the maps are first
-    co-registered onto the first one's grid. None with fewer than two height maps.
+    co-registered onto the first one's grid, by cubic convolution (fast enough for
+    every frame; :func:`~holoview.processing.coregister.coregister`). None with fewer
+    than two height maps.
     """
     peaks = [r for r in result.peaks if r.delta_h is not None]
     if len(peaks) < 2:
         return None
     maps = [np.where(r.mask, r.delta_h, np.nan) for r in peaks]
     if displacements is not None:
-        maps = coregister(maps, [d.shift for d in displacements])
+        maps = coregister(maps, [d.shift for d in displacements], method="cubic")
     noises = [r.noise_height for r in peaks]
     if not all(n is not None and np.isfinite(n) and n > 0 for n in noises):
         noises = [1.0] * len(maps)

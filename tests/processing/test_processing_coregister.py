@@ -74,23 +74,33 @@ def test_reset_forgets_the_frames() -> None:
     assert estimator.frames == 0 and not estimator.displacements()[1].measured
 
 
-def test_coregister_moves_a_map_back_and_keeps_untrusted_pixels_untrusted() -> None:
+@pytest.mark.parametrize(("method", "tolerance"), [("spline", 0.001), ("cubic", 0.005)])
+def test_coregister_moves_a_map_back_and_keeps_untrusted_pixels_untrusted(
+    method: str, tolerance: float
+) -> None:
     d = (0.4, -1.3)
     reference = waves(0.0, YY, XX)
     moving = waves(0.0, YY - d[0], XX - d[1])
     moving[40, 40] = np.nan
     original = moving.copy()
-    back, same = coregister([moving, reference], [d, (0.0, 0.0)])
+    back, same = coregister([moving, reference], [d, (0.0, 0.0)], method=method)
     np.testing.assert_array_equal(moving, original)  # input not modified
     inner = (slice(4, -4), slice(4, -4))
     error = np.sqrt(np.nanmean((back - reference)[inner] ** 2))
-    assert error < 0.005 * np.std(reference)  # cubic convolution; waves of 7 pixels and longer
+    assert error < tolerance * np.std(reference)  # waves of 7 pixels and longer
     assert np.sqrt(np.nanmean((moving - reference)[inner] ** 2)) > 10 * error  # it did move
     # back(r) = moving(r + d): the NaN at (40, 40) now spoils the 4 x 4 around (39.6, 41.3)
     assert np.isnan(back[38:42, 40:44]).all()
     assert np.count_nonzero(np.isnan(back[inner])) == 16
     np.testing.assert_array_equal(same, reference.astype(np.float32))
     assert back.dtype == np.float32
+
+
+def test_whole_pixel_shifts_are_exact() -> None:
+    moving = waves(0.0, YY - 2.0, XX + 1.0)
+    for method in ("spline", "cubic"):
+        (back,) = coregister([moving], [(2.0, -1.0)], method=method)
+        np.testing.assert_allclose(back[4:-4, 4:-4], waves(0.0, YY, XX)[4:-4, 4:-4], atol=1e-5)
 
 
 @pytest.mark.parametrize(
@@ -105,6 +115,7 @@ def test_coregister_moves_a_map_back_and_keeps_untrusted_pixels_untrusted() -> N
             "shape (8, 8)",
         ),
         (lambda: coregister([np.zeros(SHAPE)], []), "1 maps but 0 shifts"),
+        (lambda: coregister([np.zeros(SHAPE)], [(1, 1)], method="sinc"), "unknown interpolation"),
     ],
 )
 def test_bad_input_is_named(call, message: str) -> None:
