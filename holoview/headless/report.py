@@ -199,7 +199,9 @@ def _last_maps(data: RunData, analysis: Analysis) -> list[tuple[str, np.ndarray,
     position = int(np.flatnonzero(data.frames == data.last_frame)[0])
     fused = fuse_frame(data, position, heights, analysis.map_fusion_scales())
     if fused is not None:
-        panels.append(("fused", fused * 1e9, "nm"))
+        moved = any(d.measured and d.shift != (0.0, 0.0) for d in data.displacements)
+        title = f"fused (on {analysis.peaks[0].label}'s grid)" if moved else "fused"
+        panels.append((title, fused * 1e9, "nm"))
     return panels
 
 
