@@ -319,19 +319,19 @@ def demodulate_frames(
             for position, (index, frame) in enumerate(reader):
                 t0 = time.perf_counter()
                 result = demodulator.process(frame)
+                measure = estimator is not None and position % every == 0
+                wanted = result.peaks and (measure or sink is not None)
+                maps = frame_maps(result) if wanted else []
+                if maps and measure:
+                    estimator.add(maps)  # type: ignore[union-attr]
                 t1 = time.perf_counter()
                 data.demod_seconds += t1 - t0
                 _record(data, position, result)
                 if result.peaks:
                     last, data.last_frame = result, index
-                    measure = estimator is not None and position % every == 0
-                    if sink is not None or measure:
-                        maps = frame_maps(result)
-                        if sink is not None:
-                            for j, values_map in enumerate(maps):
-                                sink.write_map(position, j, values_map)
-                        if measure:
-                            estimator.add(maps)  # type: ignore[union-attr]
+                    if sink is not None:
+                        for j, values_map in enumerate(maps):
+                            sink.write_map(position, j, values_map)
                 data.write_seconds += time.perf_counter() - t1
                 done = position + 1
                 if progress is not None:
