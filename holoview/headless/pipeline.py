@@ -30,7 +30,12 @@ from holoview.errors import InputError
 from holoview.headless.inputs import InputFile, Optics
 from holoview.headless.reader import DEFAULT_DEPTH, FrameReader
 from holoview.headless.selection import Selection
-from holoview.processing.coregister import Displacement, DisplacementEstimator, coregister
+from holoview.processing.coregister import (
+    MIN_MAP_SIDE,
+    Displacement,
+    DisplacementEstimator,
+    coregister,
+)
 from holoview.processing.demodulate import DemodResult, Demodulator
 from holoview.processing.heights import fuse
 
@@ -121,7 +126,8 @@ class RunData:
         Input index of the frame the last maps come from.
     displacements : list of Displacement
         Each peak's measured shift against the first peak, in map pixels (empty
-        with one peak).
+        with one peak, or maps smaller than
+        :data:`~holoview.processing.coregister.MIN_MAP_SIDE`).
     maps_in_metres : bool
         Whether the maps are delta-h in m (every peak had alpha), else phases in rad.
     interrupted : bool
@@ -292,7 +298,9 @@ def demodulate_frames(
     n, m = len(frames), len(demodulator.peaks)
     values = np.full((n, m), np.nan + 0j, dtype=np.complex128)
     noise = np.full((n, m), np.nan)
-    estimator = DisplacementEstimator(demodulator.box_shape, m) if m >= 2 else None
+    estimator = None
+    if m >= 2 and min(demodulator.box_shape) >= MIN_MAP_SIDE:
+        estimator = DisplacementEstimator(demodulator.box_shape, m)
     every = max(1, n // COREGISTER_FRAMES)
     frame_flags = dict.fromkeys(COUNTED_FRAME_FLAGS, 0)
     peak_flags = [dict.fromkeys(COUNTED_PEAK_FLAGS, 0) for _ in range(m)]

@@ -51,6 +51,9 @@ from scipy import ndimage
 
 from holoview.errors import InputError
 
+#: Smallest side (pixels) of maps the estimator takes; smaller maps are not co-registered.
+MIN_MAP_SIDE = 8
+
 #: A shift is taken as measured when both standard errors are below this (pixels).
 MAX_STDERR = 0.1
 
@@ -132,8 +135,11 @@ class DisplacementEstimator:
         update_every: int = UPDATE_EVERY,
     ) -> None:
         rows, cols = int(shape[0]), int(shape[1])
-        if min(rows, cols) < 8:
-            raise InputError(f"maps of shape {shape} are too small to co-register (>= 8 x 8)")
+        if min(rows, cols) < MIN_MAP_SIDE:
+            raise InputError(
+                f"maps of shape {shape} are too small to co-register "
+                f"(>= {MIN_MAP_SIDE} x {MIN_MAP_SIDE})"
+            )
         if count < 2:
             raise InputError(f"co-registration needs at least 2 maps, got {count}")
         if not 0 <= reference < count:

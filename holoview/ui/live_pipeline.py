@@ -24,7 +24,12 @@ import numpy as np
 from holoview.acquire.source import FrameMeta
 from holoview.errors import HoloviewError, InputError
 from holoview.optics.families import alpha_of
-from holoview.processing.coregister import Displacement, DisplacementEstimator, coregister
+from holoview.processing.coregister import (
+    MIN_MAP_SIDE,
+    Displacement,
+    DisplacementEstimator,
+    coregister,
+)
 from holoview.processing.demodulate import DemodResult, Demodulator
 from holoview.processing.heights import fuse
 from holoview.processing.labelling import label_peaks
@@ -232,7 +237,8 @@ class Coregistration:
     """The displacements of the labelled peaks' height maps, measured as frames come.
 
     A new estimate starts whenever the peaks with height maps or the map shape change;
-    maps are added at most :data:`COREGISTER_HZ` times a second.
+    maps are added at most :data:`COREGISTER_HZ` times a second. Maps smaller than
+    :data:`~holoview.processing.coregister.MIN_MAP_SIDE` are not co-registered.
     """
 
     def __init__(self) -> None:
@@ -243,7 +249,7 @@ class Coregistration:
     def update(self, result: DemodResult, now: float) -> list[Displacement] | None:
         """Add the frame's height maps when due; return one displacement per height map."""
         peaks = [r for r in result.peaks if r.delta_h is not None]
-        if len(peaks) < 2:
+        if len(peaks) < 2 or min(result.box_shape) < MIN_MAP_SIDE:
             return None
         key = (tuple(r.peak.label for r in peaks), result.box_shape)
         if key != self._key or self._estimator is None:

@@ -8,10 +8,11 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
+import tifffile
 from headless_sim import Simulated, run_cli
 
 from holoview.headless.pipeline import RunData, fuse_frame
-from holoview.processing.coregister import Displacement, coregister
+from holoview.processing.coregister import MIN_MAP_SIDE, Displacement, coregister
 from holoview.processing.heights import fuse
 
 
@@ -75,3 +76,23 @@ def test_fuse_frame_moves_the_maps_and_leaves_out_a_peak_that_stepped() -> None:
         )
         np.testing.assert_allclose(fused, expected, rtol=1e-5, equal_nan=True)
     assert fuse_frame(data, 0, maps, [1e-9, None, None]) is None  # one peak: nothing to fuse
+
+
+def test_maps_too_small_to_co_register_are_fused_as_they_are(
+    evaporation: Simulated, tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    with h5py.File(evaporation.path, "r") as f:
+        frames = f["frames"][:20, :32, :32]
+    path = tmp_path / "small.tif"
+    tifffile.imwrite(path, frames)
+    out = tmp_path / "out"
+    argv = ["process", str(path), "--out", str(out), "--maps", "--wavelength", "532e-9"]
+    argv += ["--fluid", "water", "--fps", str(evaporation.fps), "--radius", "0.06"]
+    status, _, err = run_cli([*argv, *evaporation.label_args("RB1", "RF")], capsys)
+    assert status == 0, err
+    summary = json.loads((out / "summary.json").read_text())
+    with h5py.File(out / "results.h5", "r") as f:
+        assert min(f["maps/fused"].shape[1:]) < MIN_MAP_SIDE
+        assert "displacement_px" not in f["maps/RB1"].attrs
+        assert np.isfinite(f["maps/fused"][5]).any()
+    assert all(p["displacement"] is None for p in summary["peaks"].values())

@@ -80,6 +80,13 @@ def test_maps_are_co_registered_by_their_measured_displacements(monkeypatch) -> 
         assert last.shifts_px[name] == pytest.approx(expected, abs=0.4), name
 
 
+def test_maps_too_small_to_co_register_are_fused_unmoved() -> None:
+    frames = hologram_stack(3, (32, 32))
+    last = _run(LivePipeline(_experiment(radius=0.06), (32, 32)), frames)[-1]
+    assert last.fused_m is not None and min(last.fused_m.shape) < 8
+    assert last.shifts_px == {} and last.grid_of is None
+
+
 def test_custom_label_has_phase_but_no_height() -> None:
     frames = hologram_stack(3, (128, 128))
     experiment = _experiment(peaks=(LabelledPeak("mine", *RB1),))
