@@ -404,7 +404,8 @@ def coregister(
     - linear interpolation, for comparison: 3 %.
 
     An untrusted pixel stays untrusted and spoils every pixel whose four taps per
-    axis read it (4 x 4 pixels). A zero shift returns the map as float32, unmoved.
+    axis read it (4 x 4 pixels); pixels moved in from outside the map are untrusted
+    too. A zero shift returns the map as float32, unmoved.
 
     Parameters
     ----------
@@ -429,8 +430,22 @@ def coregister(
         array = np.asarray(values, dtype=np.float32)
         if dy == 0 and dx == 0:
             out.append(array)
-        elif method == "spline":
-            out.append(_spline_move(array, dy, dx))
+            continue
+        if method == "spline":
+            moved = _spline_move(array, dy, dx)
         else:
-            out.append(_along(_along(array, -dy, 0, "cubic"), -dx, 1, "cubic"))
+            moved = _along(_along(array, -dy, 0, "cubic"), -dx, 1, "cubic")
+        _blank_outside(moved, dy, dx)
+        out.append(moved)
     return out
+
+
+def _blank_outside(moved: np.ndarray, dy: float, dx: float) -> None:
+    """Set to NaN the pixels whose source ``r + shift`` lies outside the map."""
+    for axis, shift in ((0, dy), (1, dx)):
+        size = moved.shape[axis]
+        source = np.arange(size) + shift
+        outside = (source < 0) | (source > size - 1)
+        index = [slice(None), slice(None)]
+        index[axis] = outside  # type: ignore[call-overload]
+        moved[tuple(index)] = np.nan

@@ -96,11 +96,15 @@ def test_coregister_moves_a_map_back_and_keeps_untrusted_pixels_untrusted(
     assert back.dtype == np.float32
 
 
-def test_whole_pixel_shifts_are_exact() -> None:
+def test_whole_pixel_shifts_are_exact_and_leave_the_uncovered_edge_untrusted() -> None:
     moving = waves(0.0, YY - 2.0, XX + 1.0)
     for method in ("spline", "cubic"):
         (back,) = coregister([moving], [(2.0, -1.0)], method=method)
         np.testing.assert_allclose(back[4:-4, 4:-4], waves(0.0, YY, XX)[4:-4, 4:-4], atol=1e-5)
+        # back(r) = moving(r + (2, -1)): the last two rows and the first column come
+        # from outside the map, and are not made up
+        assert np.isnan(back[-2:]).all() and np.isnan(back[:, 0]).all()
+        assert np.isfinite(back[:-2, 1:]).all()
 
 
 @pytest.mark.parametrize(
