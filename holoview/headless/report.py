@@ -196,8 +196,10 @@ def _last_maps(data: RunData, analysis: Analysis) -> list[tuple[str, np.ndarray,
             panels.append((title, metres * 1e9, "nm"))
         elif values is not None:
             panels.append((f"{peak.label} phase", values, "rad"))
-    position = int(np.flatnonzero(data.frames == data.last_frame)[0])
-    fused = fuse_frame(data, position, heights, analysis.map_fusion_scales())
+    found = np.flatnonzero(data.frames == data.last_frame)
+    fused = None
+    if found.size:
+        fused = fuse_frame(data, int(found[0]), heights, analysis.map_fusion_scales())
     if fused is not None:
         moved = any(d.measured and d.shift != (0.0, 0.0) for d in data.displacements)
         title = f"fused (on {analysis.peaks[0].label}'s grid)" if moved else "fused"
