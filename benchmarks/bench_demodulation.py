@@ -41,11 +41,10 @@ from machine import machine
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from holoview.headless.pipeline import fuse_maps  # noqa: E402
 from holoview.optics.families import coherent_displacement, predict_families  # noqa: E402
 from holoview.optics.setup import Setup  # noqa: E402
 from holoview.optics.synthesis import HologramSynthesizer  # noqa: E402
-from holoview.processing.coregister import DisplacementEstimator  # noqa: E402
+from holoview.processing.coregister import DisplacementEstimator, fuse_coregistered  # noqa: E402
 from holoview.processing.demodulate import REFERENCE_MODES, Demodulator  # noqa: E402
 from holoview.processing.fftplans import default_threads, rfft2_plan  # noqa: E402
 from holoview.processing.heights import fuse  # noqa: E402
@@ -247,7 +246,7 @@ def coregistration(targets: list[tuple[str, str]], frames: int = 60) -> None:
         truth = moving_waves(t, by[:, None] + dy, bx[None, :] + dx)
         truth -= moving_waves(t - 1, by[:, None] + dy, bx[None, :] + dx)
         for name, moves in (("fused as measured", None), ("fused co-registered", shifts)):
-            fused = fuse_maps(maps, [n or np.nan for n in noises], moves)
+            fused = fuse_coregistered(maps, noises, moves)
             squared[name].append(float(np.nanmean((fused - truth)[inner] ** 2)))
         squared["RB1 alone"].append(float(np.nanmean((maps[0] - truth)[inner] ** 2)))
     rms = {name: float(np.sqrt(np.mean(v))) for name, v in squared.items()}

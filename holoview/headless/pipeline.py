@@ -34,10 +34,9 @@ from holoview.processing.coregister import (
     MIN_MAP_SIDE,
     Displacement,
     DisplacementEstimator,
-    coregister,
+    fuse_coregistered,
 )
 from holoview.processing.demodulate import DemodResult, Demodulator
-from holoview.processing.heights import fuse
 
 logger = logging.getLogger(__name__)
 
@@ -157,38 +156,6 @@ class RunData:
     wall_seconds: float = 0.0
 
 
-def fuse_maps(
-    maps: Sequence[np.ndarray],
-    noises: Sequence[float],
-    shifts: Sequence[tuple[float, float]] | None = None,
-) -> np.ndarray:
-    """Fuse maps (NaN: untrusted) weighted by ``1 / noise^2``, co-registered first.
-
-    Parameters
-    ----------
-    maps : sequence of ndarray, shape (by, bx)
-        Maps of one quantity (delta-h in m); not modified.
-    noises : sequence of float
-        Each map's noise (unit of the maps). When any is not a positive number (a
-        reference frame, whose maps are zero), the maps are averaged unweighted.
-    shifts : sequence of (dy, dx), optional
-        Each map's displacement (map pixels, :class:`~holoview.processing.coregister.Displacement`);
-        the maps are moved onto the grid of the map whose shift is zero.
-
-    Returns
-    -------
-    ndarray of float32
-        NaN where no map is trusted.
-    """
-    sigma = np.asarray(noises, dtype=np.float64)
-    if not (np.all(np.isfinite(sigma)) and np.all(sigma > 0)):
-        sigma = np.ones(len(maps))
-    if shifts is not None:
-        maps = coregister(maps, shifts)
-    fused, _ = fuse(maps, list(sigma), masks=[np.isfinite(m) for m in maps])
-    return fused.astype(np.float32)
-
-
 def fuse_frame(
     data: RunData,
     position: int,
@@ -222,7 +189,7 @@ def fuse_frame(
     shifts = None
     if data.displacements:
         shifts = [data.displacements[j].shift for j in chosen]
-    return fuse_maps(
+    return fuse_coregistered(
         [maps[j] for j in chosen],  # type: ignore[misc]
         [data.noise_rad[position, j] * abs(scales[j]) for j in chosen],  # type: ignore[arg-type]
         shifts,

@@ -50,6 +50,7 @@ import numpy as np
 from scipy import ndimage
 
 from holoview.errors import InputError
+from holoview.processing.heights import fuse
 
 #: Smallest side (pixels) of maps the estimator takes; smaller maps are not co-registered.
 MIN_MAP_SIDE = 8
@@ -449,3 +450,39 @@ def _blank_outside(moved: np.ndarray, dy: float, dx: float) -> None:
         index = [slice(None), slice(None)]
         index[axis] = outside  # type: ignore[call-overload]
         moved[tuple(index)] = np.nan
+
+
+def fuse_coregistered(
+    maps: Sequence[np.ndarray],
+    noises: Sequence[float | None],
+    shifts: Sequence[tuple[float, float]] | None = None,
+    *,
+    method: str = "spline",
+) -> np.ndarray:
+    """Fuse maps (NaN: untrusted) weighted by ``1 / noise^2``, co-registered first.
+
+    Parameters
+    ----------
+    maps : sequence of ndarray, shape (rows, cols)
+        Maps of one quantity (delta-h in m); not modified.
+    noises : sequence of float or None
+        Each map's noise (unit of the maps). When any is not a positive number (a
+        reference frame, whose maps are zero), the maps are averaged unweighted.
+    shifts : sequence of (dy, dx), optional
+        Each map's :attr:`Displacement.shift` (pixels); the maps are moved onto the
+        grid of the map whose shift is zero (:func:`coregister`).
+    method : {"spline", "cubic"}
+        The interpolation of :func:`coregister`.
+
+    Returns
+    -------
+    ndarray of float32
+        NaN where no map is trusted.
+    """
+    sigma = np.asarray(noises, dtype=np.float64)
+    if not (np.all(np.isfinite(sigma)) and np.all(sigma > 0)):
+        sigma = np.ones(len(maps))
+    if shifts is not None:
+        maps = coregister(maps, shifts, method=method)
+    fused, _ = fuse(maps, list(sigma), masks=[np.isfinite(m) for m in maps])
+    return fused.astype(np.float32)

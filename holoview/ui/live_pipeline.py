@@ -28,10 +28,9 @@ from holoview.processing.coregister import (
     MIN_MAP_SIDE,
     Displacement,
     DisplacementEstimator,
-    coregister,
+    fuse_coregistered,
 )
 from holoview.processing.demodulate import DemodResult, Demodulator
-from holoview.processing.heights import fuse
 from holoview.processing.labelling import label_peaks
 from holoview.processing.peaks import Peak, find_peaks
 from holoview.processing.spectrum import display_spectrum
@@ -208,29 +207,29 @@ class DemodulationStage:
         return self._demod.process(frame)
 
 
-def fuse_maps(
-    result: DemodResult, displacements: list[Displacement] | None = None
-) -> np.ndarray | None:
-    """Fuse the delta-h maps of a frame (:mod:`holoview.processing.heights`).
+def trusted_heights(result: DemodResult) -> list[np.ndarray]:
+    """The frame's delta-h maps (m), NaN where untrusted, for the peaks that have one."""
+    return [np.where(r.mask, r.delta_h, np.nan) for r in result.peaks if r.delta_h is not None]
 
-    Each peak is weighted by ``1 / noise_height^2`` over its trusted pixels; on a
-    frame with no noise estimate (a reference frame) the trusted pixels are averaged. With
-    ``displacements`` (one per peak with a height map, in order) the maps are first
-    co-registered onto the first one's grid, by cubic convolution (fast enough for
-    every frame; :func:`~holoview.processing.coregister.coregister`). None with fewer
-    than two height maps.
+
+def fuse_maps(
+    result: DemodResult,
+    maps: list[np.ndarray],
+    displacements: list[Displacement] | None = None,
+) -> np.ndarray | None:
+    """Fuse the frame's :func:`trusted_heights` ``maps``; None with fewer than two.
+
+    Each peak is weighted by ``1 / noise_height^2``; on a frame with no noise estimate
+    (a reference frame) the trusted pixels are averaged. With ``displacements`` (one
+    per map) the maps are first co-registered onto the first one's grid, by cubic
+    convolution (fast enough for every frame;
+    :func:`~holoview.processing.coregister.fuse_coregistered`).
     """
-    peaks = [r for r in result.peaks if r.delta_h is not None]
-    if len(peaks) < 2:
+    if len(maps) < 2:
         return None
-    maps = [np.where(r.mask, r.delta_h, np.nan) for r in peaks]
-    if displacements is not None:
-        maps = coregister(maps, [d.shift for d in displacements], method="cubic")
-    noises = [r.noise_height for r in peaks]
-    if not all(n is not None and np.isfinite(n) and n > 0 for n in noises):
-        noises = [1.0] * len(maps)
-    fused, _ = fuse(maps, noises, masks=[np.isfinite(m) for m in maps])
-    return fused.astype(np.float32)
+    noises = [r.noise_height for r in result.peaks if r.delta_h is not None]
+    shifts = None if displacements is None else [d.shift for d in displacements]
+    return fuse_coregistered(maps, noises, shifts, method="cubic")
 
 
 class Coregistration:
@@ -246,18 +245,20 @@ class Coregistration:
         self._key: tuple | None = None
         self._added_at = -math.inf
 
-    def update(self, result: DemodResult, now: float) -> list[Displacement] | None:
-        """Add the frame's height maps when due; return one displacement per height map."""
-        peaks = [r for r in result.peaks if r.delta_h is not None]
-        if len(peaks) < 2 or min(result.box_shape) < MIN_MAP_SIDE:
+    def update(
+        self, result: DemodResult, maps: list[np.ndarray], now: float
+    ) -> list[Displacement] | None:
+        """Add the frame's :func:`trusted_heights` ``maps`` when due; one displacement each."""
+        if len(maps) < 2 or min(result.box_shape) < MIN_MAP_SIDE:
             return None
-        key = (tuple(r.peak.label for r in peaks), result.box_shape)
+        labels = tuple(r.peak.label for r in result.peaks if r.delta_h is not None)
+        key = (labels, result.box_shape)
         if key != self._key or self._estimator is None:
-            self._estimator = DisplacementEstimator(result.box_shape, len(peaks))
+            self._estimator = DisplacementEstimator(result.box_shape, len(maps))
             self._key = key
             self._added_at = -math.inf
         if now - self._added_at >= 1.0 / COREGISTER_HZ and not result.flags & {"reference"}:
-            self._estimator.add([np.where(r.mask, r.delta_h, np.nan) for r in peaks])
+            self._estimator.add(maps)
             self._added_at = now
         return self._estimator.displacements()
 
@@ -429,8 +430,9 @@ class LivePipeline:
                 phases[name] = r.phase
                 if r.delta_h is not None:
                     heights[name] = r.delta_h
-            displacements = self._coregistration.update(demod, now)
-            fused = fuse_maps(demod, displacements)
+            trusted = trusted_heights(demod)
+            displacements = self._coregistration.update(demod, trusted, now)
+            fused = fuse_maps(demod, trusted, displacements)
             if displacements is not None:
                 grid_of = next(iter(heights))
                 step = (
