@@ -5,8 +5,10 @@ counts exactly the frames the ring overwrote before it could write them. It
 flushes the file at least every ``flush_interval_s`` of the writer, also when no
 frame comes. It stops when the ring closes (after writing what remains), once it
 has written ``max_frames``, on :meth:`Recorder.stop`, or on a write error (kept in
-:attr:`Recorder.error`); in every case it closes the file, so everything written
-stays readable.
+:attr:`Recorder.error`: a full disk, an I/O error); in every case it closes the
+file, so everything written stays readable, also by plain h5py. After a write
+error :meth:`Recorder.accounting` counts the frames the camera went on acquiring
+as lost to the disk: every frame acquired is recorded, dropped or lost.
 """
 
 from __future__ import annotations
@@ -15,14 +17,15 @@ import logging
 import os
 import threading
 from collections.abc import Mapping
+from typing import NamedTuple
 
 import numpy as np
 
 from holoview.acquire.pixel_formats import PIXEL_FORMATS
-from holoview.acquire.recording import RecordingWriter
+from holoview.acquire.recording import RecordingWriteError, RecordingWriter
 from holoview.acquire.ring import CLOSED, FrameRing, RingStatus
 from holoview.acquire.source import Source
-from holoview.errors import HoloviewError, InputError
+from holoview.errors import InputError
 
 logger = logging.getLogger(__name__)
 
@@ -33,8 +36,31 @@ def _significant_bits(pixel_format: object) -> int | None:
     return fmt.bits if fmt is not None else None
 
 
-class RecordingWriteError(HoloviewError):
-    """Writing the recording failed (disk full, file removed); what was written is kept."""
+class Accounting(NamedTuple):
+    """Where every frame the camera acquired during a recording went.
+
+    ``acquired == recorded + dropped + lost_to_disk`` once the recorder has ended.
+
+    Attributes
+    ----------
+    acquired : int
+        Frames put into the ring since the recorder started.
+    recorded : int
+        Frames written to the file.
+    dropped : int
+        Frames the ring overwrote before the recorder could write them (overflow).
+    lost_to_disk : int
+        Frames acquired after a write error ended the recording (or that it could
+        not write).
+    transport_lost : int
+        Frames the camera or its transport lost before the ring (not in ``acquired``).
+    """
+
+    acquired: int
+    recorded: int
+    dropped: int
+    lost_to_disk: int
+    transport_lost: int
 
 
 class Recorder:
@@ -71,6 +97,7 @@ class Recorder:
         self._consumer = ring.consumer("recorder", mode="every")
         #: The error that ended recording early, or None.
         self.error: BaseException | None = None
+        self._dropped_at_end: int | None = None
         self._stop = threading.Event()
         self._stop_at = 0  # with drain, the ring position to record up to before stopping
         self._thread = threading.Thread(target=self._run, name="holoview-recorder", daemon=True)
@@ -127,6 +154,17 @@ class Recorder:
         """The recorder's ring accounting: acquired, unread, dropped, capacity, ..."""
         return self._consumer.status()
 
+    def accounting(self) -> Accounting:
+        """Acquired, recorded, dropped, lost to the disk, and lost in transport so far."""
+        status = self._consumer.status()
+        recorded = len(self.writer)
+        if self._dropped_at_end is None:  # running: what waits in the ring is not lost yet
+            return Accounting(status.acquired, recorded, status.dropped, 0, status.transport_lost)
+        lost = max(0, status.acquired - recorded - self._dropped_at_end)
+        return Accounting(
+            status.acquired, recorded, self._dropped_at_end, lost, status.transport_lost
+        )
+
     def start(self) -> None:
         """Start the thread."""
         self._thread.start()
@@ -168,18 +206,17 @@ class Recorder:
                 writer.append(pixels, meta.frame_id, meta.t_device, meta.t_host)
                 if self.max_frames is not None and len(writer) >= self.max_frames:
                     break
-        except OSError as exc:
-            self.error = RecordingWriteError(f"writing {writer.path} failed: {exc}")
-            logger.error("%s", self.error)
+        except RecordingWriteError as exc:  # a full disk, an I/O error: the file is closed below
+            self.error = exc
+            logger.debug("recorder stopped: %s", exc)
         except Exception as exc:  # a bug: keep the traceback, still close the file
             self.error = exc
             logger.exception("recorder failed on %s", writer.path)
         finally:
+            self._dropped_at_end = self._consumer.status().dropped
             try:
                 writer.close()
-            except OSError as exc:
-                self.error = self.error or RecordingWriteError(
-                    f"closing {writer.path} failed: {exc}"
-                )
-                logger.error("closing %s failed: %s", writer.path, exc)
-            logger.info("recorder: %d frames written; %s", len(writer), self.status())
+            except RecordingWriteError as exc:
+                self.error = self.error or exc
+                logger.debug("closing %s: %s", writer.path, exc)
+            logger.info("recorder: %d frames written; %s", len(writer), self.accounting())

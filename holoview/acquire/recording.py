@@ -43,7 +43,14 @@ reopening a closed recording with ``h5py.File(path, "a")``) are ignored by reade
 Durability: the writer flushes at most ``flush_interval_s`` (default 0.5 s) after
 an append, and :meth:`RecordingWriter.flush_if_due` lets an idle recorder keep that
 promise; a writer killed at any moment leaves a file that opens with every frame
-up to its last flush.
+up to its last flush. A full disk ends a recording cleanly: the writer checks the
+free space before each frame and raises :class:`DiskFullError` while a frame and
+the room to close the file still fit; when a write fails anyway (another program
+filled the disk, an I/O error) it raises :class:`RecordingWriteError`, and
+:meth:`RecordingWriter.close` gives back the reserve it keeps beside the file
+(:mod:`holoview.acquire.durability`), trims the datasets to the frames fully
+written and closes the file, which plain h5py and HDF5 tools then open.
+Readers refuse a truncated file at once instead of retrying (same module).
 """
 
 from __future__ import annotations
@@ -57,13 +64,20 @@ import uuid as _uuid
 from collections.abc import Iterator, Mapping
 from pathlib import Path
 from types import TracebackType
-from typing import Any, Self
+from typing import Self
 
 import h5py
 import numpy as np
 
 from holoview import __version__
-from holoview.errors import InputError
+from holoview.acquire.durability import (
+    CLOSE_MARGIN_BYTES,
+    DiskReserve,
+    free_bytes,
+    open_hdf5_for_reading,
+)
+from holoview.acquire.hdf5_attributes import plain_value, read_attributes, write_attributes
+from holoview.errors import InputError, OutputError, os_error_text
 
 logger = logging.getLogger(__name__)
 
@@ -76,87 +90,16 @@ SUPPORTED_MAJOR_VERSIONS = (1,)
 #: HDF5 library version bounds: readable by HDF5 1.10, SWMR-capable.
 LIBVER = ("v110", "latest")
 
-#: Unit implied by a name's suffix, where no unit is given explicitly.
-UNIT_SUFFIXES: dict[str, str] = {
-    "_m": "m",
-    "_s": "s",
-    "_hz": "Hz",
-    "_db": "dB",
-    "_px": "pixel",
-    "_k": "K",
-}
-
 #: Pixel format assumed for a dtype when the writer is given none.
 _DEFAULT_PIXEL_FORMAT = {np.dtype(np.uint8): ("Mono8", 8), np.dtype(np.uint16): ("Mono16", 16)}
 
 
-def unit_for(name: str) -> str:
-    """Return the unit a setting's name implies by its suffix (``""`` when none)."""
-    for suffix, unit in UNIT_SUFFIXES.items():
-        if name.endswith(suffix):
-            return unit
-    return ""
+class RecordingWriteError(OutputError):
+    """Writing the recording failed (disk full, I/O error); the frames written are kept."""
 
 
-def _attribute_value(name: str, value: object) -> Any:
-    """Return ``value`` in a form HDF5 stores as an attribute, or raise InputError."""
-    if isinstance(value, bool | np.bool_):
-        return np.bool_(value)
-    if isinstance(value, str | int | float | np.integer | np.floating):
-        return value
-    if isinstance(value, Path):
-        return str(value)
-    try:
-        array = np.asarray(value)
-    except (TypeError, ValueError) as exc:
-        raise InputError(f"setting {name!r}: cannot store {type(value).__name__}") from exc
-    if array.dtype.kind not in "biuf":
-        if array.dtype.kind == "U":
-            return array.astype(h5py.string_dtype())
-        raise InputError(f"setting {name!r}: cannot store a value of type {type(value).__name__}")
-    return array
-
-
-def _write_attributes(group: h5py.Group, values: Mapping[str, object] | None) -> None:
-    """Write ``values`` as attributes of ``group`` and their units on ``group/units``.
-
-    A value may be a plain value or a ``(value, unit)`` pair whose second item is a str.
-    """
-    units_group = group.create_group("units")
-    for name, raw in (values or {}).items():
-        unit = unit_for(name)
-        value = raw
-        if isinstance(raw, tuple) and len(raw) == 2 and isinstance(raw[1], str):
-            value, unit = raw
-        if value is None:
-            continue
-        group.attrs[name] = _attribute_value(name, value)
-        units_group.attrs[name] = unit
-
-
-def _read_attributes(group: h5py.Group | None) -> tuple[dict[str, Any], dict[str, str]]:
-    """Return (values, units) from a group written by :func:`_write_attributes`."""
-    if group is None:
-        return {}, {}
-    values = {name: _plain(value) for name, value in group.attrs.items()}
-    units_group = group.get("units")
-    units = (
-        {name: str(_plain(unit)) for name, unit in units_group.attrs.items()}
-        if isinstance(units_group, h5py.Group)
-        else {}
-    )
-    return values, units
-
-
-def _plain(value: Any) -> Any:
-    """Return an attribute value as a Python scalar, str, or numpy array."""
-    if isinstance(value, bytes):
-        return value.decode("utf-8")
-    if isinstance(value, np.generic):
-        return value.item()
-    if isinstance(value, np.ndarray) and value.dtype.kind == "O":
-        return [_plain(v) for v in value.tolist()]
-    return value
+class DiskFullError(RecordingWriteError):
+    """The disk has no room for the next frame; the recording stopped before it."""
 
 
 class RecordingWriter:
@@ -195,6 +138,8 @@ class RecordingWriter:
     ------
     InputError
         The file exists, its folder does not, or a shape, dtype or setting is invalid.
+    OutputError
+        The disk has no room for the file and its reserve, or the file cannot be created.
     """
 
     def __init__(
@@ -235,20 +180,26 @@ class RecordingWriter:
         self.flush_interval_s = float(flush_interval_s)
         self.uuid = str(_uuid.uuid4())
         self._n = 0
+        self._broken = False  # a write failed: the datasets may be longer than _n
         self._unflushed_since: float | None = None
         self._frame_bytes = self.frame_shape[0] * self.frame_shape[1] * self.dtype.itemsize
+        self._reserve = DiskReserve(self.path)
         try:
             self._file = h5py.File(self.path, "w-", libver=LIBVER)
         except OSError as exc:
-            raise InputError(f"cannot create {self.path}: {exc}") from exc
+            self._reserve.release()
+            raise OutputError(f"cannot create {self.path}: {os_error_text(exc)}") from exc
         try:
             self._create_layout(setup, settings, source)
             if swmr:
                 self._file.swmr_mode = True
             self._file.flush()
-        except BaseException:
+        except BaseException as exc:
             self._file.close()
             self.path.unlink(missing_ok=True)
+            self._reserve.release()
+            if isinstance(exc, OSError | RuntimeError):
+                raise OutputError(f"cannot create {self.path}: {os_error_text(exc)}") from exc
             raise
         logger.info(
             "recording %s: %s frames %s, uuid %s",
@@ -288,8 +239,8 @@ class RecordingWriter:
             f[name].attrs["unit"] = "s"
         f["t_host_s"].attrs["clock"] = "seconds since the UNIX epoch (host time.time())"
         f["t_device_s"].attrs["clock"] = "the camera's clock; NaN where it has none"
-        _write_attributes(f.create_group("setup"), setup)
-        _write_attributes(f.create_group("settings"), settings)
+        write_attributes(f.create_group("setup"), setup)
+        write_attributes(f.create_group("settings"), settings)
         self._frames = frames
         self._ids = f["frame_id"]
         self._t_device = f["t_device_s"]
@@ -322,9 +273,16 @@ class RecordingWriter:
         ------
         InputError
             The frame's shape or dtype differs from the writer's.
+        DiskFullError
+            The frame and the room to close the file do not fit on the disk; nothing
+            was written.
+        RecordingWriteError
+            The write failed; :meth:`close` keeps the frames appended before.
         """
         if self.closed:
             raise InputError(f"recording {self.path} is closed")
+        if self._broken:
+            raise RecordingWriteError(f"{self.path}: an earlier write failed; close the file")
         array = np.asarray(frame)
         if array.shape != self.frame_shape:
             raise InputError(
@@ -333,16 +291,26 @@ class RecordingWriter:
         if array.dtype != self.dtype:
             raise InputError(f"frame dtype {array.dtype} differs from the recording's {self.dtype}")
         n = self._n
-        self._frames.resize(n + 1, axis=0)
-        # One frame is exactly one uncompressed chunk: write its bytes directly.
-        self._frames.id.write_direct_chunk((n, 0, 0), np.ascontiguousarray(array).data)
-        for dataset, value in (
-            (self._ids, frame_id),
-            (self._t_device, t_device),
-            (self._t_host, t_host),
-        ):
-            dataset.resize(n + 1, axis=0)
-            dataset[n] = value
+        free = free_bytes(self.path.parent)
+        if free is not None and free < self._frame_bytes + CLOSE_MARGIN_BYTES:
+            raise DiskFullError(
+                f"{self.path}: the disk is full ({free / 1e6:.1f} MB free): "
+                f"recording stopped after {n} frames"
+            )
+        try:
+            self._frames.resize(n + 1, axis=0)
+            # One frame is exactly one uncompressed chunk: write its bytes directly.
+            self._frames.id.write_direct_chunk((n, 0, 0), np.ascontiguousarray(array).data)
+            for dataset, value in (
+                (self._ids, frame_id),
+                (self._t_device, t_device),
+                (self._t_host, t_host),
+            ):
+                dataset.resize(n + 1, axis=0)
+                dataset[n] = value
+        except (OSError, RuntimeError) as exc:
+            self._broken = True
+            raise self._write_error(exc) from exc
         self._n = n + 1
         now = time.monotonic()
         if self._unflushed_since is None:
@@ -360,19 +328,66 @@ class RecordingWriter:
         return True
 
     def flush(self) -> None:
-        """Write every appended frame to disk now (SWMR readers see them after refresh)."""
+        """Write every appended frame to disk now (SWMR readers see them after refresh).
+
+        Raises
+        ------
+        RecordingWriteError
+            The flush failed (a full disk); :meth:`close` still tries to keep every frame.
+        """
         if self.closed:
             return
-        self._file.flush()
+        try:
+            self._file.flush()
+        except (OSError, RuntimeError) as exc:
+            self._broken = True
+            raise self._write_error(exc) from exc
         self._unflushed_since = None
 
+    def _write_error(self, exc: BaseException) -> RecordingWriteError:
+        return RecordingWriteError(
+            f"writing {self.path} failed: {os_error_text(exc)}; "
+            f"recording stopped after {self._n} frames"
+        )
+
     def close(self) -> None:
-        """Flush and close the file; calling it again does nothing."""
+        """Flush and close the file; calling it again does nothing.
+
+        The reserve beside the file is given back first, so that a disk that filled
+        up still has the room for the file's index; after a failed write the datasets
+        are trimmed to the frames appended completely.
+
+        Raises
+        ------
+        RecordingWriteError
+            The file could not be flushed or closed cleanly (it is closed all the same;
+            holoview's reader still opens it with the frames of its last flush).
+        """
         if self.closed:
             return
-        self.flush()
-        self._file.close()
+        self._reserve.release()
+        error: RecordingWriteError | None = None
+        try:
+            if self._broken:
+                for dataset in (self._frames, self._ids, self._t_device, self._t_host):
+                    if dataset.shape[0] != self._n:
+                        dataset.resize(self._n, axis=0)
+            self._file.flush()
+        except (OSError, RuntimeError) as exc:
+            error = RecordingWriteError(
+                f"closing {self.path} failed: {os_error_text(exc)}; holoview still reads "
+                "the frames of its last flush"
+            )
+        finally:
+            try:
+                self._file.close()
+            except (OSError, RuntimeError) as exc:
+                error = error or RecordingWriteError(
+                    f"closing {self.path} failed: {os_error_text(exc)}"
+                )
         logger.info("recording %s closed with %d frames", self.path, self._n)
+        if error is not None:
+            raise error
 
     def __enter__(self) -> Self:
         return self
@@ -433,21 +448,18 @@ class RecordingReader:
 
     @staticmethod
     def _open(path: Path) -> h5py.File:
-        """Open for SWMR reading, or plainly when the file was not written in SWMR mode."""
-        errors = []
-        for swmr in (True, False):
-            try:
-                return h5py.File(path, "r", libver=LIBVER, swmr=swmr)
-            except OSError as exc:
-                errors.append(str(exc))
-        raise InputError(f"{path}: not a readable HDF5 file ({errors[-1]})")
+        """Open plainly, or for SWMR reading when a writer has the file open (or was killed).
+
+        A truncated or damaged file is refused at once (:mod:`holoview.acquire.durability`).
+        """
+        return open_hdf5_for_reading(path)
 
     def _read_header(self) -> None:
         f = self._file
-        name = _plain(f.attrs.get("format", ""))
+        name = plain_value(f.attrs.get("format", ""))
         if name != FORMAT_NAME:
             raise InputError(f"{self.path}: not a holoview recording (format attribute {name!r})")
-        self.format_version = str(_plain(f.attrs.get("format_version", "")))
+        self.format_version = str(plain_value(f.attrs.get("format_version", "")))
         try:
             major = int(self.format_version.split(".", 1)[0])
         except ValueError:
@@ -466,15 +478,15 @@ class RecordingReader:
         self._ids = f["frame_id"]
         self._t_device = f["t_device_s"]
         self._t_host = f["t_host_s"]
-        self.uuid = str(_plain(f.attrs.get("uuid", "")))
-        self.created_utc = str(_plain(f.attrs.get("created_utc", "")))
-        self.source = str(_plain(f.attrs.get("source", "")))
-        self.pixel_format = str(_plain(frames.attrs.get("pixel_format", "")))
+        self.uuid = str(plain_value(f.attrs.get("uuid", "")))
+        self.created_utc = str(plain_value(f.attrs.get("created_utc", "")))
+        self.source = str(plain_value(f.attrs.get("source", "")))
+        self.pixel_format = str(plain_value(frames.attrs.get("pixel_format", "")))
         self.significant_bits = int(
-            _plain(frames.attrs.get("significant_bits", frames.dtype.itemsize * 8))
+            plain_value(frames.attrs.get("significant_bits", frames.dtype.itemsize * 8))
         )
-        self.setup, self.setup_units = _read_attributes(f.get("setup"))
-        self.settings, self.settings_units = _read_attributes(f.get("settings"))
+        self.setup, self.setup_units = read_attributes(f.get("setup"))
+        self.settings, self.settings_units = read_attributes(f.get("settings"))
         self._n = self._complete_count()
 
     def _complete_count(self) -> int:

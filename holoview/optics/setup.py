@@ -20,6 +20,7 @@ Geometry and sign conventions used throughout :mod:`holoview.optics`:
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import asdict, dataclass, fields
 from typing import Any
 
@@ -42,6 +43,116 @@ MAX_TILT = 0.05
 
 #: Beam-splitter ghosts copy one of these arms.
 GHOST_ARMS = ("reference", "probe")
+
+
+#: Plausible ranges of the physical parameters, SI: a laser from the deep UV to the far
+#: infrared; an object-side pixel from a microscope's to a demagnifying telescope's;
+#: refractive indices of gases and liquids.
+PLAUSIBLE_RANGES: dict[str, tuple[float, float]] = {
+    "wavelength_m": (100e-9, 20e-6),
+    "pixel_pitch_m": (10e-9, 10e-3),
+    "n1": (1.0, 3.0),
+    "n2": (1.0, 3.0),
+}
+
+_WHAT = {
+    "wavelength_m": "laser wavelength (100 nm to 20 um)",
+    "pixel_pitch_m": "object-side pixel pitch (10 nm to 10 mm)",
+}
+_UNIT_WORDS = {1.0: "metres", 1e-3: "millimetres", 1e-6: "micrometres", 1e-9: "nanometres"}
+#: Units a misplaced length was most likely typed in, most likely first.
+_LIKELY_UNITS = {"wavelength_m": (1e-9, 1e-6, 1.0), "pixel_pitch_m": (1e-6, 1e-3, 1.0, 1e-9)}
+
+
+def _unit_hint(name: str, typed: float, factor: float, label: str) -> str:
+    """``"; 532 looks like nanometres: ..."`` when another unit puts ``typed`` in range."""
+    low, high = PLAUSIBLE_RANGES[name]
+    for unit in _LIKELY_UNITS[name]:
+        if unit != factor and low <= typed * unit <= high:
+            return (
+                f"; {typed:g} looks like {_UNIT_WORDS[unit]}: {label} takes "
+                f"{_UNIT_WORDS.get(factor, 'its own unit')}, so give {typed * unit / factor:.4g}"
+            )
+    return ""
+
+
+def check_optics(
+    *,
+    wavelength_m: float | None = None,
+    pixel_pitch_m: float | None = None,
+    n1: float | None = None,
+    n2: float | None = None,
+    names: Mapping[str, tuple[str, float]] | None = None,
+) -> None:
+    """Refuse a physical parameter that is not plausible, with a hint about units.
+
+    The one check of the setup's physical parameters: the simulator's :class:`Setup`,
+    ``holoview record``, ``holoview simulate`` and ``holoview process`` (and the
+    experiment settings) all call it. None means "not given" and is not checked.
+
+    Parameters
+    ----------
+    wavelength_m : float, optional
+        Laser wavelength in vacuum, m.
+    pixel_pitch_m : float, optional
+        Object-side pixel pitch, m.
+    n1, n2 : float, optional
+        Refractive indices above the surface and of the fluid; ``n2 > n1``.
+    names : mapping, optional
+        For messages: per parameter (``"wavelength_m"``, ...), the name the user gave
+        it under and the factor from its unit to SI, e.g.
+        ``{"wavelength_m": ("--wavelength-nm", 1e-9)}`` (default: the parameter's own
+        name, in SI).
+
+    Raises
+    ------
+    InputError
+        One line naming the parameter: not a number, not finite, not positive, out of
+        :data:`PLAUSIBLE_RANGES` (saying which unit the value looks like), or
+        ``n2 <= n1``.
+
+    Examples
+    --------
+    >>> try:
+    ...     check_optics(wavelength_m=532, names={"wavelength_m": ("--wavelength", 1.0)})
+    ... except InputError as error:
+    ...     print(error)  # doctest: +NORMALIZE_WHITESPACE
+    --wavelength 532: 532 m is not a plausible laser wavelength (100 nm to 20 um);
+    532 looks like nanometres: --wavelength takes metres, so give 5.32e-07
+    """
+    given = {"wavelength_m": wavelength_m, "pixel_pitch_m": pixel_pitch_m, "n1": n1, "n2": n2}
+    labels = dict(names or {})
+    label = {name: labels.get(name, (name, 1.0))[0] for name in given}
+    values: dict[str, float] = {}
+    for name, raw in given.items():
+        if raw is None:
+            continue
+        factor = labels.get(name, (name, 1.0))[1]
+        value = finite_number(label[name], raw)
+        values[name] = value
+        if name in _WHAT:
+            typed = value / factor
+            if value <= 0:
+                raise InputError(f"{label[name]} must be positive, got {typed:g}")
+            low, high = PLAUSIBLE_RANGES[name]
+            if not low <= value <= high:
+                raise InputError(
+                    f"{label[name]} {typed:g}: {value:.3g} m is not a plausible {_WHAT[name]}"
+                    + _unit_hint(name, typed, factor, label[name])
+                )
+    if "n1" in values and "n2" in values and not values["n2"] > values["n1"]:
+        raise InputError(
+            f"{label['n2']} = {values['n2']:g} must be above n1 = {values['n1']:g}: "
+            "the model needs a fluid denser than the medium above it"
+        )
+    for name in ("n1", "n2"):
+        low, high = PLAUSIBLE_RANGES[name]
+        if name in values and values[name] < low:
+            raise InputError(f"{label[name]} {values[name]:g}: a refractive index is at least 1")
+        if name in values and values[name] > high:
+            raise InputError(
+                f"{label[name]} {values[name]:g} is not a plausible refractive index (1 to 3)"
+            )
 
 
 def _positive(name: str, value: float, unit: str = "") -> float:
@@ -163,11 +274,14 @@ class Setup:
         put(self, "wavelength", _positive("wavelength", self.wavelength, " m"))
         put(self, "n1", _positive("n1", self.n1))
         put(self, "n2", _positive("n2", self.n2))
-        if self.n2 <= self.n1:
-            raise InputError(
-                f"n2 = {self.n2:g} must exceed n1 = {self.n1:g}: the model (Fresnel signs, "
-                "the twin convention of RB_j) assumes a fluid denser than the medium above"
-            )
+        put(self, "pixel_pitch", _positive("pixel_pitch", self.pixel_pitch, " m"))
+        check_optics(
+            wavelength_m=self.wavelength,
+            pixel_pitch_m=self.pixel_pitch,
+            n1=self.n1,
+            n2=self.n2,
+            names={"wavelength_m": ("wavelength", 1.0), "pixel_pitch_m": ("pixel_pitch", 1.0)},
+        )
         put(self, "m_r", _tilt("m_r", self.m_r))
         put(self, "m_b", _tilt("m_b", self.m_b))
         put(self, "delta_H", finite_number("delta_H", self.delta_H))
@@ -181,7 +295,6 @@ class Setup:
             if not isinstance(ghost, Ghost):
                 raise InputError(f"ghosts must be Ghost instances, got {ghost!r}")
         put(self, "ghosts", ghosts)
-        put(self, "pixel_pitch", _positive("pixel_pitch", self.pixel_pitch, " m"))
         try:
             rows, cols = (int(n) for n in self.shape)
         except (TypeError, ValueError) as exc:
