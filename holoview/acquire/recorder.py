@@ -180,8 +180,7 @@ class Recorder:
             True: first write every frame the ring had acquired when ``stop`` was
             called (those still in the ring); False: stop after the frame in hand.
         """
-        if drain:
-            self._stop_at = self.ring.acquired
+        self._stop_at = self.ring.acquired if drain else 0
         self._stop.set()
         self.join(timeout)
 

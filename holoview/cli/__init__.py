@@ -2,8 +2,15 @@
 
 Each subcommand lives in its own module of this package with two functions:
 ``add_parser(subparsers)`` registers its options (importing nothing heavy) and
-``run(args) -> int`` does the work. A :class:`~holoview.errors.HoloviewError`
-escaping ``run`` becomes one line on stderr and exit status 2.
+``run(args) -> int`` does the work.
+
+Exit statuses: 0 success; 2 a problem the user can fix (bad input, a missing
+device, a broken file: a :class:`~holoview.errors.HoloviewError`, one line on
+stderr); 3 an output could not be written (a full disk, an I/O error, a closed
+standard output: an :class:`~holoview.errors.OutputError`; what was written before
+is kept); 130 stopped by Ctrl-C, SIGTERM or SIGHUP (what was done is kept, see each
+command); 1 only for a bug (a traceback). Python warnings (numpy's, OpenCV's) go to
+the log, shown with ``-v``.
 """
 
 from __future__ import annotations
@@ -16,7 +23,8 @@ from collections.abc import Sequence
 from typing import NoReturn
 
 from holoview import __version__
-from holoview.errors import HoloviewError
+from holoview.cli.signals import Stopped, stop_on_signals
+from holoview.errors import HoloviewError, OutputError
 
 #: Subcommand modules, in the order ``holoview --help`` lists them.
 COMMANDS: tuple[str, ...] = ("live", "record", "simulate", "process", "peaks", "info")
@@ -56,11 +64,16 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def configure_logging(verbose: int, quiet: bool) -> None:
-    """Send holoview's log records to stderr at the level the flags ask for."""
+    """Send holoview's log records to stderr at the level the flags ask for.
+
+    Python warnings (numpy's overflow and the like) are logged too, under
+    ``py.warnings``, shown only with ``-v``.
+    """
     level = (
         logging.ERROR if quiet else (logging.WARNING, logging.INFO, logging.DEBUG)[min(verbose, 2)]
     )
     logging.basicConfig(level=level, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
+    logging.getLogger("py.warnings").setLevel(logging.WARNING if verbose else logging.ERROR)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -72,14 +85,31 @@ def main(argv: Sequence[str] | None = None) -> int:
         args_list.append(DEFAULT_COMMAND)
     args = parser.parse_args(args_list)
     configure_logging(args.verbose, args.quiet)
+    logging.captureWarnings(True)
     try:
-        return int(args._run(args) or 0)
+        if args.command == "live":  # the GUI closes its window on these signals itself
+            return int(args._run(args) or 0)
+        with stop_on_signals():
+            return int(args._run(args) or 0)
+    except OutputError as exc:
+        print(f"holoview {args.command}: error: {exc}", file=sys.stderr)
+        return 3
     except HoloviewError as exc:
         print(f"holoview {args.command}: error: {exc}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:
-        print("holoview: interrupted", file=sys.stderr)
+    except MemoryError as exc:
+        print(
+            f"holoview {args.command}: error: not enough memory ({exc or 'an array too large'}); "
+            "ask for fewer or smaller frames",
+            file=sys.stderr,
+        )
+        return 2
+    except KeyboardInterrupt as exc:
+        how = f" by {exc.signal_name}" if isinstance(exc, Stopped) else ""
+        print(f"holoview {args.command}: interrupted{how}", file=sys.stderr)
         return 130
+    finally:
+        logging.captureWarnings(False)
 
 
 if __name__ == "__main__":

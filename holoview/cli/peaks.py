@@ -20,6 +20,7 @@ from holoview.cli.process import (
     optics_options,
     parse_labels,
 )
+from holoview.cli.signals import emit
 from holoview.errors import InputError
 
 
@@ -104,5 +105,5 @@ def run(args: argparse.Namespace) -> int:
         "missing": list(labelling.missing) if labelling else [],
         "flip_hint": list(labelling.flip_hint) if labelling else [],
     }
-    print(json.dumps(document, indent=2) if args.json else _table(document))
+    emit(json.dumps(document, indent=2) if args.json else _table(document))
     return 0

@@ -9,9 +9,11 @@ from __future__ import annotations
 
 import argparse
 import logging
+import os
 import sys
 from pathlib import Path
 
+from holoview.cli.signals import emit
 from holoview.errors import InputError
 
 logger = logging.getLogger(__name__)
@@ -82,6 +84,21 @@ def parse_labels(texts: list[str]) -> dict[str, tuple[float, float]]:
     return labels
 
 
+def folder_path(text: str) -> Path:
+    """An argparse type: a folder path, not empty (``--out ""`` would be the current folder)."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError("give a folder, not an empty name")
+    return Path(text)
+
+
+def usable_cores() -> int:
+    """CPU cores this process may run on."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):
+        return os.cpu_count() or 1
+
+
 def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     """Register ``process``."""
     parser = subparsers.add_parser(
@@ -94,7 +111,14 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
     parser.add_argument(
         "input", type=Path, metavar="INPUT", help="recording, TIFF, folder or video"
     )
-    parser.add_argument("--out", type=Path, required=True, metavar="DIR", help="output folder")
+    parser.add_argument(
+        "--out", type=folder_path, required=True, metavar="DIR", help="output folder"
+    )
+    parser.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="replace the results of an earlier run in DIR (only once this run completes)",
+    )
     peaks = parser.add_argument_group("peaks (one way)")
     peaks.add_argument("--peaks", type=Path, metavar="FILE.json", help="a peaks file")
     peaks.add_argument(
@@ -169,6 +193,12 @@ def run(args: argparse.Namespace) -> int:
 
     if args.threads < 1:
         raise InputError(f"--threads must be at least 1, got {args.threads}")
+    cores = usable_cores()
+    if args.threads > cores:
+        logger.warning(
+            "--threads %d: this machine has %d cores; using %d", args.threads, cores, cores
+        )
+        args.threads = cores
     if args.auto is None and args.peaks is None and not args.label:
         args.auto = 4
         logger.info("no peaks chosen: --auto 4")
@@ -197,11 +227,16 @@ def run(args: argparse.Namespace) -> int:
             settings=settings,
             frames=args.frames,
             progress=update,
+            overwrite=args.overwrite,
         )
     if outcome.data.interrupted:
+        done = len(outcome.data.frames)
         print(
             f"holoview process: interrupted; {outcome.out} holds the results of the "
-            f"{len(outcome.data.frames)} frames done",
+            f"{done} frames done (marked interrupted)"
+            if outcome.files
+            else f"holoview process: interrupted after {done} frames; the earlier results in "
+            f"{outcome.out} are kept and the partial ones are not written",
             file=sys.stderr,
         )
         return 130
@@ -209,7 +244,7 @@ def run(args: argparse.Namespace) -> int:
         fit = outcome.analysis.fit
         used = [p.label for p in outcome.analysis.peaks if p.used_in_fused]
         data = outcome.data
-        print(
+        emit(
             f"{outcome.out}: {len(data.frames)} frames in {data.wall_seconds:.1f} s "
             f"({len(data.frames) / max(data.wall_seconds, 1e-9):.1f} frames/s); "
             f"peaks {', '.join(p.label for p in outcome.analysis.peaks)}; fused "

@@ -9,16 +9,20 @@ from __future__ import annotations
 
 import argparse
 import logging
+import math
+import os
 import sys
 import time
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from holoview.cli.signals import deferred_signals, emit
 from holoview.errors import HoloviewError, InputError
 
 if TYPE_CHECKING:
     from holoview.acquire.camera_thread import CameraThread
     from holoview.acquire.recorder import Recorder
+    from holoview.acquire.ring import FrameRing
 
 logger = logging.getLogger(__name__)
 
@@ -86,6 +90,9 @@ def _number(raw: str) -> object:
 
 
 def _setup_overrides(args: argparse.Namespace) -> dict[str, float]:
+    """The setup the options give, in SI, checked for plausibility (InputError)."""
+    from holoview.optics.setup import check_optics
+
     setup = {}
     if args.wavelength_nm is not None:
         setup["wavelength_m"] = args.wavelength_nm * 1e-9
@@ -95,11 +102,61 @@ def _setup_overrides(args: argparse.Namespace) -> dict[str, float]:
         setup["n1"] = args.n1
     if args.n2 is not None:
         setup["n2"] = args.n2
+    check_optics(
+        **setup,
+        names={
+            "wavelength_m": ("--wavelength-nm", 1e-9),
+            "pixel_pitch_m": ("--pixel-pitch-um", 1e-6),
+            "n1": ("--n1", 1.0),
+            "n2": ("--n2", 1.0),
+        },
+    )
     return setup
 
 
+def _check_against_source(source_setup: dict[str, object], setup: dict[str, float]) -> None:
+    """Refuse an n1 or n2 option that is not consistent with the source's other index."""
+    from holoview.optics.setup import check_optics
+
+    if "n1" not in setup and "n2" not in setup:
+        return
+    merged = {name: setup.get(name, source_setup.get(name)) for name in ("n1", "n2")}
+    if all(isinstance(v, int | float) for v in merged.values()):
+        names = {n: (f"--{n}" if n in setup else f"the source's {n}", 1.0) for n in merged}
+        check_optics(n1=merged["n1"], n2=merged["n2"], names=names)  # type: ignore[arg-type]
+
+
+def ring_capacity(ring_mb: float, frame_bytes: int) -> int:
+    """Frames a ring of ``ring_mb`` megabytes holds (at least 4), checked against the memory.
+
+    Raises
+    ------
+    InputError
+        ``ring_mb`` is not a positive number, or asks for more than half this
+        machine's memory.
+    """
+    if not (math.isfinite(ring_mb) and ring_mb > 0):
+        raise InputError(f"--ring-mb must be a positive number of megabytes, got {ring_mb:g}")
+    try:
+        memory = os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    except (ValueError, OSError, AttributeError):
+        memory = None
+    capacity = max(4, int(ring_mb * 1e6 // frame_bytes))
+    if memory and capacity * frame_bytes > memory / 2:
+        raise InputError(
+            f"--ring-mb {ring_mb:g} ({capacity} frames) is more than half this machine's "
+            f"memory ({memory / 1e9:.1f} GB); give at most {memory / 2e6:.0f}"
+        )
+    return capacity
+
+
 def run(args: argparse.Namespace) -> int:
-    """Record, show progress, print the summary line; exit status 2 if acquisition failed."""
+    """Record, show progress, print the summary line.
+
+    Exit status 2 when acquisition failed, 3 when the disk filled or a write failed
+    (every frame written is kept and the file is closed), 130 when stopped (Ctrl-C,
+    SIGTERM, SIGHUP). A recording that ends with no frame is not kept.
+    """
     from holoview.acquire import open_source
     from holoview.acquire.camera_thread import CameraThread
     from holoview.acquire.recorder import Recorder
@@ -107,11 +164,10 @@ def run(args: argparse.Namespace) -> int:
 
     if args.frames is not None and args.frames < 1:
         raise InputError(f"--frames must be at least 1, got {args.frames}")
-    if args.seconds is not None and not args.seconds > 0:
+    if args.seconds is not None and not (math.isfinite(args.seconds) and args.seconds > 0):
         raise InputError(f"--seconds must be positive, got {args.seconds}")
-    if not args.ring_mb > 0:
-        raise InputError(f"--ring-mb must be positive, got {args.ring_mb}")
     settings = [parse_setting(text) for text in args.set]
+    setup = _setup_overrides(args)
     out = args.out
     if out.exists():
         raise InputError(f"{out} exists; holoview does not overwrite recordings")
@@ -121,10 +177,10 @@ def run(args: argparse.Namespace) -> int:
     with open_source(args.source) as source:
         for name, value in settings:
             source.set(name, value)
+        _check_against_source(dict(source.setup), setup)
         frame_bytes = source.frame_shape[0] * source.frame_shape[1] * source.dtype.itemsize
-        capacity = max(4, int(args.ring_mb * 1e6 // frame_bytes))
-        ring = FrameRing(capacity, source.frame_shape, source.dtype)
-        recorder = Recorder.for_source(ring, out, source, setup=_setup_overrides(args))
+        ring = FrameRing(ring_capacity(args.ring_mb, frame_bytes), source.frame_shape, source.dtype)
+        recorder = Recorder.for_source(ring, out, source, setup=setup)
         camera = CameraThread(source, ring, max_frames=args.frames)
         recorder.start()
         t0 = time.monotonic()
@@ -135,17 +191,20 @@ def run(args: argparse.Namespace) -> int:
         except KeyboardInterrupt:
             interrupted = True
         finally:
-            camera.stop()
-            recorder.join()
+            _finish(camera, ring, recorder, out)
         elapsed = time.monotonic() - t0
-    status = recorder.status()
-    mb = recorder.written * frame_bytes / 1e6
-    print(
-        f"{out}: acquired {status.acquired}, recorded {recorder.written}, "
-        f"dropped {status.dropped} (ring overflow), lost {status.transport_lost} (transport) "
-        f"in {elapsed:.1f} s ({status.acquired / max(elapsed, 1e-9):.1f} frames/s, "
+    count = recorder.accounting()
+    mb = count.recorded * frame_bytes / 1e6
+    lost = f", lost {count.lost_to_disk} to the disk" if count.lost_to_disk else ""
+    emit(
+        f"{out}: acquired {count.acquired}, recorded {count.recorded}, "
+        f"dropped {count.dropped} (ring overflow), lost {count.transport_lost} (transport)"
+        f"{lost} in {elapsed:.1f} s ({count.acquired / max(elapsed, 1e-9):.1f} frames/s, "
         f"{mb / max(elapsed, 1e-9):.1f} MB/s)"
     )
+    if count.recorded == 0:
+        out.unlink(missing_ok=True)
+        print(f"holoview record: no frame was recorded; {out} is not kept", file=sys.stderr)
     error = recorder.error or camera.error
     if error is not None:
         if isinstance(error, HoloviewError):
@@ -154,11 +213,26 @@ def run(args: argparse.Namespace) -> int:
     if interrupted:
         print("holoview record: interrupted; the recording is complete up to here", file=sys.stderr)
         return 130
-    return 0
+    return 0 if count.recorded else 2
+
+
+def _finish(camera: CameraThread, ring: FrameRing, recorder: Recorder, out: Path) -> None:
+    """Stop the camera, write what the ring holds, close the file; signals wait meanwhile.
+
+    A stop signal while the ring is being written stops that (the frames left are
+    counted as lost); the file is closed in any case.
+    """
+    notice = f"holoview record: closing {out}; press Ctrl-C again to skip the frames still queued"
+    with deferred_signals(notice) as received:
+        camera.stop()
+        ring.close()  # also when the camera never started
+        while not recorder.join(0.2):
+            if received:
+                recorder.stop(timeout=0.0, drain=False)
 
 
 def _follow(camera: CameraThread, recorder: Recorder, args: argparse.Namespace, t0: float) -> None:
-    """Show progress until the camera ends or the time is up (main thread, 5 Hz)."""
+    """Show progress until the camera ends, the recorder stops or the time is up (5 Hz)."""
     from tqdm import tqdm
 
     with tqdm(
@@ -172,8 +246,8 @@ def _follow(camera: CameraThread, recorder: Recorder, args: argparse.Namespace, 
             bar.update(recorder.written - bar.n)
             status = recorder.status()
             bar.set_postfix(dropped=status.dropped, lost=status.transport_lost, refresh=False)
+            if not recorder.running:  # a full disk or a write error: stop the camera now
+                break
             if args.seconds is not None and time.monotonic() - t0 >= args.seconds:
                 break
-        camera.stop()
-        recorder.join()
         bar.update(recorder.written - bar.n)

@@ -23,7 +23,7 @@ import numpy as np
 from holoview.acquire.recording import RecordingReader
 from holoview.acquire.replay_files import FrameFile, open_frame_file
 from holoview.errors import InputError
-from holoview.optics.setup import FLUIDS
+from holoview.optics.setup import FLUIDS, check_optics
 
 logger = logging.getLogger(__name__)
 
@@ -91,12 +91,26 @@ class Optics:
             raise InputError("; ".join(missing))
 
 
-def _positive(name: str, value: float | None) -> float | None:
-    if value is None:
+#: How the user gives each parameter (``process`` and ``peaks``), with its unit factor to SI.
+OPTION_NAMES: dict[str, tuple[str, float]] = {
+    "wavelength_m": ("--wavelength", 1.0),
+    "pixel_pitch_m": ("--pixel-pitch", 1.0),
+    "n1": ("--n1", 1.0),
+    "n2": ("--n2", 1.0),
+}
+
+
+def _stored(setup: dict[str, Any], name: str) -> float | None:
+    """A recording's value of ``name`` if plausible, else None (with a warning)."""
+    stored = setup.get(name)
+    if stored is None:
         return None
-    if not (math.isfinite(value) and value > 0):
-        raise InputError(f"{name} must be a positive number, got {value}")
-    return float(value)
+    try:
+        check_optics(**{name: stored}, names={name: (f"the recording's {name}", 1.0)})
+    except InputError as exc:
+        logger.warning("%s; ignored", exc)
+        return None
+    return float(stored)
 
 
 def resolve_optics(setup: dict[str, Any], options: OpticsOptions) -> Optics:
@@ -113,8 +127,10 @@ def resolve_optics(setup: dict[str, Any], options: OpticsOptions) -> Optics:
     Raises
     ------
     InputError
-        For a non-positive value, an unknown fluid, both ``n2`` and ``fluid``, or
-        ``n2`` not above ``n1``.
+        For an implausible value (:func:`~holoview.optics.setup.check_optics`: a
+        wavelength of 532 m, a negative pitch, NaN; with a hint about units), an
+        unknown fluid, both ``n2`` and ``fluid``, or ``n2`` not above ``n1``. A
+        recording's implausible value is ignored with a warning.
     """
     if options.fluid is not None and options.n2 is not None:
         raise InputError("give --n2 or --fluid, not both")
@@ -126,33 +142,28 @@ def resolve_optics(setup: dict[str, Any], options: OpticsOptions) -> Optics:
             )
         n2_option = FLUIDS[options.fluid]
     given = {
-        "wavelength_m": _positive("--wavelength", options.wavelength_m),
-        "pixel_pitch_m": _positive("--pixel-pitch", options.pixel_pitch_m),
-        "n1": _positive("--n1", options.n1),
-        "n2": _positive("--n2", n2_option),
+        "wavelength_m": options.wavelength_m,
+        "pixel_pitch_m": options.pixel_pitch_m,
+        "n1": options.n1,
+        "n2": n2_option,
     }
+    check_optics(
+        wavelength_m=given["wavelength_m"], pixel_pitch_m=given["pixel_pitch_m"], names=OPTION_NAMES
+    )
     values: dict[str, float | None] = {}
     sources: dict[str, str] = {}
     for name, option in given.items():
-        stored = setup.get(name)
-        stored_value = None
-        if stored is not None:
-            try:
-                stored_value = float(stored)
-            except (TypeError, ValueError):
-                logger.warning("the recording's %s (%r) is not a number; ignored", name, stored)
-            if stored_value is not None and not (math.isfinite(stored_value) and stored_value > 0):
-                logger.warning("the recording's %s (%r) is not positive; ignored", name, stored)
-                stored_value = None
+        stored_value = _stored(setup, name)
         if option is not None:
-            if stored_value is not None and not math.isclose(option, stored_value, rel_tol=1e-9):
+            value = float(option)
+            if stored_value is not None and not math.isclose(value, stored_value, rel_tol=1e-9):
                 logger.warning(
                     "%s: the option's %.6g replaces the recording's %.6g",
                     name,
-                    option,
+                    value,
                     stored_value,
                 )
-            values[name], sources[name] = option, "option"
+            values[name], sources[name] = value, "option"
         elif stored_value is not None:
             values[name], sources[name] = stored_value, "recording"
         else:
@@ -161,8 +172,11 @@ def resolve_optics(setup: dict[str, Any], options: OpticsOptions) -> Optics:
         values["n1"], sources["n1"] = DEFAULT_N1, "default"
     n1, n2 = values["n1"], values["n2"]
     assert n1 is not None
-    if n2 is not None and not n2 > n1:
-        raise InputError(f"n2 ({n2:g}) must be above n1 ({n1:g}): the fluid is below the air")
+    names = {
+        name: OPTION_NAMES[name] if sources[name] == "option" else (f"{sources[name]} {name}", 1.0)
+        for name in ("n1", "n2")
+    }
+    check_optics(n1=n1, n2=n2, names=names)
     return Optics(
         wavelength_m=values["wavelength_m"],
         pixel_pitch_m=values["pixel_pitch_m"],

@@ -11,7 +11,8 @@
     See :func:`summary_document`.
 ``results.h5`` (format ``holoview-results`` 1.0)
     Root attributes: ``format``, ``format_version``, ``uuid``, ``holoview_version``,
-    ``created_utc``, ``input``, and the parameters (``wavelength_m``, ``n1``, ``n2``,
+    ``created_utc``, ``input``, ``interrupted`` (the run was stopped: the frames
+    done only), and the parameters (``wavelength_m``, ``n1``, ``n2``,
     ``pixel_pitch_m``, ``reference``, ``window``, ``radius_cpp``, ``unwrap``).
     ``/trends``: ``frame`` (N,), ``time_s`` (N,), ``label`` (M,), ``alpha`` (M,),
     ``mean_phase_rad`` (N, M), ``mean_height_m`` (N, M), ``carrier_value`` (N, M,
@@ -31,16 +32,21 @@
     for ``fused`` its ``labels`` and ``grid_of`` (the maps are moved onto that peak's
     grid before fusing). A peak without alpha keeps its phase map (``unit`` ``rad``,
     ``quantity`` ``phase``).
+
+Each writer writes the path it is given: a run gives them temporary names and
+renames the files when it completes (:mod:`holoview.headless.output_folder`). A
+failed write is an :class:`~holoview.errors.OutputError` naming the file.
 """
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import datetime as _dt
 import json
 import math
 import uuid
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -48,7 +54,7 @@ import h5py
 import numpy as np
 
 from holoview import __version__
-from holoview.errors import InputError
+from holoview.errors import OutputError, os_error_text
 from holoview.headless.analysis import Analysis, PeakOutcome
 from holoview.headless.inputs import Optics
 from holoview.headless.pipeline import ProcessSettings, RunData, fuse_frame
@@ -72,6 +78,15 @@ REFERENCE_DESCRIPTIONS = {
 }
 
 
+@contextlib.contextmanager
+def _writing(name: str) -> Iterator[None]:
+    """Turn a failed write (h5py raises RuntimeError for some) into an OutputError."""
+    try:
+        yield
+    except (OSError, RuntimeError) as exc:
+        raise OutputError(f"cannot write {name}: {os_error_text(exc)}") from exc
+
+
 def _number(value: float | None, fmt: str = ".10g") -> str:
     if value is None or not math.isfinite(value):
         return ""
@@ -79,8 +94,8 @@ def _number(value: float | None, fmt: str = ".10g") -> str:
 
 
 def write_trends_csv(path: Path, data: RunData, analysis: Analysis) -> None:
-    """Write ``trends.csv`` (module docstring), one frame at a time."""
-    with open(path, "w", newline="", encoding="utf-8") as f:
+    """Write ``trends.csv`` (module docstring), one frame at a time (OutputError on failure)."""
+    with _writing("trends.csv"), open(path, "w", newline="", encoding="utf-8") as f:
         writer = csv.writer(f, lineterminator="\n")
         writer.writerow(TRENDS_HEADER)
         for i, (frame, t) in enumerate(zip(data.frames, data.times, strict=True)):
@@ -240,17 +255,20 @@ def summary_document(
 
 
 def write_summary_json(path: Path, document: dict[str, Any]) -> None:
-    """Write ``summary.json`` (strict JSON: no NaN)."""
-    path.write_text(json.dumps(document, indent=2, allow_nan=False) + "\n", encoding="utf-8")
+    """Write ``summary.json`` (strict JSON: no NaN; OutputError on failure)."""
+    with _writing("summary.json"):
+        path.write_text(json.dumps(document, indent=2, allow_nan=False) + "\n", encoding="utf-8")
 
 
 class ResultsFile:
     """``results.h5`` while a run writes it: maps frame by frame, the rest at the end.
 
+    Every failed write (a full disk) is an :class:`~holoview.errors.OutputError`.
+
     Parameters
     ----------
     path : Path
-        The file to create (replaced if it exists).
+        The file to create (replaced if it exists; a run gives a temporary name).
     labels : sequence of str
         The selected peaks' labels during the run (auto mode renames them at the end).
     n_frames : int
@@ -271,18 +289,17 @@ class ResultsFile:
         maps: bool,
     ) -> None:
         self.path = path
-        try:
+        with _writing("results.h5"):
             self._file = h5py.File(path, "w", libver=("v110", "latest"))
-        except OSError as exc:
-            raise InputError(f"{path}: cannot be written ({exc})") from exc
         self._labels = list(labels)
         self._maps: list[h5py.Dataset] = []
         if maps:
-            group = self._file.create_group("maps")
-            self._maps = [
-                self._map_dataset(group, f"_peak{j}", n_frames, box_shape)
-                for j in range(len(self._labels))
-            ]
+            with _writing("results.h5"):
+                group = self._file.create_group("maps")
+                self._maps = [
+                    self._map_dataset(group, f"_peak{j}", n_frames, box_shape)
+                    for j in range(len(self._labels))
+                ]
         # maps of MAP_BATCH frames, written together: one buffer per dataset
         self._block = -1
         self._buffers = [np.empty((MAP_BATCH, *box_shape), np.float32) for _ in self._maps]
@@ -300,11 +317,12 @@ class ResultsFile:
     def _flush(self) -> None:
         if self._block < 0:
             return
-        for dataset, buffer in zip(self._maps, self._buffers, strict=True):
-            start = self._block * MAP_BATCH
-            stop = min(start + MAP_BATCH, dataset.shape[0])
-            dataset[start:stop] = buffer[: stop - start]
-        self._block = -1
+        block, self._block = self._block, -1
+        with _writing("results.h5"):
+            for dataset, buffer in zip(self._maps, self._buffers, strict=True):
+                start = block * MAP_BATCH
+                stop = min(start + MAP_BATCH, dataset.shape[0])
+                dataset[start:stop] = buffer[: stop - start]
 
     @staticmethod
     def _map_dataset(
@@ -369,6 +387,28 @@ class ResultsFile:
         ``converted`` says the maps already hold delta-h (prefactors known during the
         run); otherwise they hold phases and are converted here.
         """
+        with _writing("results.h5"):
+            self._finish(
+                data=data,
+                analysis=analysis,
+                optics=optics,
+                settings=settings,
+                input_path=input_path,
+                frame_shape=frame_shape,
+                converted=converted,
+            )
+
+    def _finish(
+        self,
+        *,
+        data: RunData,
+        analysis: Analysis,
+        optics: Optics,
+        settings: ProcessSettings,
+        input_path: str,
+        frame_shape: tuple[int, int],
+        converted: bool,
+    ) -> None:
         self._flush()
         for dataset in self._maps:
             dataset.resize(len(data.frames), axis=0)  # fewer after an interruption
@@ -381,6 +421,7 @@ class ResultsFile:
                 "holoview_version": __version__,
                 "created_utc": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
                 "input": input_path,
+                "interrupted": data.interrupted,
                 "wavelength_m": optics.wavelength_m or math.nan,
                 "pixel_pitch_m": optics.pixel_pitch_m or math.nan,
                 "n1": optics.n1,
@@ -506,9 +547,11 @@ class ResultsFile:
             )
 
     def close(self) -> None:
-        """Write the maps still buffered and close the file."""
-        if self._file.id.valid:
-            try:
-                self._flush()
-            finally:
+        """Write the maps still buffered and close the file (closed also when that fails)."""
+        if not self._file.id.valid:
+            return
+        try:
+            self._flush()
+        finally:
+            with _writing("results.h5"):
                 self._file.close()

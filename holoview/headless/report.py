@@ -25,7 +25,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from holoview.errors import InputError
+from holoview.errors import OutputError
 from holoview.headless.analysis import Analysis
 from holoview.headless.inputs import Optics
 from holoview.headless.pipeline import ProcessSettings, RunData, fuse_frame
@@ -317,5 +317,9 @@ def write_report(
             scale=0.55,
             colour=NOTE_RED,
         )
-    if not cv2.imwrite(str(path), image):
-        raise InputError(f"could not write {path}")
+    try:
+        written = cv2.imwrite(str(path), image)
+    except cv2.error as exc:
+        raise OutputError(f"cannot write report.png ({exc.err or exc})") from exc
+    if not written:
+        raise OutputError("cannot write report.png (is the disk full?)")

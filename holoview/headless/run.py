@@ -9,7 +9,9 @@ through the demodulator, maps to ``results.h5`` as they come
 ``results.h5`` (:mod:`~holoview.headless.outputs`) and ``report.png``
 (:mod:`~holoview.headless.report`). Every user mistake is an
 :class:`~holoview.errors.InputError` raised before the output folder is touched where
-it can be known that early.
+it can be known that early. The outputs are written under temporary names and put in
+place when the run completes; what an earlier run left in the folder is replaced only
+then, and only with ``overwrite`` (:mod:`~holoview.headless.output_folder`).
 """
 
 from __future__ import annotations
@@ -29,6 +31,7 @@ from holoview.headless.inputs import (
     parse_frame_range,
     resolve_optics,
 )
+from holoview.headless.output_folder import OutputFolder
 from holoview.headless.outputs import (
     ResultsFile,
     summary_document,
@@ -122,15 +125,6 @@ def choose_peaks(
     return select_auto(choice.auto, detected, shape, choice.anchor)
 
 
-def _prepare_out(out: Path) -> None:
-    if out.exists() and not out.is_dir():
-        raise InputError(f"--out {out} is a file, not a folder")
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise InputError(f"--out {out}: cannot create the folder ({exc.strerror or exc})") from exc
-
-
 def process_file(
     input_path: str | Path,
     out: str | Path,
@@ -141,6 +135,7 @@ def process_file(
     frames: str | None = None,
     report: bool = True,
     progress: Callable[[int, int], None] | None = None,
+    overwrite: bool = False,
 ) -> ProcessOutcome:
     """Process a recording headless and write the results into the folder ``out``.
 
@@ -149,7 +144,7 @@ def process_file(
     input_path : str or Path
         A holoview recording, multi-page TIFF, folder of images, or video.
     out : str or Path
-        Output folder (created if missing; the run's files in it are replaced).
+        Output folder (created if missing; see ``overwrite``).
     choice : PeakChoice
         How to choose the peaks.
     optics_options : OpticsOptions, optional
@@ -163,23 +158,32 @@ def process_file(
         Draw ``report.png``.
     progress : callable, optional
         ``progress(done, total)`` after each frame.
+    overwrite : bool
+        Replace an earlier run's results in ``out`` when this run completes.
 
     Returns
     -------
     ProcessOutcome
+        Its ``files`` are empty when an interrupted run kept the earlier results.
 
     Raises
     ------
     InputError
         For an unreadable input, missing or wrong parameters, a bad peaks file or
-        labels, or peaks the PCA cannot identify.
+        labels, peaks the PCA cannot identify, or earlier results without ``overwrite``.
+    OutputError
+        An output could not be written (the folder keeps what it held).
     """
     settings = settings or ProcessSettings()
     options = optics_options or OpticsOptions()
     out_dir = Path(out)
     if settings.area_m2 is not None and not settings.area_m2 > 0:
         raise InputError(f"--area must be a positive area in m^2, got {settings.area_m2}")
-    with InputFile(input_path) as source:
+    names = (TRENDS_CSV, SUMMARY_JSON, RESULTS_H5, REPORT_PNG)
+    with (
+        OutputFolder(out_dir, names, overwrite=overwrite) as outputs,
+        InputFile(input_path) as source,
+    ):
         optics = resolve_optics(source.setup, options)
         optics.require("wavelength_m")
         selected = parse_frame_range(frames, len(source))
@@ -198,9 +202,9 @@ def process_file(
             demodulator.radius,
             demodulator.box_shape,
         )
-        _prepare_out(out_dir)
+        outputs.create()
         results = ResultsFile(
-            out_dir / RESULTS_H5,
+            outputs.path(RESULTS_H5),
             labels=[p.label or f"P{j}" for j, p in enumerate(selection.peaks)],
             n_frames=len(selected),
             box_shape=demodulator.box_shape,
@@ -237,26 +241,21 @@ def process_file(
             analysis=analysis,
             frame_shape=source.frame_shape,
         )
-    files = [out_dir / TRENDS_CSV, out_dir / SUMMARY_JSON, out_dir / RESULTS_H5]
-    try:
-        write_trends_csv(files[0], data, analysis)
-        write_summary_json(files[1], summary)
-    except OSError as exc:
-        raise InputError(f"--out {out_dir}: cannot write the results ({exc})") from exc
-    if report:
-        from holoview.headless.report import write_report
+        write_trends_csv(outputs.path(TRENDS_CSV), data, analysis)
+        write_summary_json(outputs.path(SUMMARY_JSON), summary)
+        if report:
+            from holoview.headless.report import write_report
 
-        spectrum = display_spectrum(first, threads=settings.threads)
-        files.append(out_dir / REPORT_PNG)
-        write_report(
-            files[-1],
-            spectrum=spectrum,
-            detected=detected,
-            data=data,
-            analysis=analysis,
-            settings=settings,
-            optics=optics,
-            title=f"{Path(input_path).name}: frames {data.frames[0]}..{data.frames[-1]}"
-            + (" (interrupted)" if data.interrupted else ""),
-        )
+            write_report(
+                outputs.path(REPORT_PNG),
+                spectrum=display_spectrum(first, threads=settings.threads),
+                detected=detected,
+                data=data,
+                analysis=analysis,
+                settings=settings,
+                optics=optics,
+                title=f"{Path(input_path).name}: frames {data.frames[0]}..{data.frames[-1]}"
+                + (" (interrupted)" if data.interrupted else ""),
+            )
+        files = outputs.finish(interrupted=data.interrupted)
     return ProcessOutcome(out_dir, selection, data, analysis, summary, tuple(files))

@@ -270,7 +270,7 @@ def write_garbage(path: Path) -> Path:
     [
         (lambda e, t: [str(t / "missing.h5")], "no such file"),
         (lambda e, t: [str(write_garbage(t / "bad.h5"))], "not a readable HDF5"),
-        (lambda e, t: [str(e.path), "--wavelength", "-1"], "--wavelength must be a positive"),
+        (lambda e, t: [str(e.path), "--wavelength", "-1"], "--wavelength must be positive"),
         (lambda e, t: [str(e.path), "--n2", "0.9"], "must be above n1"),
         (lambda e, t: [str(e.path), "--frames", "500:"], "selects no frame"),
         (lambda e, t: [str(e.path), "--frames", "a:b"], "--frames takes integers"),

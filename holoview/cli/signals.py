@@ -1,0 +1,111 @@
+"""Stop signals and standard output for the commands: stopped cleanly, never cut short.
+
+``holoview record`` and ``holoview process`` keep what they have done when Ctrl-C
+stops them (a ``KeyboardInterrupt``). A service manager stops a program with
+SIGTERM, and a closed terminal or SSH session sends SIGHUP: inside
+:func:`stop_on_signals` both raise the same interrupt (:class:`Stopped`, which
+names the signal). While a command closes its files, :func:`deferred_signals`
+notes further stop signals instead of raising them, so that a second Ctrl-C
+cannot leave a half-written file. A signal ignored when the command started
+(``nohup`` ignores SIGHUP) stays ignored.
+
+:func:`emit` prints a command's result line; a closed pipe or a full disk behind
+standard output becomes an :class:`~holoview.errors.OutputError` (one line, exit
+status 3) instead of a traceback.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import signal
+import sys
+import threading
+from collections.abc import Iterator
+from types import FrameType
+
+from holoview.errors import OutputError, os_error_text
+
+#: The signals that stop a command as Ctrl-C does.
+STOP_SIGNALS: tuple[signal.Signals, ...] = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+
+
+class Stopped(KeyboardInterrupt):
+    """A stop signal (SIGTERM, SIGHUP) turned into the interrupt Ctrl-C raises."""
+
+    def __init__(self, signum: int) -> None:
+        super().__init__(signal.Signals(signum).name)
+        self.signal_name = signal.Signals(signum).name
+
+
+def _raise_stopped(signum: int, frame: FrameType | None) -> None:
+    raise Stopped(signum)
+
+
+def _handled() -> list[signal.Signals]:
+    """The stop signals this process may handle (those not ignored at start)."""
+    if threading.current_thread() is not threading.main_thread():
+        return []
+    return [sig for sig in STOP_SIGNALS if signal.getsignal(sig) is not signal.SIG_IGN]
+
+
+@contextlib.contextmanager
+def stop_on_signals() -> Iterator[None]:
+    """Within the block, SIGTERM and SIGHUP raise :class:`Stopped` as Ctrl-C would."""
+    previous = {
+        sig: signal.signal(sig, _raise_stopped) for sig in _handled() if sig != signal.SIGINT
+    }
+    try:
+        yield
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+
+
+@contextlib.contextmanager
+def deferred_signals(notice: str | None = None) -> Iterator[list[int]]:
+    """Within the block, stop signals are counted in the yielded list instead of raised.
+
+    Parameters
+    ----------
+    notice : str, optional
+        Printed on stderr at the first signal (what is being finished).
+    """
+    received: list[int] = []
+
+    def note(signum: int, frame: FrameType | None) -> None:
+        received.append(signum)
+        if notice and len(received) == 1:
+            print(notice, file=sys.stderr, flush=True)
+
+    previous = {sig: signal.signal(sig, note) for sig in _handled()}
+    try:
+        yield received
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+
+
+def _silence_stdout() -> None:
+    """Point file descriptor 1 at /dev/null, so Python's final flush cannot fail again."""
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        os.close(devnull)
+    except (OSError, ValueError, AttributeError):  # io.UnsupportedOperation included
+        pass  # not a real file (a test's capture): nothing to silence
+
+
+def emit(text: str) -> None:
+    """Print ``text`` on standard output now.
+
+    Raises
+    ------
+    OutputError
+        Standard output is a closed pipe or a full disk.
+    """
+    try:
+        print(text, flush=True)
+    except OSError as exc:
+        _silence_stdout()
+        raise OutputError(f"cannot write to standard output: {os_error_text(exc)}") from exc
