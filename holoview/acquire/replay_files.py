@@ -1,25 +1,33 @@
 """Frame files a replay source plays: holoview recordings, TIFF stacks, image folders, videos.
 
 :func:`open_frame_file` picks the reader by what the path is: a folder (``*.tif``,
-``*.tiff``, ``*.png`` in natural order), ``.h5``/``.hdf5`` (a holoview recording),
-``.tif``/``.tiff`` (a multi-page stack), or a video (``.avi``, ``.mkv``, ``.mp4``,
-``.mov``; FFV1, also 16-bit grey, and MJPG through OpenCV's FFmpeg backend).
+``*.tiff``, ``*.png`` in natural order; hidden files such as macOS's ``._NAME``
+companions are skipped), ``.h5``/``.hdf5`` (a holoview recording),
+``.tif``/``.tiff`` (a multi-page stack), ``.npy``/``.npz`` (a numpy array: 2-D is one
+frame, 3-D ``(frames, rows, cols)`` a stack; an ``.npz`` holding one array, or one
+named ``frames``), or a video (``.avi``, ``.mkv``, ``.mp4``, ``.mov``; FFV1, also
+16-bit grey, and MJPG through OpenCV's FFmpeg backend, whose log lines are silenced).
 Every reader checks at open what can be checked without decoding every frame: a
-TIFF whose pages run past the end of the file, pages or images of different sizes,
-a recording without frames, a video OpenCV cannot decode, each is a one-line
-:class:`~holoview.errors.InputError`. Colour images and videos are converted to
-grey with OpenCV's luma weights; grey values stay raw (16-bit stays 16-bit).
+TIFF whose pages run past the end of the file, a TIFF of several channels (ImageJ,
+OME), pages or images of different sizes, an array of the wrong shape or type or
+shorter than its header says, a recording without frames, a video OpenCV cannot
+decode, each is a one-line :class:`~holoview.errors.InputError`. Colour images and
+videos are converted to grey with OpenCV's luma weights; grey values stay raw
+(16-bit stays 16-bit). Arrays are read a frame at a time (``.npz`` members too), so
+memory stays bounded whatever the stack's length.
 """
 
 from __future__ import annotations
 
 import logging
 import math
+import os
 import re
 import struct
+import zipfile
 from abc import ABC, abstractmethod
 from pathlib import Path
-from typing import Any
+from typing import IO, Any
 
 import numpy as np
 
@@ -32,6 +40,11 @@ logger = logging.getLogger(__name__)
 VIDEO_SUFFIXES = (".avi", ".mkv", ".mp4", ".mov")
 IMAGE_SUFFIXES = (".tif", ".tiff", ".png")
 HDF5_SUFFIXES = (".h5", ".hdf5")
+NUMPY_SUFFIXES = (".npy", ".npz")
+
+#: Video codecs (FourCC, lower case) whose grey frames OpenCV hands over raw (16-bit kept);
+#: the others (MJPG, H.264, MPEG-4) are decoded to BGR and converted to grey.
+RAW_FOURCCS = frozenset({"ffv1", "y800", "grey", "y8  ", "y16 "})
 
 
 class FrameFile(ABC):
@@ -42,7 +55,7 @@ class FrameFile(ABC):
     path : Path
         The file or folder.
     kind : str
-        ``"hdf5"``, ``"tiff"``, ``"folder"`` or ``"video"``.
+        ``"hdf5"``, ``"tiff"``, ``"folder"``, ``"numpy"`` or ``"video"``.
     frame_shape : tuple of int
         ``(rows, cols)``, pixels.
     dtype : numpy dtype
@@ -192,6 +205,7 @@ class TiffStack(FrameFile):
             if not pages:
                 raise InputError(f"{path}: the TIFF holds no images")
             first = pages[0]
+            self._check_channels(path)
             declared = self._tif.series[0].shape if self._tif.series else ()
             if first.ndim == 2 and len(declared) == 3 and declared[0] > len(pages):
                 raise InputError(
@@ -220,6 +234,20 @@ class TiffStack(FrameFile):
             self._tif.close()
             raise
         self._set_format(sample.shape, sample.dtype)
+
+    def _check_channels(self, path: Path) -> None:
+        """Refuse a stack of several channels (ImageJ ``TCYX``, OME): its pages interleave."""
+        if not self._tif.series:
+            return
+        series = self._tif.series[0]
+        axes = str(getattr(series, "axes", ""))
+        if "C" in axes and series.shape[axes.index("C")] > 1:
+            channels = series.shape[axes.index("C")]
+            raise InputError(
+                f"{path}: a TIFF of {channels} channels (axes {axes}, shape {series.shape}): "
+                "holoview reads one channel of frames; save each channel as its own stack "
+                "(ImageJ: Image > Color > Split Channels)"
+            )
 
     def __len__(self) -> int:
         return len(self._pages)
@@ -271,10 +299,14 @@ class ImageFolder(FrameFile):
 
     def __init__(self, path: Path) -> None:
         super().__init__(path)
+        names = [p for p in path.iterdir() if p.is_file()]
         files = sorted(
-            (p for p in path.iterdir() if p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES),
+            (p for p in names if p.suffix.lower() in IMAGE_SUFFIXES and not p.name.startswith(".")),
             key=_natural_key,
         )
+        hidden = [p.name for p in names if p.name.startswith(".")]
+        if hidden:
+            logger.info("%s: %d hidden files skipped (%s, ...)", path, len(hidden), hidden[0])
         if not files:
             raise InputError(f"{path}: the folder holds no TIFF or PNG images")
         first_shape, first_dtype = _image_format(files[0])
@@ -315,6 +347,116 @@ class ImageFolder(FrameFile):
         return np.array(image, copy=True)
 
 
+def _quiet_opencv(cv2: Any) -> None:
+    """Keep OpenCV's and FFmpeg's log lines (a warning per frame for MJPG) off stderr."""
+    os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")  # read when FFmpeg starts
+    logging_module = getattr(getattr(cv2, "utils", None), "logging", None)
+    if logging_module is not None:
+        logging_module.setLogLevel(logging_module.LOG_LEVEL_ERROR)
+
+
+class NumpyFile(FrameFile):
+    """A numpy array: ``.npy``, or the one array (or ``frames``) of an ``.npz``.
+
+    A 2-D array is one frame, a 3-D array ``(frames, rows, cols)`` a stack; integer
+    or real values. Frames are read one at a time from the file (a member of an
+    ``.npz`` is read as a stream), never the whole array at once.
+    """
+
+    kind = "numpy"
+
+    def __init__(self, path: Path) -> None:
+        super().__init__(path)
+        self._zip: zipfile.ZipFile | None = None
+        try:
+            self._stream, size = self._open_stream(path)
+        except (OSError, zipfile.BadZipFile, ValueError) as exc:
+            self.close()
+            raise InputError(f"{path}: not a readable numpy file ({exc})") from exc
+        try:
+            shape, dtype = self._read_header(path, size)
+        except BaseException:
+            self.close()
+            raise
+        self._count = shape[0] if len(shape) == 3 else 1
+        self._stored_dtype = dtype
+        self._set_format(shape[-2:], dtype.newbyteorder("="))
+        self._frame_bytes = shape[-2] * shape[-1] * dtype.itemsize
+
+    def _open_stream(self, path: Path) -> tuple[IO[bytes], int]:
+        """Open the array's bytes; return the stream and its size in bytes."""
+        if path.suffix.lower() == ".npy":
+            return open(path, "rb"), path.stat().st_size
+        self._zip = zipfile.ZipFile(path)
+        members = [m for m in self._zip.infolist() if m.filename.endswith(".npy")]
+        named = [m for m in members if m.filename == "frames.npy"]
+        if len(members) != 1 and not named:
+            names = ", ".join(m.filename[:-4] for m in members) or "none"
+            raise ValueError(
+                f"it holds {len(members)} arrays ({names}): keep one, or name it frames"
+            )
+        member = (named or members)[0]
+        return self._zip.open(member), member.file_size
+
+    def _read_header(self, path: Path, size: int) -> tuple[tuple[int, ...], np.dtype]:
+        """Read and check the array's header; return its shape and stored dtype."""
+        from numpy.lib import format as npy
+
+        try:
+            version = npy.read_magic(self._stream)
+            if version == (1, 0):
+                shape, fortran, dtype = npy.read_array_header_1_0(self._stream)
+            elif version == (2, 0):
+                shape, fortran, dtype = npy.read_array_header_2_0(self._stream)
+            else:
+                raise ValueError(f"npy format version {version} is not supported")
+        except (ValueError, OSError, EOFError) as exc:
+            raise InputError(f"{path}: not a readable numpy array ({exc})") from exc
+        self._offset = self._stream.tell()
+        self._fortran = bool(fortran)
+        where = f"{path}: the array of shape {shape} and dtype {dtype}"
+        if dtype.kind not in "uif" or dtype.fields is not None:
+            hint = "; a complex field is not a hologram: give the intensity" * (dtype.kind == "c")
+            raise InputError(f"{where} does not hold pixel values (integers or reals{hint})")
+        if len(shape) == 3 and shape[-1] in (3, 4) and shape[0] >= 16:
+            raise InputError(f"{where} looks like a colour image: give grey frames")
+        if len(shape) not in (2, 3) or min(shape) < 1:
+            raise InputError(f"{where}: frames are 2-D (rows, cols) or 3-D (frames, rows, cols)")
+        if self._fortran and len(shape) == 3:
+            raise InputError(f"{where} is in Fortran order: save numpy.ascontiguousarray of it")
+        needed = self._offset + math.prod(shape) * dtype.itemsize
+        if size < needed:
+            raise InputError(
+                f"{path}: truncated: the array needs {needed} bytes, the file holds {size}"
+            )
+        return tuple(int(n) for n in shape), dtype
+
+    def __len__(self) -> int:
+        return self._count
+
+    def read(self, index: int) -> np.ndarray:
+        if not 0 <= index < self._count:
+            raise InputError(f"{self.path}: frame {index} out of range (0..{self._count - 1})")
+        try:
+            self._stream.seek(self._offset + index * self._frame_bytes)
+            data = self._stream.read(self._frame_bytes)
+        except (OSError, zipfile.BadZipFile, EOFError) as exc:
+            raise InputError(f"{self.path}: frame {index} is unreadable ({exc})") from exc
+        if len(data) != self._frame_bytes:
+            raise InputError(f"{self.path}: frame {index} is cut short")
+        frame = np.frombuffer(data, self._stored_dtype).reshape(
+            self.frame_shape, order="F" if self._fortran else "C"
+        )
+        return frame.astype(self.dtype, order="C", copy=True)
+
+    def close(self) -> None:
+        stream = getattr(self, "_stream", None)
+        if stream is not None:
+            stream.close()
+        if self._zip is not None:
+            self._zip.close()
+
+
 class VideoFile(FrameFile):
     """A video file decoded by OpenCV's FFmpeg backend (FFV1 grey 8/16-bit kept raw)."""
 
@@ -324,11 +466,16 @@ class VideoFile(FrameFile):
         super().__init__(path)
         import cv2
 
+        _quiet_opencv(cv2)
         self._cv2 = cv2
-        self._raw = True
         self._capture = self._open_capture(raw=True)
+        fourcc = int(self._capture.get(cv2.CAP_PROP_FOURCC)).to_bytes(4, "little")
+        self._raw = fourcc.decode("latin-1").lower() in RAW_FOURCCS
+        if not self._raw:
+            self._capture.release()
+            self._capture = self._open_capture(raw=False)
         ok, frame = self._capture.read()
-        if ok and frame is not None and frame.ndim != 2:
+        if self._raw and ok and frame is not None and frame.ndim != 2:
             self._capture.release()
             self._raw = False
             self._capture = self._open_capture(raw=False)
@@ -414,7 +561,9 @@ def open_frame_file(path: str | Path) -> FrameFile:
         return TiffStack(p)
     if suffix in VIDEO_SUFFIXES:
         return VideoFile(p)
-    known = ", ".join((*HDF5_SUFFIXES, ".tif", ".tiff", *VIDEO_SUFFIXES))
+    if suffix in NUMPY_SUFFIXES:
+        return NumpyFile(p)
+    known = ", ".join((*HDF5_SUFFIXES, ".tif", ".tiff", *NUMPY_SUFFIXES, *VIDEO_SUFFIXES))
     raise InputError(
         f"replay: {p}: unknown file type {suffix or '(none)'} (known: {known}, folders)"
     )

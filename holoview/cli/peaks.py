@@ -69,7 +69,12 @@ def _table(document: dict[str, Any]) -> str:
 
 def run(args: argparse.Namespace) -> int:
     """Detect, label when asked, print a table or JSON."""
-    from holoview.headless.inputs import InputFile, resolve_optics
+    from holoview.headless.inputs import (
+        InputFile,
+        check_not_background_subtracted,
+        frame_problem,
+        resolve_optics,
+    )
     from holoview.headless.selection import describe_peaks
     from holoview.processing.labelling import label_peaks
     from holoview.processing.peaks import find_peaks
@@ -85,6 +90,10 @@ def run(args: argparse.Namespace) -> int:
         optics = resolve_optics(source.setup, optics_options(args))
         frame = source.read(args.frame)
         shape = source.frame_shape
+    problem = frame_problem(frame)
+    if problem is not None:
+        raise InputError(f"{args.input} frame {args.frame} {problem}; choose another with --frame")
+    check_not_background_subtracted(frame, f"{args.input} frame {args.frame}")
     detected = find_peaks(frame)
     labelling = None
     if labels:

@@ -7,10 +7,17 @@ can still be processed right. Frame times come from the file's own timestamps (t
 camera clock, else host arrival times, or a video's frame rate); ``fps_hz`` replaces
 them with ``index / fps_hz``, and files without times (TIFF stacks, image folders)
 need it.
+
+The frames are checked where a user's mistake would otherwise pass unseen: values
+beyond the recording's pixel format (a "Mono12" file holding 16-bit data) stop the
+run naming the file and frame; :func:`first_good_frame` finds the frame the peaks are
+detected on, skipping (with a warning) frames damaged in transfer, non-finite or
+blank, and refuses background-subtracted frames, which cannot be demodulated.
 """
 
 from __future__ import annotations
 
+import codecs
 import logging
 import math
 from dataclasses import dataclass, field
@@ -22,13 +29,28 @@ import numpy as np
 
 from holoview.acquire.recording import RecordingReader
 from holoview.acquire.replay_files import FrameFile, open_frame_file
-from holoview.errors import InputError
+from holoview.errors import InputError, os_error_text
 from holoview.optics.setup import FLUIDS, check_optics
+from holoview.processing.frames import check_frame, check_frame_content, frame_damage
 
 logger = logging.getLogger(__name__)
 
 #: Refractive index above the surface when neither the file nor the user gives one (air).
 DEFAULT_N1 = FLUIDS["air"]
+
+#: Plausible frame rates, frames per second (a time-lapse at one frame a week to the
+#: fastest cameras); outside, the series' arithmetic overflows.
+FPS_RANGE = (1e-6, 1e7)
+
+#: Plausible basin areas, m^2 (a square millimetre to a square kilometre).
+AREA_RANGE = (1e-6, 1e6)
+
+#: Frames tried, from the first of a run, for one that peaks can be detected on.
+FIRST_FRAME_TRIES = 10
+
+#: A hologram's mean intensity exceeds its spread (by sqrt(2) at full fringe contrast);
+#: below this fraction of it, the frames have had their background subtracted.
+MIN_MEAN_TO_SPREAD = 0.5
 
 
 @dataclass(frozen=True)
@@ -218,6 +240,139 @@ def parse_frame_range(text: str | None, n_frames: int) -> range:
     return selected
 
 
+#: Largest text file (peaks file) read, bytes.
+MAX_TEXT_BYTES = 16 << 20
+
+
+def read_text_file(path: Path, what: str) -> str:
+    """Return the text of a small file, however an editor or shell encoded it.
+
+    UTF-8 (with or without a byte-order mark) and UTF-16 with its mark (what
+    PowerShell's ``>`` writes) are read; anything else is refused in one line.
+
+    Parameters
+    ----------
+    path : Path
+        The file.
+    what : str
+        What it is, for messages (``"peaks file"``).
+
+    Raises
+    ------
+    InputError
+        The file cannot be read, is too large, or is not text.
+    """
+    try:
+        if path.stat().st_size > MAX_TEXT_BYTES:
+            raise InputError(f"{what} {path}: too large for a {what} ({path.stat().st_size} bytes)")
+        data = path.read_bytes()
+    except OSError as exc:
+        raise InputError(f"{what} {path}: cannot be read ({os_error_text(exc)})") from exc
+    encoding = "utf-8"
+    if data.startswith(codecs.BOM_UTF8):
+        encoding = "utf-8-sig"
+    elif data.startswith((codecs.BOM_UTF16_LE, codecs.BOM_UTF16_BE)):
+        encoding = "utf-16"
+    try:
+        text = data.decode(encoding)
+    except UnicodeDecodeError as exc:
+        raise InputError(
+            f"{what} {path}: not a text file (byte {exc.start} is not {encoding.upper()} text)"
+        ) from exc
+    if "\x00" in text:
+        raise InputError(f"{what} {path}: not a text file (it holds NUL characters)")
+    return text
+
+
+def check_run_settings(
+    *, area_m2: float | None, radius: float | None, frame_shape: tuple[int, int]
+) -> None:
+    """Refuse a basin area or window radius that cannot give a sensible result.
+
+    Parameters
+    ----------
+    area_m2 : float or None
+        Basin area, m^2 (:data:`AREA_RANGE`).
+    radius : float or None
+        Window radius, cycles/pixel: at least one FFT bin of the frame, below 0.5.
+    frame_shape : tuple of int
+        ``(rows, cols)`` of the frames, pixels.
+    """
+    if area_m2 is not None:
+        if not (math.isfinite(area_m2) and area_m2 > 0):
+            raise InputError(f"--area must be a positive area in m^2, got {area_m2}")
+        if not AREA_RANGE[0] <= area_m2 <= AREA_RANGE[1]:
+            raise InputError(
+                f"--area {area_m2:g} m^2 is not a plausible basin area "
+                f"({AREA_RANGE[0]:g} to {AREA_RANGE[1]:g} m^2)"
+            )
+    if radius is not None:
+        smallest = 1.0 / min(frame_shape)
+        if not (math.isfinite(radius) and smallest <= radius < 0.5):
+            raise InputError(
+                f"--radius {radius:g} cycles/pixel: give a radius from {smallest:.3g} (one FFT "
+                f"bin of {frame_shape[0]} x {frame_shape[1]} frames) to below 0.5"
+            )
+
+
+def frame_problem(frame: np.ndarray) -> str | None:
+    """Why peaks cannot be detected on ``frame`` (damaged, non-finite, blank), or None."""
+    try:
+        array = check_frame(frame)
+        check_frame_content(array)
+    except InputError as exc:
+        return str(exc).removeprefix("frame ")
+    damage = frame_damage(array)
+    if damage is not None:
+        return f"is damaged: {damage}"
+    return None
+
+
+def check_not_background_subtracted(frame: np.ndarray, where: str) -> None:
+    """Refuse a frame whose mean intensity is near zero: its background was subtracted.
+
+    Amplitudes and trusted pixels are measured against the mean intensity, so such
+    frames demodulate to nothing ("no_signal" on every frame).
+    """
+    values = np.asarray(frame, dtype=np.float64)[::2, ::2]
+    mean, spread = float(values.mean()), float(values.std())
+    if values.min() < 0 and mean < MIN_MEAN_TO_SPREAD * spread:
+        raise InputError(
+            f"{where} has a mean intensity of {mean:.3g} for a spread of {spread:.3g} "
+            f"(values {values.min():.3g} to {values.max():.3g}): background-subtracted frames "
+            "cannot be demodulated (amplitudes are measured against the mean intensity); "
+            "give the raw frames"
+        )
+
+
+def first_good_frame(source: InputFile, frames: range) -> tuple[int, np.ndarray]:
+    """Return ``(index, frame)``: the first of ``frames`` that peaks can be detected on.
+
+    Frames damaged in transfer, holding NaN or infinite values, or blank are skipped
+    with a warning naming them (up to :data:`FIRST_FRAME_TRIES`).
+
+    Raises
+    ------
+    InputError
+        None of the first frames is usable (naming the file, the frame and why), or
+        the frames are background-subtracted.
+    """
+    problems = []
+    for index in list(frames)[:FIRST_FRAME_TRIES]:
+        frame = source.read(index)
+        problem = frame_problem(frame)
+        if problem is None:
+            check_not_background_subtracted(frame, f"{source.path} frame {index}")
+            if problems:
+                logger.warning(
+                    "%s: peaks detected on frame %d (frame %s)", source.path, index, problems[0]
+                )
+            return index, frame
+        problems.append(f"{index} {problem}")
+    span = f"frame {frames[0]}" if len(problems) == 1 else f"frames {frames[0]}..{index}"
+    raise InputError(f"{source.path}: no peaks can be detected on {span}: frame {problems[0]}")
+
+
 def _increasing(times: np.ndarray) -> bool:
     return bool(np.all(np.isfinite(times)) and np.all(np.diff(times) > 0))
 
@@ -273,7 +428,11 @@ class InputFile:
         self.kind = self._file.kind
         self.frame_shape = self._file.frame_shape
         self.dtype = np.dtype(self._file.dtype)
+        self._bits = bits
+        self._bits_limit: int | None = None
         if self.dtype.kind in "ui":
+            if bits is not None and bits < 8 * self.dtype.itemsize:
+                self._bits_limit = 2**bits - 1  # Mono10/12/14 in 16-bit words
             bits = bits or 8 * self.dtype.itemsize
             self.saturation: float | None = float(2**bits - 1)
         else:
@@ -289,8 +448,24 @@ class InputFile:
         return len(self._file)
 
     def read(self, index: int) -> np.ndarray:
-        """Return frame ``index`` as a new array (InputError when it cannot be read)."""
-        return self._file.read(index)
+        """Return frame ``index`` as a new array.
+
+        Raises
+        ------
+        InputError
+            The frame cannot be read, or holds values beyond the recording's pixel
+            format (its ``significant_bits``).
+        """
+        frame = self._file.read(index)
+        if self._bits_limit is not None:
+            top = frame.max()
+            if top > self._bits_limit:
+                raise InputError(
+                    f"{self.path} frame {index} holds values up to {top}, beyond the "
+                    f"{self._bits}-bit range of its pixel format (0..{self._bits_limit}): "
+                    "the file's pixel format or significant_bits is wrong"
+                )
+        return frame
 
     def times(self, frames: range, fps_hz: float | None = None) -> np.ndarray:
         """Return the times of ``frames`` in s, from 0 at the first of them.
@@ -307,6 +482,11 @@ class InputFile:
         if fps_hz is not None:
             if not (math.isfinite(fps_hz) and fps_hz > 0):
                 raise InputError(f"--fps must be a positive number, got {fps_hz}")
+            if not FPS_RANGE[0] <= fps_hz <= FPS_RANGE[1]:
+                raise InputError(
+                    f"--fps {fps_hz:g} is not a plausible frame rate "
+                    f"({FPS_RANGE[0]:g} to {FPS_RANGE[1]:g} frames/s)"
+                )
             return (indices - indices[0]) / float(fps_hz)
         device = np.array([self._file.t_device(int(i)) for i in indices], dtype=np.float64)
         if _increasing(device):

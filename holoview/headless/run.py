@@ -28,6 +28,8 @@ from holoview.headless.inputs import (
     InputFile,
     Optics,
     OpticsOptions,
+    check_run_settings,
+    first_good_frame,
     parse_frame_range,
     resolve_optics,
 )
@@ -177,8 +179,6 @@ def process_file(
     settings = settings or ProcessSettings()
     options = optics_options or OpticsOptions()
     out_dir = Path(out)
-    if settings.area_m2 is not None and not settings.area_m2 > 0:
-        raise InputError(f"--area must be a positive area in m^2, got {settings.area_m2}")
     names = (TRENDS_CSV, SUMMARY_JSON, RESULTS_H5, REPORT_PNG)
     with (
         OutputFolder(out_dir, names, overwrite=overwrite) as outputs,
@@ -188,7 +188,10 @@ def process_file(
         optics.require("wavelength_m")
         selected = parse_frame_range(frames, len(source))
         times = source.times(selected, options.fps_hz)
-        first = source.read(selected[0])
+        check_run_settings(
+            area_m2=settings.area_m2, radius=settings.radius, frame_shape=source.frame_shape
+        )
+        _, first = first_good_frame(source, selected)
         detected = find_peaks(first, radius=settings.radius, threads=settings.threads)
         selection = choose_peaks(choice, detected, source.frame_shape, optics)
         demodulator = make_demodulator(

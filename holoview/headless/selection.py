@@ -34,7 +34,7 @@ from typing import Any
 import numpy as np
 
 from holoview.errors import InputError
-from holoview.headless.inputs import Optics
+from holoview.headless.inputs import Optics, read_text_file
 from holoview.optics.families import alpha_of
 from holoview.processing.labelling import DEFAULT_SNAP_BINS, ModelLabelling, label_peaks
 from holoview.processing.peaks import Peak
@@ -147,10 +147,7 @@ def load_peaks_file(path: str | Path) -> list[PeakEntry]:
         given twice.
     """
     p = Path(path)
-    try:
-        text = p.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise InputError(f"peaks file {p}: cannot be read ({exc.strerror or exc})") from exc
+    text = read_text_file(p, "peaks file")
     try:
         document = json.loads(text)
     except json.JSONDecodeError as exc:

@@ -18,21 +18,34 @@ Flags a peak can carry:
 - ``"overlap"``: closer than two window radii to another peak or twin;
 - ``"near_nyquist"``: its window reaches past the Nyquist frequency (it wraps);
 - ``"weak"``: its significance is less than twice the detection threshold.
+
+A frame damaged in transfer (rows of one value, :func:`~holoview.processing.frames.frame_damage`)
+is not searched: :func:`find_peaks` raises
+:class:`~holoview.processing.frames.DamagedFrameError` with the reason, at once. The
+search is bounded on any frame: at most :data:`MAX_CANDIDATES` candidates are
+measured, and the relations are found with k-d trees (harmonics and sums of the
+:data:`RELATION_PEAKS` strongest peaks, overlaps of all), ``O(n log n)`` in the
+number of peaks.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import itertools
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 from scipy import ndimage
+from scipy.spatial import cKDTree
 
 from holoview.errors import InputError
 from holoview.processing.fftplans import default_threads, rfft2_plan
-from holoview.processing.frames import check_frame, check_frame_content
+from holoview.processing.frames import (
+    DamagedFrameError,
+    check_frame,
+    check_frame_content,
+    frame_damage,
+)
 from holoview.processing.windows import auto_radius, wrap_frequency
 
 #: Default significance threshold: a peak's magnitude over the local background median.
@@ -52,6 +65,12 @@ ANNULUS_BINS = (5, 12)
 
 #: Tolerance (bins) when matching a peak to a harmonic or a sum of other carriers.
 RELATION_TOLERANCE_BINS = 1.5
+
+#: Candidates measured at most, the largest magnitudes first (a clean frame has a few dozen).
+MAX_CANDIDATES = 256
+
+#: The strongest peaks whose harmonics and pairwise sums are looked for.
+RELATION_PEAKS = 32
 
 #: Every flag :func:`find_peaks` can put on a peak (see the module documentation).
 FLAGS: tuple[str, ...] = ("harmonic", "sum", "overlap", "near_nyquist", "weak")
@@ -177,10 +196,22 @@ def _canonical(ky: int, kx: int, rows: int, cols: int) -> bool:
     return False
 
 
-def _bin_distance(a: np.ndarray, b: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
-    """Periodic distance between carriers ``a`` and ``b`` ((..., 2) arrays of fx, fy) in bins."""
-    delta = wrap_frequency(np.asarray(a) - np.asarray(b))
-    return np.hypot(delta[..., 0] * shape[1], delta[..., 1] * shape[0])
+def _on_torus(points: np.ndarray, box: tuple[float, float]) -> np.ndarray:
+    """``points`` (N, 2) folded into ``[0, box)`` (rounding can make ``mod`` return the side)."""
+    folded = np.mod(points, box)
+    return np.where(folded >= box, 0.0, folded)
+
+
+def _periodic_tree(points: np.ndarray, box: tuple[float, float]) -> cKDTree:
+    """A k-d tree of ``points`` (N, 2) on the torus of side ``box`` (periodic distances)."""
+    return cKDTree(_on_torus(points, box), boxsize=box)
+
+
+def _matches(tree: cKDTree, targets: np.ndarray, box: tuple[float, float], tol: float) -> list:
+    """For each target point, the indices of the tree's points within ``tol`` of it."""
+    if len(targets) == 0:
+        return []
+    return tree.query_ball_point(_on_torus(targets, box), r=tol)
 
 
 def flag_relations(
@@ -192,43 +223,68 @@ def flag_relations(
     ----------
     peaks : sequence of Peak
         Peaks of one frame; harmonics and sums are matched against stronger ones
-        (by amplitude).
+        (by amplitude), among the :data:`RELATION_PEAKS` strongest.
     shape : tuple of int
         Frame shape ``(rows, cols)`` in pixels.
     radius : float, optional
         Window radius (cycles/pixel); by default :func:`auto_radius` of the carriers,
         at least :data:`MIN_RADIUS_BINS` bins.
+
+    Notes
+    -----
+    ``O(n log n)`` in the number of peaks n: k-d trees on the torus of the spectrum
+    (bins for the relations, cycles/pixel for the overlaps), queried at ``+-2 f`` for
+    each of the strongest peaks and at ``+-f1 +- f2`` for each pair of them.
     """
     if not peaks:
         return []
     carriers = np.array([p.carrier for p in peaks], dtype=np.float64)
+    amplitudes = np.array([p.amplitude for p in peaks], dtype=np.float64)
     if radius is None:
         radius = auto_radius(carriers, min_radius=MIN_RADIUS_BINS / min(shape))
-    tol = RELATION_TOLERANCE_BINS
+    rows, cols = shape
+    bins = carriers * (cols, rows)
+    box = (float(cols), float(rows))
+    tree = _periodic_tree(bins, box)
+    strongest = np.argsort(-amplitudes, kind="stable")[:RELATION_PEAKS]
+    harmonic = np.zeros(len(peaks), dtype=bool)
+    summed = np.zeros(len(peaks), dtype=bool)
+    doubled = np.concatenate([2 * bins[strongest], -2 * bins[strongest]])
+    for q, found in enumerate(_matches(tree, doubled, box, RELATION_TOLERANCE_BINS)):
+        j = strongest[q % len(strongest)]
+        for i in found:
+            harmonic[i] |= amplitudes[i] < amplitudes[j]
+    pairs = [(j, k) for a, j in enumerate(strongest) for k in strongest[a + 1 :]]
+    if pairs:
+        first, second = np.array(pairs).T
+        sums = [s1 * bins[first] + s2 * bins[second] for s1 in (1, -1) for s2 in (1, -1)]
+        found_all = _matches(tree, np.concatenate(sums), box, RELATION_TOLERANCE_BINS)
+        for q, found in enumerate(found_all):
+            j, k = pairs[q % len(pairs)]
+            weaker_than = min(amplitudes[j], amplitudes[k])
+            for i in found:
+                summed[i] |= amplitudes[i] < weaker_than
+    everything = np.concatenate([carriers, -carriers])
+    neighbours = _periodic_tree(everything, (1.0, 1.0))
+    k = min(3, len(everything))
+    _, index = neighbours.query(_on_torus(carriers, (1.0, 1.0)), k=k)
+    overlap = np.zeros(len(peaks), dtype=bool)
+    for i, near in enumerate(np.reshape(index, (len(peaks), k))):
+        others = everything[[j for j in near.tolist() if j != i]]
+        gap = wrap_frequency(carriers[i] - others)  # exact, as the window's own test
+        overlap[i] = bool(np.hypot(gap[:, 0], gap[:, 1]).min() < 2 * radius)
+    near_nyquist = np.abs(carriers).max(axis=1) + radius > 0.5
     out = []
     for i, peak in enumerate(peaks):
         flags = set(peak.flags) - {"harmonic", "sum", "overlap", "near_nyquist"}
-        stronger = [j for j, p in enumerate(peaks) if p.amplitude > peak.amplitude and j != i]
-        f = carriers[i]
-        for j in stronger:
-            if (
-                min(
-                    _bin_distance(f, 2 * carriers[j], shape),
-                    _bin_distance(f, -2 * carriers[j], shape),
-                )
-                <= tol
-            ):
-                flags.add("harmonic")
-        for j, k in itertools.combinations(stronger, 2):
-            for sj, sk in itertools.product((1, -1), repeat=2):
-                if _bin_distance(f, sj * carriers[j] + sk * carriers[k], shape) <= tol:
-                    flags.add("sum")
-        others = np.concatenate([np.delete(carriers, i, axis=0), -carriers])
-        distances = wrap_frequency(f - others)
-        if np.hypot(distances[:, 0], distances[:, 1]).min() < 2 * radius:
-            flags.add("overlap")
-        if np.abs(f).max() + radius > 0.5:
-            flags.add("near_nyquist")
+        for flag, on in (
+            ("harmonic", harmonic[i]),
+            ("sum", summed[i]),
+            ("overlap", overlap[i]),
+            ("near_nyquist", near_nyquist[i]),
+        ):
+            if on:
+                flags.add(flag)
         out.append(peak.with_flags(flags))
     return out
 
@@ -282,12 +338,18 @@ def find_peaks(
 
     Raises
     ------
+    DamagedFrameError
+        For a frame damaged in transfer (rows of one value: lost packets), with the
+        reason; nothing is searched.
     InputError
         For a frame that is not a 2-D monochrome image, holds NaN or is constant,
         or for parameters out of range.
     """
     array = check_frame(frame)
     check_frame_content(array)
+    damage = frame_damage(array)
+    if damage is not None:
+        raise DamagedFrameError(f"frame is damaged: {damage}; no peaks searched", damage)
     if not threshold > 1:
         raise InputError(f"threshold must be > 1 (a ratio to the background), got {threshold}")
     if not 0 <= dc_radius < 0.5:
@@ -313,12 +375,18 @@ def find_peaks(
     fy = np.fft.fftfreq(rows)[:, None]
     fx = np.fft.fftfreq(cols)[None, :]
     outside_dc = np.hypot(fx, fy) > dc_radius
-    candidates = np.argwhere(local_max & significant & outside_dc)
+    candidates = [
+        (int(ky), int(kx))
+        for ky, kx in np.argwhere(local_max & significant & outside_dc)
+        if _canonical(int(ky), int(kx), rows, cols)
+    ]
+    if len(candidates) > MAX_CANDIDATES:
+        strength = np.array([magnitude[ky, kx] for ky, kx in candidates])
+        keep = np.argsort(-strength, kind="stable")[:MAX_CANDIDATES]
+        candidates = [candidates[i] for i in sorted(keep.tolist())]
     log_mag = np.log(np.maximum(magnitude, np.finfo(np.float32).tiny))
     found = []
     for ky, kx in candidates:
-        if not _canonical(int(ky), int(kx), rows, cols):
-            continue
         dy, dx = _refine(log_mag, int(ky), int(kx))
         gain = float(_hann_gain(np.array(dy)) * _hann_gain(np.array(dx)))
         carrier = (
