@@ -4,7 +4,11 @@ Frames come from :func:`holoview.optics.scenarios.simulate` (the paper's forward
 model, fast synthesis) and go to a holoview recording (layout in
 :mod:`holoview.acquire.recording`; ``source`` is ``"simulate:SCENARIO"``, the setup
 attributes are :meth:`holoview.optics.setup.Setup.as_attributes`). After the writer
-closes, this command reopens the file and adds the truth.
+closes, this command reopens the file and adds the truth. The recording and the
+figure are written under temporary names and renamed when complete
+(:mod:`holoview.atomic`): a simulation that fails or is stopped leaves no file, and
+neither an existing recording nor an existing figure is overwritten. Every option
+is checked before the simulation starts.
 
 ``/truth`` layout
 -----------------
@@ -40,7 +44,7 @@ from dataclasses import asdict
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from holoview.errors import InputError
+from holoview.errors import InputError, OutputError
 
 if TYPE_CHECKING:
     from collections.abc import Callable
@@ -55,6 +59,12 @@ logger = logging.getLogger(__name__)
 
 #: Mirror passes of the families written to /truth and marked on the figure.
 MAX_ORDER = 4
+
+#: Largest frame side, pixels (a 8192 x 8192 simulation needs several GB).
+MAX_SIZE = 8192
+
+#: Seeds are stored as an int64 attribute.
+MAX_SEED = 2**63 - 1
 
 #: The scenario config fields and the SI unit suffixes of their /truth attributes.
 _CONFIG_UNITS = {
@@ -147,10 +157,18 @@ def _number(name: str, value: float | None, scale: float = 1.0) -> float | None:
 
 def build_setup(args: argparse.Namespace) -> Setup:
     """Return the setup the command-line options describe (SI units inside)."""
-    from holoview.optics.setup import FLUIDS, Ghost, Setup
+    from holoview.optics.setup import FLUIDS, Ghost, Setup, check_optics
 
-    if args.size is None or args.size < 8:
-        raise InputError(f"--size must be at least 8 pixels, got {args.size}")
+    if args.size is None or not 8 <= args.size <= MAX_SIZE:
+        raise InputError(f"--size must be from 8 to {MAX_SIZE} pixels, got {args.size}")
+    check_optics(
+        wavelength_m=None if args.wavelength_nm is None else args.wavelength_nm * 1e-9,
+        pixel_pitch_m=None if args.pixel_pitch_um is None else args.pixel_pitch_um * 1e-6,
+        names={
+            "wavelength_m": ("--wavelength-nm", 1e-9),
+            "pixel_pitch_m": ("--pixel-pitch-um", 1e-6),
+        },
+    )
     changes: dict[str, object] = {"shape": (args.size, args.size)}
     if args.fluid is not None:
         changes["n2"] = FLUIDS[args.fluid]
@@ -350,6 +368,28 @@ def spectrum_figure(
     return np.hstack([image, np.full((height, 8, 3), 255, np.uint8), spec])
 
 
+def check_outputs(args: argparse.Namespace) -> None:
+    """Refuse, before simulating, outputs that exist or cannot be written (InputError)."""
+    import cv2
+
+    if args.out.exists():
+        raise InputError(f"{args.out} exists; holoview does not overwrite recordings")
+    if not args.out.parent.is_dir():
+        raise InputError(f"folder {args.out.parent} does not exist")
+    if args.png is None:
+        return
+    if not 0 <= args.png_frame < args.frames:
+        raise InputError(f"--png-frame must be in 0..{args.frames - 1}, got {args.png_frame}")
+    if args.png.is_dir():
+        raise InputError(f"--png {args.png} is a folder; give a file name such as figure.png")
+    if args.png.exists():
+        raise InputError(f"--png {args.png} exists; holoview does not overwrite it")
+    if not args.png.parent.is_dir():
+        raise InputError(f"folder {args.png.parent} does not exist")
+    if not cv2.haveImageWriter(str(args.png)):
+        raise InputError(f"--png {args.png}: no image writer for that suffix (use .png)")
+
+
 def run(args: argparse.Namespace) -> int:
     """Simulate, write the recording and its truth, and the figure if asked."""
     import dataclasses
@@ -359,17 +399,17 @@ def run(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
     from holoview.acquire.recording import RecordingWriter
+    from holoview.atomic import atomic_path
     from holoview.optics.families import predict_families
     from holoview.optics.scenarios import make_surface, simulate
 
     if args.frames is None or args.frames < 1:
         raise InputError(f"--frames must be at least 1, got {args.frames}")
-    if not (math.isfinite(args.fps) and args.fps > 0):
-        raise InputError(f"--fps must be positive, got {args.fps}")
-    if args.png is not None and not 0 <= args.png_frame < args.frames:
-        raise InputError(f"--png-frame must be in 0..{args.frames - 1}, got {args.png_frame}")
-    if args.png is not None and not args.png.parent.is_dir():
-        raise InputError(f"folder {args.png.parent} does not exist")
+    if not (math.isfinite(args.fps) and 0 < args.fps <= 1e7):
+        raise InputError(f"--fps must be a frame rate from 0 to 1e7 frames/s, got {args.fps}")
+    if args.seed is not None and not 0 <= args.seed <= MAX_SEED:
+        raise InputError(f"--seed must be an integer from 0 to 2**63 - 1, got {args.seed}")
+    check_outputs(args)
     setup = build_setup(args)
     config = build_config(args)
     families = predict_families(setup, max_order=MAX_ORDER)
@@ -398,39 +438,42 @@ def run(args: argparse.Namespace) -> int:
         noise=args.noise,
         surface=surface,
     )
-    with RecordingWriter(
-        args.out,
-        setup.shape,
-        "uint8" if setup.bit_depth <= 8 else "uint16",
-        setup=setup.as_attributes(),
-        settings=settings,
-        source=f"simulate:{args.scenario}",
-        significant_bits=setup.bit_depth,
-        pixel_format=f"Mono{setup.bit_depth}" if setup.bit_depth in (8, 10, 12, 16) else None,
-    ) as writer:
-        progress = tqdm(total=args.frames, unit="frame", disable=args.quiet, desc="simulate")
-        with progress:
-            for frame, truth in sequence:
-                writer.append(frame, truth.index, truth.time, time.time())
-                truths.append(dataclasses.replace(truth, height=None))
-                if truth.index == args.png_frame:
-                    figure_frame = frame
-                progress.update(1)
-    write_truth(
-        args.out,
-        truths=truths,
-        families=families,
-        setup=setup,
-        config=config,
-        args=args,
-        surface=surface,
-    )
-    figure = (
-        None
-        if figure_frame is None
-        else spectrum_figure(figure_frame, families, amplitudes=visible)
-    )
-    if args.png is not None and not cv2.imwrite(str(args.png), figure):
-        raise InputError(f"could not write {args.png}")
+    with atomic_path(args.out) as partial:
+        with RecordingWriter(
+            partial,
+            setup.shape,
+            "uint8" if setup.bit_depth <= 8 else "uint16",
+            setup=setup.as_attributes(),
+            settings=settings,
+            source=f"simulate:{args.scenario}",
+            significant_bits=setup.bit_depth,
+            pixel_format=f"Mono{setup.bit_depth}" if setup.bit_depth in (8, 10, 12, 16) else None,
+        ) as writer:
+            progress = tqdm(total=args.frames, unit="frame", disable=args.quiet, desc="simulate")
+            with progress:
+                for frame, truth in sequence:
+                    writer.append(frame, truth.index, truth.time, time.time())
+                    truths.append(dataclasses.replace(truth, height=None))
+                    if truth.index == args.png_frame:
+                        figure_frame = frame
+                    progress.update(1)
+        write_truth(
+            partial,
+            truths=truths,
+            families=families,
+            setup=setup,
+            config=config,
+            args=args,
+            surface=surface,
+        )
+    if args.png is not None and figure_frame is not None:
+        figure = spectrum_figure(figure_frame, families, amplitudes=visible)
+        with atomic_path(args.png) as partial_png:
+            try:
+                written = cv2.imwrite(str(partial_png), figure)
+            except cv2.error as exc:
+                raise OutputError(f"cannot write {args.png} ({exc.err or exc})") from exc
+            if not written:
+                raise OutputError(f"cannot write {args.png}")
     logger.info("wrote %d frames to %s", len(truths), args.out)
     return 0

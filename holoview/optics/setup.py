@@ -41,6 +41,10 @@ FLUIDS: dict[str, float] = {
 #: Largest mirror tilt, rad, for which the small-angle model of the paper holds well.
 MAX_TILT = 0.05
 
+#: Most photons per pixel and frame a simulated camera takes (full wells hold about 1e5;
+#: numpy's Poisson sampler fails near 1e19).
+MAX_PHOTONS = 1e12
+
 #: Beam-splitter ghosts copy one of these arms.
 GHOST_ARMS = ("reference", "probe")
 
@@ -306,12 +310,17 @@ class Setup:
             value = getattr(self, name)
             if value is not None:
                 put(self, name, _positive(name, value, " m"))
-        put(self, "photons_per_pixel", _positive("photons_per_pixel", self.photons_per_pixel))
+        for name in ("photons_per_pixel", "saturation"):
+            photons = _positive(name, getattr(self, name), " photons")
+            if photons > MAX_PHOTONS:
+                raise InputError(
+                    f"{name} = {photons:g} photons is beyond any camera (at most {MAX_PHOTONS:g})"
+                )
+            put(self, name, photons)
         bits = self.bit_depth
         if isinstance(bits, bool) or not isinstance(bits, int) or not 1 <= bits <= 16:
             raise InputError(f"bit_depth must be an integer from 1 to 16, got {bits!r}")
         put(self, "gamma", _positive("gamma", self.gamma))
-        put(self, "saturation", _positive("saturation", self.saturation, " photons"))
         self._check_nyquist()
 
     def _check_nyquist(self) -> None:
