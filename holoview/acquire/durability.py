@@ -200,6 +200,8 @@ class DiskReserve:
         The file being protected; the reserve is ``.NAME.reserve`` in its folder.
     size : int
         Bytes to hold.
+    name : str, optional
+        What to call the target in messages (default: its path).
 
     Raises
     ------
@@ -207,19 +209,21 @@ class DiskReserve:
         The disk has not even that much room.
     """
 
-    def __init__(self, target: Path, size: int = RESERVE_BYTES) -> None:
+    def __init__(self, target: Path, size: int = RESERVE_BYTES, *, name: str | None = None) -> None:
         self.path = target.with_name(f".{target.name}.reserve")
+        what = name or str(target)
         try:
             fd = os.open(self.path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
         except OSError as exc:
-            raise OutputError(f"cannot write beside {target}: {os_error_text(exc)}") from exc
+            raise OutputError(f"cannot write {what}: {os_error_text(exc)}") from exc
         try:
             _allocate(fd, size)
         except OSError as exc:
             os.close(fd)
             self.path.unlink(missing_ok=True)
             raise OutputError(
-                f"{target}: the disk has less than {size / 1e6:.0f} MB free ({os_error_text(exc)})"
+                f"cannot write {what}: the disk has less than {size / 1e6:.0f} MB free "
+                f"({os_error_text(exc)})"
             ) from exc
         os.close(fd)
         self.held = True

@@ -76,6 +76,20 @@ def configure_logging(verbose: int, quiet: bool) -> None:
     logging.getLogger("py.warnings").setLevel(logging.WARNING if verbose else logging.ERROR)
 
 
+def _quiet_hdf5_cleanup(unraisable: sys.UnraisableHookArgs) -> None:
+    """Log, instead of printing, HDF5's complaints while h5py frees objects of a failed file.
+
+    After a write failed (a full disk), every dataset h5py releases tries to flush and
+    fails again; the error that matters has been reported once already.
+    """
+    if "h5py" in repr(unraisable.object):
+        logging.getLogger(__name__).debug(
+            "while freeing %r: %s", unraisable.object, unraisable.exc_value
+        )
+        return
+    sys.__unraisablehook__(unraisable)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the ``holoview`` command line; return the process exit status."""
     parser = build_parser()
@@ -86,6 +100,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(args_list)
     configure_logging(args.verbose, args.quiet)
     logging.captureWarnings(True)
+    previous_hook, sys.unraisablehook = sys.unraisablehook, _quiet_hdf5_cleanup
     try:
         if args.command == "live":  # the GUI closes its window on these signals itself
             return int(args._run(args) or 0)
@@ -110,6 +125,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 130
     finally:
         logging.captureWarnings(False)
+        sys.unraisablehook = previous_hook
 
 
 if __name__ == "__main__":

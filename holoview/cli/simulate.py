@@ -44,7 +44,7 @@ from dataclasses import asdict
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from holoview.errors import InputError, OutputError
+from holoview.errors import InputError, OutputError, os_error_text
 
 if TYPE_CHECKING:
     from collections.abc import Callable
@@ -468,12 +468,13 @@ def run(args: argparse.Namespace) -> int:
         )
     if args.png is not None and figure_frame is not None:
         figure = spectrum_figure(figure_frame, families, amplitudes=visible)
+        encoded, image = cv2.imencode(args.png.suffix, figure)  # libpng prints nothing
+        if not encoded:
+            raise OutputError(f"cannot encode {args.png}")
         with atomic_path(args.png) as partial_png:
             try:
-                written = cv2.imwrite(str(partial_png), figure)
-            except cv2.error as exc:
-                raise OutputError(f"cannot write {args.png} ({exc.err or exc})") from exc
-            if not written:
-                raise OutputError(f"cannot write {args.png}")
+                partial_png.write_bytes(image.tobytes())
+            except OSError as exc:
+                raise OutputError(f"cannot write {args.png}: {os_error_text(exc)}") from exc
     logger.info("wrote %d frames to %s", len(truths), args.out)
     return 0

@@ -44,7 +44,9 @@ import contextlib
 import csv
 import datetime as _dt
 import json
+import logging
 import math
+import os
 import uuid
 from collections.abc import Iterator, Sequence
 from pathlib import Path
@@ -54,10 +56,13 @@ import h5py
 import numpy as np
 
 from holoview import __version__
+from holoview.acquire.durability import CLOSE_MARGIN_BYTES, DiskReserve, free_bytes
 from holoview.errors import OutputError, os_error_text
 from holoview.headless.analysis import Analysis, PeakOutcome
 from holoview.headless.inputs import Optics
 from holoview.headless.pipeline import ProcessSettings, RunData, fuse_frame
+
+logger = logging.getLogger(__name__)
 
 #: The header of ``trends.csv``, exactly.
 TRENDS_HEADER = ("frame", "time_s", "label", "alpha", "mean_phase_rad", "mean_height_m")
@@ -66,6 +71,10 @@ TRENDS_HEADER = ("frame", "time_s", "label", "alpha", "mean_phase_rad", "mean_he
 RESULTS_FORMAT = "holoview-results"
 SUMMARY_FORMAT = "holoview-process-summary"
 FORMAT_VERSION = "1.0"
+
+#: Bytes kept free beside ``results.h5`` while it is written: the room to close it cleanly
+#: when the disk fills (its index, a few kilobytes).
+CLOSE_RESERVE_BYTES = 1 << 20
 
 #: Frames of maps gathered before one write per dataset (fewer, larger HDF5 writes).
 MAP_BATCH = 16
@@ -289,12 +298,18 @@ class ResultsFile:
         maps: bool,
     ) -> None:
         self.path = path
-        with _writing("results.h5"):
-            self._file = h5py.File(path, "w", libver=("v110", "latest"))
+        self._broken = False  # a write failed: the file is dropped, its data need not reach it
+        self._reserve = DiskReserve(path, CLOSE_RESERVE_BYTES, name="results.h5")
+        try:
+            with _writing("results.h5"):
+                self._file = h5py.File(path, "w", libver=("v110", "latest"))
+        except OutputError:
+            self._reserve.release()
+            raise
         self._labels = list(labels)
         self._maps: list[h5py.Dataset] = []
         if maps:
-            with _writing("results.h5"):
+            with self._guard():
                 group = self._file.create_group("maps")
                 self._maps = [
                     self._map_dataset(group, f"_peak{j}", n_frames, box_shape)
@@ -318,7 +333,8 @@ class ResultsFile:
         if self._block < 0:
             return
         block, self._block = self._block, -1
-        with _writing("results.h5"):
+        self._ensure_room(sum(buffer.nbytes for buffer in self._buffers))
+        with self._guard():
             for dataset, buffer in zip(self._maps, self._buffers, strict=True):
                 start = block * MAP_BATCH
                 stop = min(start + MAP_BATCH, dataset.shape[0])
@@ -387,7 +403,10 @@ class ResultsFile:
         ``converted`` says the maps already hold delta-h (prefactors known during the
         run); otherwise they hold phases and are converted here.
         """
-        with _writing("results.h5"):
+        n, m = len(data.frames), len(analysis.peaks)
+        fused_maps = self._maps[0].shape[1] * self._maps[0].shape[2] * 4 if self._maps else 0
+        self._ensure_room(n * (48 * m + 48 + fused_maps))
+        with self._guard():
             self._finish(
                 data=data,
                 analysis=analysis,
@@ -546,12 +565,85 @@ class ResultsFile:
                 }
             )
 
+    def _ensure_room(self, nbytes: int) -> None:
+        """Raise OutputError, before HDF5 tries, when ``nbytes`` more would not fit.
+
+        HDF5 meeting a full disk in the middle of a write can leave its objects unable
+        to close (and h5py crashing at exit); a run's own results filling the disk are
+        stopped here instead, cleanly.
+        """
+        free = free_bytes(self.path.parent)
+        if free is not None and free < nbytes + CLOSE_MARGIN_BYTES:
+            self._broken = True
+            raise OutputError(
+                f"cannot write results.h5: the disk is full ({free / 1e6:.1f} MB free, "
+                f"{(nbytes + CLOSE_MARGIN_BYTES) / 1e6:.1f} MB needed)"
+            )
+
+    @contextlib.contextmanager
+    def _guard(self) -> Iterator[None]:
+        """:func:`_writing` for this file, remembering that a write failed."""
+        try:
+            with _writing("results.h5"):
+                yield
+        except OutputError:
+            self._broken = True
+            raise
+
+    def _drop_data(self) -> None:
+        """Make room to close a file that failed: its data go, it is dropped anyway.
+
+        Closing an HDF5 file whose cached chunks or index cannot be written fails, and
+        h5py then crashes freeing its objects (a segmentation fault at exit). So every
+        chunked dataset is emptied (its cached chunks are discarded, not written), the
+        file's blocks are freed (it is truncated to nothing) and the reserve kept
+        beside it is given back: the few kilobytes of index written at close then fit.
+        """
+        chunked: list[h5py.Dataset] = []
+        self._file.visititems(
+            lambda _, item: (
+                chunked.append(item)
+                if isinstance(item, h5py.Dataset) and item.chunks and item.maxshape[0] is None
+                else None
+            )
+        )
+        for dataset in chunked:
+            try:
+                dataset.resize(0, axis=0)
+            except (OSError, RuntimeError):
+                continue
+        with contextlib.suppress(OSError):
+            os.truncate(self.path, 0)
+        self._reserve.release()
+
     def close(self) -> None:
-        """Write the maps still buffered and close the file (closed also when that fails)."""
+        """Write the maps still buffered, flush and close the file (closed also on failure).
+
+        When a write failed, nothing more is written: the data are dropped
+        (:meth:`_drop_data`) and the file is closed, for the caller to remove.
+
+        Raises
+        ------
+        OutputError
+            The file could not be written completely.
+        """
         if not self._file.id.valid:
             return
         try:
-            self._flush()
+            if not self._broken:
+                self._flush()
+                with self._guard():
+                    self._file.flush()  # fails here, not inside close, when the disk is full
         finally:
-            with _writing("results.h5"):
-                self._file.close()
+            broken = self._broken
+            if broken:
+                self._drop_data()
+            try:
+                with _writing("results.h5"):
+                    self._file.close()
+            except OutputError as exc:
+                if not broken:
+                    raise
+                logger.debug("closing a failed results.h5: %s", exc)  # the first error counts
+            finally:
+                self._reserve.release()

@@ -25,7 +25,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from holoview.errors import OutputError
+from holoview.errors import OutputError, os_error_text
 from holoview.headless.analysis import Analysis
 from holoview.headless.inputs import Optics
 from holoview.headless.pipeline import ProcessSettings, RunData, fuse_frame
@@ -317,9 +317,10 @@ def write_report(
             scale=0.55,
             colour=NOTE_RED,
         )
+    encoded, png = cv2.imencode(".png", image)  # in memory: libpng prints nothing
+    if not encoded:
+        raise OutputError("cannot encode report.png")
     try:
-        written = cv2.imwrite(str(path), image)
-    except cv2.error as exc:
-        raise OutputError(f"cannot write report.png ({exc.err or exc})") from exc
-    if not written:
-        raise OutputError("cannot write report.png (is the disk full?)")
+        path.write_bytes(png.tobytes())
+    except OSError as exc:
+        raise OutputError(f"cannot write report.png: {os_error_text(exc)}") from exc

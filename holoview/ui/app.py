@@ -1,12 +1,22 @@
-"""Start the Qt application and the main window."""
+"""Start the Qt application and the main window.
+
+Ctrl-C, SIGTERM and SIGHUP close the window as its close button does: a recording
+in progress is stopped and its file closed, the layout is saved, and the process
+exits with status 0. (Python runs signal handlers only when the interpreter has
+control, so a timer hands it control five times a second.)
+"""
 
 from __future__ import annotations
 
+import contextlib
 import logging
+import signal
+from collections.abc import Iterator
 from pathlib import Path
+from types import FrameType
 
 from PyQt6.QtCore import QTimer
-from PyQt6.QtWidgets import QApplication
+from PyQt6.QtWidgets import QApplication, QWidget
 
 from holoview.ui.main_window import MainWindow
 
@@ -21,6 +31,33 @@ def application() -> QApplication:
     app.setOrganizationName("holoview")
     app.setApplicationName("holoview")
     return app
+
+
+#: How often (ms) the event loop hands control to Python, so that signals are handled.
+SIGNAL_POLL_MS = 200
+
+
+@contextlib.contextmanager
+def close_on_signals(window: QWidget) -> Iterator[None]:
+    """Within the block, SIGINT, SIGTERM and SIGHUP close ``window`` (not ignored ones)."""
+
+    def close(signum: int, frame: FrameType | None) -> None:
+        logger.warning("%s: closing the window", signal.Signals(signum).name)
+        QTimer.singleShot(0, window.close)
+
+    previous = {}
+    for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+        if signal.getsignal(sig) is not signal.SIG_IGN:
+            previous[sig] = signal.signal(sig, close)
+    poll = QTimer(window)
+    poll.timeout.connect(lambda: None)
+    poll.start(SIGNAL_POLL_MS)
+    try:
+        yield
+    finally:
+        poll.stop()
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
 
 
 def run_live(
@@ -50,4 +87,5 @@ def run_live(
     if quit_after is not None:
         QTimer.singleShot(int(quit_after * 1000), window.close)
     logger.info("main window open on source %s", source)
-    return app.exec()
+    with close_on_signals(window):
+        return app.exec()

@@ -1,0 +1,155 @@
+"""Helpers of the fault tests: holoview in a child process, a real small disk, small inputs.
+
+A module of its own (not ``conftest``) so that test modules import it by a unique name.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+
+from holoview.acquire.recording import RecordingWriter
+
+#: The repository root: children import this checkout's holoview.
+REPO = Path(__file__).resolve().parents[2]
+
+
+def child_env(**extra: str) -> dict[str, str]:
+    """The environment of a child holoview: this checkout first, Qt offscreen."""
+    path = os.pathsep.join(p for p in (str(REPO), os.environ.get("PYTHONPATH", "")) if p)
+    return {**os.environ, "PYTHONPATH": path, "QT_QPA_PLATFORM": "offscreen", **extra}
+
+
+@dataclass(frozen=True)
+class Done:
+    """What a finished child holoview gave: exit status, stdout, stderr, wall seconds."""
+
+    status: int
+    out: str
+    err: str
+    seconds: float
+
+    @property
+    def err_lines(self) -> list[str]:
+        """The non-empty lines of stderr."""
+        return [line for line in self.err.splitlines() if line.strip()]
+
+
+def run_holoview(*args: str, timeout: float = 120.0, cwd: Path | None = None) -> Done:
+    """Run ``python -m holoview ARGS`` to its end (killed after ``timeout`` s: a hang)."""
+    start = time.monotonic()
+    child = subprocess.run(
+        [sys.executable, "-m", "holoview", *args],
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+        env=child_env(),
+        cwd=cwd,
+        check=False,
+    )
+    return Done(child.returncode, child.stdout, child.stderr, time.monotonic() - start)
+
+
+def start_holoview(*args: str) -> subprocess.Popen[str]:
+    """Start ``python -m holoview ARGS``; stdout and stderr are pipes."""
+    return subprocess.Popen(
+        [sys.executable, "-m", "holoview", *args],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=child_env(),
+    )
+
+
+def finish(child: subprocess.Popen[str], timeout: float = 60.0) -> Done:
+    """Wait for a started child (killed after ``timeout`` s, which fails the test)."""
+    start = time.monotonic()
+    try:
+        out, err = child.communicate(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        child.kill()
+        out, err = child.communicate()
+        pytest.fail(f"holoview did not end within {timeout} s: {err[-2000:]}")
+    return Done(child.returncode, out, err, time.monotonic() - start)
+
+
+def wait_for(condition, timeout: float = 30.0, what: str = "a condition") -> None:
+    """Poll ``condition()`` every 20 ms until true; fail after ``timeout`` s."""
+    deadline = time.monotonic() + timeout
+    while not condition():
+        if time.monotonic() > deadline:
+            pytest.fail(f"timed out waiting for {what}")
+        time.sleep(0.02)
+
+
+def one_line_error(done: Done, status: int, *words: str) -> str:
+    """Assert exit ``status``, one stderr line of holoview's own, no traceback; return it."""
+    assert done.status == status, done.err
+    assert "Traceback" not in done.err, done.err
+    lines = done.err_lines
+    assert len(lines) == 1, done.err
+    for word in words:
+        assert word in lines[0], lines[0]
+    return lines[0]
+
+
+@contextmanager
+def mounted_tmpfs(where: Path, size_mb: int = 20) -> Iterator[Path]:
+    """Mount a real tmpfs of ``size_mb`` MB at ``where``; skip where mounting is refused."""
+    where.mkdir(parents=True, exist_ok=True)
+    if os.geteuid() != 0:
+        pytest.skip("a full disk needs a tmpfs, and mounting one needs root")
+    mounted = subprocess.run(
+        ["mount", "-t", "tmpfs", "-o", f"size={size_mb}m", "tmpfs", str(where)],
+        capture_output=True,
+        text=True,
+        check=False,
+    )
+    if mounted.returncode != 0:
+        pytest.skip(f"cannot mount a tmpfs here: {mounted.stderr.strip() or mounted.returncode}")
+    try:
+        yield where
+    finally:
+        if subprocess.run(["umount", str(where)], check=False).returncode != 0:
+            subprocess.run(["umount", "-l", str(where)], check=False)
+
+
+def fill_disk(folder: Path, leave_bytes: int) -> Path:
+    """Fill the file system of ``folder`` up to ``leave_bytes`` free; return the filler file."""
+    stats = os.statvfs(folder)
+    free = stats.f_bavail * stats.f_frsize
+    filler = folder / "filler"
+    with open(filler, "wb") as f:
+        os.posix_fallocate(f.fileno(), 0, max(0, free - leave_bytes))
+    return filler
+
+
+def write_recording(path: Path, frames: np.ndarray, **kwargs: object) -> Path:
+    """A holoview recording of ``frames`` (ids 0.., 50 frames/s, the default setup)."""
+    setup = {"wavelength_m": 532e-9, "pixel_pitch_m": 20e-6, "n1": 1.0, "n2": 1.333}
+    with RecordingWriter(path, frames.shape[1:], frames.dtype, setup=setup, **kwargs) as w:
+        for i, frame in enumerate(frames):
+            w.append(frame, i, i / 50.0, 1e9 + i / 50.0)
+    return path
+
+
+def plain_h5py_frames(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(frames, frame_id, t_device_s)`` read with plain h5py (not SWMR): a cleanly closed file."""
+    with h5py.File(path, "r") as f:
+        return f["frames"][:], f["frame_id"][:], f["t_device_s"][:]
+
+
+def stop_signal(child: subprocess.Popen[str], name: str) -> None:
+    """Send the signal called ``name`` (``SIGTERM``, ...) to ``child``."""
+    child.send_signal(getattr(signal, name))
