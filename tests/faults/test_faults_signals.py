@@ -1,0 +1,176 @@
+"""SIGTERM, SIGHUP and Ctrl-C stop record, process and the GUI cleanly (real child processes)."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import time
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+from faults_helpers import (
+    finish,
+    plain_h5py_frames,
+    run_holoview,
+    start_holoview,
+    stop_signal,
+    wait_for,
+    write_recording,
+)
+
+from holoview.cli.signals import Stopped, deferred_signals, stop_on_signals
+
+
+@pytest.fixture(scope="module")
+def replay_source(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    frames = np.random.default_rng(2).integers(0, 4096, (50, 96, 96), dtype=np.uint16)
+    return write_recording(tmp_path_factory.mktemp("signals") / "in.h5", frames)
+
+
+@pytest.fixture(scope="module")
+def long_stack(tmp_path_factory: pytest.TempPathFactory, sim_recording: Path) -> Path:
+    """3000 frames (the simulation's 40, over and over) as a numpy stack: a run of seconds."""
+    with h5py.File(sim_recording, "r") as f:
+        frames = f["frames"][:]
+    path = tmp_path_factory.mktemp("signals") / "long.npy"
+    np.save(path, np.tile(frames, (75, 1, 1)))
+    return path
+
+
+def start_recording(source: Path, out: Path):
+    child = start_holoview(
+        "-q",
+        "record",
+        str(out),
+        "--source",
+        f"replay:{source}",
+        "--set",
+        "loop=on",
+        "--set",
+        "rate_hz=50",
+        "--seconds",
+        "60",
+    )
+    wait_for(lambda: out.exists() and out.stat().st_size > 200_000, what="frames on the disk")
+    return child
+
+
+@pytest.mark.parametrize("name", ["SIGTERM", "SIGHUP", "SIGINT"])
+def test_record_stopped_by_a_signal_keeps_a_closed_file(
+    replay_source: Path, tmp_path: Path, name: str
+) -> None:
+    out = tmp_path / "out.h5"
+    child = start_recording(replay_source, out)
+    stop_signal(child, name)
+    done = finish(child, timeout=30)
+    assert done.status == 130, done.err
+    assert "Traceback" not in done.err
+    assert "interrupted" in done.err
+    words = done.out.replace(",", "").split()
+    acquired = int(words[words.index("acquired") + 1])
+    recorded = int(words[words.index("recorded") + 1])
+    dropped = int(words[words.index("dropped") + 1])
+    pixels, ids, _ = plain_h5py_frames(out)  # plain h5py: not left open for writing
+    assert len(pixels) == recorded == acquired - dropped > 5
+    np.testing.assert_array_equal(np.diff(ids) > 0, True)
+
+
+def test_a_second_signal_does_not_cut_the_close_short(replay_source: Path, tmp_path: Path) -> None:
+    out = tmp_path / "out.h5"
+    child = start_recording(replay_source, out)
+    child.send_signal(signal.SIGTERM)
+    time.sleep(0.05)
+    child.send_signal(signal.SIGTERM)
+    done = finish(child, timeout=30)
+    # during the close the second signal waits; after it, the process is only exiting
+    assert done.status in (130, -signal.SIGTERM), done.err
+    assert "Traceback" not in done.err
+    pixels, _, _ = plain_h5py_frames(out)
+    assert len(pixels) > 5
+
+
+def interrupt_process(long_stack: Path, out: Path, *extra: str):
+    child = start_holoview(
+        "-q",
+        "process",
+        str(long_stack),
+        "--out",
+        str(out),
+        "--fps",
+        "20",
+        "--maps",
+        "--wavelength",
+        "532e-9",
+        "--fluid",
+        "water",
+        *extra,
+    )
+    wait_for(lambda: out.is_dir() and any(out.glob(".results.*.partial.h5")), what="the run")
+    time.sleep(0.5)
+    child.send_signal(signal.SIGTERM)
+    return finish(child, timeout=60)
+
+
+def test_process_stopped_by_sigterm_keeps_the_earlier_results(
+    long_stack: Path, sim_recording: Path, tmp_path: Path
+) -> None:
+    out = tmp_path / "results"
+    first = run_holoview("-q", "process", str(sim_recording), "--out", str(out), "--frames", ":20")
+    assert first.status == 0, first.err
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    done = interrupt_process(long_stack, out, "--overwrite")
+    assert done.status == 130, done.err
+    assert "the earlier results" in done.err and "are kept" in done.err
+    assert "Traceback" not in done.err
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before  # no temporary left
+
+
+def test_process_stopped_by_sigterm_writes_partial_results_marked(
+    long_stack: Path, tmp_path: Path
+) -> None:
+    out = tmp_path / "results"
+    done = interrupt_process(long_stack, out)
+    assert done.status == 130, done.err
+    assert "frames done (marked interrupted)" in done.err
+    assert sorted(p.name for p in out.iterdir()) == [
+        "report.png",
+        "results.h5",
+        "summary.json",
+        "trends.csv",
+    ]
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["input"]["interrupted"] is True
+    assert 0 < summary["frames"]["processed"] < 3000
+    with h5py.File(out / "results.h5", "r") as f:
+        assert bool(f.attrs["interrupted"]) is True
+        assert f["trends/frame"].shape[0] == summary["frames"]["processed"]
+
+
+@pytest.mark.gui
+@pytest.mark.parametrize("name", ["SIGTERM", "SIGHUP"])
+def test_the_window_closes_cleanly_on_a_signal(tmp_path: Path, name: str) -> None:
+    experiment = tmp_path / "experiment.json"  # saved once the simulated camera is open
+    child = start_holoview("live", "--quit-after", "120", "--experiment", str(experiment))
+    wait_for(experiment.exists, timeout=60, what="the window on the simulated camera")
+    stop_signal(child, name)
+    done = finish(child, timeout=30)
+    assert done.status == 0, done.err
+    assert "Traceback" not in done.err
+    assert f"{name}: closing the window" in done.err
+
+
+def test_stop_signals_raise_the_interrupt_and_are_deferred_while_closing() -> None:
+    with stop_on_signals(), pytest.raises(Stopped, match="SIGTERM"):
+        os.kill(os.getpid(), signal.SIGTERM)
+        time.sleep(1)  # the handler runs before this ends
+    with stop_on_signals(), deferred_signals() as received:
+        os.kill(os.getpid(), signal.SIGHUP)
+        os.kill(os.getpid(), signal.SIGTERM)
+        deadline = time.monotonic() + 1
+        while len(received) < 2 and time.monotonic() < deadline:
+            time.sleep(0.01)
+    assert received == [signal.SIGHUP, signal.SIGTERM]
+    assert signal.getsignal(signal.SIGTERM) is signal.SIG_DFL  # handlers put back
