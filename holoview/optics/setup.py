@@ -20,6 +20,7 @@ Geometry and sign conventions used throughout :mod:`holoview.optics`:
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from dataclasses import asdict, dataclass, fields
 from typing import Any
@@ -64,20 +65,21 @@ _WHAT = {
     "pixel_pitch_m": "object-side pixel pitch (10 nm to 10 mm)",
 }
 _UNIT_WORDS = {1.0: "metres", 1e-3: "millimetres", 1e-6: "micrometres", 1e-9: "nanometres"}
-#: Units a misplaced length was most likely typed in, most likely first.
-_LIKELY_UNITS = {"wavelength_m": (1e-9, 1e-6, 1.0), "pixel_pitch_m": (1e-6, 1e-3, 1.0, 1e-9)}
+#: Typical values (m): a misplaced length is taken for the unit that comes closest to them.
+_TYPICAL = {"wavelength_m": 600e-9, "pixel_pitch_m": 10e-6}
 
 
 def _unit_hint(name: str, typed: float, factor: float, label: str) -> str:
-    """``"; 532 looks like nanometres: ..."`` when another unit puts ``typed`` in range."""
+    """``"; 532 looks like nanometres: ..."``: the unit bringing ``typed`` nearest to usual."""
     low, high = PLAUSIBLE_RANGES[name]
-    for unit in _LIKELY_UNITS[name]:
-        if unit != factor and low <= typed * unit <= high:
-            return (
-                f"; {typed:g} looks like {_UNIT_WORDS[unit]}: {label} takes "
-                f"{_UNIT_WORDS.get(factor, 'its own unit')}, so give {typed * unit / factor:.4g}"
-            )
-    return ""
+    fits = [unit for unit in _UNIT_WORDS if unit != factor and low <= typed * unit <= high]
+    if not fits:
+        return ""
+    unit = min(fits, key=lambda u: abs(math.log10(typed * u / _TYPICAL[name])))
+    return (
+        f"; {typed:g} looks like {_UNIT_WORDS[unit]}: {label} takes "
+        f"{_UNIT_WORDS.get(factor, 'its own unit')}, so give {typed * unit / factor:.4g}"
+    )
 
 
 def check_optics(

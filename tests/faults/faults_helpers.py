@@ -153,3 +153,13 @@ def plain_h5py_frames(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 def stop_signal(child: subprocess.Popen[str], name: str) -> None:
     """Send the signal called ``name`` (``SIGTERM``, ...) to ``child``."""
     child.send_signal(getattr(signal, name))
+
+
+def run_main(args: list[str], capsys: pytest.CaptureFixture) -> Done:
+    """Run holoview's ``main`` in this process (faster than a child) and capture its output."""
+    from holoview.cli import main
+
+    start = time.monotonic()
+    status = main(args)
+    captured = capsys.readouterr()
+    return Done(status, captured.out, captured.err, time.monotonic() - start)
