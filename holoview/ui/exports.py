@@ -2,7 +2,8 @@
 
 Maps are written as float32 in metres (heights) or radians (phases), one file per
 map, named ``STEM_LABEL.tif`` / ``STEM_LABEL.npy``; TIFF files carry the unit in
-their description.
+their description. Every file is written under a temporary name and renamed when
+complete (:mod:`holoview.atomic`): a full disk leaves the files that were there.
 """
 
 from __future__ import annotations
@@ -15,7 +16,8 @@ import numpy as np
 import tifffile
 from PyQt6.QtWidgets import QWidget
 
-from holoview.errors import InputError
+from holoview.atomic import atomic_path
+from holoview.errors import InputError, OutputError, os_error_text
 
 logger = logging.getLogger(__name__)
 
@@ -47,12 +49,13 @@ def export_maps(maps: Mapping[str, np.ndarray], path: Path, unit: str) -> list[P
         target = path.with_name(f"{path.stem}_{safe}{suffix}")
         array = np.asarray(data, dtype=np.float32)
         try:
-            if suffix == ".npy":
-                np.save(target, array)
-            else:
-                tifffile.imwrite(target, array, description=f"holoview {name} in {unit}")
+            with atomic_path(target) as partial:
+                if suffix == ".npy":
+                    np.save(partial, array)
+                else:
+                    tifffile.imwrite(partial, array, description=f"holoview {name} in {unit}")
         except OSError as exc:
-            raise InputError(f"cannot write {target}: {exc.strerror}") from exc
+            raise OutputError(f"cannot write {target}: {os_error_text(exc)}") from exc
         written.append(target)
     logger.info("exported %d maps next to %s", len(written), path)
     return written
@@ -62,6 +65,7 @@ def export_window_png(widget: QWidget, path: Path) -> Path:
     """Save a picture of ``widget`` to ``path`` (PNG); return the path."""
     if path.suffix.lower() != ".png":
         path = path.with_suffix(".png")
-    if not widget.grab().save(str(path), "PNG"):
-        raise InputError(f"cannot write {path}")
+    with atomic_path(path) as partial:
+        if not widget.grab().save(str(partial), "PNG"):
+            raise OutputError(f"cannot write {path}")
     return path
