@@ -73,7 +73,7 @@ from holoview.processing.windows import wrap_frequency
 logger = logging.getLogger(__name__)
 
 #: Beat periods of the nearest other term held by the taper's length (see the module).
-TAPER_CYCLES = 8.0
+TAPER_CYCLES = 4.0
 
 #: Largest multiply-add count of one matrix product that OpenBLAS runs on the calling
 #: thread (``65536 * GEMM_MULTITHREAD_THRESHOLD``, 4 by default; interface/gemm.c).
@@ -198,7 +198,7 @@ def structure(carriers: np.ndarray) -> np.ndarray:
 
 
 def nearest_term(carriers: np.ndarray) -> float:
-    """Return the smallest distance from a carrier to zero, another carrier or a twin (cycles/pixel).
+    """Return the smallest distance (cycles/pixel) from a carrier to zero, a carrier or a twin.
 
     Distances are periodic; a carrier's own twin at ``-f`` counts. Repeated carriers
     (the same point given twice) are not each other's neighbours.
@@ -240,25 +240,33 @@ def _tukey_cached(n: int, taper: float) -> np.ndarray:
 
 
 def aperture_apodisation(aperture: np.ndarray, length: float) -> np.ndarray:
-    """Return an apodisation that falls to zero at the edge of a trusted region.
+    """Return a smooth apodisation that falls to zero at the edge of a trusted region.
+
+    The region is eroded by half the edge length and blurred by a Gaussian of an
+    eighth of it, then cut to the region: smooth everywhere (a pixelated edge, or a
+    distance map's kinks, would leak the zero order into every carrier), about 3e-5 at
+    the edge, 1 deeper inside than the edge length.
 
     Parameters
     ----------
     aperture : ndarray of bool, shape (rows, cols)
         Trusted pixels (inside the field stop); the frame's border counts as an edge.
     length : float
-        Length of the cosine edge (pixels), measured inward from the region's edge.
+        Length of the edge (pixels), measured inward from the region's edge; shortened
+        for a region too small to hold it.
 
     Returns
     -------
     ndarray of float32, shape of ``aperture``
-        0 outside, rising as ``(1 - cos(pi d / length)) / 2`` with the distance ``d``
-        (pixels) from the outside, 1 deeper than ``length``.
+        Weights in [0, 1], 0 outside the region.
     """
-    mask = np.pad(np.asarray(aperture, dtype=bool), 1)  # the border is outside
-    distance = ndimage.distance_transform_edt(mask)[1:-1, 1:-1]
-    edge = np.clip(distance / max(length, 1.0), 0.0, 1.0)
-    return (0.5 * (1.0 - np.cos(np.pi * edge))).astype(np.float32)
+    mask = np.asarray(aperture, dtype=bool)
+    distance = ndimage.distance_transform_edt(np.pad(mask, 1))[1:-1, 1:-1]
+    depth = min(max(length, 2.0), float(distance.max())) / 2
+    inner = (distance > depth).astype(np.float64)
+    weights = ndimage.gaussian_filter(inner, depth / 4, mode="constant")
+    weights[~mask] = 0.0
+    return weights.astype(np.float32)
 
 
 class CarrierProbe:
@@ -336,13 +344,14 @@ class CarrierProbe:
                 raise InputError("aperture mask holds no pixel")
             ap.setflags(write=False)
             self.aperture = ap
-            self._apodisation = aperture_apodisation(ap, tapers[1] * cols / 2)
+            self._apodisation = aperture_apodisation(ap, tapers[1] * cols)
             self._apodisation.setflags(write=False)
             row_weights, col_weights = np.ones(rows), np.ones(cols)
             norm = float(self._apodisation.sum(dtype=np.float64))
             squares = float(np.square(self._apodisation, dtype=np.float64).sum())
         else:
-            row_weights, col_weights = _tukey_cached(rows, tapers[0]), _tukey_cached(cols, tapers[1])
+            row_weights = _tukey_cached(rows, tapers[0])
+            col_weights = _tukey_cached(cols, tapers[1])
             norm = float(row_weights.sum() * col_weights.sum())
             squares = float(np.square(row_weights).sum() * np.square(col_weights).sum())
         #: phase noise relative to uniform weights over the whole frame (>= 1)
@@ -449,15 +458,16 @@ class CarrierProbe:
         """
         array = self._check(frame)
         p = len(self.carriers)
-        products = self._column_products(array)
-        rows = self.shape[0]
-        # per carrier, (rows, [c, s]) in float64, with the column sums c - i s and the
-        # row phasors r = u + i w: sum_y r (c - i s) = (u.c + w.s) + i (w.c - u.s)
-        pairs = products[:, : 2 * p].reshape(rows, p, 2).transpose(1, 0, 2).astype(np.float64)
-        dots = np.matmul(self._rows, pairs)  # (P, 2 K, 2)
-        k = self._rows.shape[1] // 2
-        sums = (dots[:, :k, 0] + dots[:, k:, 1]) + 1j * (dots[:, k:, 0] - dots[:, :k, 1])
-        mean = float(np.dot(self._mean_rows, products[:, 2 * p]))
+        with np.errstate(invalid="ignore", over="ignore"):  # NaN or inf pixels: flagged below
+            products = self._column_products(array)
+            rows = self.shape[0]
+            # per carrier, (rows, [c, s]) in float64, with the column sums c - i s and the
+            # row phasors r = u + i w: sum_y r (c - i s) = (u.c + w.s) + i (w.c - u.s)
+            pairs = products[:, : 2 * p].reshape(rows, p, 2).transpose(1, 0, 2).astype(np.float64)
+            dots = np.matmul(self._rows, pairs)  # (P, 2 K, 2)
+            k = self._rows.shape[1] // 2
+            sums = (dots[:, :k, 0] + dots[:, k:, 1]) + 1j * (dots[:, k:, 0] - dots[:, :k, 1])
+            mean = float(np.dot(self._mean_rows, products[:, 2 * p]))
         flags: set[str] = set()
         values = sums[:, 0]
         noise = np.full(p, np.nan)
