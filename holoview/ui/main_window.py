@@ -1,6 +1,6 @@
 """The main window: docks an operator can rearrange, a redraw timer, menus, shortcuts.
 
-The window owns no processing. A :class:`~holoview.ui.session.LiveSession` runs the
+The window owns no processing. A :class:`~holoview.live.session.LiveSession` runs the
 camera thread, the recorder and the demodulation worker; a QTimer (at most
 :data:`REDRAW_HZ`) reads the session's latest result and draws it, so the window
 never receives one signal per frame. Operator actions go back to the session as
@@ -28,18 +28,14 @@ from PyQt6.QtWidgets import (
 )
 
 from holoview import __version__
+from holoview.engine.experiment import Experiment, LabelledPeak, default_experiment_path
 from holoview.errors import HoloviewError
+from holoview.live.rates import RateMeter
+from holoview.live.session import LiveResult, LiveSession, RecordRequest, discover_sources
 from holoview.ui.exports import export_maps, export_window_png
 from holoview.ui.hologram_view import HologramView
-from holoview.ui.rates import RateMeter
-from holoview.ui.recording_panel import RecordingPanel, RecordRequest
-from holoview.ui.session import LiveResult, LiveSession, discover_sources
-from holoview.ui.settings import (
-    ExperimentSettings,
-    LabelledPeak,
-    default_experiment_path,
-    ui_settings,
-)
+from holoview.ui.recording_panel import RecordingPanel
+from holoview.ui.settings import ui_settings
 from holoview.ui.source_panel import SourcePanel
 from holoview.ui.spectrum_view import SpectrumView
 from holoview.ui.status_bar import LiveFigures, LiveStatusBar
@@ -69,6 +65,9 @@ class MainWindow(QMainWindow):
     source_options : dict, optional
         Passed to the constructor of ``source`` (e.g. the simulator's frame shape and
         rate) whenever that source is started; other sources get none.
+    optics : dict, optional
+        ``wavelength_m``, ``pixel_pitch_m``, ``n1``, ``n2`` over the experiment's (the
+        command line's); they also win over a source's own optics.
     """
 
     def __init__(
@@ -77,6 +76,7 @@ class MainWindow(QMainWindow):
         autostart: bool = True,
         experiment_path: Path | None = None,
         source_options: dict | None = None,
+        optics: dict[str, float] | None = None,
     ) -> None:
         super().__init__()
         self.setObjectName("holoview-main")
@@ -91,7 +91,8 @@ class MainWindow(QMainWindow):
         self.last_latency_s: float | None = None
         self._banner_until = 0.0
         self.experiment_path = experiment_path or default_experiment_path()
-        self.experiment = ExperimentSettings()
+        self.experiment = Experiment()
+        self.optics = dict(optics or {})
         start_problem = self._load_experiment_at_start()
 
         self.hologram = HologramView()
@@ -323,7 +324,7 @@ class MainWindow(QMainWindow):
     def _adopt_source_setup(self, setup: dict) -> None:
         """Take the optics a source knows (simulator, recording) into the experiment."""
         fields = ("wavelength_m", "pixel_pitch_m", "n1", "n2")
-        changes = {k: float(setup[k]) for k in fields if k in setup}
+        changes = {k: float(setup[k]) for k in fields if k in setup and k not in self.optics}
         if not changes or all(getattr(self.experiment, k) == v for k, v in changes.items()):
             return
         try:
@@ -389,7 +390,7 @@ class MainWindow(QMainWindow):
         self.source_panel.set_streaming(self.session.running, self.session.description)
 
     # ---- experiment --------------------------------------------------------
-    def _set_experiment(self, experiment: ExperimentSettings) -> None:
+    def _set_experiment(self, experiment: Experiment) -> None:
         self.experiment = experiment
         if self.session is not None:
             self.session.set_experiment(experiment)
@@ -416,7 +417,7 @@ class MainWindow(QMainWindow):
 
     def label_peak(self, label: str, fx: float, fy: float) -> None:
         """Name the peak at ``(fx, fy)`` cycles per pixel ``label``."""
-        self._set_experiment(self.experiment.with_peak(LabelledPeak(label, fx, fy)))
+        self._set_experiment(self.experiment.with_peak(LabelledPeak(label, (fx, fy))))
         self.status.showMessage(f"labelled {label} at ({fx:+.4f}, {fy:+.4f}) cycles/px", 4000)
 
     def clear_label(self, label: str) -> None:
@@ -446,18 +447,23 @@ class MainWindow(QMainWindow):
             self.session.reset_trends()
 
     def _load_experiment_at_start(self) -> str | None:
-        if not self.experiment_path.exists():
-            return None
+        problem = None
+        if self.experiment_path.exists():
+            try:
+                self.experiment = Experiment.load(self.experiment_path)
+            except HoloviewError as exc:
+                problem = f"experiment settings ignored: {exc}"
         try:
-            self.experiment = ExperimentSettings.load(self.experiment_path)
+            self.experiment = replace(self.experiment, **self.optics)
         except HoloviewError as exc:
-            return f"experiment settings ignored: {exc}"
-        return None
+            problem = f"optics options ignored: {exc}"
+            self.optics = {}
+        return problem
 
     def load_experiment(self, path: Path) -> None:
         """Read experiment settings from ``path`` and use them."""
         try:
-            experiment = ExperimentSettings.load(path)
+            experiment = Experiment.load(path)
         except HoloviewError as exc:
             self.show_message(str(exc))
             return
@@ -601,7 +607,7 @@ class MainWindow(QMainWindow):
         ):
             self.spectrum.set_spectrum(result.spectrum)
         if previous is None or result.peaks != previous.peaks:
-            self.spectrum.set_peaks(result.peaks)
+            self.spectrum.set_peaks(result.peaks, result.frame.shape)
         self.spectrum.set_model(result.labelled, result.predicted, result.radius)
         self.spectrum.set_notes(result.notes)
         if result.heights_m or result.phases_rad:

@@ -27,8 +27,9 @@ from PyQt6.QtWidgets import (
     QWidget,
 )
 
+from holoview.engine.experiment import PEAK_LABELS
+from holoview.processing.demodulate import REFERENCE_MODES
 from holoview.ui.legends import side_legend
-from holoview.ui.settings import PEAK_LABELS, REFERENCE_MODES
 
 FUSED = "fused"
 #: Colour map of heights (perceptual) and of phases (cyclic).

@@ -12,9 +12,10 @@ import tifffile
 from PyQt6.QtCore import QTimer
 
 from holoview.acquire.recording import RecordingReader
+from holoview.engine.experiment import Experiment
+from holoview.live.session import RecordRequest
 from holoview.ui.main_window import MainWindow
-from holoview.ui.recording_panel import RecordRequest
-from holoview.ui.settings import ExperimentSettings, ui_settings
+from holoview.ui.settings import ui_settings
 
 from .holograms import FB1, N1, N2, RB1, WAVELENGTH_M
 
@@ -28,7 +29,7 @@ pytestmark = [
 def _window(qtbot, open_windows, tmp_path: Path, source: str, **kwargs) -> MainWindow:
     path = tmp_path / "experiment.json"
     if not path.exists():
-        ExperimentSettings(wavelength_m=WAVELENGTH_M, n1=N1, n2=N2, radius=0.05).save(path)
+        Experiment(wavelength_m=WAVELENGTH_M, n1=N1, n2=N2, radius=0.05).save(path)
     window = MainWindow(source=source, experiment_path=path, **kwargs)
     qtbot.addWidget(window)
     open_windows.append(window)
@@ -69,7 +70,7 @@ def test_window_shows_frames_labels_predictions_and_maps(
     )
     assert np.isfinite(window.surface.map_data("RB1")).any()
     # the labels are in the portable experiment file, not in the UI settings
-    saved = ExperimentSettings.load(window.experiment_path)
+    saved = Experiment.load(window.experiment_path)
     assert {p.label for p in saved.peaks} == {"RB1", "FB1"}
 
 
@@ -79,7 +80,7 @@ def test_click_with_no_peak_shows_a_message_and_keeps_running(
     window = _window(qtbot, open_windows, tmp_path, f"replay:{hologram_file}")
     _wait_frames(qtbot, window)
     window.spectrum.click_at(-0.45, -0.45)
-    assert "no peak near" in window.banner_text
+    assert "no peak within" in window.banner_text
     _wait_frames(qtbot, window)
     assert window.session is not None and window.session.running
 
@@ -236,15 +237,16 @@ def test_reference_mode_reaches_the_demodulator(qtbot, open_windows, tmp_path, h
     window = _labelled_window(qtbot, open_windows, tmp_path, hologram_file)
     window.surface.reference_box.setCurrentText("synthetic")
     assert window.experiment.reference == "synthetic"
-    stage = window.session.pipeline._demod
+    pipeline = window.session.pipeline
     qtbot.waitUntil(
-        lambda: stage._demod is not None and stage._demod.reference == "synthetic", timeout=5000
+        lambda: (d := pipeline.demodulator) is not None and d.reference == "synthetic",
+        timeout=5000,
     )
-    assert ExperimentSettings.load(window.experiment_path).reference == "synthetic"
+    assert Experiment.load(window.experiment_path).reference == "synthetic"
 
 
 def _flaky_window(qtbot, open_windows, tmp_path, monkeypatch, **options) -> MainWindow:
-    from holoview.ui import session
+    from holoview.live import session
 
     from .flaky_source import FlakySource
 
@@ -265,7 +267,7 @@ def test_camera_gone_mid_stream_is_shown_and_the_window_stays(
     assert "stopped answering" in window.banner_text
     assert window.source_panel.start_button.text() == "Start"
     window.spectrum.click_at(0.0, 0.45)  # the views still answer
-    assert "no peak near" in window.banner_text
+    assert "no peak within" in window.banner_text
 
 
 def test_roi_locked_while_streaming_restarts_the_stream(qtbot, open_windows, tmp_path, monkeypatch):
@@ -282,7 +284,7 @@ def test_opening_a_slow_source_does_not_freeze_the_window(
 ):
     import time as _time
 
-    from holoview.ui import session
+    from holoview.live import session
 
     from .flaky_source import FlakySource
 
