@@ -174,9 +174,9 @@ def resolve_peaks(
     shape : tuple of int
         Frame shape ``(rows, cols)``, pixels.
     previous : mapping of str to Peak, optional
-        The model-added peaks of the last resolution (live): a faint one missed by this
-        detection keeps its last match while the model still puts it there, so the set
-        of maps does not flicker.
+        The peaks of the last resolution, by label (live): a faint peak missed by this
+        detection keeps its last match while its label (or the model) still points
+        within :data:`SNAP_BINS` of it, so the set of maps does not flicker.
     max_order : int
         Largest ``j`` of the families the model adds.
 
@@ -194,6 +194,14 @@ def resolve_peaks(
         if found is not None and found[0] in taken:
             unmatched.append(lp.label)
             problems.append(f"{lp.label}: names the same detected peak as {taken[found[0]]}")
+            continue
+        kept = (previous or {}).get(lp.label)
+        if (
+            found is None
+            and kept is not None
+            and bin_distance(kept.carrier, lp.carrier, shape) <= SNAP_BINS
+        ):
+            chosen.append(kept.relabelled(lp.label, alpha))
             continue
         if found is None:
             unmatched.append(lp.label)

@@ -136,7 +136,7 @@ def _base_experiment(
     if mode == "recording":
         if stored is not None and stored.peaks:
             return stored, "recording", notes
-        why = "carries no experiment" if stored is None else "names no peak"
+        why = "carries no usable experiment" if stored is None else "names no peak"
         notes.append(f"the recording {why}: peaks identified by --auto {DEFAULT_AUTO}")
         return base, "auto", notes
     return base, "auto", notes

@@ -117,3 +117,11 @@ def test_window_warnings_name_overlap_alias_and_zero_order() -> None:
 def test_swallowed_neighbour() -> None:
     assert swallowed_neighbour((0.2, 0.0), 0.05, [(0.3, 0.0)]) is None
     assert swallowed_neighbour((0.2, 0.0), 0.15, [(0.3, 0.0)]) == (0.3, 0.0)
+
+
+def test_a_missed_label_keeps_its_last_match() -> None:
+    experiment = Experiment(peaks=(LabelledPeak("RB1", (RB1[0] + 3 / 512, RB1[1])),))
+    first = resolve_peaks(experiment, _detected("RB1"), SHAPE)
+    previous = {p.label: p for p in first.peaks}
+    later = resolve_peaks(experiment, [], SHAPE, previous=previous)
+    assert later.peaks == first.peaks and later.problems == ()

@@ -13,6 +13,7 @@ import pytest
 import tifffile
 from headless_sim import Simulated, run_cli
 
+from holoview.acquire.recording import RecordingWriter
 from holoview.headless.outputs import TRENDS_HEADER
 
 FIRST_ORDER = {"RB1", "RF", "FB1", "RB2"}
@@ -190,6 +191,31 @@ def test_process_with_no_options_uses_the_experiment_the_recording_carries(
     assert summary["fused"]["rate_m_per_s"] == pytest.approx(evaporation.rate, rel=0.01)
     assert summary["experiment"]["format"] == "holoview-experiment"
     assert not any("--auto" in note for note in summary["notes"])
+
+
+def test_an_unreadable_stored_experiment_falls_back_to_auto_with_a_note(
+    evaporation: Simulated,
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture,
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    path = tmp_path / "broken.h5"
+    with h5py.File(evaporation.path, "r") as f:
+        frames, times = f["frames"][:30], f["t_device_s"][:30]
+        setup = dict(f["setup"].attrs)
+    with RecordingWriter(
+        path, frames.shape[1:], frames.dtype, setup=setup, experiment="{oops"
+    ) as w:
+        for i, frame in enumerate(frames):
+            w.append(frame, i, float(times[i]), 0.0)
+    out = tmp_path / "out"
+    status, _, _ = run_cli(["process", str(path), "--out", str(out)], capsys)
+    assert status == 0
+    assert "not valid JSON" in caplog.text and "--auto 4" in caplog.text  # warned
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["parameters"]["peaks_from"] == "auto"
+    notes = "\n".join(summary["notes"])
+    assert "not valid JSON" in notes and "carries no usable experiment" in notes
 
 
 def test_peaks_file_and_auto_maps_agree(

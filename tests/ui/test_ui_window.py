@@ -13,6 +13,7 @@ from PyQt6.QtCore import QTimer
 
 from holoview.acquire.recording import RecordingReader
 from holoview.engine.experiment import Experiment
+from holoview.headless.run import PeakChoice, process_file
 from holoview.live.session import RecordRequest
 from holoview.ui.main_window import MainWindow
 from holoview.ui.settings import ui_settings
@@ -100,6 +101,37 @@ def test_recording_from_the_window_writes_a_valid_file(
         assert np.all(np.diff(reader.frame_ids) > 0)
     with h5py.File(target) as f:
         assert f["setup"].attrs["n2"] == pytest.approx(N2)
+
+
+def test_a_recording_made_in_the_window_carries_the_operators_labels_to_process(
+    qtbot, open_windows, tmp_path, hologram_file
+):
+    """Label at alignment, record, change the radius mid-run, then process with no options."""
+    window = _window(qtbot, open_windows, tmp_path, f"replay:{hologram_file}")
+    _wait_frames(qtbot, window)
+    qtbot.waitUntil(lambda: len(window.spectrum._peaks) >= 4, timeout=5000)
+    choices = iter(["RB1", "FB1"])
+    window.spectrum.choose_label = lambda carrier, current: next(choices)
+    window.spectrum.click_at(*RB1)
+    window.spectrum.click_at(*FB1)
+    target = tmp_path / "labelled.h5"
+    window.start_recording(RecordRequest(target, duration_s=None, frames=30))
+    qtbot.waitUntil(lambda: window.session.recorder.written >= 3, timeout=10000)
+    window.set_radius(0.045)
+    qtbot.waitUntil(lambda: not window.recording_panel.recording, timeout=20000)
+    with RecordingReader(target) as reader:
+        stored = reader.experiments()
+    assert len(stored) == 2 and stored[0][0] == 0 and stored[1][0] >= 3
+    first, changed = (Experiment.from_json(text) for _, text in stored)
+    assert {p.label for p in first.peaks} == {"RB1", "FB1"} and changed.radius == 0.045
+    outcome = process_file(target, tmp_path / "out", choice=PeakChoice(), report=False)
+    assert outcome.selection.source == "recording"
+    labels = {p.label for p in outcome.selection.peaks}
+    assert labels >= {"RB1", "FB1", "RF", "RB2"}  # the operator's two, the model's rest
+    by_label = {p.label: p.carrier for p in outcome.selection.peaks}
+    for name, carrier in (("RB1", RB1), ("FB1", FB1)):
+        np.testing.assert_allclose(by_label[name], carrier, atol=2 / 256)  # the twin set
+    assert any("changes at frame" in note for note in outcome.summary["notes"])
 
 
 def test_bad_sources_show_a_message_and_the_window_stays(qtbot, open_windows, tmp_path):
