@@ -115,6 +115,30 @@ class LiveSession:
             self.source.close()
             raise
 
+    @classmethod
+    def open(
+        cls,
+        spec: str,
+        experiment: Experiment,
+        *,
+        source_options: Mapping[str, Any] | None = None,
+        every_frame: bool = False,
+    ) -> LiveSession:
+        """Open ``spec`` and start streaming and processing (closed again if starting fails).
+
+        Raises
+        ------
+        HoloviewError
+            The source cannot be opened or started.
+        """
+        session = cls(spec, experiment, source_options=source_options, every_frame=every_frame)
+        try:
+            session.start()
+        except BaseException:
+            session.close()
+            raise
+        return session
+
     def _build(self) -> None:
         """Make the ring, camera thread, pipeline and worker for the source as it is now."""
         shape = self.source.frame_shape

@@ -183,7 +183,7 @@ def test_find_sources_runs_on_a_thread_and_offers_sim(qtbot, open_windows, tmp_p
     window = _window(qtbot, open_windows, tmp_path, "sim", autostart=False)
     window.find_sources()
     assert not window.source_panel.refresh_button.isEnabled()
-    qtbot.waitUntil(lambda: window._discovery is None, timeout=20000)
+    qtbot.waitUntil(lambda: not window.discovery.busy, timeout=20000)
     items = [
         window.source_panel.source_box.itemText(i)
         for i in range(window.source_panel.source_box.count())
