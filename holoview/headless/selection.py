@@ -24,7 +24,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
-from holoview.engine.experiment import Experiment, check_carrier, check_label
+from holoview.engine.experiment import Experiment, check_carrier, check_label, is_model_label
 from holoview.engine.resolve import SNAP_BINS, snap
 from holoview.errors import InputError
 from holoview.headless.inputs import Optics
@@ -106,6 +106,8 @@ def select_from_experiment(
     if source != "recording":
         resolution.strict()
     for peak in resolution.peaks:
+        if peak.alpha is None and is_model_label(peak.label or ""):
+            experiment.require("n1", "n2")
         if peak.alpha is None:
             raise InputError(
                 f"peak {peak.label}: not one of the model's families (RF, RB1, FB1, ...) and "

@@ -434,3 +434,15 @@ def test_quiet_prints_nothing(
     assert status == 0
     assert out == "" and err == ""
     assert (tmp_path / "q" / "trends.csv").is_file()
+
+
+def test_labels_on_a_file_without_optics_ask_for_the_fluid(
+    evaporation: Simulated, tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    with h5py.File(evaporation.path, "r") as f:
+        tifffile.imwrite(tmp_path / "stack.tif", f["frames"][:5], photometric="minisblack")
+    argv = ["process", str(tmp_path / "stack.tif"), "--out", str(tmp_path / "o")]
+    argv += ["--wavelength-nm", "532", "--fps", "20", *evaporation.label_args("RB1", "FB1")]
+    status, _, err = run_cli(argv, capsys)
+    assert status == 2
+    assert "give --n2 or --fluid" in err and len(err.strip().splitlines()) == 1
