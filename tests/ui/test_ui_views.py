@@ -9,7 +9,7 @@ import pytest
 
 pytest.importorskip("pyqtgraph")
 
-from holoview.processing.trends import format_rate
+from holoview.processing.rates import format_rate
 from holoview.ui.hologram_view import HologramView
 from holoview.ui.peak_geometry import snap_to_peak, swallowed_neighbour, window_warnings
 from holoview.ui.rates import RateMeter
