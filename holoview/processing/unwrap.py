@@ -201,11 +201,6 @@ def phase_ratio(phase: np.ndarray, guide: np.ndarray, mask: np.ndarray | None = 
     return float(np.vdot(dg, dp)) / energy
 
 
-def amplitude_mask(field: np.ndarray, threshold: float) -> np.ndarray:
-    """Return the pixels whose field amplitude reaches ``threshold`` (unit of the field)."""
-    return np.abs(np.asarray(field)) >= threshold
-
-
 def aperture_mask(
     shape: tuple[int, int],
     *,
