@@ -58,7 +58,8 @@ from holoview.processing.carrier_values import CarrierProbe  # noqa: E402
 from holoview.processing.demodulate import Demodulator  # noqa: E402
 from holoview.processing.fftplans import rfft2_plan  # noqa: E402
 from holoview.processing.peaks import Peak  # noqa: E402
-from holoview.processing.trends import fit_rate, unwrap_in_time  # noqa: E402
+from holoview.processing.phase_series import unwrap_in_time  # noqa: E402
+from holoview.processing.rates import fit_rate  # noqa: E402
 
 #: The issue's figures on a 2-core AVX2 machine, ms: separable DFT at 5 carriers of 1024^2.
 ISSUE_PROBE_MS = 1.7

@@ -23,7 +23,8 @@ from holoview.processing.carrier_values import (
 )
 from holoview.processing.demodulate import Demodulator
 from holoview.processing.peaks import Peak
-from holoview.processing.trends import check_aliasing, fit_rate, unwrap_in_time
+from holoview.processing.phase_series import check_aliasing, unwrap_in_time
+from holoview.processing.rates import fit_rate
 
 #: Off-bin carriers (cycles/pixel), amplitudes and phases (rad) of a three-peak frame.
 CARRIERS = ((-0.2013, 0.0617), (0.1507, 0.0911), (-0.0498, 0.1523))
