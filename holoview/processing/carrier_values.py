@@ -9,9 +9,10 @@ separable apodisation ``a(y) b(x)``, the value at carrier ``(fx, fy)`` is::
 
     v = sum_y a(y) exp(-2 pi i fy y) sum_x b(x) exp(-2 pi i fx x) I(y, x) / (sum a  sum b)
 
-that is two small matrix products: the frame times a ``(cols, 2 P)`` float32 matrix
-of apodised column cosines and sines (BLAS), then per peak a dot product of the
-``(rows,)`` result with its row phasors. About ``2 P`` multiply-adds per pixel,
+that is two small matrix products: the frame times a ``(cols, 2 P + 1)`` float32
+matrix of apodised column cosines and sines and the apodisation itself (for the mean;
+padded to :data:`COLUMN_TILE` columns), then per peak a dot product of the
+``(rows,)`` results with its row phasors. About ``2 P`` multiply-adds per pixel,
 against about ``2.5 log2(rows cols)`` for a real FFT, and no box, window, inverse
 FFT or phase map.
 
@@ -293,9 +294,10 @@ class CarrierProbe:
         value for both); by default from the nearest other term (:func:`auto_taper`).
         Pass it explicitly to keep the same weighting when the carriers change.
     aperture : ndarray of bool, optional
-        Trusted region (a field stop), shape ``shape``: the apodisation then tapers
-        inward from its edge (:func:`aperture_apodisation`), over the columns' taper
-        length, instead of from the frame's border. Costs one multiply per pixel.
+        Trusted region (a field stop), shape ``shape``: the apodisation then falls to
+        zero inward from its edge (:func:`aperture_apodisation`, over twice the
+        columns' taper length: its smooth edge rises over about half of that) instead
+        of at the frame's border. Costs one multiply per pixel (about 0.3 ms at 1024^2).
     noise : bool
         Estimate each value's phase noise (:attr:`CarrierValues.noise`) from
         :data:`NOISE_POINTS` empty spectral points per carrier column, chosen as far
