@@ -1,14 +1,18 @@
 """The mean-phase series of a run and what follows from it: depths, fused depth, rates.
 
-Per frame, each demodulated peak gives its carrier value (a complex number whose phase
-is the peak's spatially averaged phase, paper section 4.2), its per-pixel phase noise
-and its flags; :class:`PhaseSeries` keeps them for every frame it is given (the whole
-run headless; the last :data:`LIVE_LENGTH` frames live). :func:`summarise` turns a
-series into depths per peak, the fused depth and the rates, through
-:func:`holoview.processing.trends.track_depth` (unwrapping in time, the aliasing check,
-noise-weighted fusion, line fits); :func:`pca_check` is the temporal PCA of peaks whose
-prefactors are known, for information. The live trends view and ``holoview process``
-both call these, so they agree on the same frames.
+Every frame gives one complex value per peak: the spectrum at the peak's exact carrier,
+whose phase is the peak's spatially averaged phase (paper section 4.2), measured by the
+carrier probe (:class:`holoview.engine.frame_core.CarrierCore`) without a full FFT, so
+that the series can take every frame of the camera while the maps take what time is
+left. :class:`PhaseSeries` keeps them with each value's phase noise and the frame's
+flags, for every frame it is given (the whole run headless; the last
+:data:`LIVE_LENGTH` frames live), and marks a peak whose mean phase steps past
+:data:`~holoview.processing.demodulate.PHASE_STEP_LIMIT` between two frames.
+:func:`summarise` turns a series into depths per peak, the fused depth and the rates,
+through :func:`holoview.processing.trends.track_depth` (unwrapping in time, the aliasing
+check, noise-weighted fusion, line fits); :func:`pca_check` is the temporal PCA of peaks
+whose prefactors are known, for information. The live trends view and ``holoview
+process`` both call these, so they agree on the same frames.
 
 Times are in s from the series' first frame, phases in rad, depths in m.
 """
@@ -23,15 +27,15 @@ from dataclasses import dataclass
 import numpy as np
 
 from holoview.errors import InputError
-from holoview.processing.demodulate import DemodResult
+from holoview.processing.carrier_values import CarrierValues
+from holoview.processing.demodulate import PHASE_STEP_LIMIT
 from holoview.processing.pca import phase_pca
 from holoview.processing.trends import RateFit, track_depth, unwrap_in_time
 
 logger = logging.getLogger(__name__)
 
 __all__ = [
-    "COUNTED_FRAME_FLAGS",
-    "COUNTED_PEAK_FLAGS",
+    "SERIES_FRAME_FLAGS",
     "DepthSummary",
     "PhaseSeries",
     "frame_time",
@@ -39,12 +43,12 @@ __all__ = [
     "summarise",
 ]
 
-#: Per-frame peak flags counted over a series.
-COUNTED_PEAK_FLAGS = ("phase_step", "low_amplitude", "overlap")
-#: Frame-level flags counted over a series.
-COUNTED_FRAME_FLAGS = ("nonfinite", "no_signal", "saturated")
+#: Frame flags a series counts (the carrier probe's).
+SERIES_FRAME_FLAGS = ("nonfinite", "saturated")
 #: Frames a live series keeps (10 minutes at 60 frames/s).
 LIVE_LENGTH = 36000
+
+_ARRAYS = ("_t", "_frames", "_values", "_noise", "_steps")
 
 
 def frame_time(t_device: float, t_host: float) -> float:
@@ -53,23 +57,24 @@ def frame_time(t_device: float, t_host: float) -> float:
 
 
 class PhaseSeries:
-    """Per-frame carrier values, noise and flags of a fixed list of peaks.
+    """Per-frame carrier values, their phase noise and the frames' flags, for fixed peaks.
 
     Parameters
     ----------
     labels : sequence of str
-        The peaks, in the demodulator's order.
+        The peaks, in the probe's order.
     capacity : int
         Frames to allocate at first (the arrays grow by doubling).
     max_length : int, optional
-        Keep only the newest ``max_length`` frames (live); unbounded by default.
+        Keep only about the newest ``max_length`` frames (live; the oldest tenth goes
+        when it is full); unbounded by default.
 
     Attributes
     ----------
     frame_flags : dict of str to int
-        Frames flagged ``nonfinite``, ``no_signal``, ``saturated`` so far.
-    peak_flags : list of dict of str to int
-        Per peak, frames flagged ``phase_step``, ``low_amplitude``, ``overlap`` so far.
+        Frames flagged ``nonfinite`` (values NaN) and ``saturated`` so far.
+    step_counts : ndarray of int
+        Per peak, frames whose mean phase stepped past the limit so far.
     """
 
     def __init__(
@@ -86,8 +91,9 @@ class PhaseSeries:
         self._steps = np.zeros((n, m), dtype=bool)
         self._n = 0
         self._t0: float | None = None
-        self.frame_flags = dict.fromkeys(COUNTED_FRAME_FLAGS, 0)
-        self.peak_flags = [dict.fromkeys(COUNTED_PEAK_FLAGS, 0) for _ in range(m)]
+        self._last = np.full(m, np.nan + 0j)
+        self.frame_flags = dict.fromkeys(SERIES_FRAME_FLAGS, 0)
+        self.step_counts = np.zeros(m, dtype=np.int64)
 
     @classmethod
     def from_arrays(
@@ -100,7 +106,7 @@ class PhaseSeries:
         noise_rad: np.ndarray,
         phase_steps: np.ndarray,
     ) -> PhaseSeries:
-        """A series holding given per-frame arrays (times in s from 0; flag counts empty).
+        """A series holding given per-frame arrays (times in s from 0; no flags counted).
 
         Raises
         ------
@@ -125,6 +131,9 @@ class PhaseSeries:
         series._steps[:n] = phase_steps
         series._n = n
         series._t0 = 0.0
+        series.step_counts = np.count_nonzero(series._steps[:n], axis=0)
+        if n:
+            series._last = series._values[n - 1].copy()
         return series
 
     def __len__(self) -> int:
@@ -135,25 +144,28 @@ class PhaseSeries:
         if self._n < size:
             return
         if self.max_length is not None and size >= self.max_length:
-            keep = self.max_length // 2
-            for name in ("_t", "_frames", "_values", "_noise", "_steps"):
+            keep = self.max_length - max(1, self.max_length // 10)
+            for name in _ARRAYS:
                 array = getattr(self, name)
                 array[:keep] = array[self._n - keep : self._n]
             self._n = keep
             return
         grow = size if self.max_length is None else min(size, self.max_length - size)
-        for name in ("_t", "_frames", "_values", "_noise", "_steps"):
+        for name in _ARRAYS:
             array = getattr(self, name)
             setattr(self, name, np.concatenate([array, np.zeros_like(array[:grow])]))
 
-    def add(self, t_s: float, frame: int, result: DemodResult) -> None:
-        """Add one frame: its time (s, any origin), input index and demodulation.
+    def add(self, t_s: float, frame: int, measured: CarrierValues) -> None:
+        """Add one frame: its time (s, any origin), input index and carrier values.
 
-        A frame with no peak results (flagged ``nonfinite``) gets NaN values.
+        A frame flagged ``nonfinite`` has NaN values; the step of a peak is measured
+        against its last finite value.
         """
-        if result.peaks and len(result.peaks) != len(self.labels):
+        values = np.asarray(measured.values, dtype=np.complex128)
+        if values.shape != (len(self.labels),):
             raise InputError(
-                f"a frame of {len(result.peaks)} peaks added to a series of {len(self.labels)}"
+                f"a frame of {values.size} carrier values added to a series of "
+                f"{len(self.labels)} peaks"
             )
         self._make_room()
         if self._t0 is None:
@@ -161,20 +173,17 @@ class PhaseSeries:
         i = self._n
         self._t[i] = t_s - self._t0
         self._frames[i] = frame
-        for flag in result.flags:
+        self._values[i] = values
+        self._noise[i] = measured.noise
+        for flag in measured.flags:
             if flag in self.frame_flags:
                 self.frame_flags[flag] += 1
-        if not result.peaks:
-            self._values[i] = np.nan
-            self._noise[i] = np.nan
-            self._steps[i] = False
-        for j, r in enumerate(result.peaks):
-            self._values[i, j] = r.carrier_value
-            self._noise[i, j] = r.noise
-            self._steps[i, j] = "phase_step" in r.flags
-            for flag in r.flags:
-                if flag in self.peak_flags[j]:
-                    self.peak_flags[j][flag] += 1
+        with np.errstate(invalid="ignore"):
+            stepped = np.abs(np.angle(values * np.conj(self._last))) > PHASE_STEP_LIMIT
+        self._steps[i] = stepped
+        self.step_counts += stepped
+        finite = np.isfinite(values)
+        self._last[finite] = values[finite]
         self._n += 1
 
     def truncate(self, n: int) -> None:
@@ -198,7 +207,7 @@ class PhaseSeries:
 
     @property
     def noise_rad(self) -> np.ndarray:
-        """Per-pixel phase noise of each map, rad (0 on a reference frame; a view)."""
+        """Phase noise of each carrier value, rad (a view; NaN where not estimated)."""
         return self._noise[: self._n]
 
     @property

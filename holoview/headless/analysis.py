@@ -33,7 +33,8 @@ from holoview.processing.trends import RateFit, check_aliasing
 
 logger = logging.getLogger(__name__)
 
-#: A peak flagged ``low_amplitude`` in more than this fraction of its frames gets the flag.
+#: A peak flagged ``low_amplitude`` in more than this fraction of the demodulated frames
+#: gets the flag.
 LOW_AMPLITUDE_SHARE = 0.5
 
 #: Peak kinds of the PCA whose model prefactor is trusted (and fused).
@@ -232,7 +233,6 @@ def _pca_names(ident: Identification, flags: list[set[str]]) -> _Naming:
 
 def _run_flags(selection: Selection, data: RunData) -> list[set[str]]:
     """Detection flags of each peak, and those the run raised often enough."""
-    n = data.values.shape[0]
     flags: list[set[str]] = [set(p.flags) for p in selection.peaks]
     for j, p in enumerate(selection.peaks):
         if not p.amplitude >= 0:
@@ -240,7 +240,7 @@ def _run_flags(selection: Selection, data: RunData) -> list[set[str]]:
         counts = data.peak_flags[j]
         if counts["phase_step"]:
             flags[j].add("phase_step")
-        if counts["low_amplitude"] > LOW_AMPLITUDE_SHARE * n:
+        if counts["low_amplitude"] > LOW_AMPLITUDE_SHARE * data.demodulated:
             flags[j].add("low_amplitude")
     return flags
 

@@ -85,6 +85,7 @@ class MainWindow(QMainWindow):
         self.source_options = dict(source_options or {})
         self._optioned_source = source
         self._last_seq = -1
+        self._trend_seq = -1
         self._last_result: LiveResult | None = None
         self._drawn: LiveResult | None = None
         self.display_rate = RateMeter()
@@ -540,14 +541,22 @@ class MainWindow(QMainWindow):
             self._draw(result)
             self.display_rate.tick()
             self.last_latency_s = time.time() - result.t_host
+        trend = session.trend()
+        if trend is not None and trend.seq != self._trend_seq:
+            self._trend_seq = trend.seq
+            self.trends.set_series(trend.times_s, trend.depths_m)
+            self.trends.set_rate(trend.rate_m_per_s, trend.rate_stderr_m_per_s, trend.rate_fit)
+            self.trends.set_pca(trend.pca_confidence, trend.pca_prefactors)
         self.recording_panel.set_progress(session.recording_progress())
-        camera_fps, processing_fps, dropped = session.rates()
+        rates = session.rates()
         self.status.set_figures(
             LiveFigures(
-                camera_fps=camera_fps,
-                processing_fps=processing_fps,
+                camera_fps=rates.camera_fps,
+                series_fps=rates.series_fps,
+                maps_fps=rates.maps_fps,
                 display_fps=self.display_rate.rate(),
-                dropped=dropped,
+                series_missed=rates.series_missed,
+                dropped=rates.dropped,
                 latency_s=self.last_latency_s,
                 camera=session.description,
             )
@@ -579,12 +588,6 @@ class MainWindow(QMainWindow):
                 result.shifts_px,
                 result.grid_of,
             )
-        if result.trend_times_s is not None and (
-            previous is None or result.trend_times_s is not previous.trend_times_s
-        ):
-            self.trends.set_series(result.trend_times_s, result.trend_depths_m)
-            self.trends.set_rate(result.rate_m_per_s, result.rate_stderr_m_per_s, result.rate_fit)
-            self.trends.set_pca(result.pca_confidence, result.pca_prefactors)
 
     # ---- layout ------------------------------------------------------------
     def _restore_layout(self) -> None:
