@@ -57,23 +57,23 @@ from numpy.typing import ArrayLike, NDArray
 
 from holoview.errors import InputError
 from holoview.processing.lattice_geometry import (
-    RANK_FIRST,
     Basis,
     LatticeKind,
     Match,
     Point,
     alpha_at,
-    bin_distance,
     check_indices,
     coupling,
     describe,
+    higher_points,
+    match,
     point_of,
     search_points,
 )
+from holoview.processing.lattice_ghosts import Ghost, find_ghosts
 from holoview.processing.lattice_labels import from_labels, snap_labels
 from holoview.processing.lattice_pca import PcaCheck, PcaEvidence
 from holoview.processing.lattice_search import Candidate, Fitter, auto_candidates, choose, orient
-from holoview.processing.windows import wrap_frequency
 
 logger = logging.getLogger(__name__)
 
@@ -96,13 +96,6 @@ DEFAULT_TOLERANCE_BINS = 1.5
 
 #: Largest distance (FFT bins) between a labelled position and the peak it names.
 DEFAULT_SNAP_BINS = 4.0
-
-#: Most ghost offsets sought, and the fewest leftover peaks one must explain.
-MAX_GHOSTS, MIN_GHOST_SUPPORT = 2, 2
-
-#: The brightest leftover peaks a ghost offset is sought from (a ghost's brightest copy,
-#: of RB1, is among them).
-GHOST_SEEDS = 8
 
 
 @dataclass(frozen=True)
@@ -219,90 +212,6 @@ class LatticeIdentification:
     def predicted(self, label: str, n1: float, n2: float) -> tuple[float, float]:
         """Return where the lattice puts ``label``'s stored twin, cycles/pixel (folded)."""
         return self.basis.carrier(point_of(label, n1, n2))
-
-
-@dataclass(frozen=True)
-class _Ghost:
-    """A leftover peak on a ghost offset: ``point + multiple * offset``."""
-
-    point: Point
-    index: int
-    multiple: int
-    residual_bins: float
-    twin: bool
-
-
-def _ghosts(
-    basis: Basis, fitter: Fitter, leftover: list[int], max_order: int
-) -> tuple[list[tuple[float, float]], dict[int, _Ghost]]:
-    """Offsets that repeat lattice points onto two or more leftover peaks."""
-    bases = [(0, 0)] + [
-        p.point for p in fitter.points if p.rank == RANK_FIRST and max(p.point[0], 1) <= max_order
-    ]
-    lattice = np.array(bases, dtype=np.float64) @ basis.matrix
-    offsets: list[tuple[float, float]] = []
-    assigned: dict[int, _Ghost] = {}
-    remaining = list(leftover)
-    shape, tol = fitter.shape, fitter.tolerance
-    for g_index in range(MAX_GHOSTS):
-        if len(remaining) < MIN_GHOST_SUPPORT:
-            break
-        c = fitter.carriers[remaining]
-        seeds = c[np.argsort(-fitter.brightness[remaining], kind="stable")[:GHOST_SEEDS]]
-        trials = np.concatenate(
-            [
-                wrap_frequency(w * (s * seeds[:, None, :] - lattice[None])).reshape(-1, 2)
-                for s in (1.0, -1.0)
-                for w in (1.0, -1.0)
-            ]
-        )
-        trials = trials[bin_distance(trials, shape) > 3 * tol]
-        if trials.shape[0] == 0:
-            break
-        shifted = np.concatenate(
-            [lattice[None] + trials[:, None], lattice[None] - trials[:, None]], axis=1
-        )
-        near = np.minimum(
-            bin_distance(c[None, :, None] - shifted[:, None], shape),
-            bin_distance(-c[None, :, None] - shifted[:, None], shape),
-        ).min(axis=2)
-        counts = np.count_nonzero(near <= tol, axis=1)
-        if counts.max() < MIN_GHOST_SUPPORT:
-            break
-        best = trials[int(np.argmax(counts))]
-        distance, which, multiple, twin = _ghost_support(best, c, lattice, shape, tol)
-        offsets.append((float(best[0]), float(best[1])))
-        for j, peak in enumerate(remaining):
-            if np.isfinite(distance[j]):
-                assigned[peak] = _Ghost(
-                    bases[int(which[j])],
-                    g_index,
-                    int(multiple[j]),
-                    float(distance[j]),
-                    bool(twin[j]),
-                )
-        remaining = [p for p in remaining if p not in assigned]
-    return offsets, assigned
-
-
-def _ghost_support(
-    g: NDArray[np.float64],
-    c: NDArray[np.float64],
-    lattice: NDArray[np.float64],
-    shape: tuple[int, int],
-    tol: float,
-) -> tuple[NDArray[np.float64], NDArray[np.int64], NDArray[np.int64], NDArray[np.bool_]]:
-    """Per leftover peak: distance to the nearest ``P +- g`` (inf beyond ``tol``), which."""
-    shifted = np.concatenate([lattice + g, lattice - g])
-    direct = bin_distance(c[:, None, :] - shifted[None], shape)
-    mirrored = bin_distance(-c[:, None, :] - shifted[None], shape)
-    both = np.minimum(direct, mirrored)
-    k = np.argmin(both, axis=1)
-    rows = np.arange(c.shape[0])
-    distance = np.where(both[rows, k] <= tol, both[rows, k], np.inf)
-    n = lattice.shape[0]
-    multiple = np.where(k < n, 1, -1)
-    return distance, k % n, multiple, mirrored[rows, k] < direct[rows, k]
 
 
 def _check_inputs(
@@ -449,7 +358,7 @@ def _record(
     i: int,
     carrier: tuple[float, float],
     found: Match | None,
-    ghost: _Ghost | None,
+    ghost: Ghost | None,
     *,
     n1: float,
     n2: float,
@@ -515,8 +424,20 @@ def _assemble(
     """Per-peak records from the chosen candidate, ghosts and the PCA."""
     c = fitter.carriers
     by_peak = {m.peak: m for m in chosen.matches}
+    higher = higher_points(n1, n2, max_order, fitter.points)
+    for m in match(
+        chosen.basis, c, fitter.shape, higher, fitter.tolerance, exclude=frozenset(by_peak)
+    ):
+        by_peak[m.peak] = m
     leftover = [i for i in range(c.shape[0]) if i not in by_peak]
-    offsets, ghosts = _ghosts(chosen.basis, fitter, leftover, max_order)
+    offsets, ghosts = find_ghosts(
+        chosen.basis,
+        fitter,
+        leftover,
+        max_order=max_order,
+        higher=higher,
+        matched=list(chosen.matches),
+    )
     peaks = [
         _record(i, (float(c[i, 0]), float(c[i, 1])), by_peak.get(i), ghosts.get(i), n1=n1, n2=n2)
         for i in range(c.shape[0])

@@ -54,6 +54,7 @@ __all__ = [
     "check_indices",
     "coupling",
     "describe",
+    "higher_points",
     "match",
     "point_of",
     "point_of_family",
@@ -67,7 +68,7 @@ Point = tuple[int, int]
 
 #: Search rank of a first-order family, a harmonic and an intermodulation product:
 #: a peak near two points takes the lower rank (first orders are the brightest).
-RANK_FIRST, RANK_HARMONIC, RANK_PRODUCT = 0, 1, 2
+RANK_FIRST, RANK_HARMONIC, RANK_PRODUCT, RANK_HIGHER = 0, 1, 2, 3
 
 _FAMILY = re.compile(r"(RF)|(RB|FB)([1-9]\d*)|B([1-9]\d*)B([1-9]\d*)")
 _HARMONIC = re.compile(r"([2-9]|[1-9]\d+)(.+)")
@@ -319,6 +320,24 @@ def search_points(n1: float, n2: float, max_order: int) -> tuple[SearchPoint, ..
         label, kind = describe(point, n1, n2)
         points.append(SearchPoint(point, label, kind, rank, alpha_at(point, n1, n2)))
     points.sort(key=lambda s: (s.rank, abs(s.point[0]) + abs(s.point[1]), s.label))
+    return tuple(points)
+
+
+def higher_points(
+    n1: float, n2: float, max_order: int, searched: tuple[SearchPoint, ...]
+) -> tuple[SearchPoint, ...]:
+    """Lattice points beyond :func:`search_points`: higher products (``|rf| <= 3``,
+    ``|fb1| <= 2 max_order + 2``), for peaks left over once the lattice is chosen (a
+    saturated camera makes third orders); rank :data:`RANK_HIGHER`."""
+    known = {p.point for p in searched}
+    points = []
+    for fb1 in range(-2 * max_order - 2, 2 * max_order + 3):
+        for rf in range(-3, 4):
+            point = (fb1, rf)
+            if point == (0, 0) or alpha_at(point, n1, n2) <= 0 or point in known:
+                continue
+            label, kind = describe(point, n1, n2)
+            points.append(SearchPoint(point, label, kind, RANK_HIGHER, alpha_at(point, n1, n2)))
     return tuple(points)
 
 
