@@ -176,6 +176,8 @@ def _identify(
             reference_label=selection.reference_label,
             amplitudes=amplitudes,
             steps=steps,
+            carriers=None if selection.shape is None else [p.carrier for p in selection.peaks],
+            shape=selection.shape,
         )
     except InputError as exc:
         raise InputError(

@@ -82,6 +82,8 @@ class Selection:
         Its family (``"RB1"`` unless an anchor says otherwise).
     labelling : ModelLabelling or None
         The model labelling (labels mode).
+    shape : tuple of int or None
+        Auto mode: the frame ``(rows, cols)``, for the lattice to name the peaks.
     """
 
     mode: str
@@ -90,6 +92,7 @@ class Selection:
     reference_label: str = "RB1"
     labelling: ModelLabelling | None = None
     notes: tuple[str, ...] = field(default_factory=tuple)
+    shape: tuple[int, int] | None = None
 
 
 def check_label(label: str, where: str) -> str:
@@ -351,7 +354,14 @@ def select_auto(
             "auto: the brightest peak was taken as RB1 on the twin with fx > 0; if the "
             "heights have the wrong sign, give --anchor RB1=fx,fy on the other twin",
         )
-    return Selection("auto", tuple(peaks), reference=reference, reference_label=label, notes=notes)
+    return Selection(
+        "auto",
+        tuple(peaks),
+        reference=reference,
+        reference_label=label,
+        notes=notes,
+        shape=(int(shape[0]), int(shape[1])),
+    )
 
 
 def describe_peaks(

@@ -34,12 +34,15 @@ whose steps the prediction fixes best are enumerated over the prediction's windo
 every other peak's integer is rounded to it, and ``dx`` is solved again with them
 (integer bootstrapping, Teunissen, J. Geodesy 72, 606 (1998)). The best ``J`` wins.
 
-The margin of a frame is ``sqrt(J2 - J1) / 2`` with ``J2`` the best solution with other
-integers: half the distance, in noise standard deviations, between the two solutions'
+The margin of a frame is ``sqrt(J2 - J1) / 2`` with ``J2`` the best solution with another
+height step: half the distance, in noise standard deviations, between the two solutions'
 predictions, the distance noise would have to cover to swap them (the discrimination
 test of Euler and Schaffrin, 1991, in its difference form). A frame is flagged only when
 its margin is below ``min_margin`` (3 by default: a wrong choice about once in 700
-frames at the threshold, less above it); its best solution is still used.
+frames at the threshold, less above it); its best solution is still used. The couplings
+being integers, a whole turn of the reference arm changes no height: solutions that
+differ by one have their own margin (``vibration_margin``), which only the RF and RB_j
+series and the vibration series depend on; the smaller reference-arm step is taken.
 
 With the integers, each peak's phase is unwrapped (its cumulative steps), and the
 height and reference-arm phase since the first frame are the weighted least-squares
@@ -93,6 +96,10 @@ FLOOR = 0.02
 #: Frames over which learned noise and spread average (exponential weighting).
 MEMORY = 50
 
+#: Two solutions whose height steps differ by less than this (rad of ``du``) are one
+#: height (a whole turn of the reference arm apart).
+SAME_HEIGHT = 1e-3
+
 #: Most candidate integer pairs enumerated per frame.
 MAX_CANDIDATES = 4096
 
@@ -118,10 +125,14 @@ class JointFrame:
     turns : ndarray of int, shape (M,)
         The whole turns added to each peak's wrapped step this frame.
     margin : float
-        Noise standard deviations between the solution and the best other one (inf
-        without another).
+        Noise standard deviations between the solution and the best one with another
+        height step (inf without another).
+    vibration_margin : float
+        The same against the best solution a whole turn of the reference arm away (same
+        height, the RF and RB_j phases a turn apart): small when the reference arm steps
+        near pi a frame, which the height does not mind.
     flagged : bool
-        ``margin < min_margin``: the frame's integers are not resolved with confidence.
+        ``margin < min_margin``: the frame's height step is not resolved with confidence.
     """
 
     height: float
@@ -129,6 +140,7 @@ class JointFrame:
     phases: NDArray[np.float64]
     turns: NDArray[np.int64]
     margin: float
+    vibration_margin: float
     flagged: bool
 
 
@@ -285,14 +297,16 @@ class JointEstimator:
         now = self._sigma2 if sigma is None else self._check_sigma(sigma) ** 2
         seen = present & np.isfinite(self._phase)
         turns = np.zeros(self.alphas.size, dtype=np.int64)
-        margin, flagged = math.inf, False
+        margin, vibration_margin, flagged = math.inf, math.inf, False
         if np.any(seen):
             y = np.angle(z[seen] * np.conj(self._last[seen]))
             offset = self._design[seen] @ self._x - np.sum(
                 self._design[seen] * self._x_at[seen], axis=1
             )
             variance = now[seen] + self._sigma2[seen]
-            n, step, margin = self._resolve(self._design[seen], y, offset, variance)
+            n, step, margin, vibration_margin = self._resolve(
+                self._design[seen], y, offset, variance
+            )
             turns[seen] = n
             flagged = margin < self.min_margin
             self._phase[seen] += y + 2 * np.pi * n
@@ -315,6 +329,7 @@ class JointEstimator:
             phases=phases,
             turns=turns,
             margin=margin,
+            vibration_margin=vibration_margin,
             flagged=flagged,
         )
 
@@ -339,8 +354,8 @@ class JointEstimator:
         y: NDArray[np.float64],
         offset: NDArray[np.float64],
         variance: NDArray[np.float64],
-    ) -> tuple[NDArray[np.int64], NDArray[np.float64], float]:
-        """The integers, the step and the margin of one frame (module documentation)."""
+    ) -> tuple[NDArray[np.int64], NDArray[np.float64], float, float]:
+        """The integers, the step and the margins of one frame (module documentation)."""
         predicted = self._step.copy()
         if self._dims == 2:
             predicted[1] = 0.0
@@ -351,7 +366,7 @@ class JointEstimator:
             wide = _search(a, y - offset, variance, predicted, np.diag(self._wide() ** 2))
             if wide.observed < best.observed:
                 best = wide
-        return best.turns, best.step, best.margin
+        return best.turns, best.step, best.margin, best.vibration_margin
 
     def _learn(
         self,
@@ -400,6 +415,7 @@ class _Solution:
     cost: float
     observed: float
     margin: float
+    vibration_margin: float
 
 
 def _search(
@@ -446,18 +462,23 @@ def _search(
     deviation = trial - predicted
     cost = observed + np.einsum("ij,jk,ik->i", deviation, prior, deviation)
     _, first = np.unique(turns, axis=0, return_index=True)
-    costs = cost[first]
-    order = np.argsort(costs)
-    best = int(first[order[0]])
-    margin = math.inf
-    if order.size > 1:
-        margin = math.sqrt(max(float(costs[order[1]] - costs[order[0]]), 0.0)) / 2
+    first = first[np.argsort(cost[first])]
+    best = int(first[0])
+    # Solutions a whole turn of the reference arm apart (couplings are integers) give the
+    # same height: they bear on the vibration series, not on the height's.
+    same_height = np.abs(trial[first, 0] - trial[best, 0]) <= SAME_HEIGHT
+    margins = []
+    for group in (~same_height, same_height):
+        others = first[group & (first != best)]
+        gap = float(np.min(cost[others]) - cost[best]) if others.size else math.inf
+        margins.append(math.sqrt(max(gap, 0.0)) / 2)
     return _Solution(
         turns=turns[best].astype(np.int64),
         step=trial[best],
         cost=float(cost[best]),
         observed=float(observed[best]),
-        margin=margin,
+        margin=margins[0],
+        vibration_margin=margins[1],
     )
 
 

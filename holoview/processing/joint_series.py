@@ -56,7 +56,11 @@ class JointSeries:
         The reference arm's phase since the first frame, rad (NaN when no peak couples
         to it): ``wavelength / (4 pi n1)`` times it is the air path's change, m.
     margins : ndarray, shape (N,)
-        Per frame, the ambiguity margin in noise standard deviations (inf at the first).
+        Per frame, the height step's ambiguity margin in noise standard deviations (inf
+        at the first).
+    vibration_margins : ndarray, shape (N,)
+        Per frame, the margin against a whole turn of the reference arm (the RF and
+        RB_j series and the vibration series may slip a turn where it is small).
     flagged : ndarray of bool, shape (N,)
         Frames whose integers were not resolved with confidence (margin below the
         threshold).
@@ -76,6 +80,7 @@ class JointSeries:
     fused: NDArray[np.float64]
     vibration: NDArray[np.float64]
     margins: NDArray[np.float64]
+    vibration_margins: NDArray[np.float64]
     flagged: NDArray[np.bool_]
     sigma: NDArray[np.float64]
     noise: NDArray[np.float64]
@@ -86,15 +91,18 @@ class JointSeries:
 def _run(
     estimator: JointEstimator, values: NDArray[np.complex128]
 ) -> tuple[NDArray[np.float64], ...]:
+    """Every frame through ``estimator``: phases, height, vibration, margins, flags."""
     n, m = values.shape
     phases = np.full((n, m), np.nan)
-    fused, vibration, margins = np.full(n, np.nan), np.full(n, np.nan), np.full(n, np.inf)
+    fused, vibration = np.full(n, np.nan), np.full(n, np.nan)
+    margins, vibration_margins = np.full(n, np.inf), np.full(n, np.inf)
     flagged = np.zeros(n, dtype=bool)
     for t in range(n):
         frame = estimator.update(values[t])
         phases[t], fused[t], vibration[t] = frame.phases, frame.height, frame.vibration
-        margins[t], flagged[t] = frame.margin, frame.flagged
-    return phases, fused, vibration, margins, flagged
+        margins[t], vibration_margins[t] = frame.margin, frame.vibration_margin
+        flagged[t] = frame.flagged
+    return phases, fused, vibration, margins, vibration_margins, flagged
 
 
 def _robust_std(x: NDArray[np.float64]) -> float:
@@ -154,7 +162,7 @@ def estimate_joint(
     z = z.astype(np.complex128) if np.iscomplexobj(z) else np.exp(1j * z.astype(np.float64))
     t = check_times(times, z.shape[0])
     first = JointEstimator(alphas, couplings, wavelength, sigma=sigma, min_margin=min_margin)
-    phases, fused, vibration, margins, flagged = _run(first, z)
+    phases, fused, vibration, margins, vibration_margins, flagged = _run(first, z)
     k = 4 * np.pi / wavelength
     design = np.column_stack([first.alphas, first.couplings])
     state = np.column_stack([fused * k, np.nan_to_num(vibration)])
@@ -190,7 +198,7 @@ def estimate_joint(
             spread=np.maximum(spread, 1e-3),
             step=(float(np.median(steps[:5, 0])), 0.0),
         )
-        phases, fused, vibration, margins, flagged = _run(second, z)
+        phases, fused, vibration, margins, vibration_margins, flagged = _run(second, z)
     depths = phases * wavelength / (4 * np.pi * first.alphas)
     fit = fit_rate(t, fused) if np.count_nonzero(np.isfinite(fused)) >= 3 else None
     peak_fits = tuple(
@@ -206,6 +214,7 @@ def estimate_joint(
         fused=fused,
         vibration=vibration,
         margins=margins,
+        vibration_margins=vibration_margins,
         flagged=flagged,
         sigma=noise,
         noise=noise * wavelength / (4 * np.pi * first.alphas),
