@@ -354,6 +354,12 @@ def identify_lattice(
     return replace(ident, **extra)
 
 
+_AMBIGUOUS_GHOST = (
+    "ghost naming ambiguous: another offset explains as many peaks with other names "
+    "(a ghost's RB1 copy and its own-arm term may swap; the PCA tells them apart)"
+)
+
+
 def _record(
     i: int,
     carrier: tuple[float, float],
@@ -392,7 +398,8 @@ def _record(
             twin=ghost.twin,
             carrier=(-carrier[0], -carrier[1]) if ghost.twin else carrier,
             coupling=coupling(ghost.point),
-            notes=("a ghost against its own arm: no height",) if own else (),
+            notes=(("a ghost against its own arm: no height",) if own else ())
+            + ((_AMBIGUOUS_GHOST,) if ghost.ambiguous else ()),
         )
     return LatticePeak(
         index=i,

@@ -45,13 +45,19 @@ GHOST_RATIO_SPREAD = 4.0
 
 @dataclass(frozen=True)
 class Ghost:
-    """A leftover peak on a ghost offset: ``point + multiple * offset``."""
+    """A leftover peak on a ghost offset: ``point + multiple * offset``.
+
+    ``ambiguous``: another offset explains as many leftover peaks with other names (a
+    ghost's copy of RB1 and its term against its own arm can swap when nothing else of
+    it shows; the PCA tells them apart: the latter does not move).
+    """
 
     point: Point
     index: int
     multiple: int
     residual_bins: float
     twin: bool
+    ambiguous: bool = False
 
 
 def find_ghosts(
@@ -114,13 +120,17 @@ def find_ghosts(
         rb1 = bases.index((1, -1))
         copies = every[:, :, [rb1, rb1 + len(bases)]].min(axis=(1, 2))
         counts = np.where(copies <= tol, counts, 0)
-        best = None
+        best, rival, top, names = None, False, 0, frozenset()
         for k in np.argsort(-counts, kind="stable"):
-            if counts[k] < MIN_GHOST_SUPPORT:
+            if counts[k] < MIN_GHOST_SUPPORT or (best is not None and counts[k] < top):
                 break
             support = _ghost_support(trials[k], c, lattice, shape, tol)
-            if _copies_agree(support, remaining, bases, originals, fitter.brightness):
-                best = trials[k]
+            if not _copies_agree(support, remaining, bases, originals, fitter.brightness):
+                continue
+            if best is None:
+                best, top, names = trials[k], counts[k], _names(support, bases)
+            elif _names(support, bases) != names:
+                rival = True  # another offset explains as many peaks with other names
                 break
         if best is None:
             break
@@ -134,9 +144,21 @@ def find_ghosts(
                     int(multiple[j]),
                     float(distance[j]),
                     bool(twin[j]),
+                    rival,
                 )
         remaining = [p for p in remaining if p not in assigned]
     return offsets, assigned
+
+
+def _names(
+    support: tuple[NDArray[np.float64], NDArray[np.int64], NDArray[np.int64], NDArray[np.bool_]],
+    bases: list[Point],
+) -> frozenset[tuple[int, Point]]:
+    """Which leftover peak an offset puts on which lattice point."""
+    distance, which = support[0], support[1]
+    return frozenset(
+        (j, bases[int(which[j])]) for j in range(distance.size) if np.isfinite(distance[j])
+    )
 
 
 def _copies_agree(

@@ -93,8 +93,17 @@ class PcaCheck:
                 continue
             on_stored = -value if p.twin else value
             if p.kind is not LatticeKind.OFF_LATTICE:
-                if not p.alpha:
-                    out.append(replace(p, pca_alpha=on_stored))
+                if not p.alpha:  # a ghost's own-arm term: it should not move
+                    moves = abs(on_stored) > PCA_TOLERANCE
+                    note = (f"PCA prefactor {on_stored:.3f}: it moves with the surface",)
+                    out.append(
+                        replace(
+                            p,
+                            pca_alpha=on_stored,
+                            pca_agrees=not moves,
+                            notes=(*p.notes, *note) if moves else p.notes,
+                        )
+                    )
                     continue
                 agrees = abs(on_stored / p.alpha - 1.0) <= PCA_TOLERANCE
                 notes = p.notes
