@@ -235,6 +235,7 @@ class JointEstimator:
         m = self.alphas.size
         self._frames = 0
         self._last = np.full(m, np.nan + 0j)
+        self._last_variance = np.full(m, np.nan)
         self._phase = np.full(m, np.nan)
         self._x_at = np.full((m, self._dims), np.nan)
         self._x = np.zeros(self._dims)
@@ -256,9 +257,11 @@ class JointEstimator:
 
     def _wide(self) -> NDArray[np.float64]:
         """The prediction's spread with no past to go by: the window reaches 1.5 pi of
-        the slowest peak's phase and of the reference arm's, no further (for water in
-        air the alphas are nearly multiples of 1/3, so a step 6 pi / alpha_RB1 apart is
-        as good a fit: only the past can tell it)."""
+        the slowest peak's phase and of the reference arm's, no further. For water in
+        air the alphas are nearly multiples of 1/3 and the couplings whole numbers, so a
+        height step 3/8 of a wavelength away, with the reference arm a quarter turn away,
+        fits every peak as well: only the past tells them apart, and a first frame with
+        nothing before it may be flagged."""
         return np.array([math.pi / (3 * float(np.min(self.alphas))), math.pi / 3])[: self._dims]
 
     def _prior_cov(self) -> NDArray[np.float64]:
@@ -303,14 +306,22 @@ class JointEstimator:
             offset = self._design[seen] @ self._x - np.sum(
                 self._design[seen] * self._x_at[seen], axis=1
             )
-            variance = now[seen] + self._sigma2[seen]
+            before = self._last_variance[seen]
+            variance = now[seen] + np.where(np.isfinite(before), before, now[seen])
             n, step, margin, vibration_margin = self._resolve(
                 self._design[seen], y, offset, variance
             )
             turns[seen] = n
             flagged = margin < self.min_margin
             self._phase[seen] += y + 2 * np.pi * n
-            self._learn(np.flatnonzero(seen), y + 2 * np.pi * n - offset, variance, step, flagged)
+            self._learn(
+                np.flatnonzero(seen),
+                y + 2 * np.pi * n - offset,
+                variance,
+                step,
+                flagged=flagged,
+                noise=sigma is None,
+            )
         fresh = present & ~np.isfinite(self._phase)
         x = self._solve(present & ~fresh, now)
         if np.any(seen):
@@ -319,6 +330,8 @@ class JointEstimator:
         self._phase[fresh] = self._design[fresh] @ x
         self._x_at[present] = x
         self._last[present] = z[present]
+        if now is not None:
+            self._last_variance[present] = now[present]
         self._frames += 1
         phases = np.where(present, self._phase, np.nan)
         if flagged:
@@ -374,13 +387,16 @@ class JointEstimator:
         steps: NDArray[np.float64],
         variance: NDArray[np.float64],
         step: NDArray[np.float64],
+        *,
         flagged: bool,
+        noise: bool,
     ) -> None:
         """Update the prediction's spread (every frame: a wrong step widens it) and the
         peaks' noise (frames resolved with confidence only) from a frame.
 
         ``rows`` are the peaks of ``steps`` (their unwrapped steps less the offsets of
-        missed frames), ``step`` the frame's solution.
+        missed frames), ``step`` the frame's solution; ``noise``: learn the peaks'
+        noise (not when this frame's was given).
         """
         rate = 1.0 / min(self._updates + 1, MEMORY)
         predicted = self._step * np.array([1.0, 0.0])[: self._dims]
@@ -391,7 +407,7 @@ class JointEstimator:
             self._innovation = innovation
         self._updates += 1
         a = self._design[rows]
-        if flagged or self._fixed_sigma is not None or rows.size <= self._dims:
+        if flagged or not noise or self._fixed_sigma is not None or rows.size <= self._dims:
             return
         if self._sigma2 is None:
             return

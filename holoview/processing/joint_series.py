@@ -65,7 +65,8 @@ class JointSeries:
         Frames whose integers were not resolved with confidence (margin below the
         threshold).
     sigma : ndarray, shape (M,)
-        Each peak's phase noise per frame, rad (as measured by the first pass).
+        Each peak's phase noise per frame in use, rad: as measured by the first pass,
+        or as given (the median over frames of a per-frame one).
     noise : ndarray, shape (M,)
         The same in depth, m (``sigma * wavelength / (4 pi alpha)``).
     fit : RateFit or None
@@ -89,7 +90,9 @@ class JointSeries:
 
 
 def _run(
-    estimator: JointEstimator, values: NDArray[np.complex128]
+    estimator: JointEstimator,
+    values: NDArray[np.complex128],
+    sigma: NDArray[np.float64] | None = None,
 ) -> tuple[NDArray[np.float64], ...]:
     """Every frame through ``estimator``: phases, height, vibration, margins, flags."""
     n, m = values.shape
@@ -98,7 +101,7 @@ def _run(
     margins, vibration_margins = np.full(n, np.inf), np.full(n, np.inf)
     flagged = np.zeros(n, dtype=bool)
     for t in range(n):
-        frame = estimator.update(values[t])
+        frame = estimator.update(values[t], None if sigma is None else sigma[t])
         phases[t], fused[t], vibration[t] = frame.phases, frame.height, frame.vibration
         margins[t], vibration_margins[t] = frame.margin, frame.vibration_margin
         flagged[t] = frame.flagged
@@ -138,8 +141,9 @@ def estimate_joint(
         :attr:`holoview.processing.lattice.LatticePeak.coupling`).
     wavelength : float
         Laser wavelength in vacuum, m.
-    sigma : array_like of float, shape (M,), optional
-        Each peak's phase noise per frame, rad; measured when omitted.
+    sigma : array_like of float, shape (M,) or (N, M), optional
+        Each peak's phase noise, rad: one per peak, or per frame and peak (for example
+        a spectrum bin's noise over ``|value|``); measured when omitted.
     min_margin : float
         Frames whose ambiguity margin (noise standard deviations) is below this are
         flagged.
@@ -161,8 +165,20 @@ def estimate_joint(
         raise InputError(f"values must be (frames, peaks), got shape {z.shape}")
     z = z.astype(np.complex128) if np.iscomplexobj(z) else np.exp(1j * z.astype(np.float64))
     t = check_times(times, z.shape[0])
-    first = JointEstimator(alphas, couplings, wavelength, sigma=sigma, min_margin=min_margin)
-    phases, fused, vibration, margins, vibration_margins, flagged = _run(first, z)
+    per_frame = None
+    fixed = None
+    if sigma is not None:
+        given = np.asarray(sigma, dtype=np.float64)
+        if given.shape == z.shape:
+            per_frame = given
+            if not np.all(np.isfinite(given) & (given > 0)):
+                raise InputError("sigma must be positive phase noises (rad)")
+        elif given.shape == (z.shape[1],):
+            fixed = given
+        else:
+            raise InputError(f"sigma has shape {given.shape}; give (peaks,) or {z.shape}")
+    first = JointEstimator(alphas, couplings, wavelength, sigma=fixed, min_margin=min_margin)
+    phases, fused, vibration, margins, vibration_margins, flagged = _run(first, z, per_frame)
     k = 4 * np.pi / wavelength
     design = np.column_stack([first.alphas, first.couplings])
     state = np.column_stack([fused * k, np.nan_to_num(vibration)])
@@ -183,8 +199,10 @@ def estimate_joint(
         )
         noise = np.maximum(measured / np.sqrt(np.clip(1.0 - hat, LEVERAGE_FLOOR, 1.0)), MIN_SIGMA)
         noise = np.where(np.isfinite(noise), noise, learned if learned is not None else 1.0)
-    if sigma is not None:
-        noise = np.asarray(sigma, dtype=np.float64)
+    if fixed is not None:
+        noise = fixed
+    elif per_frame is not None:
+        noise = np.median(per_frame, axis=0)
     steps = np.diff(state, axis=0)
     innovation = np.column_stack([np.diff(steps[:, 0]), steps[1:, 1]])
     spread = np.array([_robust_std(innovation[:, 0]), _robust_std(innovation[:, 1])])
@@ -198,7 +216,7 @@ def estimate_joint(
             spread=np.maximum(spread, 1e-3),
             step=(float(np.median(steps[:5, 0])), 0.0),
         )
-        phases, fused, vibration, margins, vibration_margins, flagged = _run(second, z)
+        phases, fused, vibration, margins, vibration_margins, flagged = _run(second, z, per_frame)
     depths = phases * wavelength / (4 * np.pi * first.alphas)
     fit = fit_rate(t, fused) if np.count_nonzero(np.isfinite(fused)) >= 3 else None
     peak_fits = tuple(

@@ -15,16 +15,19 @@ The basis
   with each other, or with the lattice that explains the most peaks, are an error that
   names the label (never a silent wrong name); so is a basis that explains none of the
   other detected peaks.
-- **Automatically**: every pair of the brightest detected peaks, read as every pair of
-  RF, RB1, FB1, RB2, FB2 and RB3 that spans the lattice, on both relative twins, gives
-  a candidate basis; each is refined on the peaks it explains and scored by them
-  (1 per first-order family, 0.5 per harmonic, 0.25 per intermodulation product).
-  Some namings explain the same peaks (with RF, RB1 and RB2 only, RF and RB2 may swap:
-  RB1 is the midpoint of RF's twin and RB2): among candidates within 0.5 of the best
-  score, the PCA of the phases decides when ``values`` are given (the naming whose
-  alphas agree with the most peaks' PCA prefactors, alpha_FB1 / alpha_RF = n2 / n1),
-  then the brightness order of the model (RB1 > RF > RB2 > RB3 ...: the RB_j fall by
-  the factor ``rho R`` per pass, RB2 / RF is ``(1 - R^2) rho^2 < 1``).
+- **Automatically** (:mod:`holoview.processing.lattice_search`): every pair of the
+  brightest detected peaks, read as every pair of RF, RB1, FB1, RB2, FB2 and RB3 that
+  spans the lattice, on both relative twins, gives a candidate basis; each is refined
+  on the peaks it explains and scored by them (1 per first-order family, 0.5 per
+  harmonic, 0.25 per intermodulation product), less one per clear departure from the
+  model's brightness order (:mod:`holoview.processing.lattice_brightness`: RB1 the
+  brightest, RB1 > RF > RB2 > RB3, FB_j well under RF, a product under its parents, no
+  family missing that a detected one says must be brighter). Namings that explain the
+  same peaks exist (with RF, RB1 and RB2 only, RF and RB2 may swap: RB1 is the midpoint
+  of RF's twin and RB2): among candidates within 0.5 of the best, the PCA of the phases
+  decides when ``values`` are given (the naming whose alphas agree with the most peaks'
+  PCA prefactors: alpha_FB1 / alpha_RF = n2 / n1), then the brightness order; a
+  ``margin`` under 0.75 without the PCA is noted.
 
 A carrier cannot tell a peak from its twin on its own: the whole lattice and its
 negative explain the same peaks. Labels fix that sign; so does ``sign_reference`` (a
@@ -36,8 +39,10 @@ Beyond the lattice
 A beam-splitter ghost copies an arm with an extra tilt: its peaks repeat lattice
 points shifted by one offset ``g`` (``P + g`` or ``P - g``), with the alpha of ``P``.
 An offset that explains two or more of the peaks left over is taken as a ghost
-(``"RB1~g0"``; ``"g0"``, alpha 0, is the ghost against its own arm). Peaks still left
-are off the lattice: the PCA names them by their prefactor alone when it can
+(``"RB1~g0"``; ``"g0"``, alpha 0, is the ghost against its own arm;
+:mod:`holoview.processing.lattice_ghosts`). Peaks left over on higher lattice points
+(third orders of a saturated camera) are named as intermodulation products. Peaks still
+left are off the lattice: the PCA names them by their prefactor alone when it can
 (:func:`holoview.processing.prefactors.classify_prefactors`). With ``values``, every
 peak also gets its PCA prefactor and whether it agrees with the lattice's alpha.
 

@@ -32,6 +32,7 @@ point past Nyquist is predicted where the camera folds it.
 
 from __future__ import annotations
 
+import functools
 import math
 import re
 from dataclasses import dataclass
@@ -271,6 +272,7 @@ class SearchPoint:
 PRODUCT_ORDER = 2
 
 
+@functools.lru_cache(maxsize=16)
 def search_points(n1: float, n2: float, max_order: int) -> tuple[SearchPoint, ...]:
     """Return the points identification looks for, lowest rank first.
 
@@ -323,6 +325,7 @@ def search_points(n1: float, n2: float, max_order: int) -> tuple[SearchPoint, ..
     return tuple(points)
 
 
+@functools.lru_cache(maxsize=16)
 def higher_points(
     n1: float, n2: float, max_order: int, searched: tuple[SearchPoint, ...]
 ) -> tuple[SearchPoint, ...]:
@@ -379,7 +382,7 @@ class Basis:
 
 def bin_distance(delta: NDArray[np.float64], shape: tuple[int, int]) -> NDArray[np.float64]:
     """Length in FFT bins of carrier differences ``(..., 2)`` (cycles/pixel), wrapped."""
-    d = wrap_frequency(delta)
+    d = delta - np.rint(delta)  # the wrap of wrap_frequency; a distance needs no sign at 0.5
     return np.hypot(d[..., 0] * shape[1], d[..., 1] * shape[0])
 
 

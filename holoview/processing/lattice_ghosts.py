@@ -37,6 +37,9 @@ MAX_GHOSTS, MIN_GHOST_SUPPORT = 2, 2
 #: of RB1, is among them).
 GHOST_SEEDS = 8
 
+#: The best-supported offsets checked in full (brightness ratios, rivals) per ghost.
+GHOST_TRIALS = 24
+
 #: Largest spread (ratio) of a ghost's copy-to-original brightness over RF and the RB_j
 #: (one field amplitude for all of them in the model; amplitude estimates and overlaps
 #: allowed for). The FB_j are left out: their originals cancel, their copies need not.
@@ -121,7 +124,7 @@ def find_ghosts(
         copies = every[:, :, [rb1, rb1 + len(bases)]].min(axis=(1, 2))
         counts = np.where(copies <= tol, counts, 0)
         best, rival, top, names = None, False, 0, frozenset()
-        for k in np.argsort(-counts, kind="stable"):
+        for k in np.argsort(-counts, kind="stable")[:GHOST_TRIALS]:
             if counts[k] < MIN_GHOST_SUPPORT or (best is not None and counts[k] < top):
                 break
             support = _ghost_support(trials[k], c, lattice, shape, tol)

@@ -67,7 +67,8 @@ CONTENDER_MARGIN = 0.5
 #: only call it a product (1 - 0.25).
 CONTRADICTION_MARGIN = 0.75
 
-#: Candidate bases kept from the coarse scoring for the full fit.
+#: Candidate bases kept from the coarse scoring for the full fit (of at most twice as
+#: many tried: duplicates and collapsed bases are skipped).
 KEEP_CANDIDATES = 40
 
 
@@ -192,7 +193,7 @@ def auto_candidates(fitter: Fitter, n1: float, n2: float) -> list[Candidate]:
     chosen = np.argsort(-scores, kind="stable")
     fitted: list[Candidate] = []
     seen: set[frozenset[tuple[int, str, bool]]] = set()
-    for h in chosen:
+    for h in chosen[: 2 * KEEP_CANDIDATES]:
         if len(fitted) >= KEEP_CANDIDATES or scores[h] <= 0:
             break
         basis = Basis.from_arrays(stack[h, 0], stack[h, 1])

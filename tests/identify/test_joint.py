@@ -56,6 +56,22 @@ def test_peaks_stepping_past_pi_are_unwrapped_by_the_others():
     assert old.aliasing.aliased.sum() >= 4
 
 
+def test_per_frame_noise_from_the_carrier_amplitudes_can_be_given():
+    """A spectrum bin's noise is the same for every peak: ``noise / |value|`` per frame."""
+    rate = 2.5e-6
+    recording = model(rate, 15e-9)
+    sigma = 0.04 / np.abs(recording.values)
+    series = estimate_joint(
+        recording.values, recording.times, ALPHAS, COUPLINGS, WAVELENGTH, sigma=sigma
+    )
+    assert not series.flagged.any()
+    assert series.fit.relative_error(rate) < 1e-4
+    np.testing.assert_allclose(series.sigma, np.median(sigma, axis=0))
+    with pytest.raises(InputError, match="sigma has shape"):
+        estimate_joint(recording.values, recording.times, ALPHAS, COUPLINGS, WAVELENGTH,
+                       sigma=sigma[:, :2])  # fmt: skip
+
+
 def test_the_incremental_estimator_keeps_bounded_state_and_follows_the_run():
     rate = 1.27e-6
     recording = model(rate, 3e-9, seconds=40.0)
