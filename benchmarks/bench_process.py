@@ -42,9 +42,10 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
 from holoview.acquire.recording import RecordingWriter  # noqa: E402
+from holoview.engine.experiment import Experiment, LabelledPeak  # noqa: E402
 from holoview.headless.inputs import InputFile, OpticsOptions, resolve_optics  # noqa: E402
-from holoview.headless.pipeline import ProcessSettings, make_demodulator  # noqa: E402
-from holoview.headless.run import PeakChoice, choose_peaks  # noqa: E402
+from holoview.headless.pipeline import ProcessSettings, make_core  # noqa: E402
+from holoview.headless.selection import select_from_experiment  # noqa: E402
 from holoview.optics.families import predict_families  # noqa: E402
 from holoview.optics.setup import Setup  # noqa: E402
 from holoview.optics.synthesis import HologramSynthesizer  # noqa: E402
@@ -115,8 +116,16 @@ def demodulator_speed(path: Path, labels: list[str]) -> tuple[float, str]:
         name, _, carrier = labels[k + 1].partition("=")
         fx, fy = (float(v) for v in carrier.split(","))
         parsed[name] = (fx, fy)
-    selection = choose_peaks(PeakChoice(labels=parsed), find_peaks(frames[0]), shape, optics)
-    demodulator = make_demodulator(shape, selection, optics, ProcessSettings(), saturation)
+    experiment = Experiment(
+        wavelength_m=optics.wavelength_m,
+        n1=optics.n1,
+        n2=optics.n2,
+        peaks=tuple(LabelledPeak(k, c) for k, c in parsed.items()),
+    )
+    selection = select_from_experiment(experiment, find_peaks(frames[0]), shape, "labels")
+    core = make_core(shape, experiment, selection.peaks, ProcessSettings(), saturation)
+    demodulator = core.demodulator
+    assert demodulator is not None
     for frame in frames[:4]:
         demodulator.process(frame)
     times = []

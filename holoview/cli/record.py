@@ -14,11 +14,13 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from holoview.cli.options import add_experiment_option, add_optics_options, optics_in_metres
 from holoview.errors import HoloviewError, InputError
 
 if TYPE_CHECKING:
     from holoview.acquire.camera_thread import CameraThread
     from holoview.acquire.recorder import Recorder
+    from holoview.engine.experiment import Experiment
 
 logger = logging.getLogger(__name__)
 
@@ -56,10 +58,12 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
         help="memory of the frame ring between camera and disk, MB (default 512: about "
         "3 s of 1024 x 1024 uint16 at 80 frames/s, for disk writeback stalls)",
     )
-    parser.add_argument("--wavelength-nm", type=float, help="setup: laser wavelength, nm")
-    parser.add_argument("--pixel-pitch-um", type=float, help="setup: camera pixel pitch, um")
-    parser.add_argument("--n1", type=float, help="setup: refractive index above the surface")
-    parser.add_argument("--n2", type=float, help="setup: refractive index of the liquid")
+    add_experiment_option(
+        parser,
+        "the experiment in force (labelled peaks, optics, window, reference; as the GUI "
+        "saves it): stored in the recording, so `holoview process` needs no peak options",
+    )
+    add_optics_options(parser, "setup stored in the recording (over the experiment's)")
     return parser
 
 
@@ -85,17 +89,19 @@ def _number(raw: str) -> object:
     return raw
 
 
-def _setup_overrides(args: argparse.Namespace) -> dict[str, float]:
-    setup = {}
-    if args.wavelength_nm is not None:
-        setup["wavelength_m"] = args.wavelength_nm * 1e-9
-    if args.pixel_pitch_um is not None:
-        setup["pixel_pitch_m"] = args.pixel_pitch_um * 1e-6
-    if args.n1 is not None:
-        setup["n1"] = args.n1
-    if args.n2 is not None:
-        setup["n2"] = args.n2
-    return setup
+#: The optics an experiment carries, as recording setup attributes.
+OPTICS = ("wavelength_m", "pixel_pitch_m", "n1", "n2")
+
+
+def _experiment(args: argparse.Namespace) -> Experiment | None:
+    """The experiment to store: the file's with the optics options over it (None: no file)."""
+    from dataclasses import replace
+
+    from holoview.engine.experiment import Experiment
+
+    if args.experiment is None:
+        return None
+    return replace(Experiment.load(args.experiment), **optics_in_metres(args))
 
 
 def run(args: argparse.Namespace) -> int:
@@ -112,6 +118,7 @@ def run(args: argparse.Namespace) -> int:
     if not args.ring_mb > 0:
         raise InputError(f"--ring-mb must be positive, got {args.ring_mb}")
     settings = [parse_setting(text) for text in args.set]
+    experiment = _experiment(args)
     out = args.out
     if out.exists():
         raise InputError(f"{out} exists; holoview does not overwrite recordings")
@@ -124,7 +131,16 @@ def run(args: argparse.Namespace) -> int:
         frame_bytes = source.frame_shape[0] * source.frame_shape[1] * source.dtype.itemsize
         capacity = max(4, int(args.ring_mb * 1e6 // frame_bytes))
         ring = FrameRing(capacity, source.frame_shape, source.dtype)
-        recorder = Recorder.for_source(ring, out, source, setup=_setup_overrides(args))
+        setup = optics_in_metres(args)
+        if experiment is not None:
+            setup = {k: getattr(experiment, k) for k in OPTICS if getattr(experiment, k)}
+        recorder = Recorder.for_source(
+            ring,
+            out,
+            source,
+            setup=setup,
+            experiment=None if experiment is None else experiment.to_json(),
+        )
         camera = CameraThread(source, ring, max_frames=args.frames)
         recorder.start()
         t0 = time.monotonic()

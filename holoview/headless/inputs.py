@@ -22,6 +22,7 @@ import numpy as np
 
 from holoview.acquire.recording import RecordingReader
 from holoview.acquire.replay_files import FrameFile, open_frame_file
+from holoview.engine.experiment import Experiment
 from holoview.errors import InputError
 from holoview.optics.setup import FLUIDS
 
@@ -82,9 +83,9 @@ class Optics:
     def require(self, *names: str) -> None:
         """Raise InputError naming the option to give for each parameter that is unknown."""
         options = {
-            "wavelength_m": "the laser wavelength is not known: give --wavelength (m)",
+            "wavelength_m": "the laser wavelength is not known: give --wavelength-nm",
             "n2": "the fluid's refractive index is not known: give --n2 or --fluid",
-            "pixel_pitch_m": "the pixel pitch is not known: give --pixel-pitch (m)",
+            "pixel_pitch_m": "the pixel pitch is not known: give --pixel-pitch-um",
         }
         missing = [options[name] for name in names if getattr(self, name) is None]
         if missing:
@@ -99,7 +100,9 @@ def _positive(name: str, value: float | None) -> float | None:
     return float(value)
 
 
-def resolve_optics(setup: dict[str, Any], options: OpticsOptions) -> Optics:
+def resolve_optics(
+    setup: dict[str, Any], options: OpticsOptions, experiment: Experiment | None = None
+) -> Optics:
     """Combine a recording's setup with the user's options (options win, with a warning).
 
     Parameters
@@ -109,6 +112,9 @@ def resolve_optics(setup: dict[str, Any], options: OpticsOptions) -> Optics:
         ``n1``, ``n2``); empty for files that carry none.
     options : OpticsOptions
         The user's values.
+    experiment : Experiment, optional
+        An experiment file the user gave: its optics come after the options and before
+        the recording's.
 
     Raises
     ------
@@ -126,8 +132,8 @@ def resolve_optics(setup: dict[str, Any], options: OpticsOptions) -> Optics:
             )
         n2_option = FLUIDS[options.fluid]
     given = {
-        "wavelength_m": _positive("--wavelength", options.wavelength_m),
-        "pixel_pitch_m": _positive("--pixel-pitch", options.pixel_pitch_m),
+        "wavelength_m": _positive("--wavelength-nm", options.wavelength_m),
+        "pixel_pitch_m": _positive("--pixel-pitch-um", options.pixel_pitch_m),
         "n1": _positive("--n1", options.n1),
         "n2": _positive("--n2", n2_option),
     }
@@ -144,6 +150,9 @@ def resolve_optics(setup: dict[str, Any], options: OpticsOptions) -> Optics:
             if stored_value is not None and not (math.isfinite(stored_value) and stored_value > 0):
                 logger.warning("the recording's %s (%r) is not positive; ignored", name, stored)
                 stored_value = None
+        if option is None and experiment is not None and getattr(experiment, name) is not None:
+            values[name], sources[name] = getattr(experiment, name), "experiment"
+            continue
         if option is not None:
             if stored_value is not None and not math.isclose(option, stored_value, rel_tol=1e-9):
                 logger.warning(
@@ -226,6 +235,9 @@ class InputFile:
     dtype : numpy dtype
     setup : dict
         A recording's ``/setup`` attributes (empty for other files).
+    experiments : list of (int, str)
+        The experiments a recording carries: the frame each holds from, and its JSON
+        text (empty for other files and for recordings made without one).
     saturation : float or None
         The largest value the camera gives (counts), from the recording's significant
         bits or the integer dtype; None for real-valued frames.
@@ -244,12 +256,14 @@ class InputFile:
         if not self.path.exists():
             raise InputError(f"{self.path}: no such file or folder")
         self.setup: dict[str, Any] = {}
+        self.experiments: list[tuple[int, str]] = []
         self._host_times: np.ndarray | None = None
         self.info: dict[str, Any] = {"path": str(self.path)}
         bits: int | None = None
         if self.path.is_file() and self.path.suffix.lower() in (".h5", ".hdf5"):
             with RecordingReader(self.path) as reader:
                 self.setup = dict(reader.setup)
+                self.experiments = reader.experiments()
                 self._host_times = np.asarray(reader.t_host, dtype=np.float64)
                 bits = reader.significant_bits
                 self.info.update(
@@ -273,6 +287,31 @@ class InputFile:
 
     def __len__(self) -> int:
         return len(self._file)
+
+    def experiment_at(self, frame: int) -> tuple[Experiment | None, list[str]]:
+        """The experiment the recording carries for ``frame``, and notes about it.
+
+        Returns the last one stored from ``frame`` or before (None when there is none,
+        or it cannot be read: a note says why). A change stored after ``frame`` gets a
+        note naming the frame it holds from: one run uses one experiment.
+        """
+        notes: list[str] = []
+        in_force = [(start, text) for start, text in self.experiments if start <= frame]
+        later = [start for start, _ in self.experiments if start > frame]
+        if later:
+            notes.append(
+                f"the recording's experiment changes at frame{'s' if len(later) > 1 else ''} "
+                f"{', '.join(map(str, later))}; this run used the one in force at frame "
+                f"{frame} (give --frames to process after a change)"
+            )
+        if not in_force:
+            return None, notes
+        start, text = in_force[-1]
+        try:
+            return Experiment.from_json(text, f"{self.path} experiment (from frame {start})"), notes
+        except InputError as exc:
+            notes.append(f"{exc}; ignored")
+            return None, notes
 
     def read(self, index: int) -> np.ndarray:
         """Return frame ``index`` as a new array (InputError when it cannot be read)."""

@@ -21,8 +21,9 @@ Per peak and frame also: the trusted pixels (aperture, amplitude), the phase noi
 (rad, and m), and the complex value at the carrier alone, whose phase is the
 spatially averaged phase (paper section 4.2), unwrapped in time. Maps that wrap are
 unwrapped in space (Herraez et al. 2002) or against another peak's map scaled by
-the ratio of alphas (:meth:`Demodulator._unwrap`). Every returned array is new;
-frames and peaks are never modified.
+the ratio of alphas (:func:`~holoview.processing.phase_maps.unwrap_maps`). Every
+returned array is new; frames and peaks are never modified. Carriers below one FFT
+bin: :func:`holoview.processing.carriers.refine_carriers`.
 
 The demodulator keeps state (references, plans, buffers): use it from one thread
 at a time. It creates no thread; FFTW may use ``threads`` internally.
@@ -31,29 +32,29 @@ at a time. It creates no thread; FFTW may use ``threads`` internally.
 from __future__ import annotations
 
 import cmath
-import dataclasses
 import logging
 from collections.abc import Sequence
-from dataclasses import dataclass
 
 import numpy as np
 import pyfftw
 
 from holoview.errors import InputError
 from holoview.processing.boxes import BoxGeometry, box_geometry, box_shape_for
+from holoview.processing.demod_results import (
+    FRAME_FLAGS,
+    PEAK_RESULT_FLAGS,
+    REFERENCE_MODES,
+    UNWRAP_MODES,
+    DemodResult,
+    PeakResult,
+)
 from holoview.processing.fastmath import AngleWorkspace, angle
 from holoview.processing.fftplans import default_threads, ifft2_plan, rfft2_plan
 from holoview.processing.frames import MIN_SIDE
 from holoview.processing.peaks import MIN_RADIUS_BINS, Peak
+from holoview.processing.phase_maps import PhaseMap, phase_noise, unwrap_maps
 from holoview.processing.resample import resample_mask, upsample
-from holoview.processing.unwrap import (
-    EDGE,
-    TWO_PI,
-    has_wraps,
-    phase_ratio,
-    unwrap_guided,
-    unwrap_spatial,
-)
+from holoview.processing.unwrap import TWO_PI
 from holoview.processing.windows import (
     DEFAULT_TAPER,
     auto_radius,
@@ -63,14 +64,15 @@ from holoview.processing.windows import (
 
 logger = logging.getLogger(__name__)
 
-REFERENCE_MODES: tuple[str, ...] = ("synthetic", "absolute", "relative")
-UNWRAP_MODES: tuple[str, ...] = ("auto", "always", "never")
-
-#: Flags a :class:`PeakResult` can carry (see its documentation).
-PEAK_RESULT_FLAGS: tuple[str, ...] = ("reference", "phase_step", "low_amplitude", "overlap")
-
-#: Flags a :class:`DemodResult` can carry (see its documentation).
-FRAME_FLAGS: tuple[str, ...] = ("nonfinite", "no_signal", "saturated", "reference")
+__all__ = [
+    "FRAME_FLAGS",
+    "PEAK_RESULT_FLAGS",
+    "REFERENCE_MODES",
+    "UNWRAP_MODES",
+    "DemodResult",
+    "Demodulator",
+    "PeakResult",
+]
 
 #: Box size (bins) from which a box's inverse FFT uses the frame FFT's threads.
 LARGE_BOX = 256 * 256
@@ -80,125 +82,6 @@ PHASE_STEP_LIMIT = 0.8 * np.pi
 
 #: A peak with fewer trusted pixels than this fraction is flagged ``"low_amplitude"``.
 MIN_VALID_FRACTION = 0.5
-
-
-@dataclass(frozen=True)
-class PeakResult:
-    """What one frame gives for one peak (maps at box resolution).
-
-    Attributes
-    ----------
-    peak : Peak
-        The peak demodulated.
-    field : ndarray of complex64, shape (by, bx)
-        Complex field (counts), carrier removed to the nearest FFT bin.
-    phase : ndarray of float32, shape (by, bx)
-        Phase against the reference (rad); unwrapped when ``unwrapped``.
-    delta_h : ndarray of float32 or None
-        Height change (m), when the peak has alpha and a wavelength was given.
-    carrier_value : complex
-        The field's mean against the sub-bin plane wave (counts): the spectrum at
-        the carrier alone, whose phase is the spatially averaged phase.
-    mean_phase : float
-        Phase of ``carrier_value`` against the reference (rad, wrapped).
-    mean_phase_unwrapped : float
-        Mean phase unwrapped in time since the reference was set (rad); in
-        relative mode the running sum of the steps, in synthetic mode it starts
-        at the first frame's wrapped value.
-    mask : ndarray of bool, shape (by, bx)
-        Trusted pixels: inside the aperture, amplitude high enough.
-    noise : float
-        Phase noise per pixel (rad), estimated from neighbour differences (see
-        :meth:`Demodulator._noise`); 0 on a reference frame, NaN with fewer than
-        two usable differences.
-    noise_height : float or None
-        ``noise`` converted to height (m) like ``delta_h``.
-    unwrapped : bool
-        Whether spatial unwrapping ran on this map.
-    flags : frozenset of str
-        ``"reference"`` (this frame became the reference; phase zero),
-        ``"phase_step"`` (mean phase moved more than :data:`PHASE_STEP_LIMIT`
-        since the previous frame), ``"low_amplitude"`` (few trusted pixels),
-        ``"overlap"`` (window wider than half the distance to another peak).
-    """
-
-    peak: Peak
-    field: np.ndarray
-    phase: np.ndarray
-    delta_h: np.ndarray | None
-    carrier_value: complex
-    mean_phase: float
-    mean_phase_unwrapped: float
-    mask: np.ndarray
-    noise: float
-    noise_height: float | None
-    unwrapped: bool
-    flags: frozenset[str]
-
-
-@dataclass(frozen=True)
-class DemodResult:
-    """Everything one frame gives.
-
-    Attributes
-    ----------
-    index : int
-        Frames processed since construction or the last reference reset (from 0).
-    reference : str
-        The reference mode.
-    mean_counts : float
-        Mean pixel value of the frame (counts).
-    frame_shape, box_shape : tuple of int
-        ``(rows, cols)`` of the frame and of every per-peak map.
-    radius : float
-        Window radius used (cycles/pixel).
-    peaks : tuple of PeakResult
-        One per peak, in the demodulator's order; empty for a flagged frame.
-    flags : frozenset of str
-        Frame-level problems: ``"nonfinite"`` (NaN or infinite pixels: nothing
-        demodulated, reference untouched), ``"no_signal"`` (no trusted pixel in
-        any peak: constant, black or saturated frame), ``"saturated"`` (pixels at
-        the saturation level, when one was given), ``"reference"``.
-    """
-
-    index: int
-    reference: str
-    mean_counts: float
-    frame_shape: tuple[int, int]
-    box_shape: tuple[int, int]
-    radius: float
-    peaks: tuple[PeakResult, ...]
-    flags: frozenset[str]
-
-    def by_label(self, label: str) -> PeakResult:
-        """Return the result of the peak named ``label``."""
-        for result in self.peaks:
-            if result.peak.label == label:
-                return result
-        raise KeyError(label)
-
-
-@dataclass
-class _Partial:
-    """A peak's results between demodulation and unwrapping (mutable, internal)."""
-
-    field: np.ndarray
-    phase: np.ndarray
-    mask: np.ndarray
-    valid: int  # number of trusted pixels
-    value: complex
-    mean_phase: float
-    target: float  # where the map's mean should sit, rad (sets its 2 pi offset)
-    flags: set[str]
-    live: bool  # False for a reference frame: the phase is zero by definition
-    unwrapped: bool = False
-
-
-def _wrapped_inside(phase: np.ndarray, mask: np.ndarray) -> bool:
-    """Whether a map has wraps away from its edge (:data:`~holoview.processing.unwrap.EDGE`)."""
-    e = EDGE if min(phase.shape) > 4 * EDGE else 0
-    inner = (slice(e, phase.shape[0] - e), slice(e, phase.shape[1] - e))
-    return has_wraps(phase[inner], mask[inner])
 
 
 def _check_peaks(peaks: Sequence[Peak]) -> tuple[Peak, ...]:
@@ -414,6 +297,10 @@ class Demodulator:
         settings.update(changes)
         return Demodulator(self.shape, peaks, **settings)  # type: ignore[arg-type]
 
+    def geometry(self, i: int) -> BoxGeometry:
+        """Return peak ``i``'s box geometry: spectrum indices, window, sub-bin plane wave."""
+        return self._boxes[i]
+
     def area_fraction(self, i: int) -> float:
         """Return peak ``i``'s window area fraction ``sum |W|^2 / (rows cols)`` (DESIGN.md)."""
         return self._boxes[i].area_fraction
@@ -489,7 +376,7 @@ class Demodulator:
         box_plan = ifft2_plan(self.box_shape, threads=self._box_threads)
         partial = [self._demodulate(i, flat, box_plan, mean) for i in range(len(self.peaks))]
         if self.unwrap != "never":
-            self._unwrap(partial)
+            unwrap_maps(partial, self.peaks, always=self.unwrap == "always")
         results = tuple(self._finish(i, part) for i, part in enumerate(partial))
         if all(not r.mask.any() for r in results):
             frame_flags.add("no_signal")
@@ -499,7 +386,7 @@ class Demodulator:
         self._index += 1
         return result
 
-    def _demodulate(self, i: int, flat: np.ndarray, box_plan: pyfftw.FFTW, mean: float) -> _Partial:
+    def _demodulate(self, i: int, flat: np.ndarray, box_plan: pyfftw.FFTW, mean: float) -> PhaseMap:
         """Cut, window and invert peak ``i``'s box; phase against the reference (wrapped)."""
         peak = self.peaks[i]
         geo = self._boxes[i]
@@ -561,7 +448,7 @@ class Demodulator:
             phase = np.zeros(field.shape, dtype=np.float32)
         else:
             phase = angle(product, workspace=self._angle_workspace)
-        return _Partial(
+        return PhaseMap(
             field=field,
             phase=phase,
             mask=mask,
@@ -573,78 +460,7 @@ class Demodulator:
             live=product is not None,
         )
 
-    def _guide_index(self, partial: list[_Partial]) -> int | None:
-        """The peak whose map guides the others.
-
-        Among peaks with trusted pixels: the one with a known alpha and the smallest
-        ``|alpha| / amplitude`` (fewest wraps per unit of noise); with no alpha
-        known, the brightest.
-        """
-        candidates = [i for i, part in enumerate(partial) if part.live and part.valid]
-        with_alpha = [i for i in candidates if self.peaks[i].alpha is not None]
-        if with_alpha:
-            return min(
-                with_alpha,
-                key=lambda i: abs(self.peaks[i].alpha) / max(self.peaks[i].amplitude, 1e-30),  # type: ignore[arg-type]
-            )
-        if candidates:
-            return max(candidates, key=lambda i: self.peaks[i].amplitude)
-        return None
-
-    def _unwrap(self, partial: list[_Partial]) -> None:
-        """Unwrap the maps that need it: one in space, the others guided by it.
-
-        The guide (:meth:`_guide_index`), when its map has wraps, is unwrapped in space
-        (:func:`~holoview.processing.unwrap.unwrap_spatial`, Herraez et al. 2002, on a
-        decimated map, see :meth:`_unwrap_in_space`). Every other wrapped map is then
-        unwrapped against the guide scaled by the ratio of the two alphas
-        (:func:`~holoview.processing.unwrap.unwrap_guided`), a few array passes
-        instead of a spatial unwrap. When an alpha is unknown the ratio is measured
-        from the two maps' gradients (:func:`~holoview.processing.unwrap.phase_ratio`),
-        and a map still wrapped after that (another surface, or none) is unwrapped
-        in space.
-        """
-        need = [p.live and (self.unwrap == "always" or has_wraps(p.phase, p.mask)) for p in partial]
-        if not any(need):
-            return
-        guide = self._guide_index(partial)
-        if guide is None:
-            return  # no trusted pixel anywhere: nothing worth unwrapping
-        g = partial[guide]
-        if need[guide]:
-            g.phase, g.unwrapped = self._unwrap_in_space(g.phase, g.mask)
-        guide_alpha = self.peaks[guide].alpha
-        for i, part in enumerate(partial):
-            if not need[i] or i == guide or not part.valid:
-                continue
-            alpha = self.peaks[i].alpha
-            if alpha is not None and guide_alpha is not None:
-                part.phase = unwrap_guided(part.phase, g.phase * (alpha / guide_alpha), part.mask)
-                part.unwrapped = True
-                continue
-            ratio = phase_ratio(part.phase, g.phase, part.mask & g.mask)
-            guided = unwrap_guided(part.phase, g.phase * np.float32(ratio), part.mask)
-            if _wrapped_inside(guided, part.mask):
-                part.phase, part.unwrapped = self._unwrap_in_space(part.phase, part.mask)
-            else:
-                part.phase, part.unwrapped = guided, True
-
-    def _unwrap_in_space(self, phase: np.ndarray, mask: np.ndarray) -> tuple[np.ndarray, bool]:
-        """Herraez on a decimated map (coarse grid of 64 pixels or more), finer if that fails.
-
-        A map still wrapped after the coarse pass (away from the box's edge, where a
-        non-periodic frame leaves the field unreliable) moved more than pi between
-        coarse samples somewhere: it is done again on a twice finer grid, down to
-        every pixel.
-        """
-        decimate = max(1, min(self.box_shape) // 64)
-        while True:
-            unwrapped, changed = unwrap_spatial(phase, mask, decimate=decimate)
-            if decimate == 1 or not _wrapped_inside(unwrapped, mask):
-                return unwrapped, changed
-            decimate //= 2
-
-    def _finish(self, i: int, part: _Partial) -> PeakResult:
+    def _finish(self, i: int, part: PhaseMap) -> PeakResult:
         """Set the map's 2 pi offset, estimate the noise, convert to height."""
         peak = self.peaks[i]
         phase = part.phase
@@ -659,7 +475,7 @@ class Demodulator:
             offset = TWO_PI * round((part.target - level) / TWO_PI)
             if offset:
                 phase += np.float32(offset)
-        noise = self._noise(phase, part.mask, self._boxes[i]) if part.live else 0.0
+        noise = phase_noise(phase, part.mask, self._boxes[i].noise_gain) if part.live else 0.0
         to_height = None
         if peak.alpha is not None and self.wavelength is not None:
             to_height = self.wavelength / (4 * np.pi * peak.alpha)
@@ -677,93 +493,3 @@ class Demodulator:
             unwrapped=part.unwrapped,
             flags=frozenset(part.flags),
         )
-
-    @staticmethod
-    def _noise(phase: np.ndarray, mask: np.ndarray, geo: BoxGeometry) -> float:
-        """Phase noise (rad) from the spread of second differences along every 4th or 8th row.
-
-        Second differences cancel the surface's slope; for noise shaped by the
-        window they have variance ``sigma^2 (6 - 8 rho1 + 2 rho2)``, with ``rho1``
-        and ``rho2`` the window's noise correlation at lags 1 and 2. Surface
-        curvature adds to it, so the estimate errs on the high side. Differences
-        beyond pi (wraps, untrusted pixels) are left out, and so are two pixels at
-        the box's edge: where the frame is not periodic the field dips there and
-        its phase is noisier than the rest.
-        """
-        edge = 2 if min(phase.shape) > 16 else 0  # a non-periodic frame's field dips at the edge
-        every = 8 if phase.shape[0] >= 128 else 4  # thousands of differences are plenty
-        rows = phase[edge : phase.shape[0] - edge : every, edge : phase.shape[1] - edge]
-        trusted = mask[edge : phase.shape[0] - edge : every, edge : phase.shape[1] - edge]
-        second = rows[:, 2:] - 2 * rows[:, 1:-1] + rows[:, :-2]
-        keep = trusted[:, 2:] & trusted[:, 1:-1] & trusted[:, :-2]
-        keep &= np.abs(second) < np.pi
-        count = int(np.count_nonzero(keep))
-        if count < 2:
-            return float("nan")
-        second *= keep
-        variance = float(np.vdot(second, second)) / count
-        return float(np.sqrt(variance / geo.noise_gain))
-
-
-def refine_carriers(
-    frame: np.ndarray,
-    peaks: Sequence[Peak],
-    *,
-    radius: float | None = None,
-    window: str = "raised-cosine",
-    iterations: int = 2,
-) -> list[Peak]:
-    """Return the peaks with carriers moved to the mean phase gradient of their fields.
-
-    :func:`~holoview.processing.peaks.find_peaks` places a carrier within about 0.02
-    FFT bins, which leaves a synthetic-reference map a tilt of up to
-    ``2 pi 0.02`` rad across the frame. Here each peak is demodulated against its
-    sub-bin plane wave and the carrier moved by the residual phase gradient,
-    measured as the amplitude-weighted mean phase of neighbour products (Kay's
-    frequency estimator, in two dimensions), away from the box's edge.
-
-    Parameters
-    ----------
-    frame : ndarray, shape (rows, cols)
-        A hologram (counts); not modified.
-    peaks : sequence of Peak
-        Peaks with approximate carriers; labels, alphas and flags are kept.
-    radius : float, optional
-        Window radius (cycles/pixel); by default from the carriers.
-    window : str
-        Window kind.
-    iterations : int
-        Demodulate-and-move rounds (>= 1).
-
-    Returns
-    -------
-    list of Peak
-        The same peaks with refined carriers (cycles/pixel).
-    """
-    if iterations < 1:
-        raise InputError(f"iterations must be >= 1, got {iterations}")
-    array = np.asarray(frame)
-    current = list(peaks)
-    for _ in range(iterations):
-        demod = Demodulator(
-            array.shape,
-            current,
-            window=window,
-            radius=radius,
-            reference="synthetic",
-            unwrap="never",
-        )
-        result = demod.process(array)
-        if "nonfinite" in result.flags:
-            raise InputError("frame holds NaN or infinite pixels")
-        (by, bx), (rows, cols) = demod.box_shape, demod.shape
-        moved = []
-        for peak, geo, r in zip(current, demod._boxes, result.peaks, strict=True):
-            residual = (r.field * geo.ramp_conj)[2:-2, 2:-2]
-            along_x = np.vdot(residual[:, :-1], residual[:, 1:])
-            along_y = np.vdot(residual[:-1, :], residual[1:, :])
-            fx = peak.carrier[0] + cmath.phase(along_x) / TWO_PI * bx / cols
-            fy = peak.carrier[1] + cmath.phase(along_y) / TWO_PI * by / rows
-            moved.append(dataclasses.replace(peak, carrier=(float(fx), float(fy))))
-        current = moved
-    return current

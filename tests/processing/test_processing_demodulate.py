@@ -7,13 +7,9 @@ import pytest
 from processing_synth import BENCH, WAVELENGTH, bench_frame, bump, frame, intensity
 
 from holoview.errors import InputError
-from holoview.processing.demodulate import (
-    FRAME_FLAGS,
-    PEAK_RESULT_FLAGS,
-    Demodulator,
-    box_shape_for,
-    refine_carriers,
-)
+from holoview.processing.boxes import box_shape_for
+from holoview.processing.carriers import refine_carriers
+from holoview.processing.demodulate import FRAME_FLAGS, PEAK_RESULT_FLAGS, Demodulator
 from holoview.processing.heights import height_to_phase
 from holoview.processing.peaks import Peak, find_peaks
 from holoview.processing.resample import box_positions

@@ -1,4 +1,4 @@
-"""The live pipeline on synthetic holograms: labels, model predictions, maps, trends."""
+"""The live pipeline (Qt-free) on synthetic holograms: labels, model predictions, maps, trends."""
 
 from __future__ import annotations
 
@@ -8,23 +8,23 @@ import numpy as np
 import pytest
 
 from holoview.acquire.source import FrameMeta
-from holoview.ui import live_pipeline
-from holoview.ui.live_pipeline import LivePipeline, block_max
-from holoview.ui.settings import ExperimentSettings, LabelledPeak
+from holoview.engine.experiment import Experiment, LabelledPeak
+from holoview.live import pipeline as live_pipeline
+from holoview.live.pipeline import LivePipeline, block_max
 
 from .holograms import FB1, N1, N2, RB1, WAVELENGTH_M, carriers, hologram_stack
 
 
-def _experiment(**changes: object) -> ExperimentSettings:
-    base = ExperimentSettings(
+def _experiment(**changes: object) -> Experiment:
+    base = Experiment(
         wavelength_m=WAVELENGTH_M,
         n1=N1,
         n2=N2,
         radius=0.05,
         reference="absolute",
-        peaks=(LabelledPeak("RB1", *RB1), LabelledPeak("FB1", *FB1)),
+        peaks=(LabelledPeak("RB1", RB1), LabelledPeak("FB1", FB1)),
     )
-    return ExperimentSettings(**{**base.__dict__, **changes})
+    return Experiment(**{**base.__dict__, **changes})
 
 
 def _run(pipeline: LivePipeline, frames: np.ndarray, dt: float = 0.1) -> list:
@@ -89,7 +89,7 @@ def test_maps_too_small_to_co_register_are_fused_unmoved() -> None:
 
 def test_custom_label_has_phase_but_no_height() -> None:
     frames = hologram_stack(3, (128, 128))
-    experiment = _experiment(peaks=(LabelledPeak("mine", *RB1),))
+    experiment = _experiment(peaks=(LabelledPeak("mine", RB1),))
     last = _run(LivePipeline(experiment, (128, 128)), frames)[-1]
     assert last.predicted == {}
     assert "mine" in last.phases_rad and "mine" not in last.heights_m

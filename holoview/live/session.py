@@ -1,25 +1,19 @@
 """A live session: source -> camera thread -> FrameRing -> demodulation worker (+ recorder).
 
-No Qt here: the window polls :meth:`LiveSession.latest` from its redraw timer and
-sends commands with the setters, which the worker applies between frames. The
-worker (a thread named ``holoview-demod``) takes the *newest* frame from the ring
-(in order while at most :data:`PROCESSING_MAX_LAG` frames wait, so one slow frame
-costs a little latency rather than a gap in the series), runs a
-:class:`~holoview.ui.live_pipeline.LivePipeline` on it and publishes the result
-under a lock; peak detection, much slower than a frame, runs beside it on
-``holoview-peaks``; the recorder (``holoview-recorder``) takes *every* frame. All
-threads stop with a sentinel (the ring closes, or a stop flag) and are joined by
-:meth:`LiveSession.close`.
+No Qt here, so a session can be scripted, tested and run without a display: the window
+polls :meth:`LiveSession.latest` from its redraw timer and sends commands with the
+setters, which the worker (:mod:`holoview.live.worker`) applies between frames. The
+recorder (``holoview-recorder``) takes *every* frame and stores the experiment in
+force, and each change of it, in the recording. All threads stop with a sentinel (the
+ring closes, or a stop flag) and are joined by :meth:`LiveSession.close`.
 """
 
 from __future__ import annotations
 
-import collections
 import logging
-import queue
-import threading
 import time
 from collections.abc import Mapping
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -28,227 +22,50 @@ import numpy as np
 from holoview.acquire.camera_thread import CameraThread
 from holoview.acquire.pixel_formats import PIXEL_FORMATS
 from holoview.acquire.recorder import Recorder
-from holoview.acquire.ring import CLOSED, FrameRing, RingConsumer, RingStatus
+from holoview.acquire.ring import FrameRing
 from holoview.acquire.source import Source
+from holoview.engine.experiment import Experiment
+from holoview.engine.series import DepthSummary
 from holoview.errors import HoloviewError, InputError
-from holoview.processing.peaks import Peak, find_peaks
-from holoview.ui.live_pipeline import FFT_THREADS, LivePipeline, LiveResult
-from holoview.ui.recording_panel import RecordingProgress, RecordRequest
-from holoview.ui.settings import ExperimentSettings
+from holoview.live.pipeline import LivePipeline, LiveResult
+from holoview.live.worker import DemodWorker
 
 logger = logging.getLogger(__name__)
 
-__all__ = ["LiveResult", "LiveSession", "discover_sources"]
+__all__ = ["LiveResult", "LiveSession", "RecordRequest", "RecordingProgress", "discover_sources"]
 
 #: Memory the frame ring may take, bytes (it holds at least 8 frames).
 RING_BYTES = 256 * 2**20
-#: Most messages kept for the window between two redraws.
-MAX_MESSAGES = 20
 
 
-class PeakWorker:
-    """Find the peaks of one frame at a time on a thread named ``holoview-peaks``.
+@dataclass(frozen=True)
+class RecordRequest:
+    """What the operator asked to record.
 
-    Peak detection takes much longer than demodulating a frame; on its own thread it
-    never holds up the frames behind it. :meth:`submit` hands over a frame when the
-    thread is idle; :meth:`take` returns each result once.
-    """
-
-    def __init__(self) -> None:
-        self._cond = threading.Condition()
-        self._job: tuple[np.ndarray, float] | None = None
-        self._result: tuple[list[Peak], float] | None = None
-        self._error: str | None = None
-        self._busy = False
-        self._stop = False
-        self._thread = threading.Thread(target=self._run, name="holoview-peaks", daemon=True)
-
-    def start(self) -> None:
-        """Start the thread."""
-        self._thread.start()
-
-    def stop(self, timeout: float = 5.0) -> None:
-        """Ask the thread to stop (after the detection under way) and join it."""
-        with self._cond:
-            self._stop = True
-            self._cond.notify()
-        if self._thread.ident is not None:
-            self._thread.join(timeout)
-
-    def submit(self, frame: np.ndarray, radius: float) -> bool:
-        """Detect the peaks of ``frame`` (not modified) with window radius ``radius``.
-
-        Returns False, doing nothing, while a detection is under way.
-        """
-        with self._cond:
-            if self._busy:
-                return False
-            self._busy = True
-            self._job = (frame, radius)
-            self._cond.notify()
-            return True
-
-    def take(self) -> tuple[list[Peak], float] | str | None:
-        """The newest (peaks, seconds it took), an error message, or None; each once."""
-        with self._cond:
-            out: tuple[list[Peak], float] | str | None = self._error or self._result
-            self._result, self._error = None, None
-            return out
-
-    def _run(self) -> None:
-        while True:
-            with self._cond:
-                while self._job is None and not self._stop:
-                    self._cond.wait()
-                if self._stop:
-                    return
-                frame, radius = self._job  # type: ignore[misc]
-                self._job = None
-            tick = time.perf_counter()
-            try:
-                peaks = find_peaks(frame, radius=radius, threads=FFT_THREADS)
-            except HoloviewError as exc:
-                with self._cond:
-                    self._error, self._busy = f"peak detection: {exc}", False
-                continue
-            except Exception:  # a bug: log it, keep the window running
-                logger.exception("peak detection failed")
-                with self._cond:
-                    self._error, self._busy = "peak detection failed (see the log)", False
-                continue
-            with self._cond:
-                self._result, self._busy = (peaks, time.perf_counter() - tick), False
-
-
-#: Frames the worker may fall behind the newest before it skips (2: 33 ms at 60 frames/s).
-PROCESSING_MAX_LAG = 2
-
-
-class DemodWorker:
-    """Run a pipeline on the newest frame of a ring, on a thread named ``holoview-demod``.
-
-    Parameters
+    Attributes
     ----------
-    ring : FrameRing
-        Frames to process (a ``"newest"`` consumer with :data:`PROCESSING_MAX_LAG`
-        is made at construction).
-    pipeline : LivePipeline
-        What to do with each frame; commands are applied between frames.
+    path : Path
+        The HDF5 file to write.
+    duration_s : float or None
+        Stop after this many seconds (None: no time limit).
+    frames : int or None
+        Stop after this many frames (None: no frame limit).
     """
 
-    def __init__(self, ring: FrameRing, pipeline: LivePipeline) -> None:
-        self.pipeline = pipeline
-        pipeline.detect_inline = False
-        self.peaks = PeakWorker()
-        self._consumer: RingConsumer = ring.consumer(
-            "processing", mode="newest", max_lag=PROCESSING_MAX_LAG
-        )
-        self._commands: queue.SimpleQueue[tuple[str, Any]] = queue.SimpleQueue()
-        self._lock = threading.Lock()
-        self._latest: LiveResult | None = None
-        self._times: collections.deque[float] = collections.deque(maxlen=32)
-        self._messages: collections.deque[str] = collections.deque(maxlen=MAX_MESSAGES)
-        self._last_error = ""
-        self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._run, name="holoview-demod", daemon=True)
+    path: Path
+    duration_s: float | None
+    frames: int | None
 
-    def start(self) -> None:
-        """Start the thread (and its peak thread)."""
-        self.peaks.start()
-        self._thread.start()
 
-    def stop(self, timeout: float = 5.0) -> None:
-        """Ask the thread to stop and join it (and its peak thread)."""
-        self._stop.set()
-        if self._thread.ident is not None:
-            self._thread.join(timeout)
-        self.peaks.stop(timeout)
+@dataclass(frozen=True)
+class RecordingProgress:
+    """What the recorder has done so far: frames written, seconds, frames it missed."""
 
-    @property
-    def running(self) -> bool:
-        """True while the thread runs."""
-        return self._thread.is_alive()
-
-    def post(self, name: str, value: Any = None) -> None:
-        """Queue a command for the pipeline (``experiment``, ``pca``, ``reset``)."""
-        self._commands.put((name, value))
-
-    def latest(self) -> LiveResult | None:
-        """The newest result, or None before the first."""
-        with self._lock:
-            return self._latest
-
-    def status(self) -> RingStatus:
-        """The worker's ring accounting (acquired, skipped by design, transport losses)."""
-        return self._consumer.status()
-
-    def rate_hz(self) -> float:
-        """Frames processed per second over the last 32 frames."""
-        with self._lock:
-            times = list(self._times)
-        if len(times) < 2 or times[-1] <= times[0]:
-            return 0.0
-        if time.monotonic() - times[-1] > 2.0:
-            return 0.0
-        return (len(times) - 1) / (times[-1] - times[0])
-
-    def drain_messages(self) -> list[str]:
-        """Return and forget the problems met since the last call."""
-        out = []
-        while self._messages:
-            out.append(self._messages.popleft())
-        return out
-
-    def _report(self, text: str) -> None:
-        if text != self._last_error:
-            self._last_error = text
-            self._messages.append(text)
-
-    def _apply_commands(self) -> None:
-        while True:
-            try:
-                name, value = self._commands.get_nowait()
-            except queue.Empty:
-                return
-            try:
-                self.pipeline.apply(name, value)
-            except HoloviewError as exc:
-                self._report(str(exc))
-
-    def _exchange_peaks(self, pixels: np.ndarray) -> None:
-        """Hand the newest detected peaks to the pipeline; start a detection when due."""
-        found = self.peaks.take()
-        if isinstance(found, str):
-            self._report(found)
-        elif found is not None:
-            self.pipeline.set_peaks(found[0])
-            self.pipeline.peaks_done(found[1])
-        if self.pipeline.peaks_due() and self.peaks.submit(pixels, self.pipeline.experiment.radius):
-            self.pipeline.peaks_started()
-
-    def _run(self) -> None:
-        try:
-            while not self._stop.is_set():
-                self._apply_commands()
-                item = self._consumer.get(timeout=0.1)
-                if item is CLOSED:
-                    break
-                if item is None:
-                    continue
-                pixels, meta = item
-                self._exchange_peaks(pixels)
-                try:
-                    result = self.pipeline.process(pixels, meta)
-                except HoloviewError as exc:
-                    self._report(str(exc))
-                    continue
-                self._last_error = ""
-                with self._lock:
-                    self._latest = result
-                    self._times.append(time.monotonic())
-        except Exception:  # a bug: keep the traceback in the log, end the thread cleanly
-            logger.exception("demodulation worker failed")
-            self._messages.append("processing stopped after an internal error (see the log)")
+    path: Path
+    frames: int
+    elapsed_s: float
+    dropped: int
+    active: bool
 
 
 class LiveSession:
@@ -258,11 +75,15 @@ class LiveSession:
     ----------
     spec : str
         Source specification: ``sim``, ``aravis[:ID]``, ``v4l2[:N]``, ``replay:PATH``.
-    experiment : ExperimentSettings
+    experiment : Experiment
         Optics, labelled peaks, window and reference mode.
     source_options : mapping, optional
         Passed to the source's constructor (e.g. ``frame_rate_hz`` of the simulator);
         replays loop unless ``loop=False`` is given.
+    every_frame : bool
+        Process every frame in order (frames the ring overwrote first are counted as
+        dropped) instead of the newest: for scripted runs on a source the worker keeps
+        up with, such as a paced replay.
 
     Raises
     ------
@@ -273,11 +94,13 @@ class LiveSession:
     def __init__(
         self,
         spec: str,
-        experiment: ExperimentSettings,
+        experiment: Experiment,
         *,
         source_options: Mapping[str, Any] | None = None,
+        every_frame: bool = False,
     ) -> None:
         self.spec = spec
+        self.every_frame = every_frame
         self.experiment = experiment
         self.source: Source = _open_source(spec, source_options or {})
         self.recorder: Recorder | None = None
@@ -292,6 +115,30 @@ class LiveSession:
             self.source.close()
             raise
 
+    @classmethod
+    def open(
+        cls,
+        spec: str,
+        experiment: Experiment,
+        *,
+        source_options: Mapping[str, Any] | None = None,
+        every_frame: bool = False,
+    ) -> LiveSession:
+        """Open ``spec`` and start streaming and processing (closed again if starting fails).
+
+        Raises
+        ------
+        HoloviewError
+            The source cannot be opened or started.
+        """
+        session = cls(spec, experiment, source_options=source_options, every_frame=every_frame)
+        try:
+            session.start()
+        except BaseException:
+            session.close()
+            raise
+        return session
+
     def _build(self) -> None:
         """Make the ring, camera thread, pipeline and worker for the source as it is now."""
         shape = self.source.frame_shape
@@ -300,7 +147,7 @@ class LiveSession:
         self.ring = FrameRing(capacity, shape, self.source.dtype)
         self.camera = CameraThread(self.source, self.ring)
         self.pipeline = LivePipeline(self.experiment, shape, saturation=self.saturation_value)
-        self.worker = DemodWorker(self.ring, self.pipeline)
+        self.worker = DemodWorker(self.ring, self.pipeline, every_frame=self.every_frame)
 
     # ---- life cycle --------------------------------------------------------
     def start(self) -> None:
@@ -390,10 +237,15 @@ class LiveSession:
         return readback
 
     # ---- commands to the worker -------------------------------------------
-    def set_experiment(self, experiment: ExperimentSettings) -> None:
-        """Use new experiment settings (labels, radius, reference) from the next frame."""
+    def set_experiment(self, experiment: Experiment) -> None:
+        """Use a new experiment (labels, radius, reference) from the next frame.
+
+        A running recording stores the change, holding from its next frame.
+        """
         self.experiment = experiment
         self.worker.post("experiment", experiment)
+        if self.recorder is not None and self.recorder.running:
+            self.recorder.note_experiment(experiment.to_json())
 
     def set_pca(self, on: bool) -> None:
         """Turn the PCA identification of the trends on or off."""
@@ -416,6 +268,10 @@ class LiveSession:
             dropped += self.recorder.status().dropped
         return self.camera.rate_hz(), self.worker.rate_hz(), dropped
 
+    def summary(self) -> DepthSummary | None:
+        """Depths and rates of the series so far; call once the worker is stopped."""
+        return self.pipeline.summary()
+
     def drain_messages(self) -> list[str]:
         """Problems met by the worker, the camera or the recorder since the last call."""
         out = self.worker.drain_messages() + self._messages
@@ -430,17 +286,15 @@ class LiveSession:
         if request.path.suffix.lower() not in (".h5", ".hdf5"):
             raise InputError(f"recording file {request.path.name} must end in .h5 or .hdf5")
         e = self.experiment
+        setup = {"wavelength_m": e.wavelength_m, "pixel_pitch_m": e.pixel_pitch_m}
+        setup |= {"n1": e.n1, "n2": e.n2}
         self.recorder = Recorder.for_source(
             self.ring,
             request.path,
             self.source,
-            setup={
-                "wavelength_m": e.wavelength_m,
-                "pixel_pitch_m": e.pixel_pitch_m,
-                "n1": e.n1,
-                "n2": e.n2,
-            },
+            setup={k: v for k, v in setup.items() if v is not None},
             max_frames=request.frames,
+            experiment=e.to_json(),
         )
         self.recorder.start()
         self._request = request
