@@ -34,6 +34,9 @@ __all__ = ["Anchor", "from_labels", "snap_labels"]
 
 @dataclass(frozen=True)
 class Anchor:
+    """A labelled peak: its label's lattice point, the detected peak, and whether the
+    label was given on that peak's other twin."""
+
     label: str
     point: Point
     peak: int
@@ -49,6 +52,27 @@ def snap_labels(
     n2: float,
     snap: float,
 ) -> list[Anchor]:
+    """Snap each labelled position to the nearest detected peak on either twin.
+
+    Parameters
+    ----------
+    labels : mapping of str to (fx, fy)
+        Labels and positions, cycles/pixel, on each label's stored twin.
+    carriers : ndarray, shape (M, 2)
+        Detected carriers, cycles/pixel.
+    shape : tuple of int
+        Frame ``(rows, cols)``.
+    n1, n2 : float
+        Refractive indices.
+    snap : float
+        Largest distance from a position to its peak, FFT bins.
+
+    Raises
+    ------
+    InputError
+        A label that names no lattice point, a position that is not finite or is near
+        no detected peak, two labels on one peak or one lattice point.
+    """
     anchors: list[Anchor] = []
     for label, position in labels.items():
         point = point_of(label, n1, n2)
