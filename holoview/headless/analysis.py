@@ -3,8 +3,9 @@
 Everything here works on the per-frame carrier values a run kept
 (:class:`~holoview.headless.pipeline.RunData`), through :mod:`holoview.processing`:
 
-- auto mode: :func:`~holoview.processing.identify.identify_peaks` (temporal PCA with the
-  reference peak's label, de-aliasing from the phase steps) names every peak and gives
+- auto mode: :func:`~holoview.processing.identify.identify_peaks` (the carrier lattice,
+  with the temporal PCA confirming; off the lattice the PCA with the reference peak's
+  label, de-aliasing from the phase steps) names every peak and gives
   its prefactor: the model's for a family, its repeats and second orders, the PCA's
   for a peak the model does not explain (left out of the fusion, as weak ones are). A
   peak with a negative prefactor sits on the other twin and is flipped;
@@ -171,6 +172,8 @@ def _identify(
             reference_label=selection.reference_label,
             amplitudes=amplitudes,
             steps=steps,
+            carriers=None if selection.shape is None else [p.carrier for p in selection.peaks],
+            shape=selection.shape,
         )
     except InputError as exc:
         raise InputError(

@@ -58,6 +58,8 @@ class Selection:
         The model labelling (an experiment with two or more of the model's families).
     notes : tuple of str
         What a reader of the results should know.
+    shape : tuple of int or None
+        Auto mode: the frame ``(rows, cols)``, for the lattice to name the peaks.
     """
 
     mode: str
@@ -67,6 +69,7 @@ class Selection:
     reference_label: str = "RB1"
     labelling: ModelLabelling | None = None
     notes: tuple[str, ...] = field(default_factory=tuple)
+    shape: tuple[int, int] | None = None
 
 
 def parse_assignment(text: str, option: str) -> tuple[str, Carrier]:
@@ -171,7 +174,13 @@ def select_auto(
             "heights have the wrong sign, give --anchor RB1=fx,fy on the other twin",
         )
     return Selection(
-        "auto", tuple(peaks), "auto", reference=reference, reference_label=label, notes=notes
+        "auto",
+        tuple(peaks),
+        "auto",
+        reference=reference,
+        reference_label=label,
+        notes=notes,
+        shape=(int(shape[0]), int(shape[1])),
     )
 
 
