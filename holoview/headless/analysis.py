@@ -24,7 +24,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from holoview.engine.series import pca_check, summarise
+from holoview.engine.depth import pca_check, summarise
+from holoview.engine.series import coupling_of
 from holoview.errors import InputError
 from holoview.headless.inputs import Optics
 from holoview.headless.pipeline import RunData
@@ -268,7 +269,10 @@ def analyse(data: RunData, selection: Selection, optics: Optics) -> Analysis:
     # a peak with a negative prefactor is stored on its other twin (DESIGN.md)
     signs = [-1.0 if (a is not None and a < 0) else 1.0 for a in signed]
     alphas = [abs(a) if a is not None else None for a in signed]
-    summary = summarise(data.series, signed, wavelength, exclude=[not f for f in fusable])
+    exclude = [not f for f in fusable]
+    couplings = [coupling_of(label, optics.n1, optics.n2) for label in labels]
+    data.series.track_joint(signed, couplings, wavelength, exclude=exclude)
+    summary = summarise(data.series, signed, wavelength, exclude=exclude)
     notes = list(selection.notes)
     if summary.note is not None:
         notes.append(summary.note)

@@ -24,8 +24,8 @@ from holoview.acquire.pixel_formats import PIXEL_FORMATS
 from holoview.acquire.recorder import Recorder
 from holoview.acquire.ring import FrameRing
 from holoview.acquire.source import Source
+from holoview.engine.depth import DepthSummary
 from holoview.engine.experiment import Experiment
-from holoview.engine.series import DepthSummary
 from holoview.errors import HoloviewError, InputError
 from holoview.live.pipeline import LivePipeline, LiveResult
 from holoview.live.trends import SeriesPipeline, TrendSummary

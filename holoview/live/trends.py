@@ -7,8 +7,10 @@ each peak's value, a :class:`holoview.engine.series.PhaseSeries` keeps them, and
 most :data:`TREND_HZ` times a second :func:`holoview.engine.series.summarise` (what
 ``holoview process`` runs) gives the depths, the fused depth and the rate. So the
 series, its temporal unwrapping and the rates use every frame while the maps take the
-newest frame at whatever rate is left. The peaks come from the maps pipeline (the
-demodulator's, :meth:`set_peaks`); a new set of peaks starts a new series.
+newest frame at whatever rate is left. The series is estimated jointly over the peaks
+the lattice places (:meth:`holoview.engine.series.PhaseSeries.track_joint`), frame by
+frame as ``holoview process`` does over a file. The peaks come from the maps pipeline
+(the demodulator's, :meth:`set_peaks`); a new set of peaks starts a new series.
 """
 
 from __future__ import annotations
@@ -22,15 +24,10 @@ from typing import Any
 import numpy as np
 
 from holoview.acquire.source import FrameMeta
-from holoview.engine.frame_core import CarrierCore, series_key
-from holoview.engine.series import (
-    LIVE_LENGTH,
-    DepthSummary,
-    PhaseSeries,
-    frame_time,
-    pca_check,
-    summarise,
-)
+from holoview.engine.depth import DepthSummary, pca_check, summarise
+from holoview.engine.experiment import Experiment
+from holoview.engine.frame_core import CarrierCore
+from holoview.engine.series import LIVE_LENGTH, PhaseSeries, coupling_of, frame_time
 from holoview.errors import HoloviewError, InputError
 from holoview.processing.peaks import Peak
 
@@ -104,7 +101,7 @@ class SeriesPipeline:
         self.carriers = CarrierCore(frame_shape, saturation)
         self.series: PhaseSeries | None = None
         self.pca = False
-        self.wavelength_m: float | None = None
+        self.experiment: Experiment | None = None
         self._seq = 0
         self._trend_at = -math.inf
 
@@ -118,11 +115,21 @@ class SeriesPipeline:
         else:
             raise InputError(f"unknown series command {name!r}")
 
-    def set_peaks(self, peaks: tuple[Peak, ...], wavelength_m: float | None) -> None:
-        """Measure ``peaks`` from the next frame (a new series when they changed)."""
-        self.wavelength_m = wavelength_m
-        if self.carriers.configure(peaks):
+    def set_peaks(self, peaks: tuple[Peak, ...], experiment: Experiment) -> None:
+        """Measure ``peaks`` from the next frame (a new series when they or the optics changed)."""
+        optics = (experiment.wavelength_m, experiment.n1, experiment.n2)
+        if (
+            self.carriers.configure(peaks)
+            or self.experiment is None
+            or optics
+            != (
+                self.experiment.wavelength_m,
+                self.experiment.n1,
+                self.experiment.n2,
+            )
+        ):
             self.series = None
+        self.experiment = experiment
 
     def process(self, frame: np.ndarray, meta: FrameMeta) -> TrendSummary | None:
         """Add ``frame`` to the series; return a new summary when one is due, else None.
@@ -136,8 +143,7 @@ class SeriesPipeline:
         if measured is None:
             return None
         if self.series is None:
-            labels = [p.label or f"P{j}" for j, p in enumerate(self.carriers.peaks)]
-            self.series = PhaseSeries(labels, max_length=LIVE_LENGTH)
+            self.series = self._new_series()
         self.series.add(frame_time(meta.t_device, meta.t_host), meta.frame_id, measured)
         now = time.monotonic()
         if now - self._trend_at < 1.0 / TREND_HZ:
@@ -145,11 +151,24 @@ class SeriesPipeline:
         self._trend_at = now
         return self.trend()
 
+    def _new_series(self) -> PhaseSeries:
+        """An empty series of the current peaks, estimated jointly where the lattice allows."""
+        peaks = self.carriers.peaks
+        series = PhaseSeries(
+            [p.label or f"P{j}" for j, p in enumerate(peaks)], max_length=LIVE_LENGTH
+        )
+        e = self.experiment
+        if e is not None and e.wavelength_m is not None:
+            couplings = [coupling_of(p.label, e.n1, e.n2) for p in peaks]
+            series.track_joint([p.alpha for p in peaks], couplings, e.wavelength_m)
+        return series
+
     def summary(self) -> DepthSummary | None:
         """Depths and rates of the series so far (None before a wavelength or a frame)."""
-        if self.series is None or self.wavelength_m is None or len(self.series) == 0:
+        e = self.experiment
+        if self.series is None or e is None or e.wavelength_m is None or len(self.series) == 0:
             return None
-        return summarise(self.series, [p.alpha for p in self.carriers.peaks], self.wavelength_m)
+        return summarise(self.series, [p.alpha for p in self.carriers.peaks], e.wavelength_m)
 
     def trend(self) -> TrendSummary | None:
         """The trends view's summary; None before three frames of the current peaks."""
@@ -168,8 +187,3 @@ class SeriesPipeline:
             pca = pca_check(summary.phases, self.series.labels, alphas)
         self._seq += 1
         return trend_summary(self._seq, summary, self.series.labels, pca)
-
-    @property
-    def key(self) -> tuple:
-        """:func:`~holoview.engine.frame_core.series_key` of the peaks measured."""
-        return series_key(self.carriers.peaks)

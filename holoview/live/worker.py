@@ -28,6 +28,7 @@ import numpy as np
 
 from holoview.acquire.ring import CLOSED, FrameRing, RingConsumer, RingStatus
 from holoview.acquire.source import FrameMeta
+from holoview.engine.experiment import Experiment
 from holoview.errors import HoloviewError, InputError
 from holoview.live.pipeline import FFT_THREADS, LivePipeline, LiveResult
 from holoview.live.trends import SeriesPipeline, TrendSummary
@@ -266,7 +267,7 @@ class DemodWorker(RingWorker):
         self.pipeline = pipeline
         pipeline.detect_inline = False
         self.peaks = PeakWorker()
-        self._peak_set: tuple[tuple, float | None] | None = None
+        self._peak_set: tuple[tuple, Experiment] | None = None
 
     def start(self) -> None:
         """Start the thread and its peak thread."""
@@ -283,8 +284,8 @@ class DemodWorker(RingWorker):
         with self._lock:
             return self._latest
 
-    def peak_set(self) -> tuple[tuple, float | None] | None:
-        """The demodulator's peaks and the wavelength (m) after the last frame; None before."""
+    def peak_set(self) -> tuple[tuple, Experiment] | None:
+        """The demodulator's peaks and the experiment after the last frame; None before."""
         with self._lock:
             return self._peak_set
 
@@ -309,7 +310,7 @@ class DemodWorker(RingWorker):
             result = self.pipeline.process(pixels, meta)
         finally:
             with self._lock:
-                self._peak_set = (self.pipeline.peaks, self.pipeline.experiment.wavelength_m)
+                self._peak_set = (self.pipeline.peaks, self.pipeline.experiment)
         self._publish(result)
 
 

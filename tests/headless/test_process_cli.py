@@ -83,10 +83,11 @@ def test_labels_mode_trends_rates_and_summary(
         to_height = evaporation.wavelength / (4 * np.pi * peak["alpha"])
         assert 0 < peak["map_noise_rad"] < 1
         assert peak["map_noise_m"] == pytest.approx(peak["map_noise_rad"] * to_height)
-    # RB3 steps 3.5 rad per frame at 20 frames/s: flagged and left out of the fusion
+    # RB3 steps 3.5 rad per frame at 20 frames/s: flagged, and unwrapped by the others
     if "RB3" in summary["peaks"]:
-        assert "aliased_in_time" in summary["peaks"]["RB3"]["flags"]
-        assert not summary["peaks"]["RB3"]["used_in_fused"]
+        rb3 = summary["peaks"]["RB3"]
+        assert "aliased_in_time" in rb3["flags"] and rb3["used_in_fused"]
+        assert rb3["rate_m_per_s"] == pytest.approx(evaporation.rate, rel=0.02)
     assert set(summary) >= {
         "format",
         "holoview_version",

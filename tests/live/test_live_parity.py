@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from holoview.cli import main
-from holoview.engine.series import summarise
+from holoview.engine.depth import summarise
 from holoview.headless.run import PeakChoice, process_file
 from holoview.live import pipeline as live_pipeline
 from holoview.live.session import LiveSession

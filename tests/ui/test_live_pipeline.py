@@ -120,7 +120,7 @@ def _series_run(frames: np.ndarray, dt: float = 0.1) -> tuple[SeriesPipeline, li
     for i, frame in enumerate(frames):
         meta = FrameMeta(frame_id=i, t_device=i * dt, t_host=100.0 + i * dt)
         maps.process(frame, meta)
-        series.set_peaks(maps.peaks, WAVELENGTH_M)
+        series.set_peaks(maps.peaks, maps.experiment)
         trends.append(series.process(frame, meta))
     return series, trends
 
@@ -146,7 +146,7 @@ def test_series_restarts_on_reset_and_on_new_peaks(monkeypatch) -> None:
     series.apply("reset")
     assert series.process(frames[4], FrameMeta(4, 0.4, 0.4)) is None  # one frame since
     assert len(series.series) == 1
-    series.set_peaks(series.carriers.peaks[:2], WAVELENGTH_M)
+    series.set_peaks(series.carriers.peaks[:2], series.experiment)
     assert series.series is None  # other peaks: a new series from the next frame
     series.apply("pca", True)
     assert series.pca
