@@ -25,12 +25,12 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from holoview.engine.experiment import Experiment, check_carrier, check_label, is_model_label
-from holoview.engine.resolve import SNAP_BINS, snap
 from holoview.errors import InputError
 from holoview.headless.inputs import Optics
 from holoview.optics.families import alpha_of
 from holoview.processing.labelling import ModelLabelling
 from holoview.processing.peaks import Peak
+from holoview.processing.snapping import SNAP_BINS, snap
 
 logger = logging.getLogger(__name__)
 

@@ -36,17 +36,15 @@ import numpy as np
 from holoview.errors import InputError
 from holoview.processing.lattice import DEFAULT_MAX_ORDER, LatticeKind, identify_lattice
 from holoview.processing.lattice_geometry import Point, point_of
+from holoview.processing.snapping import SNAP_BINS
 
 logger = logging.getLogger(__name__)
 
-__all__ = ["DEFAULT_MATCH_BINS", "DEFAULT_SNAP_BINS", "ModelLabelling", "Prediction", "label_peaks"]
+__all__ = ["DEFAULT_MATCH_BINS", "ModelLabelling", "Prediction", "label_peaks"]
 
 #: Largest distance (FFT bins) between a predicted carrier and a detected peak that match:
 #: the sub-bin peak estimates and the lattice agree to well under a bin.
 DEFAULT_MATCH_BINS = 1.5
-
-#: Largest distance (FFT bins) between an operator's click and the peak it names.
-DEFAULT_SNAP_BINS = 4.0
 
 
 @dataclass(frozen=True)
@@ -144,7 +142,7 @@ def label_peaks(
     *,
     max_order: int = 2,
     tolerance: float = DEFAULT_MATCH_BINS,
-    snap: float = DEFAULT_SNAP_BINS,
+    snap: float = SNAP_BINS,
 ) -> ModelLabelling:
     """Label detected peaks from two (or more) labelled ones and the lattice.
 
