@@ -26,6 +26,7 @@ import numpy as np
 from holoview.engine.experiment import Experiment
 from holoview.errors import InputError
 from holoview.processing.labelling import ModelLabelling, label_peaks
+from holoview.processing.lattice import LatticePeak
 from holoview.processing.peaks import Peak
 from holoview.processing.snapping import SNAP_BINS, bin_distance, snap
 from holoview.processing.windows import wrap_frequency
@@ -78,6 +79,9 @@ class Resolution:
         twin, a family past Nyquist, a model that cannot place the families).
     labelling : ModelLabelling or None
         The model labelling, when two or more labels are the model's families.
+    lattice : tuple of (LatticePeak or None)
+        Per peak, its place on the carrier lattice (point, residual, kind, coupling):
+        with the model labelling, for the peaks on a detected peak; else None.
     """
 
     peaks: tuple[Peak, ...]
@@ -86,6 +90,7 @@ class Resolution:
     problems: tuple[str, ...] = ()
     notes: tuple[str, ...] = ()
     labelling: ModelLabelling | None = None
+    lattice: tuple[LatticePeak | None, ...] = ()
 
     @property
     def labelled(self) -> dict[str, Carrier]:
@@ -205,6 +210,11 @@ def resolve_peaks(
             chosen.append(peak.relabelled(name, experiment.alpha_of_label(name)))
             names.add(name)
     chosen.sort(key=lambda p: -p.amplitude if p.amplitude == p.amplitude else math.inf)
+    on_lattice: dict[str, LatticePeak] = {}
+    if labelling is not None and labelling.lattice is not None:
+        detected_of = {name: index for index, name in taken.items()}
+        for name, index in detected_of.items():
+            on_lattice[name] = labelling.lattice.peaks[index]
     return Resolution(
         peaks=tuple(chosen),
         predicted=predicted,
@@ -212,4 +222,5 @@ def resolve_peaks(
         problems=tuple(problems),
         notes=tuple(notes),
         labelling=labelling,
+        lattice=tuple(on_lattice.get(p.label or "") for p in chosen),
     )

@@ -34,7 +34,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from holoview.errors import InputError
-from holoview.processing.lattice import DEFAULT_MAX_ORDER, LatticeKind, identify_lattice
+from holoview.processing.lattice import (
+    DEFAULT_MAX_ORDER,
+    LatticeIdentification,
+    LatticeKind,
+    identify_lattice,
+)
 from holoview.processing.lattice_geometry import Point, point_of
 from holoview.processing.snapping import SNAP_BINS
 
@@ -96,6 +101,9 @@ class ModelLabelling:
     flip_hint : tuple of str
         Labels (after the first) whose position, taken on the other twin, would let the
         lattice explain a few more detected peaks: probably clicked on the wrong twin.
+    lattice : LatticeIdentification or None
+        The lattice identification behind it: per detected peak, its lattice point,
+        residual, kind and coupling.
     """
 
     anchors: dict[str, int]
@@ -104,6 +112,7 @@ class ModelLabelling:
     missing: tuple[str, ...]
     unexplained: tuple[int, ...]
     flip_hint: tuple[str, ...]
+    lattice: LatticeIdentification | None = None
 
     @property
     def labels(self) -> tuple[str | None, ...]:
@@ -235,4 +244,5 @@ def label_peaks(
         missing=missing,
         unexplained=unexplained,
         flip_hint=ident.flip_hint,
+        lattice=ident,
     )
