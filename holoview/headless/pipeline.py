@@ -8,7 +8,7 @@ frame and peak): that is all the trends and rates need, at a quarter of a full F
 time. The maps (:class:`holoview.engine.frame_core.FrameCore`, the live maps' core)
 are demodulated where they are wanted: every frame with ``--maps``, else only the
 frames that measure the peaks' displacements and the last frame (with the one before
-it, so that a relative map is against the previous frame). With a :class:`MapSink`
+it, so that its relative map is against the previous frame). With a :class:`MapSink`
 each frame's maps go to it at once, so memory stays bounded by the few frames the
 :class:`~holoview.headless.reader.FrameReader` reads ahead.
 
@@ -51,7 +51,7 @@ from holoview.processing.peaks import Peak
 logger = logging.getLogger(__name__)
 
 #: Frames, spread over a run, whose maps measure the peaks' displacements.
-COREGISTER_FRAMES = 200
+COREGISTER_FRAMES = 50
 
 #: Per-frame map flags of a peak counted over the demodulated frames.
 MAP_PEAK_FLAGS = ("low_amplitude", "overlap")
@@ -244,14 +244,15 @@ def make_core(
 def _maps_wanted(n: int, every: int, relative: bool) -> np.ndarray:
     """Positions demodulated without a sink: displacement frames and the last one.
 
-    In relative mode the frame before each is demodulated too, so that every map is
-    against the previous frame.
+    In relative mode the frame before the last is demodulated too, so that the last
+    map (the report's) is against the previous frame; a displacement frame's map is
+    against the one demodulated before it, which only gives it more to measure.
     """
     wanted = np.zeros(n, dtype=bool)
     wanted[::every] = True
     wanted[n - 1] = True
-    if relative:
-        wanted[:-1] |= wanted[1:]
+    if relative and n > 1:
+        wanted[n - 2] = True
     return wanted
 
 
