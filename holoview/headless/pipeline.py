@@ -206,9 +206,21 @@ def make_core(
     peaks: Sequence[Peak],
     settings: ProcessSettings,
     saturation: float | None = None,
+    *,
+    detected: Sequence[Peak] = (),
 ) -> FrameCore:
-    """Return the per-frame core of a run, its demodulator built (InputError if it cannot work)."""
-    core = FrameCore(shape, experiment, peaks, saturation=saturation, threads=settings.threads)
+    """Return the per-frame core of a run, its demodulator built (InputError if it cannot work).
+
+    ``detected``: every peak found in the first frame; no automatic window reaches one.
+    """
+    core = FrameCore(
+        shape,
+        experiment,
+        peaks,
+        saturation=saturation,
+        threads=settings.threads,
+        neighbours=[p.carrier for p in detected],
+    )
     core.build()
     return core
 

@@ -265,7 +265,12 @@ def process_file(
         for note in notes:
             logger.warning("%s", note)
         core = make_core(
-            source.frame_shape, experiment, selection.peaks, settings, source.saturation
+            source.frame_shape,
+            experiment,
+            selection.peaks,
+            settings,
+            source.saturation,
+            detected=detected,
         )
         demodulator = core.demodulator
         assert demodulator is not None

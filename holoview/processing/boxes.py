@@ -29,7 +29,6 @@ class BoxGeometry:
     weights: np.ndarray  # float32 (re, im) pairs per bin: the window, -window on conjugated im
     ramp: np.ndarray  # complex64 unit modulus: the sub-bin plane wave on the box grid
     ramp_conj: np.ndarray  # its conjugate
-    noise_gain: float  # variance of a second difference along a row over the noise variance
     area_fraction: float
 
 
@@ -78,11 +77,7 @@ def box_geometry(
     freq_x = wrap_frequency((k0x + dx) / cols - fx)
     rho = np.hypot(freq_y[:, None], freq_x[None, :])
     w = radial_window(kind, rho, radius, taper=taper)
-    power = w * w
-    total = power.sum()
-    area = float(total / (rows * cols))
-    rho1 = float((power * np.cos(TWO_PI * dx / bx)[None, :]).sum() / total)
-    rho2 = float((power * np.cos(2 * TWO_PI * dx / bx)[None, :]).sum() / total)
+    area = float((w * w).sum() / (rows * cols))
     # the box's inverse FFT runs unnormalised (execute): 1 / (by bx) is folded in here too,
     # so that the field comes out in counts
     scale = 1.0 / (rows * cols)
@@ -101,7 +96,6 @@ def box_geometry(
         weights=_readonly(weights),
         ramp=_readonly(ramp),
         ramp_conj=_readonly(np.conj(ramp)),
-        noise_gain=max(6.0 - 8.0 * rho1 + 2.0 * rho2, 1e-6),
         area_fraction=area,
     )
 

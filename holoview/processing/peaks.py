@@ -31,7 +31,7 @@ import numpy as np
 from scipy import ndimage
 
 from holoview.errors import InputError
-from holoview.processing.fftplans import default_threads, rfft2_plan
+from holoview.processing.fftplans import DEFAULT_THREADS, rfft2_plan
 from holoview.processing.frames import check_frame, check_frame_content
 from holoview.processing.windows import auto_radius, wrap_frequency
 
@@ -297,7 +297,7 @@ def find_peaks(
     if min_separation < 1:
         raise InputError(f"min_separation must be >= 1 bin, got {min_separation}")
     rows, cols = array.shape
-    plan = rfft2_plan(array.shape, threads=threads or default_threads())
+    plan = rfft2_plan(array.shape, threads=threads or DEFAULT_THREADS)
     apodise = np.outer(_hann(rows), _hann(cols))
     mean = float(np.mean(array, dtype=np.float64))
     buffer = plan.input_array
