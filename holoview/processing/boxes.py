@@ -6,6 +6,16 @@ its inverse FFT is the field with the carrier moved to the origin. Bins with
 ``fx < 0`` are not in the real FFT's half spectrum: they are read at ``-f`` and
 conjugated. Geometries are cached by frame shape, box shape, carrier and window:
 rebuilding a demodulator for relabelled peaks reuses them.
+
+The FFT treats the frame as periodic, so near an edge the field mixes with the opposite
+edge's over about the window's impulse response: :func:`border_mask` gives the box
+pixels far enough from the edge to be trusted. Measured on the
+optics simulator (``benchmarks/bench_borders.py``), the phase error at 1024^2 with a
+Tukey window of radius 0.034 cycles/pixel is about 20 times the interior's in the
+outer 2 pixels, 2 to 5 times at 5-10 pixels and 1.3 to 2 times at 20-30 pixels;
+zero padding (qpretrieve) halves the edge errors at 4 times the FFT cost, a
+cosine taper of the frame's edge (apodisation) did not help a Tukey window. So the
+border is marked untrusted, :data:`UNTRUSTED_BORDER` over the radius wide.
 """
 
 from __future__ import annotations
@@ -19,6 +29,13 @@ from holoview.processing.fftplans import fft_friendly
 from holoview.processing.resample import box_positions
 from holoview.processing.unwrap import TWO_PI
 from holoview.processing.windows import radial_window, wrap_frequency
+
+#: Width of the untrusted border, in cycles of the window radius: a peak demodulated
+#: with radius ``r`` (cycles/pixel) is untrusted within ``UNTRUSTED_BORDER / r`` pixels
+#: of the frame's edge (12 pixels at r = 0.034). Chosen by measurement
+#: (``benchmarks/bench_borders.py``): beyond it the error is within about twice the
+#: interior's.
+UNTRUSTED_BORDER = 0.4
 
 
 @dataclass(frozen=True)
@@ -112,3 +129,25 @@ def box_shape_for(frame_shape: tuple[int, int], radius: float) -> tuple[int, int
         size = fft_friendly(need)
         sides.append(n if size >= n else size)
     return sides[0], sides[1]
+
+
+def border_mask(
+    box_shape: tuple[int, int],
+    frame_shape: tuple[int, int],
+    radius: float,
+    cycles: float = UNTRUSTED_BORDER,
+) -> np.ndarray:
+    """Return the box pixels trusted near the frame's edge (read-only bool, ``box_shape``).
+
+    A box pixel is trusted when its frame position lies at least ``cycles / radius``
+    pixels (``radius`` in cycles/pixel) from the periodic seam between the frame's
+    last and first row (and column).
+    """
+    width = cycles / radius
+    y, x = box_positions(box_shape, frame_shape)
+    rows, cols = frame_shape
+    keep_y = np.minimum(y + 0.5, rows - 0.5 - y) >= width
+    keep_x = np.minimum(x + 0.5, cols - 0.5 - x) >= width
+    mask = keep_y[:, None] & keep_x[None, :]
+    mask.setflags(write=False)
+    return mask

@@ -23,7 +23,7 @@ spatially averaged phase (paper section 4.2), unwrapped in time. Maps that wrap 
 unwrapped in space (Herraez et al. 2002) or against another peak's map scaled by
 the ratio of alphas (:func:`~holoview.processing.phase_maps.unwrap_maps`). Every
 returned array is new; frames and peaks are never modified. Carriers below one FFT
-bin: :func:`holoview.processing.carriers.refine_carriers`.
+bin: :func:`holoview.processing.peaks.refine_carriers`.
 
 The demodulator keeps state (references, plans, buffers): use it from one thread
 at a time. It creates no thread; FFTW may use ``threads`` internally.
@@ -39,7 +39,7 @@ import numpy as np
 import pyfftw
 
 from holoview.errors import InputError
-from holoview.processing.boxes import BoxGeometry, box_geometry, box_shape_for
+from holoview.processing.boxes import BoxGeometry, border_mask, box_geometry, box_shape_for
 from holoview.processing.demod_results import (
     FRAME_FLAGS,
     PEAK_RESULT_FLAGS,
@@ -52,7 +52,6 @@ from holoview.processing.fastmath import AngleWorkspace, angle
 from holoview.processing.fftplans import DEFAULT_THREADS, ifft2_plan, rfft2_plan
 from holoview.processing.frames import MIN_SIDE
 from holoview.processing.peak_windows import (
-    border_mask,
     check_peaks,
     check_radii,
     distinct_neighbours,
@@ -346,6 +345,15 @@ class Demodulator:
         if settings["reference"] != "absolute" and "background" not in changes:
             settings["background"] = None
         return Demodulator(self.shape, peaks, **settings)  # type: ignore[arg-type]
+
+    def reference_field(self, i: int) -> np.ndarray | None:
+        """Return peak ``i``'s reference field (counts, box resolution), or None before one.
+
+        The background hologram's (:meth:`set_background`) or the reference frame's in
+        absolute mode, the previous frame's in relative mode; None in synthetic mode.
+        """
+        conj = self._ref_conj[i]
+        return None if conj is None or self.reference == "synthetic" else np.conj(conj)
 
     def geometry(self, i: int) -> BoxGeometry:
         """Return peak ``i``'s box geometry: spectrum indices, window, sub-bin plane wave."""

@@ -1,4 +1,4 @@
-"""Each demodulated peak's window: its checks, its radius, and where its map is trusted.
+"""Each demodulated peak's window: the checks of the peaks, and the window radii.
 
 - :func:`check_peaks` refuses what cannot be demodulated (no peak, a carrier outside
   the spectrum, a bad alpha).
@@ -6,16 +6,8 @@
   or by default the widest that reaches no other peak, twin or zero frequency
   (:func:`~holoview.processing.windows.auto_radii`), per peak;
   :func:`check_radii` refuses a window holding another carrier and names the peaks
-  whose windows overlap another's.
-- :func:`border_mask`: the map pixels far enough from the frame's edge to be
-  trusted. The FFT treats the frame as periodic, so near an edge the field mixes
-  with the opposite edge's over about the window's impulse response. Measured on the
-  optics simulator (``benchmarks/bench_borders.py``), the phase error at 1024^2 with a
-  Tukey window of radius 0.034 cycles/pixel is about 20 times the interior's in the
-  outer 2 pixels, 2 to 5 times at 5-10 pixels and 1.3 to 2 times at 20-30 pixels;
-  zero padding (qpretrieve) halves the edge errors at 4 times the FFT cost, a
-  cosine taper of the frame's edge (apodisation) did not help a Tukey window. So the
-  border is marked untrusted, :data:`UNTRUSTED_BORDER` over the radius wide.
+  whose windows overlap another's;
+- :func:`distinct_neighbours`: the detected peaks that are not the demodulated ones.
 
 Distances are periodic in frequency (:func:`~holoview.processing.windows.wrap_frequency`).
 """
@@ -28,25 +20,15 @@ import numpy as np
 
 from holoview.errors import InputError
 from holoview.processing.peaks import MIN_RADIUS_BINS, Peak
-from holoview.processing.resample import box_positions
 from holoview.processing.windows import auto_radii, wrap_frequency
 
 __all__ = [
-    "UNTRUSTED_BORDER",
-    "border_mask",
     "check_peaks",
     "check_radii",
     "distinct_neighbours",
     "peak_name",
     "peak_radii",
 ]
-
-#: Width of the untrusted border, in cycles of the window radius: a peak demodulated
-#: with radius ``r`` (cycles/pixel) is untrusted within ``UNTRUSTED_BORDER / r`` pixels
-#: of the frame's edge (12 pixels at r = 0.034). Chosen by measurement
-#: (``benchmarks/bench_borders.py``): beyond it the error is within about twice the
-#: interior's.
-UNTRUSTED_BORDER = 0.4
 
 
 def peak_name(peaks: Sequence[Peak], i: int) -> str:
@@ -173,22 +155,3 @@ def check_radii(peaks: Sequence[Peak], radii: Sequence[float], neighbours: np.nd
             if r + other_radius > d * (1 + 1e-9):
                 overlapping.add(i)
     return overlapping
-
-
-def border_mask(
-    box_shape: tuple[int, int], frame_shape: tuple[int, int], radius: float
-) -> np.ndarray:
-    """Return the box pixels trusted near the frame's edge (read-only bool, ``box_shape``).
-
-    A box pixel is trusted when its frame position lies at least
-    ``UNTRUSTED_BORDER / radius`` pixels from the periodic seam between the frame's
-    last and first row (and column).
-    """
-    width = UNTRUSTED_BORDER / radius
-    y, x = box_positions(box_shape, frame_shape)
-    rows, cols = frame_shape
-    keep_y = np.minimum(y + 0.5, rows - 0.5 - y) >= width
-    keep_x = np.minimum(x + 0.5, cols - 0.5 - x) >= width
-    mask = keep_y[:, None] & keep_x[None, :]
-    mask.setflags(write=False)
-    return mask
