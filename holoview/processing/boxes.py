@@ -9,13 +9,14 @@ rebuilding a demodulator for relabelled peaks reuses them.
 
 The FFT treats the frame as periodic, so near an edge the field mixes with the opposite
 edge's over about the window's impulse response: :func:`border_mask` gives the box
-pixels far enough from the edge to be trusted. Measured on the
-optics simulator (``benchmarks/bench_borders.py``), the phase error at 1024^2 with a
-Tukey window of radius 0.034 cycles/pixel is about 20 times the interior's in the
-outer 2 pixels, 2 to 5 times at 5-10 pixels and 1.3 to 2 times at 20-30 pixels;
-zero padding (qpretrieve) halves the edge errors at 4 times the FFT cost, a
-cosine taper of the frame's edge (apodisation) did not help a Tukey window. So the
-border is marked untrusted, :data:`UNTRUSTED_BORDER` over the radius wide.
+pixels far enough from the edge to be trusted. Measured on the optics simulator
+(``benchmarks/bench_borders.py``, 1024^2, Tukey window of radius 0.034 cycles/pixel),
+the phase error is 15 times the interior's in the outer 2 pixels, 6 times at 2-5 pixels
+and 1.4 to 1.5 times at 5-20 pixels. Tapering the frame's edge (apodisation over 16
+pixels) made the 5-10 pixel band 1.7 times worse and changed nothing beyond; zero
+padding to twice the size (qpretrieve's default) brings the outer pixels to twice the
+interior's, at four times the FFT. So the border is marked untrusted,
+:data:`UNTRUSTED_BORDER` over the radius wide (12 pixels at 0.034).
 """
 
 from __future__ import annotations
@@ -33,8 +34,8 @@ from holoview.processing.windows import radial_window, wrap_frequency
 #: Width of the untrusted border, in cycles of the window radius: a peak demodulated
 #: with radius ``r`` (cycles/pixel) is untrusted within ``UNTRUSTED_BORDER / r`` pixels
 #: of the frame's edge (12 pixels at r = 0.034). Chosen by measurement
-#: (``benchmarks/bench_borders.py``): beyond it the error is within about twice the
-#: interior's.
+#: (``benchmarks/bench_borders.py``): beyond it the error is within 2 times the
+#: interior's (1.4 times measured).
 UNTRUSTED_BORDER = 0.4
 
 
