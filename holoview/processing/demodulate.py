@@ -14,16 +14,20 @@ Conventions (DESIGN.md):
   in it; the synthetic reference removes it);
 - phases are ``current - reference`` in rad: ``synthetic`` against the plane wave
   at the sub-bin carrier, ``absolute`` against the first frame after construction
-  or :meth:`~Demodulator.reset_reference`, ``relative`` against the previous frame;
+  or :meth:`~Demodulator.reset_reference` (or against an object-free background
+  hologram, :meth:`~Demodulator.set_background`), ``relative`` against the previous
+  frame;
 - ``delta_h = phase wavelength / (4 pi alpha)`` in metres for peaks with alpha.
 
-Per peak and frame also: the trusted pixels (aperture, amplitude), the phase noise
-(rad, and m), and the complex value at the carrier alone, whose phase is the
-spatially averaged phase (paper section 4.2), unwrapped in time. Maps that wrap are
-unwrapped in space (Herraez et al. 2002) or against another peak's map scaled by
-the ratio of alphas (:func:`~holoview.processing.phase_maps.unwrap_maps`). Every
-returned array is new; frames and peaks are never modified. Carriers below one FFT
-bin: :func:`holoview.processing.peaks.refine_carriers`.
+Per peak and frame also: the trusted pixels (aperture, amplitude, off the border that
+the periodic FFT spoils: :func:`~holoview.processing.boxes.border_mask`), the phase
+noise (rad, and m, from the spectrum's noise floor), and the complex value at the
+carrier alone, whose phase is the spatially averaged phase (paper section 4.2),
+unwrapped in time. Maps that wrap are unwrapped in space (Herraez et al. 2002) or
+against another peak's map scaled by the ratio of alphas
+(:func:`~holoview.processing.phase_maps.unwrap_maps`). Every returned array is new;
+frames and peaks are never modified. Carriers below one FFT bin:
+:func:`holoview.processing.peaks.refine_carriers`.
 
 The demodulator keeps state (references, plans, buffers): use it from one thread
 at a time. It creates no thread; FFTW may use ``threads`` internally.
@@ -150,8 +154,8 @@ class Demodulator:
     >>> import numpy as np
     >>> from holoview.processing.peaks import Peak
     >>> y, x = np.mgrid[:256, :256]
-    >>> frame = 1000 + 300 * np.cos(2 * np.pi * (0.2 * x + 0.1 * y))
-    >>> demod = Demodulator(frame.shape, [Peak((0.2, 0.1), 0.15, 100.0, label="RB1")])
+    >>> frame = 1000 + 300 * np.cos(2 * np.pi * (0.25 * x + 0.125 * y))
+    >>> demod = Demodulator(frame.shape, [Peak((0.25, 0.125), 0.15, 100.0, label="RB1")])
     >>> result = demod.process(frame)
     >>> round(abs(result.peaks[0].carrier_value))
     150
