@@ -34,10 +34,12 @@ PLANNER_EFFORT = "FFTW_MEASURE"
 
 #: FFTW threads used when a caller gives none. One: a transform split over threads waits
 #: for its slowest thread, and on a machine whose cores are busy (the camera, the recorder,
-#: the GUI, other programs) that wait dominates. Measured on 2 cores under load, a
-#: 1024 x 1024 frame took 8 ms median with one thread and 157 ms median (0.7 s at worst)
-#: with two; ``holoview process`` and the live engine use one for the same reason. A caller
-#: that owns the machine may ask for more (``threads=usable_cpus()``).
+#: the GUI, other programs) that wait dominates. Measured with ``benchmarks/bench_threads.py``
+#: (1024 x 1024, 4 peaks, 2 cores): alone, one thread 10.0 ms a frame median (11.7 worst),
+#: two 8.4 ms (30 worst); beside two busy processes, one thread 14.1 ms (p90 26, worst 32),
+#: two 20.6 ms (p90 91, worst 132). The issue that asked for this saw 8 ms become 157 ms.
+#: ``holoview process`` and the live engine use one for the same reason; a caller that owns
+#: the machine may ask for more (``threads=usable_cpus()``).
 DEFAULT_THREADS = 1
 
 #: How many plans the per-process cache keeps before dropping the least recently used.
