@@ -13,13 +13,19 @@ and prints medians and extremes:
 - the longest event-loop stall: the largest gap between ticks of a 5 ms QTimer,
   minus 5 ms (the GUI is frozen that long);
 - latency from the frame's host timestamp to the end of its draw call;
-- the time per draw call, and the machine's load average before and after.
+- the time per draw call, and the machine's load average before and after;
+- with ``--profile N``: where the GUI thread's time goes over the measured run (cProfile
+  of the GUI thread, the N entries of largest cumulative time under pyqtgraph and
+  holoview, in ms per displayed frame), and each image's render and paint time by shape.
 """
 
 from __future__ import annotations
 
 import argparse
+import collections
+import cProfile
 import os
+import pstats
 import statistics
 import sys
 import tempfile
@@ -27,6 +33,7 @@ import threading
 import time
 from pathlib import Path
 
+import pyqtgraph as pg
 from PyQt6.QtCore import QEventLoop, QTimer
 
 from holoview.ui.app import application
@@ -60,6 +67,52 @@ def percentile(values: list[float], q: float) -> float:
     return ordered[min(len(ordered) - 1, int(q * len(ordered)))] if ordered else float("nan")
 
 
+class ImageTimes:
+    """Time every ``pg.ImageItem.paint`` (which renders the colour lookup when the image
+    changed) by image shape and dtype, while installed."""
+
+    def __init__(self) -> None:
+        self.times: dict[str, list[float]] = collections.defaultdict(list)
+        self._paint = pg.ImageItem.paint
+
+    def __enter__(self) -> ImageTimes:
+        paint = self._paint
+
+        def timed(item: pg.ImageItem, *args: object) -> None:
+            start = time.perf_counter()
+            paint(item, *args)
+            image = item.image
+            key = "none" if image is None else f"{image.shape} {image.dtype}"
+            self.times[key].append(time.perf_counter() - start)
+
+        pg.ImageItem.paint = timed
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        pg.ImageItem.paint = self._paint
+
+
+def print_profile(profiler: cProfile.Profile, images: ImageTimes, frames: int, top: int) -> None:
+    """Print the GUI thread's largest cumulative times and the images' paint times."""
+    frames = max(frames, 1)
+    stats = pstats.Stats(profiler)
+    rows = [
+        (cumulative, calls, f"{Path(path).name}:{line}({name})")
+        for (path, line, name), (_, calls, _, cumulative, _) in stats.stats.items()  # type: ignore[attr-defined]
+        if "pyqtgraph" in path or "holoview" in path
+    ]
+    print(f"GUI thread, ms per displayed frame (cumulative; {frames} frames drawn):")
+    for cumulative, calls, where in sorted(rows, reverse=True)[:top]:
+        print(f"  {1e3 * cumulative / frames:6.2f} ms  {calls / frames:5.1f} calls  {where}")
+    print("images, paint (with the colour lookup when the image changed):")
+    for key, times in sorted(images.times.items(), key=lambda kv: -sum(kv[1])):
+        print(
+            f"  {key:24s} {len(times) / frames:4.1f} per displayed frame, "
+            f"{1e3 * statistics.median(times):5.2f} ms each, "
+            f"{1e3 * sum(times) / frames:5.2f} ms per displayed frame"
+        )
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--source", default="sim")
@@ -68,6 +121,9 @@ def main() -> int:
     parser.add_argument("--seconds", type=float, default=20.0)
     parser.add_argument("--warmup", type=float, default=4.0)
     parser.add_argument("--label", action="append", type=parse_label, default=[])
+    parser.add_argument(
+        "--profile", type=int, default=0, metavar="N", help="print the GUI thread's N top costs"
+    )
     args = parser.parse_args()
     app = application()
     app.setQuitOnLastWindowClosed(False)
@@ -136,7 +192,12 @@ def main() -> int:
         cam0, seq0 = session.camera.frames, session.latest().seq
         cpu0 = thread_cpu_seconds()
         t0 = time.monotonic()
-        run_for(args.seconds)
+        profiler = cProfile.Profile()  # the GUI thread only: cProfile hooks the calling thread
+        with ImageTimes() as images:
+            if args.profile:
+                profiler.enable()
+            run_for(args.seconds)
+            profiler.disable()
         elapsed = time.monotonic() - t0
         cpu1 = thread_cpu_seconds()
         camera_fps = (session.camera.frames - cam0) / elapsed
@@ -182,6 +243,8 @@ def main() -> int:
         f"need {per_frame * args.fps + per_draw * 25:.2f} cores besides the camera"
     )
     print(f"longest event-loop stall {stall * 1e3:5.1f} ms; dropped frames {dropped}")
+    if args.profile:
+        print_profile(profiler, images, len(draws), args.profile)
     return 0
 
 

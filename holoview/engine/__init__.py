@@ -13,10 +13,11 @@ so both give the same numbers on the same frames.
 - :mod:`~holoview.engine.peak_geometry`: window warnings for the operator.
 """
 
+from holoview.engine.depth import DepthSummary, summarise
 from holoview.engine.experiment import Experiment, LabelledPeak
 from holoview.engine.frame_core import FrameCore, fuse_maps, trusted_maps
 from holoview.engine.resolve import Resolution, resolve_peaks, snap
-from holoview.engine.series import DepthSummary, PhaseSeries, summarise
+from holoview.engine.series import PhaseSeries
 
 __all__ = [
     "DepthSummary",

@@ -50,6 +50,7 @@ __all__ = [
     "check_label",
     "config_dir",
     "default_experiment_path",
+    "is_model_label",
 ]
 
 EXPERIMENT_FORMAT = "holoview-experiment"
@@ -94,6 +95,15 @@ def check_carrier(carrier: object, where: str) -> Carrier:
     if fx == 0 and fy == 0:
         raise InputError(f"{where}: carrier (0, 0) is zero frequency, not a carrier")
     return fx, fy
+
+
+def is_model_label(label: str) -> bool:
+    """Whether ``label`` names one of the model's families (RF, RB_j, FB_j, B_lB_j, 2X, ...)."""
+    try:
+        alpha_of(label, 1.0, 1.5)
+    except InputError:
+        return False
+    return True
 
 
 @dataclass(frozen=True)

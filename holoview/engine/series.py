@@ -1,14 +1,19 @@
-"""The mean-phase series of a run and what follows from it: depths, fused depth, rates.
+"""The mean-phase series of a run: every frame's carrier values, and their joint estimate.
 
-Per frame, each demodulated peak gives its carrier value (a complex number whose phase
-is the peak's spatially averaged phase, paper section 4.2), its per-pixel phase noise
-and its flags; :class:`PhaseSeries` keeps them for every frame it is given (the whole
-run headless; the last :data:`LIVE_LENGTH` frames live). :func:`summarise` turns a
-series into depths per peak, the fused depth and the rates, through
-:func:`holoview.processing.trends.track_depth` (unwrapping in time, the aliasing check,
-noise-weighted fusion, line fits); :func:`pca_check` is the temporal PCA of peaks whose
-prefactors are known, for information. The live trends view and ``holoview process``
-both call these, so they agree on the same frames.
+Every frame gives one complex value per peak: the spectrum at the peak's exact carrier,
+whose phase is the peak's spatially averaged phase (paper section 4.2), measured by the
+carrier probe (:class:`holoview.engine.frame_core.CarrierCore`) without a full FFT, so
+that the series can take every frame of the camera while the maps take what time is
+left. :class:`PhaseSeries` keeps them with each value's phase noise and the frame's
+flags, for every frame it is given (the whole run headless; the last
+:data:`LIVE_LENGTH` frames live), and marks a peak whose mean phase steps past
+:data:`~holoview.processing.demodulate.PHASE_STEP_LIMIT` between two frames. With
+:meth:`PhaseSeries.track_joint` it also estimates every frame jointly over its peaks
+(:mod:`holoview.processing.joint_estimation`): one height and one reference-arm phase,
+each peak's 2 pi ambiguity resolved by all of them together, so a peak that aliases in
+time is unwrapped by the others instead of dropped. :mod:`holoview.engine.depth` turns
+a series into depths, the fused depth and the rates; the live trends view and
+``holoview process`` both call these, so they agree on the same frames.
 
 Times are in s from the series' first frame, phases in rad, depths in m.
 """
@@ -18,33 +23,40 @@ from __future__ import annotations
 import logging
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
 
 import numpy as np
 
 from holoview.errors import InputError
-from holoview.processing.demodulate import DemodResult
-from holoview.processing.pca import phase_pca
-from holoview.processing.trends import RateFit, track_depth, unwrap_in_time
+from holoview.processing.carrier_values import CarrierValues
+from holoview.processing.demodulate import PHASE_STEP_LIMIT
+from holoview.processing.joint_estimation import JointEstimator
+from holoview.processing.lattice_geometry import point_of
+from holoview.processing.trends import unwrap_in_time
 
 logger = logging.getLogger(__name__)
 
-__all__ = [
-    "COUNTED_FRAME_FLAGS",
-    "COUNTED_PEAK_FLAGS",
-    "DepthSummary",
-    "PhaseSeries",
-    "frame_time",
-    "pca_check",
-    "summarise",
-]
+__all__ = ["LIVE_LENGTH", "SERIES_FRAME_FLAGS", "PhaseSeries", "coupling_of", "frame_time"]
 
-#: Per-frame peak flags counted over a series.
-COUNTED_PEAK_FLAGS = ("phase_step", "low_amplitude", "overlap")
-#: Frame-level flags counted over a series.
-COUNTED_FRAME_FLAGS = ("nonfinite", "no_signal", "saturated")
+#: Frame flags a series counts (the carrier probe's).
+SERIES_FRAME_FLAGS = ("nonfinite", "saturated")
 #: Frames a live series keeps (10 minutes at 60 frames/s).
 LIVE_LENGTH = 36000
+
+_ARRAYS = ("_t", "_frames", "_values", "_noise", "_steps", "_jphase", "_jfused", "_jmargin")
+
+
+def coupling_of(label: str | None, n1: float | None, n2: float | None) -> int | None:
+    """How many times the reference-arm phase enters a peak: its lattice ``rf`` coordinate.
+
+    RF +1, every RB_j -1, every FB_j 0, 2RB1 -2 (DESIGN.md, "The lattice"); None for a
+    label the lattice does not place (a custom name, a ghost) or unknown indices.
+    """
+    if label is None or n1 is None or n2 is None:
+        return None
+    try:
+        return int(point_of(label, n1, n2)[1])
+    except InputError:
+        return None
 
 
 def frame_time(t_device: float, t_host: float) -> float:
@@ -53,23 +65,24 @@ def frame_time(t_device: float, t_host: float) -> float:
 
 
 class PhaseSeries:
-    """Per-frame carrier values, noise and flags of a fixed list of peaks.
+    """Per-frame carrier values, their phase noise and the frames' flags, for fixed peaks.
 
     Parameters
     ----------
     labels : sequence of str
-        The peaks, in the demodulator's order.
+        The peaks, in the probe's order.
     capacity : int
         Frames to allocate at first (the arrays grow by doubling).
     max_length : int, optional
-        Keep only the newest ``max_length`` frames (live); unbounded by default.
+        Keep only about the newest ``max_length`` frames (live; the oldest tenth goes
+        when it is full); unbounded by default.
 
     Attributes
     ----------
     frame_flags : dict of str to int
-        Frames flagged ``nonfinite``, ``no_signal``, ``saturated`` so far.
-    peak_flags : list of dict of str to int
-        Per peak, frames flagged ``phase_step``, ``low_amplitude``, ``overlap`` so far.
+        Frames flagged ``nonfinite`` (values NaN) and ``saturated`` so far.
+    step_counts : ndarray of int
+        Per peak, frames whose mean phase stepped past the limit so far.
     """
 
     def __init__(
@@ -84,10 +97,18 @@ class PhaseSeries:
         self._values = np.zeros((n, m), dtype=np.complex128)
         self._noise = np.zeros((n, m))
         self._steps = np.zeros((n, m), dtype=bool)
+        self._jphase = np.full((n, m), np.nan)
+        self._jfused = np.full((n, 2), np.nan)  # height (m), reference-arm phase (rad)
+        self._jmargin = np.full((n, 2), np.inf)  # height margin, flagged (1.0) or not
         self._n = 0
         self._t0: float | None = None
-        self.frame_flags = dict.fromkeys(COUNTED_FRAME_FLAGS, 0)
-        self.peak_flags = [dict.fromkeys(COUNTED_PEAK_FLAGS, 0) for _ in range(m)]
+        self._last = np.full(m, np.nan + 0j)
+        self._joint: JointEstimator | None = None
+        self._joint_columns: np.ndarray = np.zeros(0, dtype=np.int64)
+        self._joint_signs: np.ndarray = np.ones(0)
+        self._joint_couplings: np.ndarray = np.zeros(0)
+        self.frame_flags = dict.fromkeys(SERIES_FRAME_FLAGS, 0)
+        self.step_counts = np.zeros(m, dtype=np.int64)
 
     @classmethod
     def from_arrays(
@@ -100,7 +121,7 @@ class PhaseSeries:
         noise_rad: np.ndarray,
         phase_steps: np.ndarray,
     ) -> PhaseSeries:
-        """A series holding given per-frame arrays (times in s from 0; flag counts empty).
+        """A series holding given per-frame arrays (times in s from 0; no flags counted).
 
         Raises
         ------
@@ -125,6 +146,9 @@ class PhaseSeries:
         series._steps[:n] = phase_steps
         series._n = n
         series._t0 = 0.0
+        series.step_counts = np.count_nonzero(series._steps[:n], axis=0)
+        if n:
+            series._last = series._values[n - 1].copy()
         return series
 
     def __len__(self) -> int:
@@ -135,25 +159,28 @@ class PhaseSeries:
         if self._n < size:
             return
         if self.max_length is not None and size >= self.max_length:
-            keep = self.max_length // 2
-            for name in ("_t", "_frames", "_values", "_noise", "_steps"):
+            keep = self.max_length - max(1, self.max_length // 10)
+            for name in _ARRAYS:
                 array = getattr(self, name)
                 array[:keep] = array[self._n - keep : self._n]
             self._n = keep
             return
         grow = size if self.max_length is None else min(size, self.max_length - size)
-        for name in ("_t", "_frames", "_values", "_noise", "_steps"):
+        for name in _ARRAYS:
             array = getattr(self, name)
-            setattr(self, name, np.concatenate([array, np.zeros_like(array[:grow])]))
+            setattr(self, name, np.concatenate([array, np.full_like(array[:grow], np.nan)]))
 
-    def add(self, t_s: float, frame: int, result: DemodResult) -> None:
-        """Add one frame: its time (s, any origin), input index and demodulation.
+    def add(self, t_s: float, frame: int, measured: CarrierValues) -> None:
+        """Add one frame: its time (s, any origin), input index and carrier values.
 
-        A frame with no peak results (flagged ``nonfinite``) gets NaN values.
+        A frame flagged ``nonfinite`` has NaN values; the step of a peak is measured
+        against its last finite value.
         """
-        if result.peaks and len(result.peaks) != len(self.labels):
+        values = np.asarray(measured.values, dtype=np.complex128)
+        if values.shape != (len(self.labels),):
             raise InputError(
-                f"a frame of {len(result.peaks)} peaks added to a series of {len(self.labels)}"
+                f"a frame of {values.size} carrier values added to a series of "
+                f"{len(self.labels)} peaks"
             )
         self._make_room()
         if self._t0 is None:
@@ -161,21 +188,79 @@ class PhaseSeries:
         i = self._n
         self._t[i] = t_s - self._t0
         self._frames[i] = frame
-        for flag in result.flags:
+        self._values[i] = values
+        self._noise[i] = measured.noise
+        for flag in measured.flags:
             if flag in self.frame_flags:
                 self.frame_flags[flag] += 1
-        if not result.peaks:
-            self._values[i] = np.nan
-            self._noise[i] = np.nan
-            self._steps[i] = False
-        for j, r in enumerate(result.peaks):
-            self._values[i, j] = r.carrier_value
-            self._noise[i, j] = r.noise
-            self._steps[i, j] = "phase_step" in r.flags
-            for flag in r.flags:
-                if flag in self.peak_flags[j]:
-                    self.peak_flags[j][flag] += 1
+        with np.errstate(invalid="ignore"):
+            stepped = np.abs(np.angle(values * np.conj(self._last))) > PHASE_STEP_LIMIT
+        self._steps[i] = stepped
+        self.step_counts += stepped
+        finite = np.isfinite(values)
+        self._last[finite] = values[finite]
         self._n += 1
+        if self._joint is not None:
+            self._joint_update(i)
+
+    def track_joint(
+        self,
+        alphas: Sequence[float | None],
+        couplings: Sequence[int | None],
+        wavelength_m: float,
+        exclude: Sequence[bool] | None = None,
+    ) -> None:
+        """Estimate the frames jointly (:mod:`holoview.processing.joint_estimation`).
+
+        The peaks with an alpha and a coupling (and not in ``exclude``) give, frame by
+        frame, one height and one reference-arm phase, each peak's 2 pi ambiguity
+        resolved by all of them together: the frames so far now, the later ones as
+        they are added. Each value's phase noise is the probe's where it has one.
+
+        Parameters
+        ----------
+        alphas : sequence of (float or None)
+            Each peak's prefactor, signed as the peak was measured (negative: the peak
+            was measured on the twin whose phase falls with the height).
+        couplings : sequence of (int or None)
+            Each peak's coupling to the reference-arm phase (:func:`coupling_of`).
+        wavelength_m : float
+            Laser wavelength, m.
+        exclude : sequence of bool, optional
+            Peaks left out of the joint estimate.
+        """
+        skip = list(exclude) if exclude is not None else [False] * len(self.labels)
+        columns = [
+            j
+            for j, (a, c) in enumerate(zip(alphas, couplings, strict=True))
+            if a is not None and c is not None and not skip[j]
+        ]
+        self._joint = None
+        self._jphase[:] = np.nan
+        self._jfused[:] = np.nan
+        self._jmargin[:] = np.inf
+        if not columns:
+            return
+        self._joint_columns = np.array(columns, dtype=np.int64)
+        self._joint_signs = np.array([math.copysign(1.0, alphas[j]) for j in columns])
+        self._joint_couplings = np.array([couplings[j] for j in columns], dtype=np.float64)
+        self._joint = JointEstimator(
+            [abs(alphas[j]) for j in columns], [couplings[j] for j in columns], wavelength_m
+        )
+        for i in range(self._n):
+            self._joint_update(i)
+
+    def _joint_update(self, i: int) -> None:
+        assert self._joint is not None
+        cols = self._joint_columns
+        values = self._values[i, cols]
+        values = np.where(self._joint_signs < 0, np.conj(values), values)
+        sigma = self._noise[i, cols]
+        usable = bool(np.all(np.isfinite(sigma) & (sigma > 0)))
+        frame = self._joint.update(values, sigma if usable else None)
+        self._jphase[i, cols] = frame.phases
+        self._jfused[i] = (frame.height, frame.vibration)
+        self._jmargin[i] = (frame.margin, 1.0 if frame.flagged else 0.0)
 
     def truncate(self, n: int) -> None:
         """Keep the first ``n`` frames only (an interrupted run)."""
@@ -198,13 +283,45 @@ class PhaseSeries:
 
     @property
     def noise_rad(self) -> np.ndarray:
-        """Per-pixel phase noise of each map, rad (0 on a reference frame; a view)."""
+        """Phase noise of each carrier value, rad (a view; NaN where not estimated)."""
         return self._noise[: self._n]
 
     @property
     def phase_steps(self) -> np.ndarray:
         """Whether each peak's mean phase stepped past the limit at each frame (a view)."""
         return self._steps[: self._n]
+
+    @property
+    def joint_columns(self) -> tuple[int, ...]:
+        """The peaks in the joint estimate (:meth:`track_joint`); empty without one."""
+        return tuple(int(j) for j in self._joint_columns) if self._joint is not None else ()
+
+    def joint(self) -> tuple[np.ndarray, ...] | None:
+        """The joint estimate's per-frame arrays, or None without one.
+
+        Returns
+        -------
+        tuple of ndarray
+            ``phases`` (N, M), each joint peak's phase on its stored twin, rad, NaN for
+            the others; ``height`` (N,), m, and ``vibration`` (N,), the reference-arm
+            phase, rad, both since the series' first frame; ``margin`` (N,), noise
+            standard deviations; ``flagged`` (N,) bool: the ambiguity not resolved.
+        """
+        if self._joint is None:
+            return None
+        n = self._n
+        return (
+            self._jphase[:n],
+            self._jfused[:n, 0],
+            self._jfused[:n, 1],
+            self._jmargin[:n, 0],
+            self._jmargin[:n, 1] > 0,
+        )
+
+    @property
+    def joint_couplings(self) -> np.ndarray:
+        """The joint peaks' couplings to the reference-arm phase (empty without one)."""
+        return self._joint_couplings if self._joint is not None else np.zeros(0)
 
     def unwrapped(self) -> np.ndarray:
         """Mean phase per frame and peak, rad, unwrapped in time from the first frame.
@@ -215,167 +332,3 @@ class PhaseSeries:
             return np.where(np.isfinite(self.values), 0.0, np.nan).real
         phases = unwrap_in_time(self.values)
         return np.where(np.isfinite(self.values), phases, np.nan)
-
-
-@dataclass(frozen=True)
-class DepthSummary:
-    """Depths and rates of a series.
-
-    Attributes
-    ----------
-    times : ndarray, shape (N,)
-        Frame times, s.
-    phases : ndarray, shape (N, M)
-        Mean phase per peak, rad, unwrapped in time from 0 at the first frame, on the
-        twins the alphas' signs give (phase grows with the height).
-    heights : ndarray, shape (N, M)
-        Mean height change per peak, m (NaN for a peak without alpha).
-    fused, fused_spread : ndarray or None, shape (N,)
-        Noise-weighted mean height change of the fused peaks and their weighted rms
-        deviation from it, m.
-    fit : RateFit or None
-        Line through the fused depth (m/s).
-    peak_fits : tuple of (RateFit or None)
-        Line through each peak's depth.
-    noise_m : tuple of (float or None)
-        Each peak's depth noise about its line, m (its fusion weight's).
-    used : tuple of bool
-        Whether each peak is in the fused depth.
-    aliased : tuple of bool
-        Whether each peak's phase steps near pi per frame (aliasing in time).
-    note : str or None
-        Why there is no fused depth, when there is none.
-    """
-
-    times: np.ndarray
-    phases: np.ndarray
-    heights: np.ndarray
-    fused: np.ndarray | None
-    fused_spread: np.ndarray | None
-    fit: RateFit | None
-    peak_fits: tuple[RateFit | None, ...]
-    noise_m: tuple[float | None, ...]
-    used: tuple[bool, ...]
-    aliased: tuple[bool, ...]
-    note: str | None = None
-
-
-def summarise(
-    series: PhaseSeries,
-    alphas: Sequence[float | None],
-    wavelength_m: float,
-    *,
-    exclude: Sequence[bool] | None = None,
-) -> DepthSummary:
-    """Depth per peak, fused depth and rates of a series.
-
-    Parameters
-    ----------
-    series : PhaseSeries
-        The frames.
-    alphas : sequence of (float or None)
-        Each peak's prefactor, signed as the peak was demodulated (a negative alpha: the
-        peak's phase falls with the height; its phases are stored negated). None: no
-        height for that peak.
-    wavelength_m : float
-        Laser wavelength, m.
-    exclude : sequence of bool, optional
-        Peaks left out of the fused depth besides those aliasing in time.
-    """
-    n, m = series.values.shape
-    signs = np.array([-1.0 if (a is not None and a < 0) else 1.0 for a in alphas])
-    phases = series.unwrapped() * signs + 0.0  # no negative zeros in files
-    values = np.where(signs < 0, np.conj(series.values), series.values)
-    magnitudes = [abs(a) if a is not None else None for a in alphas]
-    heights = np.full((n, m), np.nan)
-    for j, a in enumerate(magnitudes):
-        if a is not None:
-            heights[:, j] = phases[:, j] * wavelength_m / (4 * np.pi * a)
-    known = [j for j, a in enumerate(magnitudes) if a is not None]
-    skip = list(exclude) if exclude is not None else [False] * m
-    fits: list[RateFit | None] = [None] * m
-    noise: list[float | None] = [None] * m
-    used = [False] * m
-    aliased = [False] * m
-    fused = spread = None
-    fit = None
-    note = None
-    if n >= 3 and known:
-        try:
-            track = track_depth(
-                values[:, known],
-                series.times,
-                [magnitudes[j] for j in known],
-                wavelength_m,
-                exclude=[skip[j] for j in known],
-            )
-        except InputError as exc:
-            note = f"no fused depth: {exc}"
-        else:
-            fused, spread, fit = track.fused.depth, track.fused.spread, track.fit
-            for k, j in enumerate(known):
-                fits[j] = track.peak_fits[k]
-                value = float(track.fused.noise[k])
-                noise[j] = value if math.isfinite(value) else None
-                used[j] = bool(track.fused.used[k])
-                aliased[j] = bool(track.aliasing.aliased[k])
-    elif known and any(not skip[j] for j in known):
-        chosen = [j for j in known if not skip[j]]
-        finite = np.isfinite(heights[:, chosen])
-        total = np.where(finite, heights[:, chosen], 0.0).sum(axis=1)
-        count = finite.sum(axis=1)
-        fused = np.where(count > 0, total / np.maximum(count, 1), np.nan)
-        used = [j in chosen for j in range(m)]
-    return DepthSummary(
-        times=series.times.copy(),
-        phases=phases,
-        heights=heights,
-        fused=fused,
-        fused_spread=spread,
-        fit=fit,
-        peak_fits=tuple(fits),
-        noise_m=tuple(noise),
-        used=tuple(used),
-        aliased=tuple(aliased),
-        note=note,
-    )
-
-
-def pca_check(
-    phases: np.ndarray, labels: Sequence[str], alphas: Sequence[float | None]
-) -> dict[str, object] | None:
-    """Temporal PCA of peaks with known prefactors, against the brightest with one.
-
-    Parameters
-    ----------
-    phases : ndarray, shape (N, M)
-        Unwrapped mean phases, rad (:attr:`DepthSummary.phases`).
-    labels : sequence of str
-        The peaks' labels, brightest first.
-    alphas : sequence of (float or None)
-        Their prefactors (the first known one fixes the PCA's scale).
-
-    Returns
-    -------
-    dict or None
-        ``confidence`` (the principal component's share), ``reference`` (label),
-        ``prefactors`` and ``explained`` per label, ``n_samples``; None with fewer than
-        two peaks or three frames, no known prefactor, or no motion to analyse.
-    """
-    known = [j for j, a in enumerate(alphas) if a is not None]
-    if len(labels) < 2 or phases.shape[0] < 3 or not known:
-        return None
-    try:
-        pca = phase_pca(phases)
-        reference = known[0]
-        prefactors = pca.prefactors(reference, abs(float(alphas[reference])))  # type: ignore[arg-type]
-    except InputError as exc:
-        logger.debug("no PCA: %s", exc)
-        return None
-    return {
-        "confidence": pca.confidence,
-        "reference": labels[reference],
-        "prefactors": dict(zip(labels, map(float, prefactors), strict=True)),
-        "explained": dict(zip(labels, map(float, pca.explained), strict=True)),
-        "n_samples": pca.n_samples,
-    }

@@ -3,8 +3,9 @@
 Everything here works on the per-frame carrier values a run kept
 (:class:`~holoview.headless.pipeline.RunData`), through :mod:`holoview.processing`:
 
-- auto mode: :func:`~holoview.processing.identify.identify_peaks` (temporal PCA with the
-  reference peak's label, de-aliasing from the phase steps) names every peak and gives
+- auto mode: :func:`~holoview.processing.identify.identify_peaks` (the carrier lattice,
+  with the temporal PCA confirming; off the lattice the PCA with the reference peak's
+  label, de-aliasing from the phase steps) names every peak and gives
   its prefactor: the model's for a family, its repeats and second orders, the PCA's
   for a peak the model does not explain (left out of the fusion, as weak ones are). A
   peak with a negative prefactor sits on the other twin and is flipped;
@@ -23,7 +24,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from holoview.engine.series import pca_check, summarise
+from holoview.engine.depth import pca_check, summarise
+from holoview.engine.series import coupling_of
 from holoview.errors import InputError
 from holoview.headless.inputs import Optics
 from holoview.headless.pipeline import RunData
@@ -33,7 +35,8 @@ from holoview.processing.trends import RateFit, check_aliasing
 
 logger = logging.getLogger(__name__)
 
-#: A peak flagged ``low_amplitude`` in more than this fraction of its frames gets the flag.
+#: A peak flagged ``low_amplitude`` in more than this fraction of the demodulated frames
+#: gets the flag.
 LOW_AMPLITUDE_SHARE = 0.5
 
 #: Peak kinds of the PCA whose model prefactor is trusted (and fused).
@@ -170,6 +173,8 @@ def _identify(
             reference_label=selection.reference_label,
             amplitudes=amplitudes,
             steps=steps,
+            carriers=None if selection.shape is None else [p.carrier for p in selection.peaks],
+            shape=selection.shape,
         )
     except InputError as exc:
         raise InputError(
@@ -232,7 +237,6 @@ def _pca_names(ident: Identification, flags: list[set[str]]) -> _Naming:
 
 def _run_flags(selection: Selection, data: RunData) -> list[set[str]]:
     """Detection flags of each peak, and those the run raised often enough."""
-    n = data.values.shape[0]
     flags: list[set[str]] = [set(p.flags) for p in selection.peaks]
     for j, p in enumerate(selection.peaks):
         if not p.amplitude >= 0:
@@ -240,7 +244,7 @@ def _run_flags(selection: Selection, data: RunData) -> list[set[str]]:
         counts = data.peak_flags[j]
         if counts["phase_step"]:
             flags[j].add("phase_step")
-        if counts["low_amplitude"] > LOW_AMPLITUDE_SHARE * n:
+        if counts["low_amplitude"] > LOW_AMPLITUDE_SHARE * data.demodulated:
             flags[j].add("low_amplitude")
     return flags
 
@@ -265,7 +269,10 @@ def analyse(data: RunData, selection: Selection, optics: Optics) -> Analysis:
     # a peak with a negative prefactor is stored on its other twin (DESIGN.md)
     signs = [-1.0 if (a is not None and a < 0) else 1.0 for a in signed]
     alphas = [abs(a) if a is not None else None for a in signed]
-    summary = summarise(data.series, signed, wavelength, exclude=[not f for f in fusable])
+    exclude = [not f for f in fusable]
+    couplings = [coupling_of(label, optics.n1, optics.n2) for label in labels]
+    data.series.track_joint(signed, couplings, wavelength, exclude=exclude)
+    summary = summarise(data.series, signed, wavelength, exclude=exclude)
     notes = list(selection.notes)
     if summary.note is not None:
         notes.append(summary.note)

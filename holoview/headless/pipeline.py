@@ -1,12 +1,16 @@
 """The streaming loop of a headless run: every frame through the engine's per-frame core.
 
-Per frame, :class:`holoview.engine.frame_core.FrameCore` (the live window's core too)
-demodulates the selected peaks, and each gives its complex carrier value (whose phase
-is the spatially averaged phase, paper section 4.2) and its phase noise, kept in a
-:class:`holoview.engine.series.PhaseSeries` for the whole run (a few numbers per frame
-and peak). Maps are not kept: with a
-:class:`MapSink` each frame's maps go to it at once, so memory stays bounded by
-the few frames the :class:`~holoview.headless.reader.FrameReader` reads ahead.
+Per frame, the carrier probe (:class:`holoview.engine.frame_core.CarrierCore`, what the
+live series worker runs) measures each selected peak's complex carrier value, whose
+phase is the spatially averaged phase (paper section 4.2), into a
+:class:`holoview.engine.series.PhaseSeries` kept for the whole run (a few numbers per
+frame and peak): that is all the trends and rates need, at a quarter of a full FFT's
+time. The maps (:class:`holoview.engine.frame_core.FrameCore`, the live maps' core)
+are demodulated where they are wanted: every frame with ``--maps``, else only the
+frames that measure the peaks' displacements and the last frame (with the one before
+it, so that a relative map is against the previous frame). With a :class:`MapSink`
+each frame's maps go to it at once, so memory stays bounded by the few frames the
+:class:`~holoview.headless.reader.FrameReader` reads ahead.
 
 Maps are at the demodulator's box resolution (pixel ``(p, q)`` at frame position
 ``(p rows / by, q cols / bx)``), float32, NaN where the pixel is not trusted (its
@@ -29,18 +33,28 @@ from typing import Protocol
 import numpy as np
 
 from holoview.engine.experiment import Experiment
-from holoview.engine.frame_core import Coregistration, FrameCore, fuse_maps, trusted_maps
+from holoview.engine.frame_core import (
+    CarrierCore,
+    Coregistration,
+    FrameCore,
+    fuse_maps,
+    trusted_maps,
+)
 from holoview.engine.series import PhaseSeries
 from holoview.errors import InputError
 from holoview.headless.inputs import InputFile
 from holoview.headless.reader import DEFAULT_DEPTH, FrameReader
 from holoview.processing.coregister import Displacement
+from holoview.processing.demodulate import DemodResult
 from holoview.processing.peaks import Peak
 
 logger = logging.getLogger(__name__)
 
 #: Frames, spread over a run, whose maps measure the peaks' displacements.
 COREGISTER_FRAMES = 200
+
+#: Per-frame map flags of a peak counted over the demodulated frames.
+MAP_PEAK_FLAGS = ("low_amplitude", "overlap")
 
 
 @dataclass(frozen=True)
@@ -99,9 +113,18 @@ class RunData:
     Attributes
     ----------
     series : PhaseSeries
-        Carrier values, noise, phase steps and flags of every processed frame
-        (:mod:`holoview.engine.series`); ``frames``, ``times``, ``values``,
-        ``noise_rad``, ``phase_steps``, ``frame_flags`` and ``peak_flags`` read it.
+        Carrier values, their noise, phase steps and flags of every processed frame
+        (:mod:`holoview.engine.series`); ``frames``, ``times``, ``values`` and
+        ``phase_steps`` read it.
+    map_noise_rad : ndarray of float, shape (N, M)
+        Per-pixel phase noise of each map, rad, on the frames demodulated (0 for a
+        reference frame, NaN where a frame was not demodulated).
+    map_flags : list of dict of str to int
+        Per peak, demodulated frames flagged ``low_amplitude`` or ``overlap``.
+    no_signal : int
+        Demodulated frames with no trusted pixel in any peak.
+    demodulated : int
+        Frames demodulated into maps.
     box_shape : tuple of int
         Shape of every map, ``(by, bx)``.
     radius : float
@@ -124,6 +147,8 @@ class RunData:
     """
 
     series: PhaseSeries
+    map_noise_rad: np.ndarray
+    map_flags: list[dict[str, int]]
     box_shape: tuple[int, int]
     radius: float
     last_maps: list[np.ndarray | None] = field(default_factory=list)
@@ -135,6 +160,8 @@ class RunData:
     demod_seconds: float = 0.0
     write_seconds: float = 0.0
     wall_seconds: float = 0.0
+    no_signal: int = 0
+    demodulated: int = 0
 
     @property
     def frames(self) -> np.ndarray:
@@ -153,8 +180,8 @@ class RunData:
 
     @property
     def noise_rad(self) -> np.ndarray:
-        """Per-pixel phase noise of each map, rad (0 for a reference frame), shape (N, M)."""
-        return self.series.noise_rad
+        """Per-pixel phase noise of each map, rad (NaN where not demodulated), shape (N, M)."""
+        return self.map_noise_rad[: len(self.series)]
 
     @property
     def phase_steps(self) -> np.ndarray:
@@ -163,13 +190,14 @@ class RunData:
 
     @property
     def frame_flags(self) -> dict[str, int]:
-        """Frames flagged ``nonfinite``, ``no_signal``, ``saturated``."""
-        return self.series.frame_flags
+        """Frames flagged ``nonfinite`` and ``saturated`` (all), ``no_signal`` (demodulated)."""
+        return {**self.series.frame_flags, "no_signal": self.no_signal}
 
     @property
     def peak_flags(self) -> list[dict[str, int]]:
-        """Per peak, frames flagged ``phase_step``, ``low_amplitude``, ``overlap``."""
-        return self.series.peak_flags
+        """Per peak, frames flagged ``phase_step`` (all), ``low_amplitude``, ``overlap``."""
+        steps = self.series.step_counts
+        return [{"phase_step": int(steps[j]), **f} for j, f in enumerate(self.map_flags)]
 
 
 def fuse_frame(
@@ -232,6 +260,20 @@ def make_core(
     return core
 
 
+def _maps_wanted(n: int, every: int, relative: bool) -> np.ndarray:
+    """Positions demodulated without a sink: displacement frames and the last one.
+
+    In relative mode the frame before each is demodulated too, so that every map is
+    against the previous frame.
+    """
+    wanted = np.zeros(n, dtype=bool)
+    wanted[::every] = True
+    wanted[n - 1] = True
+    if relative:
+        wanted[:-1] |= wanted[1:]
+    return wanted
+
+
 def demodulate_frames(
     source: InputFile,
     frames: range,
@@ -242,7 +284,7 @@ def demodulate_frames(
     read_ahead: int = DEFAULT_DEPTH,
     progress: Callable[[int], None] | None = None,
 ) -> RunData:
-    """Stream ``frames`` of ``source`` through the per-frame ``core``; keep the series.
+    """Stream ``frames`` of ``source``: the carrier values of each, maps where wanted.
 
     Parameters
     ----------
@@ -253,9 +295,10 @@ def demodulate_frames(
     times : ndarray, shape (len(frames),)
         Their times, s.
     core : FrameCore
-        Built for the selected peaks (its reference starts at the first frame).
+        Built for the selected peaks (its reference starts at the first frame); the
+        carrier probe measures the same peaks.
     sink : MapSink, optional
-        Receives every frame's maps.
+        Receives every frame's maps (every frame is then demodulated).
     read_ahead : int
         Frames read ahead.
     progress : callable, optional
@@ -271,11 +314,16 @@ def demodulate_frames(
     demodulator = core.build()
     assert demodulator is not None
     n, m = len(frames), len(demodulator.peaks)
+    carriers = CarrierCore(core.frame_shape, core.saturation)
+    carriers.configure(demodulator.peaks)
     series = PhaseSeries([p.label or f"P{j}" for j, p in enumerate(demodulator.peaks)], n)
     coregistration = Coregistration()
     every = max(1, n // COREGISTER_FRAMES)
+    wanted = _maps_wanted(n, every, demodulator.reference == "relative")
     data = RunData(
         series=series,
+        map_noise_rad=np.full((n, m), np.nan),
+        map_flags=[dict.fromkeys(MAP_PEAK_FLAGS, 0) for _ in range(m)],
         box_shape=demodulator.box_shape,
         radius=demodulator.radius,
         last_maps=[None] * m,
@@ -289,17 +337,20 @@ def demodulate_frames(
         with reader:
             for position, (index, frame) in enumerate(reader):
                 t0 = time.perf_counter()
-                result = core.process(frame)
-                assert result is not None
-                measure = position % every == 0
-                wanted = result.peaks and (measure or sink is not None)
-                maps = trusted_maps(result) if wanted else []
-                if maps and measure:
-                    coregistration.add(result, maps)
+                measured = carriers.measure(frame)
+                assert measured is not None
+                series.add(float(times[position]), index, measured)
+                result = None
+                if sink is not None or wanted[position]:
+                    result = core.process(frame)
+                    assert result is not None
+                    _count(data, position, result)
+                maps = trusted_maps(result) if result is not None and result.peaks else []
+                if maps and position % every == 0:
+                    coregistration.add(result, maps)  # type: ignore[arg-type]
                 t1 = time.perf_counter()
                 data.demod_seconds += t1 - t0
-                series.add(float(times[position]), index, result)
-                if result.peaks:
+                if maps:
                     last, data.last_frame = result, index
                     if sink is not None:
                         for j, values_map in enumerate(maps):
@@ -322,3 +373,15 @@ def demodulate_frames(
     if not np.any(np.isfinite(data.values)):
         raise InputError("no frame could be demodulated (every frame is NaN or infinite)")
     return data
+
+
+def _count(data: RunData, position: int, result: DemodResult) -> None:
+    """Keep a demodulated frame's map noise and count its map flags."""
+    data.demodulated += 1
+    if "no_signal" in result.flags:
+        data.no_signal += 1
+    for j, r in enumerate(result.peaks):
+        data.map_noise_rad[position, j] = r.noise
+        for flag in r.flags:
+            if flag in data.map_flags[j]:
+                data.map_flags[j][flag] += 1

@@ -24,7 +24,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
-from holoview.engine.experiment import Experiment, check_carrier, check_label
+from holoview.engine.experiment import Experiment, check_carrier, check_label, is_model_label
 from holoview.engine.resolve import SNAP_BINS, snap
 from holoview.errors import InputError
 from holoview.headless.inputs import Optics
@@ -58,6 +58,8 @@ class Selection:
         The model labelling (an experiment with two or more of the model's families).
     notes : tuple of str
         What a reader of the results should know.
+    shape : tuple of int or None
+        Auto mode: the frame ``(rows, cols)``, for the lattice to name the peaks.
     """
 
     mode: str
@@ -67,6 +69,7 @@ class Selection:
     reference_label: str = "RB1"
     labelling: ModelLabelling | None = None
     notes: tuple[str, ...] = field(default_factory=tuple)
+    shape: tuple[int, int] | None = None
 
 
 def parse_assignment(text: str, option: str) -> tuple[str, Carrier]:
@@ -106,6 +109,8 @@ def select_from_experiment(
     if source != "recording":
         resolution.strict()
     for peak in resolution.peaks:
+        if peak.alpha is None and is_model_label(peak.label or ""):
+            experiment.require("n1", "n2")
         if peak.alpha is None:
             raise InputError(
                 f"peak {peak.label}: not one of the model's families (RF, RB1, FB1, ...) and "
@@ -169,7 +174,13 @@ def select_auto(
             "heights have the wrong sign, give --anchor RB1=fx,fy on the other twin",
         )
     return Selection(
-        "auto", tuple(peaks), "auto", reference=reference, reference_label=label, notes=notes
+        "auto",
+        tuple(peaks),
+        "auto",
+        reference=reference,
+        reference_label=label,
+        notes=notes,
+        shape=(int(shape[0]), int(shape[1])),
     )
 
 

@@ -1,15 +1,15 @@
-"""What the live demodulation worker does with each frame: the engine's core, on a schedule.
+"""What the live maps worker does with the newest frame: the engine's core, on a schedule.
 
 Per frame: the display spectrum (at most :data:`SPECTRUM_HZ`), peak detection (at most
 :data:`PEAKS_HZ`; carriers drift slowly; each of the two at most a :data:`SIDE_SHARE`
 of the worker's time), the experiment's labels snapped to the detected peaks and the
 model's families added (:func:`holoview.engine.resolve.resolve_peaks`), the
 demodulated map of every peak (:class:`holoview.engine.frame_core.FrameCore`), their
-displacements (measured at most :data:`COREGISTER_HZ`), the fused map, and the
-mean-phase series with depths and rates (:mod:`holoview.engine.series`, summarised at
-most :data:`TREND_HZ`). Every number comes from the engine, the same code
-``holoview process`` runs; this module only decides when to call what, and packs a
-:class:`LiveResult` for the window.
+displacements (measured at most :data:`COREGISTER_HZ`) and the fused map. The
+demodulator's peaks (:attr:`LivePipeline.peaks`) go to the series worker, which takes
+every frame (:mod:`holoview.live.trends`). Every number comes from the engine, the same
+code ``holoview process`` runs; this module only decides when to call what, and packs
+a :class:`LiveResult` for the window.
 """
 
 from __future__ import annotations
@@ -31,15 +31,7 @@ from holoview.engine.frame_core import (
     trusted_maps,
 )
 from holoview.engine.resolve import Resolution, resolve_peaks
-from holoview.engine.series import (
-    LIVE_LENGTH,
-    DepthSummary,
-    PhaseSeries,
-    frame_time,
-    pca_check,
-    summarise,
-)
-from holoview.errors import HoloviewError, InputError
+from holoview.errors import InputError
 from holoview.processing.demodulate import Demodulator
 from holoview.processing.peaks import Peak, find_peaks
 from holoview.processing.spectrum import display_spectrum
@@ -57,8 +49,6 @@ PEAKS_HZ = 1.0
 SIDE_SHARE = 0.1
 #: Largest side of the spectrum image handed to the window (block maxima beyond).
 SPECTRUM_DISPLAY_MAX = 512
-#: Highest rate at which depths, rate and PCA are recomputed from the series, Hz.
-TREND_HZ = 2.0
 #: Highest rate at which maps are added to the displacement estimate, Hz.
 COREGISTER_HZ = 2.0
 
@@ -90,13 +80,6 @@ class LiveResult:
     phases_rad: dict[str, np.ndarray] = field(default_factory=dict)
     shifts_px: dict[str, tuple[float, float]] = field(default_factory=dict)
     grid_of: str | None = None
-    trend_times_s: np.ndarray | None = None
-    trend_depths_m: dict[str, np.ndarray] = field(default_factory=dict)
-    rate_m_per_s: float | None = None
-    rate_stderr_m_per_s: float | None = None
-    rate_fit: tuple[list[float], list[float]] | None = None
-    pca_confidence: float | None = None
-    pca_prefactors: dict[str, float] | None = None
     notes: tuple[str, ...] = ()
 
 
@@ -119,51 +102,11 @@ def block_max(image: np.ndarray, limit: int) -> np.ndarray:
     return out
 
 
-@dataclass(frozen=True)
-class TrendSummary:
-    """What the trends view draws: depth series by label (and ``fused``), rate, PCA."""
-
-    times_s: np.ndarray
-    depths_m: dict[str, np.ndarray]
-    rate_m_per_s: float | None
-    rate_stderr_m_per_s: float | None
-    rate_fit: tuple[list[float], list[float]] | None
-    pca_confidence: float | None = None
-    pca_prefactors: dict[str, float] | None = None
-
-
-def trend_summary(
-    summary: DepthSummary, labels: tuple[str, ...], pca: dict[str, object] | None
-) -> TrendSummary:
-    """Pack a series' :class:`~holoview.engine.series.DepthSummary` for the trends view."""
-    depths = {
-        k: summary.heights[:, j]
-        for j, k in enumerate(labels)
-        if np.any(np.isfinite(summary.heights[:, j]))
-    }
-    fit = summary.fit
-    line = None
-    if summary.fused is not None:
-        depths["fused"] = summary.fused
-    if fit is not None:
-        ends = [float(summary.times[0]), float(summary.times[-1])]
-        line = (ends, [fit.intercept + fit.rate * t for t in ends])
-    return TrendSummary(
-        times_s=summary.times,
-        depths_m=depths,
-        rate_m_per_s=None if fit is None else fit.rate,
-        rate_stderr_m_per_s=None if fit is None else fit.stderr,
-        rate_fit=line,
-        pca_confidence=None if pca is None else float(pca["confidence"]),  # type: ignore[arg-type]
-        pca_prefactors=None if pca is None else dict(pca["prefactors"]),  # type: ignore[call-overload]
-    )
-
-
 class LivePipeline:
     """Turn frames into :class:`LiveResult` objects; used by one thread at a time.
 
-    Commands (:meth:`apply`) change the experiment, turn the PCA on or off, or restart
-    the series (and the absolute reference) from the next frame.
+    Commands (:meth:`apply`) change the experiment, or restart the absolute reference
+    from the next frame.
 
     Parameters
     ----------
@@ -183,13 +126,11 @@ class LivePipeline:
     ) -> None:
         self.experiment = experiment
         self.frame_shape = frame_shape
-        self.pca = False
         #: Detect peaks inside :meth:`process` when due; the live worker turns this off
         #: and feeds :meth:`set_peaks` from its own peak thread instead (the first
         #: detection is always made inline, so the first frame is demodulated at the
         #: detected carriers, as ``holoview process`` does).
         self.detect_inline = True
-        self.series: PhaseSeries | None = None
         self._seq = 0
         self._spectrum: np.ndarray | None = None
         self._spectrum_at = -math.inf
@@ -200,14 +141,12 @@ class LivePipeline:
         self._core = FrameCore(frame_shape, experiment, saturation=saturation)
         self._coregistration = Coregistration()
         self._coregistered_at = -math.inf
-        self._trend: TrendSummary | None = None
-        self._trend_at = -math.inf
         self._resolution_key: tuple | None = None
         self._resolution = Resolution(peaks=())
 
     # ---- commands ----------------------------------------------------------
     def apply(self, name: str, value: object) -> None:
-        """Apply a command: ``experiment`` (new settings), ``pca`` (bool), ``reset``."""
+        """Apply a command: ``experiment`` (new settings) or ``reset``."""
         if name == "experiment":
             if not isinstance(value, Experiment):
                 raise InputError(f"experiment command needs an Experiment, not {value!r}")
@@ -215,11 +154,7 @@ class LivePipeline:
             self.experiment = value
             if radius_changed:
                 self._peaks_at = -math.inf  # detect again with the new radius
-        elif name == "pca":
-            self.pca = bool(value)
         elif name == "reset":
-            self.series = None
-            self._trend = None
             self._core.reset_reference()
         else:
             raise InputError(f"unknown command {name!r}")
@@ -228,6 +163,16 @@ class LivePipeline:
     def demodulator(self) -> Demodulator | None:
         """The demodulator in use (None before the first frame with peaks)."""
         return self._core.demodulator
+
+    @property
+    def peaks(self) -> tuple[Peak, ...]:
+        """The demodulator's peaks: labelled, with alpha where known (the series' peaks).
+
+        The same tuple until the demodulator is rebuilt (a label or alpha changed, a
+        carrier moved a whole bin).
+        """
+        demod = self._core.demodulator
+        return () if demod is None else demod.peaks
 
     # ---- peak detection ----------------------------------------------------
     def peaks_due(self, now: float | None = None) -> bool:
@@ -317,12 +262,7 @@ class LivePipeline:
                 for name, d in zip(labels, displacements, strict=True):
                     if d.measured:
                         shifts[name] = (d.shift[0] * step[0], d.shift[1] * step[1])
-            self._add_to_series(labels, demod, meta)
-            if now - self._trend_at >= 1.0 / TREND_HZ:
-                self._trend_at = now
-                self._trend = self._summarise()
         self._seq += 1
-        trend = self._trend if demod is not None else None
         return LiveResult(
             seq=self._seq,
             frame=frame,
@@ -339,44 +279,5 @@ class LivePipeline:
             phases_rad=phases,
             shifts_px=shifts,
             grid_of=grid_of,
-            trend_times_s=None if trend is None else trend.times_s,
-            trend_depths_m={} if trend is None else trend.depths_m,
-            rate_m_per_s=None if trend is None else trend.rate_m_per_s,
-            rate_stderr_m_per_s=None if trend is None else trend.rate_stderr_m_per_s,
-            rate_fit=None if trend is None else trend.rate_fit,
-            pca_confidence=None if trend is None else trend.pca_confidence,
-            pca_prefactors=None if trend is None else trend.pca_prefactors,
             notes=resolution.notes,
         )
-
-    def _add_to_series(self, labels: tuple[str, ...], demod, meta: FrameMeta) -> None:
-        """Add the frame to the series; a new series starts whenever the peaks change."""
-        if self.series is None or self.series.labels != labels:
-            self.series = PhaseSeries(labels, max_length=LIVE_LENGTH)
-            self._trend = None
-        self.series.add(frame_time(meta.t_device, meta.t_host), meta.frame_id, demod)
-
-    def summary(self) -> DepthSummary | None:
-        """Depths and rates of the series so far (None before a wavelength or a frame)."""
-        series, wavelength = self.series, self.experiment.wavelength_m
-        demod = self.demodulator
-        if series is None or wavelength is None or demod is None or len(series) == 0:
-            return None
-        return summarise(series, [p.alpha for p in demod.peaks], wavelength)
-
-    def _summarise(self) -> TrendSummary | None:
-        """The trends view's summary; None before three frames of the current peaks."""
-        if self.series is None or len(self.series) < 3:
-            return None
-        try:
-            summary = self.summary()
-        except HoloviewError as exc:
-            logger.debug("trends not available: %s", exc)
-            return None
-        demod = self.demodulator
-        if summary is None or demod is None:
-            return None
-        pca = None
-        if self.pca:
-            pca = pca_check(summary.phases, self.series.labels, [p.alpha for p in demod.peaks])
-        return trend_summary(summary, self.series.labels, pca)

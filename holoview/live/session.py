@@ -15,7 +15,7 @@ import time
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -24,11 +24,12 @@ from holoview.acquire.pixel_formats import PIXEL_FORMATS
 from holoview.acquire.recorder import Recorder
 from holoview.acquire.ring import FrameRing
 from holoview.acquire.source import Source
+from holoview.engine.depth import DepthSummary
 from holoview.engine.experiment import Experiment
-from holoview.engine.series import DepthSummary
 from holoview.errors import HoloviewError, InputError
 from holoview.live.pipeline import LivePipeline, LiveResult
-from holoview.live.worker import DemodWorker
+from holoview.live.trends import SeriesPipeline, TrendSummary
+from holoview.live.worker import DemodWorker, SeriesWorker
 
 logger = logging.getLogger(__name__)
 
@@ -36,6 +37,28 @@ __all__ = ["LiveResult", "LiveSession", "RecordRequest", "RecordingProgress", "d
 
 #: Memory the frame ring may take, bytes (it holds at least 8 frames).
 RING_BYTES = 256 * 2**20
+
+
+class LiveRates(NamedTuple):
+    """Rates and counts the status bar shows.
+
+    Attributes
+    ----------
+    camera_fps, series_fps, maps_fps : float
+        Frames per second the camera delivered, the series measured, the maps worker
+        demodulated.
+    series_missed : int
+        Frames the ring overwrote before the series could take them (the series is
+        meant to take every frame).
+    dropped : int
+        Frames lost before the host (transport) and frames the recorder missed.
+    """
+
+    camera_fps: float
+    series_fps: float
+    maps_fps: float
+    series_missed: int
+    dropped: int
 
 
 @dataclass(frozen=True)
@@ -115,21 +138,49 @@ class LiveSession:
             self.source.close()
             raise
 
+    @classmethod
+    def open(
+        cls,
+        spec: str,
+        experiment: Experiment,
+        *,
+        source_options: Mapping[str, Any] | None = None,
+        every_frame: bool = False,
+    ) -> LiveSession:
+        """Open ``spec`` and start streaming and processing (closed again if starting fails).
+
+        Raises
+        ------
+        HoloviewError
+            The source cannot be opened or started.
+        """
+        session = cls(spec, experiment, source_options=source_options, every_frame=every_frame)
+        try:
+            session.start()
+        except BaseException:
+            session.close()
+            raise
+        return session
+
     def _build(self) -> None:
-        """Make the ring, camera thread, pipeline and worker for the source as it is now."""
+        """Make the ring, camera thread, pipelines and workers for the source as it is now."""
         shape = self.source.frame_shape
         frame_bytes = shape[0] * shape[1] * np.dtype(self.source.dtype).itemsize
         capacity = int(np.clip(RING_BYTES // frame_bytes, 8, 512))
         self.ring = FrameRing(capacity, shape, self.source.dtype)
         self.camera = CameraThread(self.source, self.ring)
-        self.pipeline = LivePipeline(self.experiment, shape, saturation=self.saturation_value)
+        saturation = self.saturation_value
+        self.pipeline = LivePipeline(self.experiment, shape, saturation=saturation)
         self.worker = DemodWorker(self.ring, self.pipeline, every_frame=self.every_frame)
+        self.series = SeriesPipeline(shape, saturation=saturation)
+        self.series_worker = SeriesWorker(self.ring, self.series, self.worker)
 
     # ---- life cycle --------------------------------------------------------
     def start(self) -> None:
         """Start streaming and processing."""
         self.camera.start()
         self.worker.start()
+        self.series_worker.start()
 
     def close(self) -> None:
         """Stop recording, the camera and the worker; join them; close the source."""
@@ -138,6 +189,7 @@ class LiveSession:
         self._closed = True
         self.stop_recording()
         self.camera.stop()
+        self.series_worker.stop()
         self.worker.stop()
         try:
             self.source.close()
@@ -204,6 +256,7 @@ class LiveSession:
             return self.source.set(name, value)
         self.stop_recording()
         self.camera.stop()
+        self.series_worker.stop()
         self.worker.stop()
         try:
             readback = self.source.set(name, value)
@@ -225,32 +278,43 @@ class LiveSession:
 
     def set_pca(self, on: bool) -> None:
         """Turn the PCA identification of the trends on or off."""
-        self.worker.post("pca", bool(on))
+        self.series_worker.post("pca", bool(on))
 
     def reset_trends(self) -> None:
-        """Restart the depth series from the next frame."""
+        """Restart the depth series and the maps' absolute reference from the next frame."""
+        self.series_worker.post("reset")
         self.worker.post("reset")
 
     # ---- what the window reads --------------------------------------------
     def latest(self) -> LiveResult | None:
-        """The newest processed result, or None."""
+        """The newest maps result, or None."""
         return self.worker.latest()
 
-    def rates(self) -> tuple[float, float, int]:
-        """Return (camera fps, processing fps, frames dropped: transport + recorder overflow)."""
-        status = self.worker.status()
-        dropped = status.transport_lost
+    def trend(self) -> TrendSummary | None:
+        """The newest summary of the series (depths, fused depth, rate), or None."""
+        return self.series_worker.latest()
+
+    def rates(self) -> LiveRates:
+        """Camera, series and maps rates, frames the series missed, frames dropped."""
+        series = self.series_worker.status()
+        dropped = series.transport_lost
         if self.recorder is not None:
             dropped += self.recorder.status().dropped
-        return self.camera.rate_hz(), self.worker.rate_hz(), dropped
+        return LiveRates(
+            camera_fps=self.camera.rate_hz(),
+            series_fps=self.series_worker.rate_hz(),
+            maps_fps=self.worker.rate_hz(),
+            series_missed=series.dropped,
+            dropped=dropped,
+        )
 
     def summary(self) -> DepthSummary | None:
-        """Depths and rates of the series so far; call once the worker is stopped."""
-        return self.pipeline.summary()
+        """Depths and rates of the series so far; call once the workers are stopped."""
+        return self.series.summary()
 
     def drain_messages(self) -> list[str]:
-        """Problems met by the worker, the camera or the recorder since the last call."""
-        out = self.worker.drain_messages() + self._messages
+        """Problems met by the workers, the camera or the recorder since the last call."""
+        out = self.worker.drain_messages() + self.series_worker.drain_messages() + self._messages
         self._messages = []
         return out
 

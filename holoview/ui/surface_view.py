@@ -368,12 +368,6 @@ class SurfaceView(QWidget):
             self.plots[name].addItem(mirror)
             self._mirrors[name] = mirror
 
-    def set_line(self, start: tuple[float, float], end: tuple[float, float]) -> None:
-        """Put the profile line from ``start`` to ``end``, ``(x, y)`` fractions of the map."""
-        self._line = (start, end)
-        self._place_line_roi()
-        self._update_profile()
-
     def _place_line_roi(self) -> None:
         if self.line_roi is None or not self._names or self._names[0] not in self._data:
             return

@@ -59,6 +59,8 @@ def run_data(steps: list[list[bool]], shifts: list[tuple[float, float]]) -> RunD
     )
     return RunData(
         series=series,
+        map_noise_rad=np.full((n, m), 0.1),
+        map_flags=[{"low_amplitude": 0, "overlap": 0} for _ in range(m)],
         box_shape=(32, 32),
         radius=0.1,
         displacements=[Displacement(s, (0.01, 0.01), True, 50) for s in shifts],

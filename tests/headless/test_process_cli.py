@@ -83,10 +83,11 @@ def test_labels_mode_trends_rates_and_summary(
         to_height = evaporation.wavelength / (4 * np.pi * peak["alpha"])
         assert 0 < peak["map_noise_rad"] < 1
         assert peak["map_noise_m"] == pytest.approx(peak["map_noise_rad"] * to_height)
-    # RB3 steps 3.5 rad per frame at 20 frames/s: flagged and left out of the fusion
+    # RB3 steps 3.5 rad per frame at 20 frames/s: flagged, and unwrapped by the others
     if "RB3" in summary["peaks"]:
-        assert "aliased_in_time" in summary["peaks"]["RB3"]["flags"]
-        assert not summary["peaks"]["RB3"]["used_in_fused"]
+        rb3 = summary["peaks"]["RB3"]
+        assert "aliased_in_time" in rb3["flags"] and rb3["used_in_fused"]
+        assert rb3["rate_m_per_s"] == pytest.approx(evaporation.rate, rel=0.02)
     assert set(summary) >= {
         "format",
         "holoview_version",
@@ -434,6 +435,18 @@ def test_quiet_prints_nothing(
     assert status == 0
     assert out == "" and err == ""
     assert (tmp_path / "q" / "trends.csv").is_file()
+
+
+def test_labels_on_a_file_without_optics_ask_for_the_fluid(
+    evaporation: Simulated, tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    with h5py.File(evaporation.path, "r") as f:
+        tifffile.imwrite(tmp_path / "stack.tif", f["frames"][:5], photometric="minisblack")
+    argv = ["process", str(tmp_path / "stack.tif"), "--out", str(tmp_path / "o")]
+    argv += ["--wavelength-nm", "532", "--fps", "20", *evaporation.label_args("RB1", "FB1")]
+    status, _, err = run_cli(argv, capsys)
+    assert status == 2
+    assert "give --n2 or --fluid" in err and len(err.strip().splitlines()) == 1
 
 
 def test_background_hologram_by_index_or_file(

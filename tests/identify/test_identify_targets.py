@@ -22,7 +22,9 @@ from holoview.processing.identify import PeakKind, identify_peaks
 from holoview.processing.labelling import label_peaks
 from holoview.processing.pca import spatial_phase_pca
 from holoview.processing.peaks import find_peaks
-from holoview.processing.trends import check_aliasing, compare_rate, track_depth, unwrap_in_time
+from holoview.processing.phase_series import check_aliasing, unwrap_in_time
+from holoview.processing.rates import compare_rate
+from holoview.processing.trends import track_depth
 
 SHAPE = (128, 128)
 INJECTION_AREA = 70.6e-4  # m^2

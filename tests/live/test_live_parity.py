@@ -1,9 +1,10 @@
 """One engine: the live session and ``holoview process`` give the same numbers on the same frames.
 
 A simulated recording (which carries its true experiment) goes through the live engine
-(no Qt: a replay source, the camera thread, the ring, the worker taking every frame)
-and through ``holoview process`` with no peak options; the per-frame carrier values,
-the mean heights per peak and fused, and the rates must agree to float32 rounding.
+(no Qt: a replay source, the camera thread, the ring, the series worker taking every
+frame) and through ``holoview process`` with no peak options; the per-frame carrier
+values, the mean heights per peak and fused, and the rates must agree to float32
+rounding.
 """
 
 from __future__ import annotations
@@ -15,7 +16,7 @@ import numpy as np
 import pytest
 
 from holoview.cli import main
-from holoview.engine.series import summarise
+from holoview.engine.depth import summarise
 from holoview.headless.run import PeakChoice, process_file
 from holoview.live import pipeline as live_pipeline
 from holoview.live.session import LiveSession
@@ -66,9 +67,10 @@ def test_live_engine_and_process_agree_on_every_frame(
     )
     assert outcome.selection.source == "recording"
     session = _live_run(recording, outcome.experiment, monkeypatch)
-    status = session.worker.status()
-    assert status.dropped == 0 and status.skipped == 0
-    live, headless = session.pipeline.series, outcome.data.series
+    for worker in (session.worker, session.series_worker):
+        status = worker.status()
+        assert status.dropped == 0 and status.skipped == 0 and status.read == 60
+    live, headless = session.series.series, outcome.data.series
     assert live is not None and live.labels == headless.labels
     assert {"RB1", "RF", "FB1", "RB2"} <= set(live.labels)
     np.testing.assert_array_equal(live.frames, headless.frames)

@@ -1,4 +1,4 @@
-"""Windows and their automatic radius; unwrapping; heights, displacement and fusion."""
+"""Windows and their automatic radius; unwrapping; heights and fusion."""
 
 from __future__ import annotations
 
@@ -9,13 +9,11 @@ from processing_synth import BENCH, WAVELENGTH, bench_frame, bump
 from holoview.errors import InputError
 from holoview.processing.demodulate import Demodulator
 from holoview.processing.heights import (
-    estimate_displacement,
     fuse,
     height_to_phase,
     phase_to_height,
     plain_average,
     rms_spread,
-    shift_map,
 )
 from holoview.processing.peaks import Peak
 from holoview.processing.resample import box_positions, resample_mask, upsample
@@ -202,21 +200,6 @@ def test_phase_to_height_and_back() -> None:
         phase_to_height(phase, 0.0, WAVELENGTH)
     with pytest.raises(InputError, match="wavelength"):
         phase_to_height(phase, 1.0, -1.0)
-
-
-def test_displacement_is_found_to_a_fraction_of_a_pixel() -> None:
-    y, x = np.mgrid[:80, :96].astype(float)
-    surface = lambda dy, dx: np.exp(-((x - 50 - dx) ** 2 + (y - 40 - dy) ** 2) / (2 * 6**2))  # noqa: E731
-    reference = surface(0, 0)
-    moving = surface(1.3, -2.6)
-    dy, dx = estimate_displacement(reference, moving)
-    assert (dy, dx) == pytest.approx((1.3, -2.6), abs=0.1)
-    back = shift_map(moving, (-dy, -dx))
-    assert np.abs(back - reference).max() < 0.05
-    with pytest.raises(InputError, match="flat"):
-        estimate_displacement(reference, np.zeros_like(reference))
-    with pytest.raises(InputError, match="mask"):
-        estimate_displacement(reference, moving, mask=np.zeros_like(reference, bool))
 
 
 def test_fused_map_beats_the_best_single_peak_on_simulated_frames() -> None:

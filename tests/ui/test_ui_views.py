@@ -9,7 +9,7 @@ import pytest
 
 pytest.importorskip("pyqtgraph")
 
-from holoview.processing.trends import format_rate
+from holoview.processing.rates import format_rate
 from holoview.ui.hologram_view import HologramView
 from holoview.ui.spectrum_view import CLEAR, SpectrumView
 from holoview.ui.surface_view import FUSED, SurfaceView, sample_line

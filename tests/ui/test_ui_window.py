@@ -183,7 +183,7 @@ def test_find_sources_runs_on_a_thread_and_offers_sim(qtbot, open_windows, tmp_p
     window = _window(qtbot, open_windows, tmp_path, "sim", autostart=False)
     window.find_sources()
     assert not window.source_panel.refresh_button.isEnabled()
-    qtbot.waitUntil(lambda: window._discovery is None, timeout=20000)
+    qtbot.waitUntil(lambda: not window.discovery.busy, timeout=20000)
     items = [
         window.source_panel.source_box.itemText(i)
         for i in range(window.source_panel.source_box.count())
@@ -338,3 +338,18 @@ def test_opening_a_slow_source_does_not_freeze_the_window(
     timer.stop()
     assert len(ticks) > 20 and max(np.diff(ticks)) < 0.1  # the event loop kept running
     assert window.session is not None and window.source_panel.start_button.isEnabled()
+
+
+def test_loading_a_bad_experiment_file_keeps_the_labels(qtbot, open_windows, tmp_path):
+    window = _window(qtbot, open_windows, tmp_path, "sim", autostart=False)
+    window.label_peak("RB1", *RB1)
+    before = window.experiment
+    bad = tmp_path / "other.json"
+    bad.write_text('{"format": "holoview-experiment", "version": 3}')
+    window.load_experiment(bad)
+    assert "version 3 is not supported" in window.banner_text and str(bad) in window.banner_text
+    assert window.experiment == before
+    good = tmp_path / "good.json"
+    Experiment(n2=1.361, peaks=()).save(good)
+    window.load_experiment(good)
+    assert window.experiment.n2 == 1.361 and window.experiment.peaks == ()
