@@ -8,12 +8,13 @@ hologram, by the issue's measurement). :func:`refine_frequencies` demodulates ea
 from the frame's plain spectrum against its current carrier and moves the carrier by the
 mean phase step of the field between neighbouring pixels, each step weighted alike
 (a two-dimensional version of Kay's frequency estimator with unit weights: dark cells
-count as much as bright background), over the pixels off the untrusted border; three
-rounds converge. Its uncertainty comes from the scatter of the same estimate over blocks
+count as much as bright background), through a raised-cosine window (its smooth edge
+keeps the frame's wrap-around local) and leaving out one window period at the frame's
+edge; three rounds converge. Its uncertainty comes from the scatter of the same estimate over blocks
 of the field, after a plane is fitted through the blocks' values (a curved reference
 wave changes the local frequency across the frame: that is the carrier's definition
-spread, not noise). The uncertainty runs about twice the errors measured in those
-simulations.
+spread, not noise). The uncertainty ran two to three times the errors measured in
+those simulations: it errs on the safe side.
 
 Frequencies are in cycles per pixel, ``(fx, fy)``; errors in FFT bins.
 """

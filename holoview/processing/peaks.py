@@ -380,8 +380,8 @@ def refine_carriers(
 ) -> list[Peak]:
     """Return the peaks with carriers moved to their fields' mean phase step.
 
-    Each peak is demodulated from the frame's spectrum through a Tukey window of the
-    widest radius that reaches no other peak, twin, neighbour or the zero order, and
+    Each peak is demodulated from the frame's spectrum through a window of the widest
+    radius that reaches no other peak, twin, neighbour or the zero order, and
     its carrier moved by the mean phase step between neighbouring pixels, three times
     (:func:`~holoview.processing.carriers.refine_frequencies`); ``carrier_error`` is
     set to the carrier's uncertainty in FFT bins.
