@@ -53,17 +53,21 @@ def _table(document: dict[str, Any]) -> str:
     width = max([7] + [len("/".join(p["labels"])) for p in detected]) + 1
     lines = [
         f"{document['input']} frame {document['frame']} ({rows} x {cols}): "
-        f"{len(detected)} peaks; carriers in cycles/pixel (fx along columns)",
+        f"{len(detected)} peaks; carriers in cycles/pixel (fx along columns); lattice "
+        "(fb1, rf): the carrier is fb1 f_FB1 + rf f_RF, residual in FFT bins",
         f"{'#':>3}  {'label':<{width}}{'fx':>9}{'fy':>9}{'amplitude':>11}{'snr':>9}  "
-        f"{'twin':<5} flags",
+        f"{'twin':<5}{'lattice':>9}{'resid':>7}  flags",
     ]
     for peak in detected:
         twin = {True: "yes", False: "no", None: "-"}[peak["twin"]]
         names = "/".join(peak["labels"]) or "-"
         fx, fy = peak["carrier"]
+        point = "-" if peak["lattice"] is None else "{},{}".format(*peak["lattice"])
+        resid = "-" if peak["residual_bins"] is None else f"{peak['residual_bins']:.2f}"
         lines.append(
             f"{peak['index']:>3}  {names:<{width}}{fx:>+9.4f}{fy:>+9.4f}"
-            f"{peak['amplitude']:>11.4g}{peak['snr']:>9.1f}  {twin:<5} {','.join(peak['flags'])}"
+            f"{peak['amplitude']:>11.4g}{peak['snr']:>9.1f}  {twin:<5}{point:>9}{resid:>7}  "
+            f"{','.join(peak['flags'])}"
         )
     for key, text in (("missing", "predicted, not detected"), ("notes", "note")):
         for line in document.get(key) or []:
@@ -79,6 +83,7 @@ def run(args: argparse.Namespace) -> int:
     from holoview.engine.resolve import resolve_peaks
     from holoview.headless.inputs import InputFile, resolve_optics
     from holoview.headless.selection import describe_peaks
+    from holoview.processing.lattice import identify_lattice
     from holoview.processing.peaks import find_peaks
 
     labels = parse_labels(args.label)
@@ -111,13 +116,31 @@ def run(args: argparse.Namespace) -> int:
     named = tuple(LabelledPeak(p.label, p.carrier) for p in resolution.peaks if p.label)
     document = replace(experiment, peaks=named).to_dict()
     labelling = resolution.labelling
+    notes = list(resolution.notes)
+    lattice = labelling.lattice if labelling is not None else None
+    if lattice is None and len(detected) >= 2 and optics.n2 is not None:
+        try:  # no labels: the lattice names the peaks by itself
+            lattice = identify_lattice([p.carrier for p in detected], shape, optics.n1, optics.n2)
+        except InputError as exc:
+            notes.append(f"no automatic naming: {exc}")
+    if lattice is not None:
+        notes += list(lattice.notes)
+        if lattice.sign_from == "convention":
+            notes.append(
+                "the twins are a convention (RB1 as detected): every height may come out "
+                "negated; label a peak on its stored twin (--label) to settle it"
+            )
     document.update(
         input=str(args.input),
         frame=args.frame,
         frame_shape=list(shape),
-        detected=describe_peaks(detected, labelling, optics),
-        missing=list(labelling.missing) if labelling else [],
-        notes=list(resolution.notes),
+        detected=describe_peaks(detected, lattice, labelling),
+        basis=None if lattice is None else lattice.source,
+        precision_bins=None if lattice is None else lattice.precision_bins,
+        margin=None if lattice is None else lattice.margin,
+        sign_from=None if lattice is None else lattice.sign_from,
+        missing=list(lattice.missing) if lattice else [],
+        notes=notes,
     )
     print(json.dumps(document, indent=2) if args.json else _table(document))
     return 0

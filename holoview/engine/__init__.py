@@ -16,7 +16,7 @@ so both give the same numbers on the same frames.
 from holoview.engine.depth import DepthSummary, summarise
 from holoview.engine.experiment import Experiment, LabelledPeak
 from holoview.engine.frame_core import FrameCore, fuse_maps, trusted_maps
-from holoview.engine.resolve import Resolution, resolve_peaks, snap
+from holoview.engine.resolve import Resolution, resolve_peaks
 from holoview.engine.series import PhaseSeries
 
 __all__ = [
@@ -28,7 +28,6 @@ __all__ = [
     "Resolution",
     "fuse_maps",
     "resolve_peaks",
-    "snap",
     "summarise",
     "trusted_maps",
 ]

@@ -3,9 +3,10 @@
 One rule, used by the live window (a click, a label following a drifting peak) and by
 ``holoview process`` (a carrier from an experiment file, ``--label``, a recording's
 experiment): a carrier names the detected peak nearest it on either twin, within
-:data:`SNAP_BINS` FFT bins on the periodic spectrum (:func:`snap`). The detected peak
-is taken on the twin the carrier points at, so a label keeps the twin it was given
-(DESIGN.md: the twin where the phase grows with the height).
+:data:`~holoview.processing.snapping.SNAP_BINS` FFT bins on the periodic spectrum
+(:func:`holoview.processing.snapping.snap`). The detected peak is taken on the twin the
+carrier points at, so a label keeps the twin it was given (DESIGN.md: the twin where
+the phase grows with the height).
 
 With two or more labels of the model's families (RB1 and FB1, say), the model
 (:func:`holoview.processing.labelling.label_peaks`) places every first-order family up
@@ -25,24 +26,12 @@ import numpy as np
 from holoview.engine.experiment import Experiment
 from holoview.errors import InputError
 from holoview.processing.labelling import ModelLabelling, label_peaks
+from holoview.processing.lattice import LatticePeak
 from holoview.processing.peaks import Peak
+from holoview.processing.snapping import SNAP_BINS, bin_distance, snap
 from holoview.processing.windows import wrap_frequency
 
-__all__ = [
-    "MAX_ORDER",
-    "SNAP_BINS",
-    "Resolution",
-    "bin_distance",
-    "resolve_peaks",
-    "snap",
-    "snap_peak",
-]
-
-#: A carrier names the detected peak nearest it within this many FFT bins (either twin).
-#: Wide enough for a click on a peak drawn a few screen pixels across, a label following
-#: a peak that drifts between detections, and a carrier typed to four decimals; narrow
-#: enough that it cannot reach a neighbour two window radii away at 256^2 and above.
-SNAP_BINS = 12.0
+__all__ = ["MAX_ORDER", "Resolution", "resolve_peaks", "snap_peak"]
 
 #: Largest ``j`` of the first-order families (RB_j, FB_j) the model adds.
 MAX_ORDER = 3
@@ -51,50 +40,6 @@ MAX_ORDER = 3
 FIRST_ORDER = re.compile(r"RF|RB[1-9]\d*|FB[1-9]\d*")
 
 Carrier = tuple[float, float]
-
-
-def bin_distance(a: Carrier, b: Carrier, shape: tuple[int, int]) -> float:
-    """Distance in FFT bins between carriers ``a`` and ``b`` on the periodic spectrum."""
-    dx, dy = wrap_frequency(np.subtract(a, b, dtype=np.float64))
-    return float(math.hypot(dx * shape[1], dy * shape[0]))
-
-
-def snap(
-    carrier: Carrier,
-    carriers: Sequence[Carrier],
-    shape: tuple[int, int],
-    tolerance: float = SNAP_BINS,
-) -> tuple[int, bool] | None:
-    """Return ``(index, twin)`` of the carrier in ``carriers`` nearest ``carrier``.
-
-    Parameters
-    ----------
-    carrier : (float, float)
-        Where the operator or a file points, cycles/pixel.
-    carriers : sequence of (float, float)
-        Detected carriers, cycles/pixel (either twin counts).
-    shape : tuple of int
-        Frame shape ``(rows, cols)``: one bin is ``1 / cols`` by ``1 / rows``.
-    tolerance : float
-        Largest distance, FFT bins.
-
-    Returns
-    -------
-    (int, bool) or None
-        The index, and True when ``carrier`` points at that peak's other twin; None when
-        no detected carrier lies within ``tolerance`` bins.
-    """
-    if len(carriers) == 0:
-        return None
-    points = np.asarray(carriers, dtype=np.float64).reshape(-1, 2)
-    scale = np.array([shape[1], shape[0]], dtype=np.float64)
-    target = np.asarray(carrier, dtype=np.float64)
-    direct = np.hypot(*(wrap_frequency(points - target) * scale).T)
-    mirrored = np.hypot(*(wrap_frequency(points + target) * scale).T)
-    best = int(np.argmin(np.minimum(direct, mirrored)))
-    if min(direct[best], mirrored[best]) > tolerance:
-        return None
-    return best, bool(mirrored[best] < direct[best])
 
 
 def snap_peak(
@@ -134,6 +79,9 @@ class Resolution:
         twin, a family past Nyquist, a model that cannot place the families).
     labelling : ModelLabelling or None
         The model labelling, when two or more labels are the model's families.
+    lattice : tuple of (LatticePeak or None)
+        Per peak, its place on the carrier lattice (point, residual, kind, coupling):
+        with the model labelling, for the peaks on a detected peak; else None.
     """
 
     peaks: tuple[Peak, ...]
@@ -142,6 +90,7 @@ class Resolution:
     problems: tuple[str, ...] = ()
     notes: tuple[str, ...] = ()
     labelling: ModelLabelling | None = None
+    lattice: tuple[LatticePeak | None, ...] = ()
 
     @property
     def labelled(self) -> dict[str, Carrier]:
@@ -199,7 +148,7 @@ def resolve_peaks(
         if (
             found is None
             and kept is not None
-            and bin_distance(kept.carrier, lp.carrier, shape) <= SNAP_BINS
+            and bin_distance(np.subtract(kept.carrier, lp.carrier), shape) <= SNAP_BINS
         ):
             chosen.append(kept.relabelled(lp.label, alpha))
             continue
@@ -254,12 +203,18 @@ def resolve_peaks(
                 peak = (previous or {}).get(name)
                 if (
                     peak is None
-                    or bin_distance(peak.carrier, prediction.carrier, shape) > SNAP_BINS
+                    or bin_distance(np.subtract(peak.carrier, prediction.carrier), shape)
+                    > SNAP_BINS
                 ):
                     continue
             chosen.append(peak.relabelled(name, experiment.alpha_of_label(name)))
             names.add(name)
     chosen.sort(key=lambda p: -p.amplitude if p.amplitude == p.amplitude else math.inf)
+    on_lattice: dict[str, LatticePeak] = {}
+    if labelling is not None and labelling.lattice is not None:
+        detected_of = {name: index for index, name in taken.items()}
+        for name, index in detected_of.items():
+            on_lattice[name] = labelling.lattice.peaks[index]
     return Resolution(
         peaks=tuple(chosen),
         predicted=predicted,
@@ -267,4 +222,5 @@ def resolve_peaks(
         problems=tuple(problems),
         notes=tuple(notes),
         labelling=labelling,
+        lattice=tuple(on_lattice.get(p.label or "") for p in chosen),
     )

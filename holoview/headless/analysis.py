@@ -31,6 +31,7 @@ from holoview.headless.inputs import Optics
 from holoview.headless.pipeline import RunData
 from holoview.headless.selection import Selection
 from holoview.processing.identify import Identification, PeakKind, identify_peaks
+from holoview.processing.lattice import LatticePeak
 from holoview.processing.trends import RateFit, check_aliasing
 
 logger = logging.getLogger(__name__)
@@ -75,6 +76,9 @@ class PeakOutcome:
     map_scale : float or None
         Metres per radian of the demodulated phase (sign included): converts the
         phase maps of an auto run.
+    lattice : LatticePeak or None
+        Its place on the carrier lattice (point ``(fb1, rf)``, residual in FFT bins,
+        kind, coupling), where the identification gave one.
     """
 
     label: str
@@ -92,6 +96,7 @@ class PeakOutcome:
     pca_alpha: float | None
     explained: float | None
     map_scale: float | None
+    lattice: LatticePeak | None = None
 
 
 @dataclass(frozen=True)
@@ -249,6 +254,14 @@ def _run_flags(selection: Selection, data: RunData) -> list[set[str]]:
     return flags
 
 
+def _lattice_of(selection: Selection, naming: _Naming, j: int) -> LatticePeak | None:
+    """Peak ``j``'s place on the lattice: the auto identification's, else the selection's."""
+    ident = naming.ident
+    if ident is not None and ident.lattice is not None:
+        return ident.lattice.peaks[j]
+    return selection.lattice[j] if j < len(selection.lattice) else None
+
+
 def analyse(data: RunData, selection: Selection, optics: Optics) -> Analysis:
     """Name the peaks (auto mode), convert to depths, fuse, fit rates, set flags.
 
@@ -323,6 +336,7 @@ def analyse(data: RunData, selection: Selection, optics: Optics) -> Analysis:
                 pca_alpha=None if pca_alpha is None else float(pca_alpha * signs[j]),
                 explained=naming.explained[j],
                 map_scale=None if signed[j] is None else wavelength / (4 * np.pi * signed[j]),
+                lattice=_lattice_of(selection, naming, j),
             )
         )
     return Analysis(

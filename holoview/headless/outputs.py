@@ -127,6 +127,18 @@ def _peak_entry(peak: PeakOutcome) -> dict[str, Any]:
         "map_noise_m": peak.map_noise_m,
         "used_in_fused": peak.used_in_fused,
         "flags": list(peak.flags),
+        **_lattice_entry(peak),
+    }
+
+
+def _lattice_entry(peak: PeakOutcome) -> dict[str, Any]:
+    """``lattice`` ([fb1, rf] or null), ``residual_bins``, ``kind``, ``coupling``."""
+    p = peak.lattice
+    return {
+        "lattice": None if p is None or p.lattice is None else list(p.lattice),
+        "residual_bins": None if p is None else p.residual_bins,
+        "kind": None if p is None else str(p.kind),
+        "coupling": None if p is None else p.coupling,
     }
 
 

@@ -25,12 +25,11 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from holoview.engine.experiment import Experiment, check_carrier, check_label, is_model_label
-from holoview.engine.resolve import SNAP_BINS, snap
 from holoview.errors import InputError
-from holoview.headless.inputs import Optics
-from holoview.optics.families import alpha_of
 from holoview.processing.labelling import ModelLabelling
+from holoview.processing.lattice import LatticeIdentification, LatticePeak
 from holoview.processing.peaks import Peak
+from holoview.processing.snapping import SNAP_BINS, snap
 
 logger = logging.getLogger(__name__)
 
@@ -58,6 +57,8 @@ class Selection:
         The model labelling (an experiment with two or more of the model's families).
     notes : tuple of str
         What a reader of the results should know.
+    lattice : tuple of (LatticePeak or None)
+        Per peak, its place on the carrier lattice, where the model labelling gave one.
     shape : tuple of int or None
         Auto mode: the frame ``(rows, cols)``, for the lattice to name the peaks.
     """
@@ -70,6 +71,7 @@ class Selection:
     labelling: ModelLabelling | None = None
     notes: tuple[str, ...] = field(default_factory=tuple)
     shape: tuple[int, int] | None = None
+    lattice: tuple[LatticePeak | None, ...] = ()
 
 
 def parse_assignment(text: str, option: str) -> tuple[str, Carrier]:
@@ -124,6 +126,7 @@ def select_from_experiment(
         source=source,
         labelling=resolution.labelling,
         notes=resolution.notes,
+        lattice=resolution.lattice,
     )
 
 
@@ -185,30 +188,31 @@ def select_auto(
 
 
 def describe_peaks(
-    detected: Sequence[Peak], labelling: ModelLabelling | None, optics: Optics
+    detected: Sequence[Peak],
+    lattice: LatticeIdentification | None,
+    labelling: ModelLabelling | None = None,
 ) -> list[dict[str, Any]]:
     """Per detected peak, what ``holoview peaks`` reports (JSON-ready).
 
-    Keys: ``index``, ``label`` (first model label or None), ``labels`` (every model
-    label landing on it), ``carrier`` ([fx, fy] cycles/pixel, on the stored twin when
-    the model says so), ``twin`` (True when that is the detected peak's other twin;
-    None without the model), ``amplitude``, ``snr``, ``flags``, ``alpha`` (the model's,
-    for a label; else None).
+    Keys: ``index``, ``label`` (its name on the carrier lattice, or None), ``labels``
+    (every model label landing on it, first-order families first; the lattice's name
+    without a model labelling), ``carrier`` ([fx, fy] cycles/pixel, on the stored twin
+    when the lattice says so), ``twin`` (True when that is the detected peak's other
+    twin; None without a lattice), ``lattice`` ([fb1, rf]: the carrier is ``fb1 f_FB1 +
+    rf f_RF``; None off the lattice), ``residual_bins`` (distance to that lattice point,
+    FFT bins), ``kind``, ``coupling`` (to the reference-arm phase), ``amplitude``,
+    ``snr``, ``flags``, ``alpha`` (exact on the lattice; else None).
     """
-    twins: dict[int, bool] = {}
-    if labelling is not None:
-        for prediction in labelling.predictions:
-            if prediction.peak is not None and prediction.peak not in twins:
-                twins[prediction.peak] = prediction.twin
     rows = []
     for i, peak in enumerate(detected):
-        names = list(labelling.names[i]) if labelling is not None else []
-        twin = twins.get(i, False) if labelling is not None else None
+        named = None if lattice is None else lattice.peaks[i]
+        twin = None if named is None else named.twin
         carrier = peak.flipped().carrier if twin else peak.carrier
-        label = names[0] if names else None
-        alpha = None
-        if label is not None and optics.n2 is not None:
-            alpha = alpha_of(label, optics.n1, optics.n2)
+        label = None if named is None else named.label
+        if labelling is not None:
+            names = list(labelling.names[i])
+        else:
+            names = [] if label is None else [label]
         rows.append(
             {
                 "index": i,
@@ -216,10 +220,14 @@ def describe_peaks(
                 "labels": names,
                 "carrier": [float(carrier[0]), float(carrier[1])],
                 "twin": twin,
+                "lattice": None if named is None or named.lattice is None else list(named.lattice),
+                "residual_bins": None if named is None else named.residual_bins,
+                "kind": None if named is None else str(named.kind),
+                "coupling": None if named is None else named.coupling,
                 "amplitude": float(peak.amplitude),
                 "snr": float(peak.snr),
                 "flags": sorted(peak.flags),
-                "alpha": alpha,
+                "alpha": None if named is None else named.alpha,
             }
         )
     return rows

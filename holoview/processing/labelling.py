@@ -34,19 +34,22 @@ from dataclasses import dataclass
 import numpy as np
 
 from holoview.errors import InputError
-from holoview.processing.lattice import DEFAULT_MAX_ORDER, LatticeKind, identify_lattice
+from holoview.processing.lattice import (
+    DEFAULT_MAX_ORDER,
+    LatticeIdentification,
+    LatticeKind,
+    identify_lattice,
+)
 from holoview.processing.lattice_geometry import Point, point_of
+from holoview.processing.snapping import SNAP_BINS
 
 logger = logging.getLogger(__name__)
 
-__all__ = ["DEFAULT_MATCH_BINS", "DEFAULT_SNAP_BINS", "ModelLabelling", "Prediction", "label_peaks"]
+__all__ = ["DEFAULT_MATCH_BINS", "ModelLabelling", "Prediction", "label_peaks"]
 
 #: Largest distance (FFT bins) between a predicted carrier and a detected peak that match:
 #: the sub-bin peak estimates and the lattice agree to well under a bin.
 DEFAULT_MATCH_BINS = 1.5
-
-#: Largest distance (FFT bins) between an operator's click and the peak it names.
-DEFAULT_SNAP_BINS = 4.0
 
 
 @dataclass(frozen=True)
@@ -98,6 +101,9 @@ class ModelLabelling:
     flip_hint : tuple of str
         Labels (after the first) whose position, taken on the other twin, would let the
         lattice explain a few more detected peaks: probably clicked on the wrong twin.
+    lattice : LatticeIdentification or None
+        The lattice identification behind it: per detected peak, its lattice point,
+        residual, kind and coupling.
     """
 
     anchors: dict[str, int]
@@ -106,6 +112,7 @@ class ModelLabelling:
     missing: tuple[str, ...]
     unexplained: tuple[int, ...]
     flip_hint: tuple[str, ...]
+    lattice: LatticeIdentification | None = None
 
     @property
     def labels(self) -> tuple[str | None, ...]:
@@ -144,7 +151,7 @@ def label_peaks(
     *,
     max_order: int = 2,
     tolerance: float = DEFAULT_MATCH_BINS,
-    snap: float = DEFAULT_SNAP_BINS,
+    snap: float = SNAP_BINS,
 ) -> ModelLabelling:
     """Label detected peaks from two (or more) labelled ones and the lattice.
 
@@ -237,4 +244,5 @@ def label_peaks(
         missing=missing,
         unexplained=unexplained,
         flip_hint=ident.flip_hint,
+        lattice=ident,
     )

@@ -79,12 +79,12 @@ from holoview.processing.lattice_ghosts import Ghost, find_ghosts
 from holoview.processing.lattice_labels import from_labels, snap_labels
 from holoview.processing.lattice_pca import PcaCheck, PcaEvidence
 from holoview.processing.lattice_search import Candidate, Fitter, auto_candidates, choose, orient
+from holoview.processing.snapping import SNAP_BINS
 
 logger = logging.getLogger(__name__)
 
 __all__ = [
     "DEFAULT_MAX_ORDER",
-    "DEFAULT_SNAP_BINS",
     "DEFAULT_TOLERANCE_BINS",
     "LatticeIdentification",
     "LatticeKind",
@@ -98,9 +98,6 @@ DEFAULT_MAX_ORDER = 4
 #: Largest residual (FFT bins) of a peak on its lattice point. Sub-bin peak estimates
 #: land within 0.1 bin on clean frames; broadened peaks (waves, an object) within a bin.
 DEFAULT_TOLERANCE_BINS = 1.5
-
-#: Largest distance (FFT bins) between a labelled position and the peak it names.
-DEFAULT_SNAP_BINS = 4.0
 
 
 @dataclass(frozen=True)
@@ -252,7 +249,7 @@ def identify_lattice(
     sign_reference: int | None = None,
     max_order: int = DEFAULT_MAX_ORDER,
     tolerance: float = DEFAULT_TOLERANCE_BINS,
-    snap: float = DEFAULT_SNAP_BINS,
+    snap: float = SNAP_BINS,
 ) -> LatticeIdentification:
     """Name every detected peak by its place on the carrier lattice.
 

@@ -42,6 +42,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from holoview.errors import InputError
+from holoview.processing.snapping import bin_distance
 from holoview.processing.windows import wrap_frequency
 
 __all__ = [
@@ -51,7 +52,6 @@ __all__ = [
     "Point",
     "SearchPoint",
     "alpha_at",
-    "bin_distance",
     "check_indices",
     "coupling",
     "describe",
@@ -378,12 +378,6 @@ class Basis:
     def flipped(self) -> Basis:
         """Return the basis of the other global twin (every carrier negated)."""
         return Basis((-self.fb1[0], -self.fb1[1]), (-self.rf[0], -self.rf[1]))
-
-
-def bin_distance(delta: NDArray[np.float64], shape: tuple[int, int]) -> NDArray[np.float64]:
-    """Length in FFT bins of carrier differences ``(..., 2)`` (cycles/pixel), wrapped."""
-    d = delta - np.rint(delta)  # the wrap of wrap_frequency; a distance needs no sign at 0.5
-    return np.hypot(d[..., 0] * shape[1], d[..., 1] * shape[0])
 
 
 @dataclass(frozen=True)

@@ -23,9 +23,9 @@ from holoview.processing.lattice_geometry import (
     Match,
     Point,
     SearchPoint,
-    bin_distance,
 )
 from holoview.processing.lattice_search import Fitter
+from holoview.processing.snapping import bin_distance
 from holoview.processing.windows import wrap_frequency
 
 __all__ = ["Ghost", "find_ghosts"]

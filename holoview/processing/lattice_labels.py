@@ -20,13 +20,15 @@ import numpy as np
 from numpy.typing import NDArray
 
 from holoview.errors import InputError
-from holoview.processing.lattice_geometry import Basis, Point, bin_distance, point_of
+from holoview.processing.lattice_geometry import Basis, Point, point_of
 from holoview.processing.lattice_search import (
     CONTRADICTION_MARGIN,
     Candidate,
     Fitter,
     auto_candidates,
 )
+from holoview.processing.snapping import bin_distance
+from holoview.processing.snapping import snap as snap_carrier
 from holoview.processing.windows import wrap_frequency
 
 __all__ = ["Anchor", "from_labels", "snap_labels"]
@@ -79,20 +81,18 @@ def snap_labels(
         click = np.asarray(position, dtype=np.float64)
         if click.shape != (2,) or not np.all(np.isfinite(click)):
             raise InputError(f"labelled position of {label!r} must be finite (fx, fy)")
-        direct = bin_distance(carriers - click, shape)
-        mirrored = bin_distance(carriers + click, shape)
-        nearest = int(np.argmin(np.minimum(direct, mirrored)))
-        if min(direct[nearest], mirrored[nearest]) > snap:
+        found = snap_carrier(click, carriers, shape, snap)
+        if found is None:
             raise InputError(
                 f"labelled peak {label} at ({click[0]:+.4f}, {click[1]:+.4f}) cycles/pixel "
                 f"matches no detected peak within {snap:g} bins"
             )
         for other in anchors:
-            if other.peak == nearest:
+            if other.peak == found[0]:
                 raise InputError(f"labels {other.label} and {label} name the same detected peak")
             if other.point == point:
                 raise InputError(f"labels {other.label} and {label} name one lattice point")
-        anchors.append(Anchor(label, point, nearest, bool(mirrored[nearest] < direct[nearest])))
+        anchors.append(Anchor(label, point, found[0], found[1]))
     return anchors
 
 

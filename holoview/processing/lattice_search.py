@@ -29,12 +29,12 @@ from holoview.processing.lattice_geometry import (
     Match,
     Point,
     SearchPoint,
-    bin_distance,
     match,
     point_of,
     refine,
 )
 from holoview.processing.lattice_pca import PcaEvidence
+from holoview.processing.snapping import bin_distance
 from holoview.processing.windows import wrap_frequency
 
 __all__ = [

@@ -4,14 +4,16 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 import pytest
 
 from holoview.engine.experiment import Experiment, LabelledPeak
 from holoview.engine.peak_geometry import swallowed_neighbour, window_warnings
-from holoview.engine.resolve import SNAP_BINS, bin_distance, resolve_peaks, snap
+from holoview.engine.resolve import resolve_peaks
 from holoview.errors import InputError
 from holoview.optics.families import alpha_of, infer_carriers
 from holoview.processing.peaks import Peak
+from holoview.processing.snapping import SNAP_BINS, bin_distance, snap
 
 SHAPE = (512, 512)
 N1, N2 = 1.0, 1.333
@@ -38,7 +40,7 @@ def test_snap_is_in_wrapped_bins_on_either_twin() -> None:
     assert snap((0.1 + 13 / 512, 0.2), carriers, SHAPE) is None  # past SNAP_BINS
     assert snap((0.1 + 13 / 512, 0.2), carriers, (128, 128)) == (0, False)  # fewer, wider bins
     assert snap((0.1, 0.2), [], SHAPE) is None
-    assert bin_distance((0.49, 0.0), (-0.49, 0.0), SHAPE) == pytest.approx(0.02 * 512)
+    assert bin_distance(np.subtract((0.49, 0.0), (-0.49, 0.0)), SHAPE) == pytest.approx(0.02 * 512)
 
 
 def test_labels_follow_detected_peaks_on_their_twin_and_the_model_adds_families() -> None:

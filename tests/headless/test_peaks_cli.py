@@ -70,6 +70,30 @@ def test_json_with_two_labels_names_the_rest_on_the_right_twin(
     assert summary["fused"]["rate_m_per_s"] == pytest.approx(evaporation.rate, rel=0.03)
 
 
+def test_without_labels_the_lattice_names_the_peaks(
+    evaporation: Simulated, tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    with h5py.File(evaporation.path, "r") as f:
+        tifffile.imwrite(tmp_path / "stack.tif", f["frames"][:5], photometric="minisblack")
+    argv = ["peaks", str(tmp_path / "stack.tif"), "--fluid", "water", "--json"]
+    status, out, _ = run_cli(argv, capsys)
+    assert status == 0
+    document = json.loads(out)
+    assert document["basis"] == "auto" and document["precision_bins"] < 0.5
+    by_label = {p["label"]: p for p in document["detected"] if p["label"]}
+    assert {"RB1", "RF", "FB1", "RB2"} <= set(by_label)
+    expected = {"RB1": [1, -1], "RF": [0, 1], "FB1": [1, 0], "RB2": [2, -1]}
+    for label, point in expected.items():
+        peak = by_label[label]
+        assert peak["lattice"] == point and peak["residual_bins"] < 1.0
+        assert peak["coupling"] == point[1] and peak["kind"] == "first order"
+        assert peak["alpha"] == pytest.approx(evaporation.alphas[label], rel=1e-3)
+        # one global twin: the truth's or its negative for every peak alike
+        sign = np.sign(np.dot(peak["carrier"], evaporation.carriers[label]))
+        assert sign == np.sign(np.dot(by_label["RB1"]["carrier"], evaporation.carriers["RB1"]))
+    assert any("twins are a convention" in note for note in document["notes"])
+
+
 def test_without_labels_twins_are_unknown(
     evaporation: Simulated, tmp_path: Path, capsys: pytest.CaptureFixture
 ) -> None:

@@ -186,8 +186,12 @@ def test_process_with_no_options_uses_the_experiment_the_recording_carries(
     summary = json.loads((out / "summary.json").read_text())
     assert summary["parameters"]["peaks_from"] == "recording"
     assert set(summary["peaks"]) >= FIRST_ORDER
+    points = {"RB1": [1, -1], "RF": [0, 1], "FB1": [1, 0], "RB2": [2, -1]}
     for label in FIRST_ORDER:
-        assert summary["peaks"][label]["alpha"] == pytest.approx(evaporation.alphas[label])
+        peak = summary["peaks"][label]
+        assert peak["alpha"] == pytest.approx(evaporation.alphas[label])
+        assert peak["lattice"] == points[label] and peak["residual_bins"] < 1.0
+        assert peak["coupling"] == points[label][1]
     assert evaporation.rate < 0  # a falling level...
     assert summary["fused"]["rate_m_per_s"] == pytest.approx(evaporation.rate, rel=0.01)
     assert summary["experiment"]["format"] == "holoview-experiment"
