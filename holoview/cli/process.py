@@ -75,6 +75,12 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
     )
     demod.add_argument("--unwrap", choices=("auto", "always", "never"), help="spatial unwrapping")
     demod.add_argument(
+        "--background",
+        metavar="FILE|INDEX",
+        help="object-free hologram that absolute phases are taken against: a frame index "
+        "of INPUT or a file (its first frame); implies --reference absolute",
+    )
+    demod.add_argument(
         "--threads",
         type=int,
         default=1,
@@ -128,6 +134,7 @@ def run(args: argparse.Namespace) -> int:
         maps=args.maps,
         area_m2=args.area,
         threads=args.threads,
+        background=args.background,
     )
     bar, update = _progress_bar(args.quiet)
     with bar:

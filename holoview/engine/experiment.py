@@ -12,7 +12,7 @@ The JSON layout (format ``holoview-experiment``, version 2)::
 
     {"format": "holoview-experiment", "version": 2,
      "wavelength_m": 5.32e-07, "pixel_pitch_m": 5.5e-06, "n1": 1.0, "n2": 1.333,
-     "window": "raised-cosine", "radius": null, "reference": "relative", "unwrap": "auto",
+     "window": "tukey", "radius": null, "reference": "relative", "unwrap": "auto",
      "peaks": [{"label": "RB1", "carrier": [0.12, -0.05]},
                {"label": "G1", "carrier": [0.31, 0.02], "alpha": 0.5}]}
 
@@ -38,7 +38,7 @@ from typing import Any
 from holoview.errors import InputError, finite_number
 from holoview.optics.families import alpha_of
 from holoview.processing.demodulate import REFERENCE_MODES, UNWRAP_MODES
-from holoview.processing.windows import WINDOW_KINDS
+from holoview.processing.windows import DEFAULT_WINDOW, WINDOW_KINDS
 
 __all__ = [
     "EXPERIMENT_FORMAT",
@@ -194,7 +194,7 @@ class Experiment:
     pixel_pitch_m: float | None = 5.5e-6
     n1: float | None = 1.0
     n2: float | None = 1.333
-    window: str = "raised-cosine"
+    window: str = DEFAULT_WINDOW
     radius: float | None = None
     reference: str = "relative"
     unwrap: str = "auto"

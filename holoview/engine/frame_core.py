@@ -36,6 +36,7 @@ from holoview.processing.coregister import (
     fuse_coregistered,
 )
 from holoview.processing.demodulate import DemodResult, Demodulator
+from holoview.processing.peak_windows import distinct_neighbours, peak_radii
 from holoview.processing.peaks import Peak
 
 logger = logging.getLogger(__name__)
@@ -126,12 +127,20 @@ class FrameCore:
         Raw value at which the camera saturates (counts).
     threads : int
         FFTW threads per frame.
+    background : ndarray, optional
+        An object-free hologram (counts, ``frame_shape``): with an absolute reference
+        the maps are taken against it rather than against the first frame
+        (:meth:`~holoview.processing.demodulate.Demodulator.set_background`).
+    neighbours : sequence of (fx, fy)
+        Every detected peak's carrier, cycles/pixel: the automatic windows reach none
+        (the demodulated ones among them are recognised and dropped).
 
     Notes
     -----
     The demodulator is rebuilt (which restarts the absolute and relative reference)
     when a label or alpha appears, goes or changes, a carrier moves by a whole FFT bin,
-    or the window, radius, reference, unwrapping or wavelength change.
+    a neighbour moves an automatic window's radius by a whole bin, or the window,
+    radius, reference, unwrapping or wavelength change.
     """
 
     def __init__(
@@ -142,18 +151,32 @@ class FrameCore:
         *,
         saturation: float | None = None,
         threads: int = FFT_THREADS,
+        background: np.ndarray | None = None,
+        neighbours: Sequence[tuple[float, float]] = (),
     ) -> None:
         self.frame_shape = (int(frame_shape[0]), int(frame_shape[1]))
         self.saturation = saturation
         self.threads = threads
+        self.background = background
         self.experiment = experiment
         self.peaks: tuple[Peak, ...] = tuple(peaks)
+        self.neighbours = tuple(neighbours)
         self._demod: Demodulator | None = None
 
-    def configure(self, experiment: Experiment, peaks: Sequence[Peak]) -> None:
-        """Use ``experiment`` and ``peaks`` from the next frame (a rebuild only if needed)."""
+    def configure(
+        self,
+        experiment: Experiment,
+        peaks: Sequence[Peak],
+        neighbours: Sequence[tuple[float, float]] | None = None,
+    ) -> None:
+        """Use ``experiment``, ``peaks`` (and detected ``neighbours``) from the next frame.
+
+        The demodulator is rebuilt only if needed (class notes).
+        """
         self.experiment = experiment
         self.peaks = tuple(peaks)
+        if neighbours is not None:
+            self.neighbours = tuple(neighbours)
 
     @property
     def demodulator(self) -> Demodulator | None:
@@ -176,10 +199,19 @@ class FrameCore:
         if [(p.label, p.alpha) for p in self.peaks] != [(p.label, p.alpha) for p in demod.peaks]:
             return True
         rows, cols = self.frame_shape
-        return any(
+        if any(
             abs(p.carrier[0] - q.carrier[0]) * cols > 1.0
             or abs(p.carrier[1] - q.carrier[1]) * rows > 1.0
             for p, q in zip(self.peaks, demod.peaks, strict=True)
+        ):
+            return True
+        if self.experiment.radius is not None:
+            return False
+        carriers = np.array([p.carrier for p in demod.peaks], dtype=np.float64)
+        others = distinct_neighbours(self.frame_shape, carriers, self.neighbours)
+        radii = peak_radii(self.frame_shape, carriers, None, others)
+        return any(
+            abs(a - b) * min(rows, cols) > 1.0 for a, b in zip(radii, demod.radii, strict=True)
         )
 
     def build(self) -> Demodulator | None:
@@ -206,6 +238,8 @@ class FrameCore:
                 wavelength=e.wavelength_m,
                 saturation=self.saturation,
                 threads=self.threads,
+                background=self.background if e.reference == "absolute" else None,
+                neighbours=self.neighbours,
             )
             self._settings_key = self._settings()
         return self._demod

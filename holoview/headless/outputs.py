@@ -223,6 +223,7 @@ def summary_document(
             "optics_from": dict(optics.sources),
             "fps_hz": (n - 1) / duration if duration > 0 else None,
             "reference": settings.reference,
+            "background": settings.background,
             "window": settings.window,
             "radius_cpp": data.radius,
             "unwrap": settings.unwrap,
@@ -470,7 +471,11 @@ class ResultsFile:
         step = (frame_shape[0] / by, frame_shape[1] / bx)
         common: dict[str, Any] = {
             "reference": settings.reference,
-            "reference_description": REFERENCE_DESCRIPTIONS[settings.reference],
+            "reference_description": (
+                REFERENCE_DESCRIPTIONS[settings.reference]
+                if settings.background is None
+                else f"each frame against the background hologram {settings.background}"
+            ),
             "frame_shape_px": list(frame_shape),
             "pixel_step_px": list(step),
             "window": settings.window,

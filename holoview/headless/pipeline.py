@@ -83,6 +83,9 @@ class ProcessSettings:
         took 450 ms instead of 10 ms per 1024 x 1024 frame.
     read_ahead : int
         Frames the reader thread reads ahead.
+    background : str or None
+        An object-free hologram for absolute phases: a frame index of the input, or
+        a file (its first frame); None: the first processed frame.
     """
 
     reference: str | None = None
@@ -93,6 +96,7 @@ class ProcessSettings:
     area_m2: float | None = None
     threads: int = 1
     read_ahead: int = DEFAULT_DEPTH
+    background: str | None = None
 
 
 class MapSink(Protocol):
@@ -234,9 +238,24 @@ def make_core(
     peaks: Sequence[Peak],
     settings: ProcessSettings,
     saturation: float | None = None,
+    *,
+    detected: Sequence[Peak] = (),
+    background: np.ndarray | None = None,
 ) -> FrameCore:
-    """Return the per-frame core of a run, its demodulator built (InputError if it cannot work)."""
-    core = FrameCore(shape, experiment, peaks, saturation=saturation, threads=settings.threads)
+    """Return the per-frame core of a run, its demodulator built (InputError if it cannot work).
+
+    ``detected``: every peak found in the first frame; no automatic window reaches one.
+    ``background``: the object-free hologram absolute phases are taken against.
+    """
+    core = FrameCore(
+        shape,
+        experiment,
+        peaks,
+        saturation=saturation,
+        threads=settings.threads,
+        neighbours=[p.carrier for p in detected],
+        background=background,
+    )
     core.build()
     return core
 

@@ -20,6 +20,8 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from holoview.engine.experiment import Experiment, LabelledPeak
 from holoview.errors import InputError
 from holoview.headless.analysis import Analysis, analyse
@@ -184,6 +186,34 @@ def choose_peaks(
     return select_from_experiment(experiment, detected, shape, mode)
 
 
+def read_background(spec: str | None, source: InputFile) -> np.ndarray | None:
+    """The background hologram ``--background`` names: a frame index of ``source``, or a file.
+
+    Raises
+    ------
+    InputError
+        For an index outside the input, a file that cannot be read, or a frame of
+        another shape than the input's.
+    """
+    if spec is None:
+        return None
+    if spec.lstrip("-").isdigit():
+        index = int(spec)
+        if not 0 <= index < len(source):
+            raise InputError(
+                f"--background {spec}: {source.path} has frames 0 to {len(source) - 1}"
+            )
+        return source.read(index)
+    with InputFile(spec) as other:
+        frame = other.read(0)
+    if frame.shape != source.frame_shape:
+        raise InputError(
+            f"--background {spec}: frames of {frame.shape[0]} x {frame.shape[1]} pixels, "
+            f"the input's are {source.frame_shape[0]} x {source.frame_shape[1]}"
+        )
+    return frame
+
+
 def _prepare_out(out: Path) -> None:
     if out.exists() and not out.is_dir():
         raise InputError(f"--out {out} is a file, not a folder")
@@ -239,6 +269,13 @@ def process_file(
         the PCA cannot identify.
     """
     settings = settings or ProcessSettings()
+    if settings.background is not None:
+        if settings.reference not in (None, "absolute"):
+            raise InputError(
+                f"--background is the reference of absolute phases: it goes with "
+                f"--reference absolute, not {settings.reference}"
+            )
+        settings = replace(settings, reference="absolute")
     options = optics_options or OpticsOptions()
     out_dir = Path(out)
     if settings.area_m2 is not None and not settings.area_m2 > 0:
@@ -252,6 +289,7 @@ def process_file(
         experiment, settings = _settle(base, settings, optics)
         times = source.times(selected, options.fps_hz)
         first = source.read(selected[0])
+        background = read_background(settings.background, source)
         detected = find_peaks(first, radius=experiment.radius, threads=settings.threads)
         selection = choose_peaks(
             choice,
@@ -265,7 +303,13 @@ def process_file(
         for note in notes:
             logger.warning("%s", note)
         core = make_core(
-            source.frame_shape, experiment, selection.peaks, settings, source.saturation
+            source.frame_shape,
+            experiment,
+            selection.peaks,
+            settings,
+            source.saturation,
+            detected=detected,
+            background=background,
         )
         demodulator = core.demodulator
         assert demodulator is not None

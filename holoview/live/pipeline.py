@@ -224,7 +224,9 @@ class LivePipeline:
         if self._peaks is None or (self.detect_inline and self.peaks_due(now)):
             self._detect(frame)
         resolution = self.resolution()
-        self._core.configure(self.experiment, resolution.peaks)
+        self._core.configure(
+            self.experiment, resolution.peaks, [p.carrier for p in self._peaks or []]
+        )
         demod = self._core.process(frame)
         heights: dict[str, np.ndarray] = {}
         phases: dict[str, np.ndarray] = {}

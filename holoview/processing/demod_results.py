@@ -42,6 +42,8 @@ class PeakResult:
     ----------
     peak : Peak
         The peak demodulated.
+    radius : float
+        Its window radius (cycles/pixel).
     field : ndarray of complex64, shape (by, bx)
         Complex field (counts), carrier removed to the nearest FFT bin.
     phase : ndarray of float32, shape (by, bx)
@@ -60,9 +62,9 @@ class PeakResult:
     mask : ndarray of bool, shape (by, bx)
         Trusted pixels: inside the aperture, amplitude high enough.
     noise : float
-        Phase noise per pixel (rad), estimated from neighbour differences (see
-        :func:`~holoview.processing.phase_maps.phase_noise`); 0 on a reference frame, NaN
-        with fewer than two usable differences.
+        Phase noise per trusted pixel (rad, rms), from the noise floor of the frame's
+        spectrum and the reference's (:func:`~holoview.processing.phase_maps.phase_noise`);
+        0 on a reference frame, NaN without a trusted pixel.
     noise_height : float or None
         ``noise`` converted to height (m) like ``delta_h``.
     unwrapped : bool
@@ -76,6 +78,7 @@ class PeakResult:
     """
 
     peak: Peak
+    radius: float
     field: np.ndarray
     phase: np.ndarray
     delta_h: np.ndarray | None
@@ -104,7 +107,8 @@ class DemodResult:
     frame_shape, box_shape : tuple of int
         ``(rows, cols)`` of the frame and of every per-peak map.
     radius : float
-        Window radius used (cycles/pixel).
+        The largest window radius used (cycles/pixel); each peak's own is
+        :attr:`PeakResult.radius`.
     peaks : tuple of PeakResult
         One per peak, in the demodulator's order; empty for a flagged frame.
     flags : frozenset of str

@@ -3,8 +3,8 @@
 :class:`PhaseMap` carries one peak's wrapped map of one frame. :func:`unwrap_maps`
 unwraps the maps of a frame that need it: one (the guide, :func:`guide_index`) in
 space (Herraez et al. 2002, :func:`unwrap_in_space`), the others against the guide
-scaled by the ratio of their alphas. :func:`phase_noise` estimates a map's phase
-noise per pixel (rad) from second differences.
+scaled by the ratio of their alphas. :func:`phase_noise` gives a map's phase noise
+per pixel (rad) from the noise floor of the frames' spectra (:func:`floor_power`).
 
 Maps are at box resolution (:mod:`holoview.processing.boxes`); phases in rad.
 """
@@ -27,6 +27,8 @@ from holoview.processing.unwrap import (
 
 __all__ = [
     "PhaseMap",
+    "floor_bins",
+    "floor_power",
     "guide_index",
     "phase_noise",
     "unwrap_in_space",
@@ -36,6 +38,12 @@ __all__ = [
 
 #: Side (map pixels) of the coarse grid :func:`unwrap_in_space` starts from.
 COARSE_SIDE = 64
+
+#: About how many spectrum bins :func:`floor_bins` samples per frame for the noise floor.
+FLOOR_SAMPLES = 4096
+
+#: :func:`phase_noise` averages over every this many rows and columns of a map.
+NOISE_STRIDE = 4
 
 
 @dataclass
@@ -62,6 +70,8 @@ class PhaseMap:
         Per-peak flags so far.
     live : bool
         False on a reference frame, whose phase is zero by definition.
+    noise : float
+        Phase noise per trusted pixel (rad, :func:`phase_noise`); 0 when not live.
     unwrapped : bool
         Whether spatial unwrapping ran on the map.
     """
@@ -75,6 +85,7 @@ class PhaseMap:
     target: float
     flags: set[str]
     live: bool
+    noise: float
     unwrapped: bool = False
 
 
@@ -171,33 +182,60 @@ def unwrap_maps(maps: Sequence[PhaseMap], peaks: Sequence[Peak], *, always: bool
             m.phase, m.unwrapped = guided, True
 
 
-def phase_noise(phase: np.ndarray, mask: np.ndarray, noise_gain: float) -> float:
-    """Phase noise per pixel (rad) from the spread of second differences along rows.
+def floor_bins(shape: tuple[int, int]) -> np.ndarray:
+    """Flat indices into a frame's half spectrum of about :data:`FLOOR_SAMPLES` spread bins.
 
-    Second differences cancel the surface's slope; for noise shaped by the window
-    they have variance ``sigma^2 noise_gain`` with ``noise_gain = 6 - 8 rho1 + 2
-    rho2``, ``rho1`` and ``rho2`` the window's noise correlation at lags 1 and 2
-    (:class:`~holoview.processing.boxes.BoxGeometry`). Surface curvature adds to it,
-    so the estimate errs on the high side. Every 4th or 8th row is used; differences
-    beyond pi (wraps, untrusted pixels) are left out, and so are two pixels at the
-    map's edge: where the frame is not periodic the field dips there and its phase
-    is noisier than the rest.
+    The bins lie on a regular grid offset from the axes (the zero order and the
+    streaks along ``fx = 0`` and ``fy = 0`` that a non-periodic frame leaves); peaks
+    cover a few percent of the spectrum, so most of these bins hold noise alone.
+    """
+    rows, cols = shape
+    half = cols // 2 + 1
+    stride = max(1, int(np.sqrt(rows * half / FLOOR_SAMPLES)))
+    ky = np.arange(stride // 2, rows, stride)
+    kx = np.arange(max(stride // 2, 1), half, stride)
+    index = (ky[:, None] * half + kx[None, :]).astype(np.intp).ravel()
+    index.setflags(write=False)
+    return index
+
+
+def floor_power(samples: np.ndarray, reference: np.ndarray | None = None) -> float:
+    """Noise power per spectrum bin (counts^2) of a frame, or of its change since another.
+
+    The median of ``|S - S_ref|^2`` over the :func:`floor_bins` (``|S|^2`` without a
+    reference) over ln 2: for complex Gaussian noise ``|n|^2`` is exponential, whose
+    median is ln 2 times its mean. What does not change between the two frames (fixed
+    pattern, the zero order's structure) cancels, as it does in the phase difference.
+    """
+    d = samples if reference is None else samples - reference
+    power = d.real * d.real + d.imag * d.imag
+    return float(np.median(power)) / np.log(2)
+
+
+def phase_noise(
+    magnitude: np.ndarray, mask: np.ndarray, floor: float, area_fraction: float, size: int
+) -> float:
+    """Phase noise per trusted pixel (rad, rms) of a map, from the spectrum's noise floor.
+
+    Noise of power ``floor`` per bin (:func:`floor_power`), passed by a window of area
+    fraction ``eta`` (:func:`~holoview.processing.windows.area_fraction`), gives the
+    field a noise of variance ``eta floor / size`` (counts^2, ``size = rows cols``),
+    and a pixel of amplitude ``|f|`` a phase noise of variance ``eta floor / (2 size
+    |f|^2)``; this returns its rms over the trusted pixels (every
+    :data:`NOISE_STRIDE`-th row and column: plenty for an average). It measures the noise of the
+    frames alone: unlike differences of the map, it does not grow with the surface's
+    curvature.
 
     Returns
     -------
     float
-        Noise (rad), NaN with fewer than two usable differences.
+        Noise (rad); NaN without a trusted pixel.
     """
-    edge = 2 if min(phase.shape) > 16 else 0
-    every = 8 if phase.shape[0] >= 128 else 4  # thousands of differences are plenty
-    rows = phase[edge : phase.shape[0] - edge : every, edge : phase.shape[1] - edge]
-    trusted = mask[edge : phase.shape[0] - edge : every, edge : phase.shape[1] - edge]
-    second = rows[:, 2:] - 2 * rows[:, 1:-1] + rows[:, :-2]
-    keep = trusted[:, 2:] & trusted[:, 1:-1] & trusted[:, :-2]
-    keep &= np.abs(second) < np.pi
-    count = int(np.count_nonzero(keep))
-    if count < 2:
-        return float("nan")
-    second *= keep
-    variance = float(np.vdot(second, second)) / count
-    return float(np.sqrt(variance / noise_gain))
+    sample = (slice(None, None, NOISE_STRIDE), slice(None, None, NOISE_STRIDE))
+    trusted = magnitude[sample][mask[sample]]
+    if not trusted.size:
+        trusted = magnitude[mask]
+        if not trusted.size:
+            return float("nan")
+    inverse_power = float(np.mean(1.0 / (trusted.astype(np.float64) ** 2)))
+    return float(np.sqrt(area_fraction * floor / (2.0 * size) * inverse_power))

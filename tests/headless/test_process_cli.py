@@ -451,3 +451,61 @@ def test_labels_on_a_file_without_optics_ask_for_the_fluid(
     status, _, err = run_cli(argv, capsys)
     assert status == 2
     assert "give --n2 or --fluid" in err and len(err.strip().splitlines()) == 1
+
+
+def test_background_hologram_by_index_or_file(
+    waves: Simulated, tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    """--background: absolute maps against frame 0 although the run starts at frame 10."""
+    common = [*waves.label_args("RB1", "FB1"), "--maps", "--frames", "10:40"]
+    with h5py.File(waves.path, "r") as f:
+        tifffile.imwrite(tmp_path / "empty.tif", f["frames"][0])
+    maps = {}
+    for name, spec in (("index", "0"), ("file", str(tmp_path / "empty.tif"))):
+        out = tmp_path / name
+        argv = ["process", str(waves.path), "--out", str(out), "--background", spec, *common]
+        status, _, _ = run_cli(argv, capsys)
+        assert status == 0
+        summary = json.loads((out / "summary.json").read_text())
+        assert summary["parameters"]["reference"] == "absolute"  # implied
+        assert summary["parameters"]["background"] == spec
+        with h5py.File(out / "results.h5", "r") as f:
+            maps[name] = f["maps/fused"][:]
+            step = f["maps/fused"].attrs["pixel_step_px"]
+            assert "background hologram" in f["maps/fused"].attrs["reference_description"]
+    np.testing.assert_allclose(maps["index"], maps["file"], equal_nan=True, atol=1e-12)
+    fused = maps["index"]
+    assert waves.height_maps is not None
+    rows = (np.arange(fused.shape[1]) * step[0]).round().astype(int)
+    cols = (np.arange(fused.shape[2]) * step[1]).round().astype(int)
+    inner = (slice(3, -3), slice(3, -3))
+    for k in (0, 29):  # run positions: frames 10 and 39, both against frame 0
+        truth = (waves.height_maps[10 + k] - waves.height_maps[0])[np.ix_(rows, cols)][inner]
+        measured = fused[k][inner]
+        keep = np.isfinite(measured)
+        assert np.corrcoef(truth[keep], measured[keep])[0, 1] > 0.9
+
+
+@pytest.mark.parametrize(
+    ("extra", "message"),
+    [
+        (["--background", "500"], "has frames 0 to"),
+        (["--background", "0", "--reference", "relative"], "--reference absolute"),
+        (["--background", "SMALL"], "the input's are"),
+    ],
+)
+def test_background_bad_input_is_one_line_exit_2(
+    waves: Simulated,
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture,
+    extra: list[str],
+    message: str,
+) -> None:
+    small = tmp_path / "small.tif"
+    tifffile.imwrite(small, np.zeros((16, 16), np.uint16))
+    extra = [str(small) if e == "SMALL" else e for e in extra]
+    argv = ["process", str(waves.path), "--out", str(tmp_path / "out"), *extra]
+    status, _, stderr = run_cli([*argv, *waves.label_args("RB1", "FB1")], capsys)
+    assert status == 2
+    assert message in stderr and len(stderr.strip().splitlines()) == 1
+    assert "Traceback" not in stderr
