@@ -46,12 +46,12 @@ from holoview.optics.setup import Setup  # noqa: E402
 from holoview.optics.synthesis import HologramSynthesizer  # noqa: E402
 from holoview.processing.coregister import DisplacementEstimator, fuse_coregistered  # noqa: E402
 from holoview.processing.demodulate import REFERENCE_MODES, Demodulator  # noqa: E402
-from holoview.processing.fftplans import default_threads, rfft2_plan  # noqa: E402
+from holoview.processing.fftplans import rfft2_plan, usable_cpus  # noqa: E402
 from holoview.processing.heights import fuse  # noqa: E402
 from holoview.processing.peaks import Peak  # noqa: E402
 from holoview.processing.resample import box_positions  # noqa: E402
 from holoview.processing.spectrum import display_spectrum  # noqa: E402
-from holoview.processing.windows import radial_window  # noqa: E402
+from holoview.processing.windows import DEFAULT_WINDOW, radial_window  # noqa: E402
 
 WAVELENGTH = 532e-9
 PHOTONS = 800.0
@@ -180,7 +180,9 @@ def moving_waves(t: int, y: np.ndarray, x: np.ndarray) -> np.ndarray:
     return total
 
 
-def coregistration(targets: list[tuple[str, str]], frames: int = 60) -> None:
+def coregistration(
+    targets: list[tuple[str, str]], frames: int = 60, window: str = DEFAULT_WINDOW
+) -> None:
     """Displacements measured on the optics simulator's maps, and the fused map's error."""
     setup = Setup(shape=(512, 512), depth=0.02)
     families = {f.label: f for f in predict_families(setup, max_order=2, second_order=False)}
@@ -209,7 +211,9 @@ def coregistration(targets: list[tuple[str, str]], frames: int = 60) -> None:
     rng = np.random.default_rng(7)
     rows, cols = setup.shape
     yy, xx = np.mgrid[:rows, :cols].astype(float)
-    demod = Demodulator(setup.shape, peaks, reference="relative", wavelength=setup.wavelength)
+    demod = Demodulator(
+        setup.shape, peaks, reference="relative", wavelength=setup.wavelength, window=window
+    )
     demod.process(synthesizer.render(moving_waves(0, yy, xx), rng=rng))
     estimator = DisplacementEstimator(demod.box_shape, len(peaks))
     kept = []
@@ -293,6 +297,18 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--quick", action="store_true", help="1024 x 1024 only, fewer frames")
     parser.add_argument("--frames", type=int, default=100, help="frames timed per case (median)")
     parser.add_argument(
+        "--radius",
+        type=float,
+        default=None,
+        help="window radius of the timed cases, cycles/pixel (default: automatic, per peak)",
+    )
+    parser.add_argument(
+        "--window",
+        default=DEFAULT_WINDOW,
+        help=f"window of every case (default {DEFAULT_WINDOW}); raised-cosine and --radius "
+        "0.0687 are what the automatic choice was before windows at the bound",
+    )
+    parser.add_argument(
         "--threads",
         type=int,
         default=None,
@@ -304,9 +320,11 @@ def main(argv: list[str] | None = None) -> int:
     )
     sizes = (1024,) if args.quick else (1024, 2048)
     frames_timed = 30 if args.quick else args.frames
-    threads = args.threads or default_threads()
+    threads = args.threads or min(usable_cpus(), 4)
     rng = np.random.default_rng(2026)
     print("machine:", machine(), f"| FFTW threads used: {threads}")
+    radius_text = "automatic" if args.radius is None else f"{args.radius:g} cycles/pixel"
+    print(f"window {args.window}; radius of the timed cases: {radius_text}")
     targets: list[tuple[str, str]] = []
 
     print("\n== one forward real FFT of the frame (float32)")
@@ -335,13 +353,22 @@ def main(argv: list[str] | None = None) -> int:
             peaks = bench_peaks(count)
             flat = synth(shape, peaks, 0.0, rng)
             wrapped = synth(shape, peaks, bump(shape, 1.0e-6, n / 7), rng)
-            base = Demodulator(shape, peaks, wavelength=WAVELENGTH, threads=threads)
+            base = Demodulator(
+                shape,
+                peaks,
+                wavelength=WAVELENGTH,
+                threads=threads,
+                radius=args.radius,
+                window=args.window,
+            )
             naive = Naive(shape, peaks, base.radius)
             naive.process(flat)
             naive_ms, _ = timed_ms(lambda nv=naive, b=wrapped: nv.process(b), 2, warmup=1)
             for mode in REFERENCE_MODES:
                 for unwrap in ("never", "auto"):
-                    demod = base.with_peaks(peaks, reference=mode, unwrap=unwrap)
+                    demod = base.with_peaks(
+                        peaks, reference=mode, unwrap=unwrap, radius=args.radius
+                    )
                     sequence = [flat, wrapped] if unwrap == "auto" else [flat, flat]
                     state = {"k": 0}
 
@@ -395,6 +422,7 @@ def main(argv: list[str] | None = None) -> int:
                 use,
                 reference=mode,
                 radius=0.124,
+                window=args.window,
                 unwrap="auto",
                 wavelength=WAVELENGTH,
                 threads=threads,
@@ -422,7 +450,9 @@ def main(argv: list[str] | None = None) -> int:
 
     print("\n== accuracy on simulated frames (1024 x 1024, 800 photons/pixel, relative reference)")
     peaks = bench_peaks(4)
-    demod = Demodulator(shape, peaks, reference="relative", wavelength=WAVELENGTH)
+    demod = Demodulator(
+        shape, peaks, reference="relative", wavelength=WAVELENGTH, window=args.window
+    )
     positions = box_positions(demod.box_shape, shape)
     truth = bump(shape, 5e-9, 120, positions)
     errors: dict[str, list[float]] = {p.label: [] for p in peaks}
@@ -478,7 +508,7 @@ def main(argv: list[str] | None = None) -> int:
     )
 
     print("\n== co-registration on the optics simulator (holoview.optics, paper section 2)")
-    coregistration(targets)
+    coregistration(targets, window=args.window)
 
     print("\n== targets")
     for what, verdict in targets:

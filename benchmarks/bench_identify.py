@@ -49,12 +49,9 @@ from holoview.optics.synthesis import HologramSynthesizer  # noqa: E402
 from holoview.processing.identify import identify_peaks  # noqa: E402
 from holoview.processing.labelling import label_peaks  # noqa: E402
 from holoview.processing.peaks import find_peaks  # noqa: E402
-from holoview.processing.trends import (  # noqa: E402
-    check_aliasing,
-    compare_rate,
-    track_depth,
-    unwrap_in_time,
-)
+from holoview.processing.phase_series import check_aliasing, unwrap_in_time  # noqa: E402
+from holoview.processing.rates import compare_rate  # noqa: E402
+from holoview.processing.trends import track_depth  # noqa: E402
 
 SHAPE = (128, 128)
 AREA = 70.6e-4  # m^2

@@ -25,9 +25,9 @@ from pathlib import Path
 
 from PyQt6.QtWidgets import QApplication
 
+from holoview.live.session import RecordRequest
 from holoview.ui.app import application
 from holoview.ui.main_window import MainWindow
-from holoview.ui.recording_panel import RecordRequest
 
 
 def wait(app: QApplication, seconds: float) -> None:

@@ -68,3 +68,32 @@ def test_live_without_display_says_how_to_run_it(
     assert main([]) == 2
     err = capsys.readouterr().err
     assert "xvfb-run -a holoview" in err and "holoview process" in err
+
+
+@pytest.mark.parametrize("where", ["before", "after"])
+@pytest.mark.parametrize("command", ["record", "simulate"])
+def test_quiet_and_verbose_before_or_after_the_subcommand(
+    tmp_path, where: str, command: str
+) -> None:
+    args = [command, str(tmp_path / "o.h5"), "--frames", "3"]
+    if command == "simulate":
+        args += ["--size", "64"]
+    quiet = run_cli(*(["-q", *args] if where == "before" else [*args, "-q"]))
+    assert quiet.returncode == 0, quiet.stderr
+    assert quiet.stderr == ""
+    (tmp_path / "o.h5").unlink()
+    verbose = run_cli(*(["-v", *args] if where == "before" else [*args, "-v"]))
+    assert verbose.returncode == 0, verbose.stderr
+    assert " INFO holoview." in verbose.stderr
+
+
+def test_every_command_spells_the_optics_the_same_way() -> None:
+    from holoview.cli import build_parser
+
+    parser = build_parser()
+    commands = parser._subparsers._group_actions[0].choices  # type: ignore[union-attr]
+    for name in ("live", "record", "simulate", "process", "peaks"):
+        options = {o for a in commands[name]._actions for o in a.option_strings}
+        assert {"--wavelength-nm", "--pixel-pitch-um", "--n1", "--n2", "--fluid"} <= options, name
+        assert {"-q", "-v"} <= options, name
+        assert "--wavelength" not in options and "--pixel-pitch" not in options, name

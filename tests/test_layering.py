@@ -1,8 +1,9 @@
-"""The layering rule: processing, optics and acquire never import Qt.
+"""The layering rule: cli > ui > headless | live > engine > acquire | processing > optics,
+and no package but ui (and the cli above it) imports Qt.
 
-Checked twice: by the import-linter contract in pyproject.toml (whose power to fail
-is itself tested on a planted violation), and at run time by importing every module
-of those packages in a fresh interpreter and looking for Qt in ``sys.modules``.
+Checked twice: by the import-linter contracts in pyproject.toml (whose power to fail
+is itself tested on planted violations), and at run time by importing every module
+of the Qt-free packages in a fresh interpreter and looking for Qt in ``sys.modules``.
 """
 
 from __future__ import annotations
@@ -47,10 +48,33 @@ def test_contract_catches_qt_import_in_processing(tmp_path: Path) -> None:
     assert "holoview.processing.sneaky" in result.stdout
 
 
+def test_contract_catches_engine_importing_live(tmp_path: Path) -> None:
+    shutil.copytree(
+        REPO / "holoview", tmp_path / "holoview", ignore=shutil.ignore_patterns("__pycache__")
+    )
+    shutil.copy(REPO / "pyproject.toml", tmp_path)
+    (tmp_path / "holoview" / "engine" / "upward.py").write_text(
+        "from holoview.live import session\n"
+    )
+    result = lint_imports(tmp_path)
+    assert result.returncode != 0
+    assert "holoview.engine.upward" in result.stdout
+
+
+LIBRARY_PACKAGES = (
+    "holoview.processing",
+    "holoview.optics",
+    "holoview.acquire",
+    "holoview.engine",
+    "holoview.live",
+    "holoview.headless",
+)
+
+
 def test_no_qt_loaded_by_library_packages() -> None:
     code = (
         "import importlib, pkgutil, sys\n"
-        "for pkg in ('holoview.processing', 'holoview.optics', 'holoview.acquire'):\n"
+        f"for pkg in {LIBRARY_PACKAGES!r}:\n"
         "    mod = importlib.import_module(pkg)\n"
         "    for info in pkgutil.walk_packages(mod.__path__, pkg + '.'):\n"
         "        importlib.import_module(info.name)\n"

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import logging
 import os
+import queue
 import threading
 from collections.abc import Mapping
 from typing import NamedTuple
@@ -100,6 +101,7 @@ class Recorder:
         self._dropped_at_end: int | None = None
         self._stop = threading.Event()
         self._stop_at = 0  # with drain, the ring position to record up to before stopping
+        self._experiments: queue.SimpleQueue[str] = queue.SimpleQueue()
         self._thread = threading.Thread(target=self._run, name="holoview-recorder", daemon=True)
 
     @classmethod
@@ -111,14 +113,15 @@ class Recorder:
         *,
         setup: Mapping[str, object] | None = None,
         max_frames: int | None = None,
+        experiment: str | None = None,
     ) -> Recorder:
         """Return a recorder to a new file at ``path`` that describes ``source``.
 
         The file gets the source's name, every setting the source reads back, with
         its unit (a value HDF5 cannot hold as an attribute is left out, with a
-        warning), the source's pixel format, and the setup: the source's own
-        (:attr:`Source.setup`) updated with ``setup``. ``max_frames`` as for
-        :class:`Recorder`.
+        warning), the source's pixel format, the setup: the source's own
+        (:attr:`Source.setup`) updated with ``setup``, and the ``experiment`` in force
+        (JSON text). ``max_frames`` as for :class:`Recorder`.
         """
         infos = source.describe_settings()
         settings = {}
@@ -137,6 +140,7 @@ class Recorder:
             source=source.name,
             pixel_format=pixel_format if isinstance(pixel_format, str) else None,
             significant_bits=_significant_bits(pixel_format),
+            experiment=experiment,
         )
         return cls(ring, writer, max_frames=max_frames)
 
@@ -168,6 +172,10 @@ class Recorder:
     def start(self) -> None:
         """Start the thread."""
         self._thread.start()
+
+    def note_experiment(self, text: str) -> None:
+        """Record that the experiment (JSON text) changed: it holds from the next frame written."""
+        self._experiments.put(text)
 
     def stop(self, timeout: float = 10.0, *, drain: bool = True) -> None:
         """Stop recording and join the thread; the file is closed when it returns.
@@ -202,6 +210,8 @@ class Recorder:
                     writer.flush_if_due()
                     continue
                 pixels, meta = item
+                while not self._experiments.empty():
+                    writer.note_experiment(self._experiments.get())
                 writer.append(pixels, meta.frame_id, meta.t_device, meta.t_host)
                 if self.max_frames is not None and len(writer) >= self.max_frames:
                     break

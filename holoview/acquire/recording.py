@@ -1,6 +1,6 @@
 """holoview's HDF5 recording format: a writer (SWMR, followable live) and a reader.
 
-File layout, format ``holoview-recording`` version ``1.0``
+File layout, format ``holoview-recording`` version ``1.1``
 ----------------------------------------------------------
 Everything is created before the writer switches the file to SWMR mode, so a
 reader can open the file while it is being written and follow it with
@@ -34,6 +34,13 @@ reader can open the file while it is being written and follow it with
     Every camera setting at the start of the recording as attributes (for example
     ``exposure_s``, ``gain_db``, ``frame_rate_hz``, ``roi`` as
     ``(left, top, width, height)`` pixels), units on ``/settings/units`` the same way.
+``/experiment`` group (since 1.1; absent when the writer was given none)
+    The experiment in force (optics, labelled peaks, window, reference: the JSON of
+    :mod:`holoview.engine.experiment`) and every change during the run. ``json`` is a
+    ``uint8`` dataset holding the UTF-8 texts one after another; ``changes`` an
+    ``int64`` dataset of shape ``(n_changes, 3)``: per change, the frame index it holds
+    from, and the offset and length of its text in ``json``. Both grow while the file
+    is written (SWMR has no variable-length strings).
 
 A setting or setup value of ``None`` is not written. Names ending in a unit suffix
 (``_m``, ``_s``, ``_hz``, ``_db``, ``_px``, ``_k``) get that unit unless one is
@@ -84,7 +91,7 @@ logger = logging.getLogger(__name__)
 #: The value of the root ``format`` attribute.
 FORMAT_NAME = "holoview-recording"
 #: The format version this module writes.
-FORMAT_VERSION = "1.0"
+FORMAT_VERSION = "1.1"
 #: Format major versions this module reads.
 SUPPORTED_MAJOR_VERSIONS = (1,)
 #: HDF5 library version bounds: readable by HDF5 1.10, SWMR-capable.
@@ -133,6 +140,9 @@ class RecordingWriter:
         dtype's size).
     flush_interval_s : float
         Longest time, seconds, an appended frame waits before it is flushed to disk.
+    experiment : str, optional
+        The experiment in force from the first frame, as JSON text (later changes:
+        :meth:`note_experiment`).
 
     Raises
     ------
@@ -155,6 +165,7 @@ class RecordingWriter:
         pixel_format: str | None = None,
         significant_bits: int | None = None,
         flush_interval_s: float = 0.5,
+        experiment: str | None = None,
     ) -> None:
         self.path = Path(path)
         shape = tuple(int(n) for n in frame_shape)
@@ -191,6 +202,8 @@ class RecordingWriter:
             raise OutputError(f"cannot create {self.path}: {os_error_text(exc)}") from exc
         try:
             self._create_layout(setup, settings, source)
+            if experiment is not None:
+                self.note_experiment(experiment)
             if swmr:
                 self._file.swmr_mode = True
             self._file.flush()
@@ -241,6 +254,12 @@ class RecordingWriter:
         f["t_device_s"].attrs["clock"] = "the camera's clock; NaN where it has none"
         write_attributes(f.create_group("setup"), setup)
         write_attributes(f.create_group("settings"), settings)
+        group = f.create_group("experiment")
+        group.create_dataset("json", shape=(0,), maxshape=(None,), dtype=np.uint8, chunks=(4096,))
+        group.create_dataset(
+            "changes", shape=(0, 3), maxshape=(None, 3), dtype=np.int64, chunks=(64, 3)
+        )
+        group["changes"].attrs["columns"] = "from_frame, offset, length"
         self._frames = frames
         self._ids = f["frame_id"]
         self._t_device = f["t_device_s"]
@@ -317,6 +336,29 @@ class RecordingWriter:
             self._unflushed_since = now
         if now - self._unflushed_since >= self.flush_interval_s:
             self.flush()
+
+    def note_experiment(self, text: str) -> None:
+        """Store the experiment (JSON text) in force from the next frame appended.
+
+        A change before any frame replaces nothing: each change is kept, with the
+        frame it holds from (:meth:`RecordingReader.experiments`).
+        """
+        if self.closed:
+            raise InputError(f"recording {self.path} is closed")
+        data = np.frombuffer(text.encode("utf-8"), dtype=np.uint8)
+        group = self._file["experiment"]
+        blob, changes = group["json"], group["changes"]
+        offset, k = blob.shape[0], changes.shape[0]
+        try:
+            blob.resize(offset + data.size, axis=0)
+            blob[offset:] = data
+            changes.resize(k + 1, axis=0)
+            changes[k] = (self._n, offset, data.size)
+        except (OSError, RuntimeError) as exc:
+            self._broken = True
+            raise self._write_error(exc) from exc
+        if self._unflushed_since is None:
+            self._unflushed_since = time.monotonic()
 
     def flush_if_due(self) -> bool:
         """Flush when frames have waited ``flush_interval_s`` or longer; return whether it did."""
@@ -488,6 +530,26 @@ class RecordingReader:
         self.setup, self.setup_units = read_attributes(f.get("setup"))
         self.settings, self.settings_units = read_attributes(f.get("settings"))
         self._n = self._complete_count()
+
+    def experiments(self) -> list[tuple[int, str]]:
+        """Every experiment the recording carries: ``(from_frame, JSON text)``, in order.
+
+        Empty for recordings written without one (format 1.0 included). A text that
+        cannot be decoded is returned as it decodes with replacement characters; the
+        experiment parser then says what is wrong.
+        """
+        group = self._file.get("experiment")
+        if not isinstance(group, h5py.Group) or "json" not in group or "changes" not in group:
+            return []
+        blob, changes = group["json"], group["changes"]
+        blob.refresh()
+        changes.refresh()
+        raw = blob[()].tobytes()
+        out = []
+        for start, offset, length in np.asarray(changes[()], dtype=np.int64).reshape(-1, 3):
+            text = raw[offset : offset + length]
+            out.append((int(start), text.decode("utf-8", errors="replace")))
+        return out
 
     def _complete_count(self) -> int:
         """Frames whose frame data, id and both timestamps are all present."""

@@ -427,10 +427,6 @@ class Source(ABC):
         """Register a setting (drivers call this in ``__init__`` or ``_do_open``)."""
         self._settings[setting.name] = setting
 
-    def remove_setting(self, name: str) -> None:
-        """Forget a setting the device turned out not to support."""
-        self._settings.pop(name, None)
-
     def describe_settings(self) -> dict[str, SettingInfo]:
         """Return every setting's :class:`SettingInfo`, by name."""
         return {name: s.describe() for name, s in self._settings.items()}

@@ -23,6 +23,7 @@ from collections.abc import Sequence
 from typing import NoReturn
 
 from holoview import __version__
+from holoview.cli.options import add_verbosity_options
 from holoview.cli.signals import Stopped, stop_on_signals
 from holoview.errors import HoloviewError, OutputError
 
@@ -50,15 +51,12 @@ def build_parser() -> argparse.ArgumentParser:
         "on the simulated camera.",
     )
     parser.add_argument("--version", action="version", version=f"holoview {__version__}")
-    noise = parser.add_mutually_exclusive_group()
-    noise.add_argument(
-        "-v", "--verbose", action="count", default=0, help="more log output (-vv: debug)"
-    )
-    noise.add_argument("-q", "--quiet", action="store_true", help="errors only, no progress bars")
+    add_verbosity_options(parser, top=True)
     subparsers = parser.add_subparsers(dest="command", metavar="COMMAND")
     for name in COMMANDS:
         module = importlib.import_module(f"holoview.cli.{name}")
         sub = module.add_parser(subparsers)
+        add_verbosity_options(sub)
         sub.set_defaults(_run=module.run)
     return parser
 
@@ -97,7 +95,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     only_options = all(a.startswith("-") for a in args_list)
     if only_options and not {"-h", "--help", "--version"} & set(args_list):
         args_list.append(DEFAULT_COMMAND)
-    args = parser.parse_args(args_list)
+    try:
+        args = parser.parse_args(args_list)
+    except SystemExit as exc:  # --help, --version, or a usage error already printed
+        return exc.code if isinstance(exc.code, int) else 2
     configure_logging(args.verbose, args.quiet)
     logging.captureWarnings(True)
     previous_hook, sys.unraisablehook = sys.unraisablehook, _quiet_hdf5_cleanup

@@ -5,7 +5,8 @@ from __future__ import annotations
 import argparse
 import os
 import sys
-from pathlib import Path
+
+from holoview.cli.options import add_experiment_option, add_optics_options, optics_in_metres
 
 NO_DISPLAY_HELP = (
     "no display found (DISPLAY and WAYLAND_DISPLAY are unset). Run the GUI under a "
@@ -29,14 +30,12 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
         metavar="SECONDS",
         help="close the window after this many seconds (for scripted runs and screenshots)",
     )
-    parser.add_argument(
-        "--experiment",
-        type=Path,
-        default=None,
-        metavar="JSON",
-        help="experiment settings file (optics, labelled peaks, window, reference) to use "
-        "and keep up to date; default: $XDG_CONFIG_HOME/holoview/experiment.json",
+    add_experiment_option(
+        parser,
+        "the experiment (optics, labelled peaks, window, reference) to use and keep up to "
+        "date; default: $XDG_CONFIG_HOME/holoview/experiment.json",
     )
+    add_optics_options(parser, "physical parameters (over the experiment's)")
     return parser
 
 
@@ -56,4 +55,9 @@ def run(args: argparse.Namespace) -> int:
         return 2
     from holoview.ui.app import run_live
 
-    return run_live(source=args.source, quit_after=args.quit_after, experiment=args.experiment)
+    return run_live(
+        source=args.source,
+        quit_after=args.quit_after,
+        experiment=args.experiment,
+        optics=optics_in_metres(args),
+    )

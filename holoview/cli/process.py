@@ -13,75 +13,17 @@ import os
 import sys
 from pathlib import Path
 
+from holoview.cli.options import (
+    add_experiment_option,
+    add_label_option,
+    add_optics_options,
+    optics_options,
+    parse_labels,
+)
 from holoview.cli.signals import emit
 from holoview.errors import InputError
 
 logger = logging.getLogger(__name__)
-
-
-def add_optics_options(parser: argparse.ArgumentParser) -> None:
-    """Add ``--wavelength``, ``--pixel-pitch``, ``--n1``, ``--n2``, ``--fluid`` (SI units)."""
-    from holoview.optics.setup import FLUIDS
-
-    group = parser.add_argument_group(
-        "physical parameters (a recording's own are used unless given here)"
-    )
-    group.add_argument("--wavelength", type=float, metavar="M", help="laser wavelength, m")
-    group.add_argument("--pixel-pitch", type=float, metavar="M", help="object-side pixel pitch, m")
-    group.add_argument("--n1", type=float, help="refractive index above the surface")
-    fluid = group.add_mutually_exclusive_group()
-    fluid.add_argument("--n2", type=float, help="refractive index of the fluid")
-    fluid.add_argument("--fluid", choices=sorted(FLUIDS), help="sets n2 from a preset")
-
-
-def add_label_option(parser: argparse.ArgumentParser) -> None:
-    """Add the repeatable ``--label LABEL=fx,fy``."""
-    parser.add_argument(
-        "--label",
-        action="append",
-        default=[],
-        metavar="LABEL=FX,FY",
-        help="a labelled peak, carrier in cycles/pixel on the twin whose phase grows with "
-        "the height (twice: the model names the rest)",
-    )
-
-
-def add_quiet_option(parser: argparse.ArgumentParser) -> None:
-    """Add ``-q`` after the subcommand too (same meaning as before it)."""
-    parser.add_argument(
-        "-q",
-        "--quiet",
-        action="store_true",
-        default=argparse.SUPPRESS,
-        help="errors only, no progress bar",
-    )
-
-
-def optics_options(args: argparse.Namespace, fps: float | None = None):
-    """Return the :class:`~holoview.headless.inputs.OpticsOptions` the arguments give."""
-    from holoview.headless.inputs import OpticsOptions
-
-    return OpticsOptions(
-        wavelength_m=args.wavelength,
-        pixel_pitch_m=args.pixel_pitch,
-        n1=args.n1,
-        n2=args.n2,
-        fluid=args.fluid,
-        fps_hz=fps,
-    )
-
-
-def parse_labels(texts: list[str]) -> dict[str, tuple[float, float]]:
-    """Parse repeated ``--label LABEL=fx,fy`` into a dict (a label given twice is an error)."""
-    from holoview.headless.selection import parse_assignment
-
-    labels: dict[str, tuple[float, float]] = {}
-    for text in texts:
-        label, carrier = parse_assignment(text, "--label")
-        if label in labels:
-            raise InputError(f"--label {label} is given twice")
-        labels[label] = carrier
-    return labels
 
 
 def folder_path(text: str) -> Path:
@@ -119,39 +61,49 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
         action="store_true",
         help="replace the results of an earlier run in DIR (only once this run completes)",
     )
-    peaks = parser.add_argument_group("peaks (one way)")
-    peaks.add_argument("--peaks", type=Path, metavar="FILE.json", help="a peaks file")
+    peaks = parser.add_argument_group(
+        "peaks (one way; with none, the experiment the recording carries, else --auto 4)"
+    )
+    add_experiment_option(
+        peaks,
+        "an experiment file (holoview-experiment JSON: labelled peaks, optics, window, "
+        "reference), as the GUI saves it and `holoview peaks --json` writes it",
+    )
+    add_label_option(peaks)
     peaks.add_argument(
         "--auto",
         type=int,
         metavar="N",
-        help="the N strongest peaks, identified by temporal PCA, the brightest as RB1 "
-        "(the default, with N = 4)",
+        help="the N strongest peaks, identified by temporal PCA, the brightest as RB1",
     )
     peaks.add_argument(
         "--anchor",
         metavar="LABEL=FX,FY",
         help="with --auto: the PCA's reference peak and its twin instead of the brightest",
     )
-    add_label_option(peaks)
     add_optics_options(parser)
     parser.add_argument(
         "--fps", type=float, metavar="F", help="frame rate, frames/s (replaces the file's times)"
     )
-    demod = parser.add_argument_group("demodulation")
+    demod = parser.add_argument_group("demodulation (default: the experiment's)")
     demod.add_argument(
         "--reference",
         choices=("relative", "absolute", "synthetic"),
-        default="relative",
-        help="reference of the maps (default: relative, against the previous frame)",
+        help="reference of the maps (default relative: against the previous frame)",
     )
     demod.add_argument(
-        "--window", choices=("raised-cosine", "top-hat", "tukey"), default="raised-cosine"
+        "--window", choices=("raised-cosine", "top-hat", "tukey"), help="spectral window"
     )
     demod.add_argument(
         "--radius", type=float, metavar="R", help="window radius, cycles/pixel (default: automatic)"
     )
-    demod.add_argument("--unwrap", choices=("auto", "always", "never"), default="auto")
+    demod.add_argument("--unwrap", choices=("auto", "always", "never"), help="spatial unwrapping")
+    demod.add_argument(
+        "--background",
+        metavar="FILE|INDEX",
+        help="object-free hologram that absolute phases are taken against: a frame index "
+        "of INPUT or a file (its first frame); implies --reference absolute",
+    )
     demod.add_argument(
         "--threads",
         type=int,
@@ -162,7 +114,6 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
     parser.add_argument("--maps", action="store_true", help="also write the delta-h maps")
     parser.add_argument("--frames", metavar="START:STOP", help="process these frames only")
     parser.add_argument("--area", type=float, metavar="M2", help="basin area, m^2 (volume rates)")
-    add_quiet_option(parser)
     return parser
 
 
@@ -199,11 +150,8 @@ def run(args: argparse.Namespace) -> int:
             "--threads %d: this machine has %d cores; using %d", args.threads, cores, cores
         )
         args.threads = cores
-    if args.auto is None and args.peaks is None and not args.label:
-        args.auto = 4
-        logger.info("no peaks chosen: --auto 4")
     choice = PeakChoice(
-        peaks_file=args.peaks,
+        experiment=args.experiment,
         labels=parse_labels(args.label),
         auto=args.auto,
         anchor=None if args.anchor is None else parse_assignment(args.anchor, "--anchor"),
@@ -216,6 +164,7 @@ def run(args: argparse.Namespace) -> int:
         maps=args.maps,
         area_m2=args.area,
         threads=args.threads,
+        background=args.background,
     )
     bar, update = _progress_bar(args.quiet)
     with bar:
@@ -247,7 +196,8 @@ def run(args: argparse.Namespace) -> int:
         emit(
             f"{outcome.out}: {len(data.frames)} frames in {data.wall_seconds:.1f} s "
             f"({len(data.frames) / max(data.wall_seconds, 1e-9):.1f} frames/s); "
-            f"peaks {', '.join(p.label for p in outcome.analysis.peaks)}; fused "
+            f"peaks {', '.join(p.label for p in outcome.analysis.peaks)} "
+            f"(from the {outcome.selection.source}); fused "
             f"({', '.join(used) or 'none'}): "
             f"{_rate_text(fit.rate if fit else None, fit.stderr if fit else None)}"
         )

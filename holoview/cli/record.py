@@ -16,6 +16,7 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from holoview.cli.options import add_experiment_option, add_optics_options, optics_in_metres
 from holoview.cli.signals import deferred_signals, emit
 from holoview.errors import HoloviewError, InputError
 
@@ -23,6 +24,7 @@ if TYPE_CHECKING:
     from holoview.acquire.camera_thread import CameraThread
     from holoview.acquire.recorder import Recorder
     from holoview.acquire.ring import FrameRing
+    from holoview.engine.experiment import Experiment
 
 logger = logging.getLogger(__name__)
 
@@ -60,10 +62,12 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
         help="memory of the frame ring between camera and disk, MB (default 512: about "
         "3 s of 1024 x 1024 uint16 at 80 frames/s, for disk writeback stalls)",
     )
-    parser.add_argument("--wavelength-nm", type=float, help="setup: laser wavelength, nm")
-    parser.add_argument("--pixel-pitch-um", type=float, help="setup: camera pixel pitch, um")
-    parser.add_argument("--n1", type=float, help="setup: refractive index above the surface")
-    parser.add_argument("--n2", type=float, help="setup: refractive index of the liquid")
+    add_experiment_option(
+        parser,
+        "the experiment in force (labelled peaks, optics, window, reference; as the GUI "
+        "saves it): stored in the recording, so `holoview process` needs no peak options",
+    )
+    add_optics_options(parser, "setup stored in the recording (over the experiment's)")
     return parser
 
 
@@ -89,29 +93,36 @@ def _number(raw: str) -> object:
     return raw
 
 
-def _setup_overrides(args: argparse.Namespace) -> dict[str, float]:
-    """The setup the options give, in SI, checked for plausibility (InputError)."""
+#: The optics an experiment carries, as recording setup attributes.
+OPTICS = ("wavelength_m", "pixel_pitch_m", "n1", "n2")
+
+
+def _checked_optics(args: argparse.Namespace) -> dict[str, float]:
+    """The optics the options give, in SI, checked for plausibility (InputError)."""
     from holoview.optics.setup import check_optics
 
-    setup = {}
-    if args.wavelength_nm is not None:
-        setup["wavelength_m"] = args.wavelength_nm * 1e-9
-    if args.pixel_pitch_um is not None:
-        setup["pixel_pitch_m"] = args.pixel_pitch_um * 1e-6
-    if args.n1 is not None:
-        setup["n1"] = args.n1
-    if args.n2 is not None:
-        setup["n2"] = args.n2
+    optics = optics_in_metres(args)
     check_optics(
-        **setup,
+        **optics,
         names={
             "wavelength_m": ("--wavelength-nm", 1e-9),
             "pixel_pitch_m": ("--pixel-pitch-um", 1e-6),
             "n1": ("--n1", 1.0),
-            "n2": ("--n2", 1.0),
+            "n2": ("--n2" if args.n2 is not None else "--fluid", 1.0),
         },
     )
-    return setup
+    return optics
+
+
+def _experiment(args: argparse.Namespace, optics: dict[str, float]) -> Experiment | None:
+    """The experiment to store: the file's with the optics options over it (None: no file)."""
+    from dataclasses import replace
+
+    from holoview.engine.experiment import Experiment
+
+    if args.experiment is None:
+        return None
+    return replace(Experiment.load(args.experiment), **optics)
 
 
 def _check_against_source(source_setup: dict[str, object], setup: dict[str, float]) -> None:
@@ -167,7 +178,8 @@ def run(args: argparse.Namespace) -> int:
     if args.seconds is not None and not (math.isfinite(args.seconds) and args.seconds > 0):
         raise InputError(f"--seconds must be positive, got {args.seconds}")
     settings = [parse_setting(text) for text in args.set]
-    setup = _setup_overrides(args)
+    optics = _checked_optics(args)
+    experiment = _experiment(args, optics)
     out = args.out
     if out.exists():
         raise InputError(f"{out} exists; holoview does not overwrite recordings")
@@ -177,10 +189,19 @@ def run(args: argparse.Namespace) -> int:
     with open_source(args.source) as source:
         for name, value in settings:
             source.set(name, value)
-        _check_against_source(dict(source.setup), setup)
+        _check_against_source(dict(source.setup), optics)
         frame_bytes = source.frame_shape[0] * source.frame_shape[1] * source.dtype.itemsize
         ring = FrameRing(ring_capacity(args.ring_mb, frame_bytes), source.frame_shape, source.dtype)
-        recorder = Recorder.for_source(ring, out, source, setup=setup)
+        setup = optics
+        if experiment is not None:
+            setup = {k: getattr(experiment, k) for k in OPTICS if getattr(experiment, k)}
+        recorder = Recorder.for_source(
+            ring,
+            out,
+            source,
+            setup=setup,
+            experiment=None if experiment is None else experiment.to_json(),
+        )
         camera = CameraThread(source, ring, max_frames=args.frames)
         recorder.start()
         t0 = time.monotonic()

@@ -3,9 +3,11 @@
 Frames come from :func:`holoview.optics.scenarios.simulate` (the paper's forward
 model, fast synthesis) and go to a holoview recording (layout in
 :mod:`holoview.acquire.recording`; ``source`` is ``"simulate:SCENARIO"``, the setup
-attributes are :meth:`holoview.optics.setup.Setup.as_attributes`). After the writer
-closes, this command reopens the file and adds the truth. The recording and the
-figure are written under temporary names and renamed when complete
+attributes are :meth:`holoview.optics.setup.Setup.as_attributes`, and the stored
+experiment labels every visible first-order family on its true twin,
+:func:`true_experiment`, so ``holoview process`` needs no peak options). After the
+writer closes, this command reopens the file and adds the truth. The recording and
+the figure are written under temporary names and renamed when complete
 (:mod:`holoview.atomic`): a simulation that fails or is stopped leaves no file, and
 neither an existing recording nor an existing figure is overwritten. Every option
 is checked before the simulation starts.
@@ -51,6 +53,7 @@ if TYPE_CHECKING:
 
     import numpy as np
 
+    from holoview.engine.experiment import Experiment
     from holoview.optics.families import Family
     from holoview.optics.scenarios import FrameTruth, ScenarioConfig
     from holoview.optics.setup import Setup
@@ -65,6 +68,10 @@ MAX_SIZE = 8192
 
 #: Seeds are stored as an int64 attribute.
 MAX_SEED = 2**63 - 1
+
+#: A first-order family is labelled in the stored experiment when its peak reaches this
+#: fraction of the mean intensity (the figure marks the same peaks).
+VISIBLE_AMPLITUDE = 1e-3
 
 #: The scenario config fields and the SI unit suffixes of their /truth attributes.
 _CONFIG_UNITS = {
@@ -347,7 +354,7 @@ def spectrum_figure(
     marks: dict[tuple[int, int], list[Family]] = {}
     for family in families:
         size_of_peak = family.amplitude if amplitudes is None else amplitudes[family.label]
-        if size_of_peak >= 1e-3:
+        if size_of_peak >= VISIBLE_AMPLITUDE:
             fx, fy = family.observed_carrier
             marks.setdefault((round((0.5 + fx) * width), round((0.5 + fy) * height)), []).append(
                 family
@@ -388,6 +395,29 @@ def check_outputs(args: argparse.Namespace) -> None:
         raise InputError(f"folder {args.png.parent} does not exist")
     if not cv2.haveImageWriter(str(args.png)):
         raise InputError(f"--png {args.png}: no image writer for that suffix (use .png)")
+
+
+def true_experiment(setup: Setup, families: list[Family], visible: dict[str, float]) -> Experiment:
+    """The experiment an operator would set on this bench: its optics and true labels.
+
+    Every first-order family (RF, RB_j, FB_j) whose peak is at least
+    :data:`VISIBLE_AMPLITUDE` of the mean intensity is labelled where the camera sees
+    it (folded back when past Nyquist), on the twin whose phase grows with the height.
+    """
+    from holoview.engine.experiment import Experiment, LabelledPeak
+
+    peaks = tuple(
+        LabelledPeak(f.label, f.observed_carrier)
+        for f in families
+        if f.kind in ("RF", "RB", "FB") and visible[f.label] >= VISIBLE_AMPLITUDE
+    )
+    return Experiment(
+        wavelength_m=setup.wavelength,
+        pixel_pitch_m=setup.pixel_pitch,
+        n1=setup.n1,
+        n2=setup.n2,
+        peaks=peaks,
+    )
 
 
 def run(args: argparse.Namespace) -> int:
@@ -448,6 +478,7 @@ def run(args: argparse.Namespace) -> int:
             source=f"simulate:{args.scenario}",
             significant_bits=setup.bit_depth,
             pixel_format=f"Mono{setup.bit_depth}" if setup.bit_depth in (8, 10, 12, 16) else None,
+            experiment=true_experiment(setup, families, visible).to_json(),
         ) as writer:
             progress = tqdm(total=args.frames, unit="frame", disable=args.quiet, desc="simulate")
             with progress:

@@ -3,16 +3,17 @@
 Everything here works on the per-frame carrier values a run kept
 (:class:`~holoview.headless.pipeline.RunData`), through :mod:`holoview.processing`:
 
-- auto mode: :func:`~holoview.processing.identify.identify_peaks` (temporal PCA with the
-  reference peak's label, de-aliasing from the phase steps) names every peak and gives
+- auto mode: :func:`~holoview.processing.identify.identify_peaks` (the carrier lattice,
+  with the temporal PCA confirming; off the lattice the PCA with the reference peak's
+  label, de-aliasing from the phase steps) names every peak and gives
   its prefactor: the model's for a family, its repeats and second orders, the PCA's
   for a peak the model does not explain (left out of the fusion, as weak ones are). A
   peak with a negative prefactor sits on the other twin and is flipped;
 - known prefactors (peaks file, labels): the PCA is computed for information when it
   can be (two peaks, frames that move);
-- :func:`~holoview.processing.trends.track_depth`: depth per peak relative to the first
-  frame, aliasing in time, the fusion weighted by each series' noise, and the rates
-  with standard errors.
+- :func:`holoview.engine.series.summarise` (what the live trends view runs too): depth
+  per peak relative to the first frame, aliasing in time, the fusion weighted by each
+  series' noise, and the rates with standard errors.
 """
 
 from __future__ import annotations
@@ -23,23 +24,20 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from holoview.engine.depth import pca_check, summarise
+from holoview.engine.series import coupling_of
 from holoview.errors import InputError
 from holoview.headless.inputs import Optics
 from holoview.headless.pipeline import RunData
 from holoview.headless.selection import Selection
 from holoview.processing.identify import Identification, PeakKind, identify_peaks
-from holoview.processing.pca import phase_pca
-from holoview.processing.trends import (
-    DepthTrack,
-    RateFit,
-    check_aliasing,
-    track_depth,
-    unwrap_in_time,
-)
+from holoview.processing.lattice import LatticePeak
+from holoview.processing.trends import RateFit, check_aliasing
 
 logger = logging.getLogger(__name__)
 
-#: A peak flagged ``low_amplitude`` in more than this fraction of its frames gets the flag.
+#: A peak flagged ``low_amplitude`` in more than this fraction of the demodulated frames
+#: gets the flag.
 LOW_AMPLITUDE_SHARE = 0.5
 
 #: Peak kinds of the PCA whose model prefactor is trusted (and fused).
@@ -78,6 +76,9 @@ class PeakOutcome:
     map_scale : float or None
         Metres per radian of the demodulated phase (sign included): converts the
         phase maps of an auto run.
+    lattice : LatticePeak or None
+        Its place on the carrier lattice (point ``(fb1, rf)``, residual in FFT bins,
+        kind, coupling), where the identification gave one.
     """
 
     label: str
@@ -95,6 +96,7 @@ class PeakOutcome:
     pca_alpha: float | None
     explained: float | None
     map_scale: float | None
+    lattice: LatticePeak | None = None
 
 
 @dataclass(frozen=True)
@@ -176,35 +178,14 @@ def _identify(
             reference_label=selection.reference_label,
             amplitudes=amplitudes,
             steps=steps,
+            carriers=None if selection.shape is None else [p.carrier for p in selection.peaks],
+            shape=selection.shape,
         )
     except InputError as exc:
         raise InputError(
             f"--auto: the PCA cannot identify the peaks ({exc}); label them instead "
             "(--label or --peaks)"
         ) from exc
-
-
-def _informative_pca(
-    phases: np.ndarray, labels: list[str], alphas: list[float | None]
-) -> dict[str, object] | None:
-    """PCA of peaks with known prefactors, against the brightest with one (or None)."""
-    known = [j for j, a in enumerate(alphas) if a is not None]
-    if len(labels) < 2 or phases.shape[0] < 3 or not known:
-        return None
-    try:
-        pca = phase_pca(phases)
-        reference = known[0]
-        prefactors = pca.prefactors(reference, float(alphas[reference]))  # type: ignore[arg-type]
-    except InputError as exc:
-        logger.info("no PCA: %s", exc)
-        return None
-    return {
-        "confidence": pca.confidence,
-        "reference": labels[reference],
-        "prefactors": dict(zip(labels, map(float, prefactors), strict=True)),
-        "explained": dict(zip(labels, map(float, pca.explained), strict=True)),
-        "n_samples": pca.n_samples,
-    }
 
 
 @dataclass
@@ -261,7 +242,6 @@ def _pca_names(ident: Identification, flags: list[set[str]]) -> _Naming:
 
 def _run_flags(selection: Selection, data: RunData) -> list[set[str]]:
     """Detection flags of each peak, and those the run raised often enough."""
-    n = data.values.shape[0]
     flags: list[set[str]] = [set(p.flags) for p in selection.peaks]
     for j, p in enumerate(selection.peaks):
         if not p.amplitude >= 0:
@@ -269,17 +249,17 @@ def _run_flags(selection: Selection, data: RunData) -> list[set[str]]:
         counts = data.peak_flags[j]
         if counts["phase_step"]:
             flags[j].add("phase_step")
-        if counts["low_amplitude"] > LOW_AMPLITUDE_SHARE * n:
+        if counts["low_amplitude"] > LOW_AMPLITUDE_SHARE * data.demodulated:
             flags[j].add("low_amplitude")
     return flags
 
 
-def _mean_over_peaks(heights: np.ndarray) -> np.ndarray:
-    """Per frame, the mean of the finite heights (NaN where none)."""
-    finite = np.isfinite(heights)
-    count = finite.sum(axis=1)
-    total = np.where(finite, heights, 0.0).sum(axis=1)
-    return np.where(count > 0, total / np.maximum(count, 1), np.nan)
+def _lattice_of(selection: Selection, naming: _Naming, j: int) -> LatticePeak | None:
+    """Peak ``j``'s place on the lattice: the auto identification's, else the selection's."""
+    ident = naming.ident
+    if ident is not None and ident.lattice is not None:
+        return ident.lattice.peaks[j]
+    return selection.lattice[j] if j < len(selection.lattice) else None
 
 
 def analyse(data: RunData, selection: Selection, optics: Optics) -> Analysis:
@@ -292,20 +272,27 @@ def analyse(data: RunData, selection: Selection, optics: Optics) -> Analysis:
     """
     wavelength = optics.wavelength_m
     assert wavelength is not None
-    n, m = data.values.shape
     flags = _run_flags(selection, data)
-    raw_phases = unwrap_in_time(data.values) if n >= 2 else np.zeros((n, m))
-    raw_phases = np.where(np.isfinite(data.values), raw_phases, np.nan)
     if selection.mode == "auto":
+        raw_phases = data.series.unwrapped()
         naming = _pca_names(_identify(raw_phases, data, selection, optics), flags)
     else:
         naming = _given_names(selection)
     labels, signed, fusable = naming.labels, naming.signed, naming.fusable
     # a peak with a negative prefactor is stored on its other twin (DESIGN.md)
-    signs = np.array([-1.0 if (a is not None and a < 0) else 1.0 for a in signed])
+    signs = [-1.0 if (a is not None and a < 0) else 1.0 for a in signed]
     alphas = [abs(a) if a is not None else None for a in signed]
-    phases = raw_phases * signs + 0.0  # no negative zeros in the files
-    values = np.where(signs < 0, np.conj(data.values), data.values)
+    exclude = [not f for f in fusable]
+    couplings = [coupling_of(label, optics.n1, optics.n2) for label in labels]
+    data.series.track_joint(signed, couplings, wavelength, exclude=exclude)
+    summary = summarise(data.series, signed, wavelength, exclude=exclude)
+    notes = list(selection.notes)
+    if summary.note is not None:
+        notes.append(summary.note)
+        logger.warning("%s", summary.note)
+    for j, aliased in enumerate(summary.aliased):
+        if aliased:
+            flags[j].add("aliased_in_time")
     if naming.ident is not None:
         pca_info: dict[str, object] | None = {
             "confidence": naming.ident.confidence,
@@ -321,46 +308,7 @@ def analyse(data: RunData, selection: Selection, optics: Optics) -> Analysis:
             "n_samples": naming.ident.pca.n_samples,
         }
     else:
-        pca_info = _informative_pca(phases, labels, alphas)
-    heights = np.full((n, m), np.nan)
-    for j, a in enumerate(alphas):
-        if a is not None:
-            heights[:, j] = phases[:, j] * wavelength / (4 * np.pi * a)
-    known = [j for j, a in enumerate(alphas) if a is not None]
-    rates: list[tuple[float, float] | None] = [None] * m
-    noise_m: list[float | None] = [None] * m
-    used = [False] * m
-    fused = spread = None
-    fit = None
-    notes = list(selection.notes)
-    track: DepthTrack | None = None
-    if n >= 3 and known:
-        try:
-            track = track_depth(
-                values[:, known],
-                data.times,
-                [alphas[j] for j in known],
-                wavelength,
-                exclude=[not fusable[j] for j in known],
-            )
-        except InputError as exc:
-            notes.append(f"no fused depth: {exc}")
-            logger.warning("no fused depth: %s", exc)
-    if track is not None:
-        fused, spread, fit = track.fused.depth, track.fused.spread, track.fit
-        for k, j in enumerate(known):
-            peak_fit = track.peak_fits[k]
-            if peak_fit is not None:
-                rates[j] = (peak_fit.rate, peak_fit.stderr)
-            noise = float(track.fused.noise[k])
-            noise_m[j] = noise if math.isfinite(noise) else None
-            used[j] = bool(track.fused.used[k])
-            if track.aliasing.aliased[k]:
-                flags[j].add("aliased_in_time")
-    elif n < 3 and any(fusable[j] for j in known):
-        chosen = [j for j in known if fusable[j]]
-        fused = _mean_over_peaks(heights[:, chosen])
-        used = [j in chosen for j in range(m)]
+        pca_info = pca_check(summary.phases, labels, alphas)
     live = np.where(data.noise_rad > 0, data.noise_rad, np.nan)
     outcomes = []
     for j, p in enumerate(selection.peaks):
@@ -368,6 +316,7 @@ def analyse(data: RunData, selection: Selection, optics: Optics) -> Analysis:
         map_noise = float(np.median(column)) if column.size else None
         carrier = p.carrier if signs[j] > 0 else p.flipped().carrier
         pca_alpha = naming.pca_alpha[j]
+        fit = summary.peak_fits[j]
         outcomes.append(
             PeakOutcome(
                 label=labels[j],
@@ -376,26 +325,27 @@ def analyse(data: RunData, selection: Selection, optics: Optics) -> Analysis:
                 amplitude=float(p.amplitude),
                 snr=float(p.snr),
                 flags=tuple(sorted(flags[j])),
-                rate=None if rates[j] is None else rates[j][0],
-                rate_stderr=None if rates[j] is None else rates[j][1],
-                noise_m=noise_m[j],
+                rate=None if fit is None else fit.rate,
+                rate_stderr=None if fit is None else fit.stderr,
+                noise_m=summary.noise_m[j],
                 map_noise_rad=map_noise,
                 map_noise_m=None
                 if map_noise is None or alphas[j] is None
                 else map_noise * wavelength / (4 * np.pi * alphas[j]),
-                used_in_fused=used[j],
+                used_in_fused=summary.used[j],
                 pca_alpha=None if pca_alpha is None else float(pca_alpha * signs[j]),
                 explained=naming.explained[j],
                 map_scale=None if signed[j] is None else wavelength / (4 * np.pi * signed[j]),
+                lattice=_lattice_of(selection, naming, j),
             )
         )
     return Analysis(
         peaks=tuple(outcomes),
-        phases=phases,
-        heights=heights,
-        fused=fused,
-        fused_spread=spread,
-        fit=fit,
+        phases=summary.phases,
+        heights=summary.heights,
+        fused=summary.fused,
+        fused_spread=summary.fused_spread,
+        fit=summary.fit,
         pca=pca_info,
         notes=tuple(notes),
     )

@@ -17,7 +17,6 @@ blank, and refuses background-subtracted frames, which cannot be demodulated.
 
 from __future__ import annotations
 
-import codecs
 import logging
 import math
 from dataclasses import dataclass, field
@@ -29,7 +28,8 @@ import numpy as np
 
 from holoview.acquire.recording import RecordingReader
 from holoview.acquire.replay_files import FrameFile, open_frame_file
-from holoview.errors import InputError, os_error_text
+from holoview.engine.experiment import Experiment
+from holoview.errors import InputError
 from holoview.optics.setup import FLUIDS, check_optics
 from holoview.processing.frames import check_frame, check_frame_content, frame_damage
 
@@ -104,9 +104,9 @@ class Optics:
     def require(self, *names: str) -> None:
         """Raise InputError naming the option to give for each parameter that is unknown."""
         options = {
-            "wavelength_m": "the laser wavelength is not known: give --wavelength (m)",
+            "wavelength_m": "the laser wavelength is not known: give --wavelength-nm",
             "n2": "the fluid's refractive index is not known: give --n2 or --fluid",
-            "pixel_pitch_m": "the pixel pitch is not known: give --pixel-pitch (m)",
+            "pixel_pitch_m": "the pixel pitch is not known: give --pixel-pitch-um",
         }
         missing = [options[name] for name in names if getattr(self, name) is None]
         if missing:
@@ -115,8 +115,8 @@ class Optics:
 
 #: How the user gives each parameter (``process`` and ``peaks``), with its unit factor to SI.
 OPTION_NAMES: dict[str, tuple[str, float]] = {
-    "wavelength_m": ("--wavelength", 1.0),
-    "pixel_pitch_m": ("--pixel-pitch", 1.0),
+    "wavelength_m": ("--wavelength-nm", 1e-9),
+    "pixel_pitch_m": ("--pixel-pitch-um", 1e-6),
     "n1": ("--n1", 1.0),
     "n2": ("--n2", 1.0),
 }
@@ -135,7 +135,9 @@ def _stored(setup: dict[str, Any], name: str) -> float | None:
     return float(stored)
 
 
-def resolve_optics(setup: dict[str, Any], options: OpticsOptions) -> Optics:
+def resolve_optics(
+    setup: dict[str, Any], options: OpticsOptions, experiment: Experiment | None = None
+) -> Optics:
     """Combine a recording's setup with the user's options (options win, with a warning).
 
     Parameters
@@ -145,6 +147,9 @@ def resolve_optics(setup: dict[str, Any], options: OpticsOptions) -> Optics:
         ``n1``, ``n2``); empty for files that carry none.
     options : OpticsOptions
         The user's values.
+    experiment : Experiment, optional
+        An experiment file the user gave: its optics come after the options and before
+        the recording's.
 
     Raises
     ------
@@ -169,13 +174,13 @@ def resolve_optics(setup: dict[str, Any], options: OpticsOptions) -> Optics:
         "n1": options.n1,
         "n2": n2_option,
     }
-    check_optics(
-        wavelength_m=given["wavelength_m"], pixel_pitch_m=given["pixel_pitch_m"], names=OPTION_NAMES
-    )
     values: dict[str, float | None] = {}
     sources: dict[str, str] = {}
     for name, option in given.items():
         stored_value = _stored(setup, name)
+        if option is None and experiment is not None and getattr(experiment, name) is not None:
+            values[name], sources[name] = getattr(experiment, name), "experiment"
+            continue
         if option is not None:
             value = float(option)
             if stored_value is not None and not math.isclose(value, stored_value, rel_tol=1e-9):
@@ -195,10 +200,10 @@ def resolve_optics(setup: dict[str, Any], options: OpticsOptions) -> Optics:
     n1, n2 = values["n1"], values["n2"]
     assert n1 is not None
     names = {
-        name: OPTION_NAMES[name] if sources[name] == "option" else (f"{sources[name]} {name}", 1.0)
-        for name in ("n1", "n2")
+        name: OPTION_NAMES[name] if source == "option" else (f"the {source}'s {name}", 1.0)
+        for name, source in sources.items()
     }
-    check_optics(n1=n1, n2=n2, names=names)
+    check_optics(**values, names=names)
     return Optics(
         wavelength_m=values["wavelength_m"],
         pixel_pitch_m=values["pixel_pitch_m"],
@@ -238,50 +243,6 @@ def parse_frame_range(text: str | None, n_frames: int) -> range:
     if len(selected) == 0:
         raise InputError(f"--frames {text} selects no frame of the {n_frames} in the input")
     return selected
-
-
-#: Largest text file (peaks file) read, bytes.
-MAX_TEXT_BYTES = 16 << 20
-
-
-def read_text_file(path: Path, what: str) -> str:
-    """Return the text of a small file, however an editor or shell encoded it.
-
-    UTF-8 (with or without a byte-order mark) and UTF-16 with its mark (what
-    PowerShell's ``>`` writes) are read; anything else is refused in one line.
-
-    Parameters
-    ----------
-    path : Path
-        The file.
-    what : str
-        What it is, for messages (``"peaks file"``).
-
-    Raises
-    ------
-    InputError
-        The file cannot be read, is too large, or is not text.
-    """
-    try:
-        if path.stat().st_size > MAX_TEXT_BYTES:
-            raise InputError(f"{what} {path}: too large for a {what} ({path.stat().st_size} bytes)")
-        data = path.read_bytes()
-    except OSError as exc:
-        raise InputError(f"{what} {path}: cannot be read ({os_error_text(exc)})") from exc
-    encoding = "utf-8"
-    if data.startswith(codecs.BOM_UTF8):
-        encoding = "utf-8-sig"
-    elif data.startswith((codecs.BOM_UTF16_LE, codecs.BOM_UTF16_BE)):
-        encoding = "utf-16"
-    try:
-        text = data.decode(encoding)
-    except UnicodeDecodeError as exc:
-        raise InputError(
-            f"{what} {path}: not a text file (byte {exc.start} is not {encoding.upper()} text)"
-        ) from exc
-    if "\x00" in text:
-        raise InputError(f"{what} {path}: not a text file (it holds NUL characters)")
-    return text
 
 
 def check_run_settings(
@@ -395,6 +356,9 @@ class InputFile:
     dtype : numpy dtype
     setup : dict
         A recording's ``/setup`` attributes (empty for other files).
+    experiments : list of (int, str)
+        The experiments a recording carries: the frame each holds from, and its JSON
+        text (empty for other files and for recordings made without one).
     saturation : float or None
         The largest value the camera gives (counts), from the recording's significant
         bits or the integer dtype; None for real-valued frames.
@@ -413,12 +377,14 @@ class InputFile:
         if not self.path.exists():
             raise InputError(f"{self.path}: no such file or folder")
         self.setup: dict[str, Any] = {}
+        self.experiments: list[tuple[int, str]] = []
         self._host_times: np.ndarray | None = None
         self.info: dict[str, Any] = {"path": str(self.path)}
         bits: int | None = None
         if self.path.is_file() and self.path.suffix.lower() in (".h5", ".hdf5"):
             with RecordingReader(self.path) as reader:
                 self.setup = dict(reader.setup)
+                self.experiments = reader.experiments()
                 self._host_times = np.asarray(reader.t_host, dtype=np.float64)
                 bits = reader.significant_bits
                 self.info.update(
@@ -446,6 +412,31 @@ class InputFile:
 
     def __len__(self) -> int:
         return len(self._file)
+
+    def experiment_at(self, frame: int) -> tuple[Experiment | None, list[str]]:
+        """The experiment the recording carries for ``frame``, and notes about it.
+
+        Returns the last one stored from ``frame`` or before (None when there is none,
+        or it cannot be read: a note says why). A change stored after ``frame`` gets a
+        note naming the frame it holds from: one run uses one experiment.
+        """
+        notes: list[str] = []
+        in_force = [(start, text) for start, text in self.experiments if start <= frame]
+        later = [start for start, _ in self.experiments if start > frame]
+        if later:
+            notes.append(
+                f"the recording's experiment changes at frame{'s' if len(later) > 1 else ''} "
+                f"{', '.join(map(str, later))}; this run used the one in force at frame "
+                f"{frame} (give --frames to process after a change)"
+            )
+        if not in_force:
+            return None, notes
+        start, text = in_force[-1]
+        try:
+            return Experiment.from_json(text, f"{self.path} experiment (from frame {start})"), notes
+        except InputError as exc:
+            notes.append(f"{exc}; ignored")
+            return None, notes
 
     def read(self, index: int) -> np.ndarray:
         """Return frame ``index`` as a new array.

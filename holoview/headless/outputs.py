@@ -151,6 +151,18 @@ def _peak_entry(peak: PeakOutcome) -> dict[str, Any]:
         "map_noise_m": peak.map_noise_m,
         "used_in_fused": peak.used_in_fused,
         "flags": list(peak.flags),
+        **_lattice_entry(peak),
+    }
+
+
+def _lattice_entry(peak: PeakOutcome) -> dict[str, Any]:
+    """``lattice`` ([fb1, rf] or null), ``residual_bins``, ``kind``, ``coupling``."""
+    p = peak.lattice
+    return {
+        "lattice": None if p is None or p.lattice is None else list(p.lattice),
+        "residual_bins": None if p is None else p.residual_bins,
+        "kind": None if p is None else str(p.kind),
+        "coupling": None if p is None else p.coupling,
     }
 
 
@@ -235,6 +247,7 @@ def summary_document(
             "optics_from": dict(optics.sources),
             "fps_hz": (n - 1) / duration if duration > 0 else None,
             "reference": settings.reference,
+            "background": settings.background,
             "window": settings.window,
             "radius_cpp": data.radius,
             "unwrap": settings.unwrap,
@@ -518,7 +531,11 @@ class ResultsFile:
         step = (frame_shape[0] / by, frame_shape[1] / bx)
         common: dict[str, Any] = {
             "reference": settings.reference,
-            "reference_description": REFERENCE_DESCRIPTIONS[settings.reference],
+            "reference_description": (
+                REFERENCE_DESCRIPTIONS[settings.reference]
+                if settings.background is None
+                else f"each frame against the background hologram {settings.background}"
+            ),
             "frame_shape_px": list(frame_shape),
             "pixel_step_px": list(step),
             "window": settings.window,

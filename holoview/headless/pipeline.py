@@ -1,10 +1,16 @@
-"""The streaming loop of a headless run: frames through one Demodulator, series kept.
+"""The streaming loop of a headless run: every frame through the engine's per-frame core.
 
-Per frame, each selected peak gives its complex carrier value (whose phase is the
-spatially averaged phase, paper section 4.2) and its phase noise; they are kept for
-the whole run (a few numbers per frame and peak). Maps are not kept: with a
-:class:`MapSink` each frame's maps go to it at once, so memory stays bounded by
-the few frames the :class:`~holoview.headless.reader.FrameReader` reads ahead.
+Per frame, the carrier probe (:class:`holoview.engine.frame_core.CarrierCore`, what the
+live series worker runs) measures each selected peak's complex carrier value, whose
+phase is the spatially averaged phase (paper section 4.2), into a
+:class:`holoview.engine.series.PhaseSeries` kept for the whole run (a few numbers per
+frame and peak): that is all the trends and rates need, at a quarter of a full FFT's
+time. The maps (:class:`holoview.engine.frame_core.FrameCore`, the live maps' core)
+are demodulated where they are wanted: every frame with ``--maps``, else only the
+frames that measure the peaks' displacements and the last frame (with the one before
+it, so that its relative map is against the previous frame). With a :class:`MapSink`
+each frame's maps go to it at once, so memory stays bounded by the few frames the
+:class:`~holoview.headless.reader.FrameReader` reads ahead.
 
 Maps are at the demodulator's box resolution (pixel ``(p, q)`` at frame position
 ``(p rows / by, q cols / bx)``), float32, NaN where the pixel is not trusted (its
@@ -26,28 +32,29 @@ from typing import Protocol
 
 import numpy as np
 
-from holoview.errors import InputError
-from holoview.headless.inputs import InputFile, Optics
-from holoview.headless.reader import DEFAULT_DEPTH, FrameReader
-from holoview.headless.selection import Selection
-from holoview.processing.coregister import (
-    MIN_MAP_SIDE,
-    Displacement,
-    DisplacementEstimator,
-    fuse_coregistered,
+from holoview.engine.experiment import Experiment
+from holoview.engine.frame_core import (
+    CarrierCore,
+    Coregistration,
+    FrameCore,
+    fuse_maps,
+    trusted_maps,
 )
-from holoview.processing.demodulate import DemodResult, Demodulator
+from holoview.engine.series import PhaseSeries
+from holoview.errors import InputError
+from holoview.headless.inputs import InputFile
+from holoview.headless.reader import DEFAULT_DEPTH, FrameReader
+from holoview.processing.coregister import Displacement
+from holoview.processing.demodulate import DemodResult
+from holoview.processing.peaks import Peak
 
 logger = logging.getLogger(__name__)
 
-#: Per-frame peak flags counted over the run.
-COUNTED_PEAK_FLAGS = ("phase_step", "low_amplitude", "overlap")
-
-#: Frame-level flags counted over the run.
-COUNTED_FRAME_FLAGS = ("nonfinite", "no_signal", "saturated")
-
 #: Frames, spread over a run, whose maps measure the peaks' displacements.
-COREGISTER_FRAMES = 200
+COREGISTER_FRAMES = 50
+
+#: Per-frame map flags of a peak counted over the demodulated frames.
+MAP_PEAK_FLAGS = ("low_amplitude", "overlap")
 
 
 @dataclass(frozen=True)
@@ -56,14 +63,16 @@ class ProcessSettings:
 
     Attributes
     ----------
-    reference : {"relative", "absolute", "synthetic"}
+    reference : {"relative", "absolute", "synthetic"} or None
         Reference mode of the maps (the mean-phase series is always relative to the
-        first frame).
-    window : {"raised-cosine", "top-hat", "tukey"}
+        first frame). None: the experiment's.
+    window : {"raised-cosine", "top-hat", "tukey"} or None
+        None: the experiment's.
     radius : float or None
-        Window radius, cycles/pixel (None: automatic from the carriers).
-    unwrap : {"auto", "always", "never"}
-        Spatial unwrapping of the maps.
+        Window radius, cycles/pixel (None: the experiment's, else automatic from the
+        carriers).
+    unwrap : {"auto", "always", "never"} or None
+        Spatial unwrapping of the maps. None: the experiment's.
     maps : bool
         Write the delta-h maps.
     area_m2 : float or None
@@ -74,16 +83,20 @@ class ProcessSettings:
         took 450 ms instead of 10 ms per 1024 x 1024 frame.
     read_ahead : int
         Frames the reader thread reads ahead.
+    background : str or None
+        An object-free hologram for absolute phases: a frame index of the input, or
+        a file (its first frame); None: the first processed frame.
     """
 
-    reference: str = "relative"
-    window: str = "raised-cosine"
+    reference: str | None = None
+    window: str | None = None
     radius: float | None = None
-    unwrap: str = "auto"
+    unwrap: str | None = None
     maps: bool = False
     area_m2: float | None = None
     threads: int = 1
     read_ahead: int = DEFAULT_DEPTH
+    background: str | None = None
 
 
 class MapSink(Protocol):
@@ -95,26 +108,23 @@ class MapSink(Protocol):
 
 @dataclass
 class RunData:
-    """What the loop kept: per-frame series of every peak, and the last frame's maps.
+    """What the loop kept: the per-frame series of every peak, and the last frame's maps.
 
     Attributes
     ----------
-    frames : ndarray of int64, shape (N,)
-        Input frame indices.
-    times : ndarray of float64, shape (N,)
-        Frame times, s, from 0.
-    values : ndarray of complex128, shape (N, M)
-        Carrier value per frame and peak (counts), demodulated on the selected twin;
-        NaN for a frame that could not be demodulated.
-    noise_rad : ndarray of float64, shape (N, M)
-        Per-pixel phase noise of each map, rad (0 for a reference frame).
-    phase_steps : ndarray of bool, shape (N, M)
-        Whether the peak's mean phase stepped past 0.8 pi at that frame (its map is
-        then left out of the fused map).
-    frame_flags : dict of str to int
-        Frames flagged ``nonfinite``, ``no_signal``, ``saturated``.
-    peak_flags : list of dict of str to int
-        Per peak, frames flagged ``phase_step``, ``low_amplitude``, ``overlap``.
+    series : PhaseSeries
+        Carrier values, their noise, phase steps and flags of every processed frame
+        (:mod:`holoview.engine.series`); ``frames``, ``times``, ``values`` and
+        ``phase_steps`` read it.
+    map_noise_rad : ndarray of float, shape (N, M)
+        Per-pixel phase noise of each map, rad, on the frames demodulated (0 for a
+        reference frame, NaN where a frame was not demodulated).
+    map_flags : list of dict of str to int
+        Per peak, demodulated frames flagged ``low_amplitude`` or ``overlap``.
+    no_signal : int
+        Demodulated frames with no trusted pixel in any peak.
+    demodulated : int
+        Frames demodulated into maps.
     box_shape : tuple of int
         Shape of every map, ``(by, bx)``.
     radius : float
@@ -136,13 +146,9 @@ class RunData:
         and in all, s.
     """
 
-    frames: np.ndarray
-    times: np.ndarray
-    values: np.ndarray
-    noise_rad: np.ndarray
-    phase_steps: np.ndarray
-    frame_flags: dict[str, int]
-    peak_flags: list[dict[str, int]]
+    series: PhaseSeries
+    map_noise_rad: np.ndarray
+    map_flags: list[dict[str, int]]
     box_shape: tuple[int, int]
     radius: float
     last_maps: list[np.ndarray | None] = field(default_factory=list)
@@ -154,6 +160,44 @@ class RunData:
     demod_seconds: float = 0.0
     write_seconds: float = 0.0
     wall_seconds: float = 0.0
+    no_signal: int = 0
+    demodulated: int = 0
+
+    @property
+    def frames(self) -> np.ndarray:
+        """Input frame indices, shape (N,)."""
+        return self.series.frames
+
+    @property
+    def times(self) -> np.ndarray:
+        """Frame times, s, from 0, shape (N,)."""
+        return self.series.times
+
+    @property
+    def values(self) -> np.ndarray:
+        """Carrier value per frame and peak (counts), shape (N, M); NaN: not demodulated."""
+        return self.series.values
+
+    @property
+    def noise_rad(self) -> np.ndarray:
+        """Per-pixel phase noise of each map, rad (NaN where not demodulated), shape (N, M)."""
+        return self.map_noise_rad[: len(self.series)]
+
+    @property
+    def phase_steps(self) -> np.ndarray:
+        """Whether each peak's mean phase stepped past the limit at each frame, (N, M)."""
+        return self.series.phase_steps
+
+    @property
+    def frame_flags(self) -> dict[str, int]:
+        """Frames flagged ``nonfinite`` and ``saturated`` (all), ``no_signal`` (demodulated)."""
+        return {**self.series.frame_flags, "no_signal": self.no_signal}
+
+    @property
+    def peak_flags(self) -> list[dict[str, int]]:
+        """Per peak, frames flagged ``phase_step`` (all), ``low_amplitude``, ``overlap``."""
+        steps = self.series.step_counts
+        return [{"phase_step": int(steps[j]), **f} for j, f in enumerate(self.map_flags)]
 
 
 def fuse_frame(
@@ -178,65 +222,70 @@ def fuse_frame(
     Returns
     -------
     ndarray of float32 or None
-        None with fewer than two peaks to fuse. Peaks whose mean phase stepped at this
-        frame are left out, unless every one did.
+        :func:`holoview.engine.frame_core.fuse_maps` of the chosen peaks.
     """
-    chosen = [j for j, s in enumerate(scales) if s is not None and maps[j] is not None]
-    steady = [j for j in chosen if not data.phase_steps[position, j]]
-    chosen = steady or chosen
-    if len(chosen) < 2:
-        return None
-    shifts = None
-    if data.displacements:
-        shifts = [data.displacements[j].shift for j in chosen]
-    return fuse_coregistered(
-        [maps[j] for j in chosen],  # type: ignore[misc]
-        [data.noise_rad[position, j] * abs(scales[j]) for j in chosen],  # type: ignore[arg-type]
-        shifts,
-    )
+    chosen = [maps[j] if s is not None else None for j, s in enumerate(scales)]
+    noise = [
+        None if s is None else float(data.noise_rad[position, j]) * abs(s)
+        for j, s in enumerate(scales)
+    ]
+    return fuse_maps(chosen, noise, list(data.phase_steps[position]), data.displacements or None)
 
 
-def _trusted(result_map: np.ndarray, mask: np.ndarray) -> np.ndarray:
-    return np.where(mask, result_map, np.float32(np.nan)).astype(np.float32, copy=False)
-
-
-def frame_maps(result: DemodResult) -> list[np.ndarray]:
-    """Return one frame's maps, NaN where untrusted: delta-h in m with alpha, else phase in rad."""
-    return [_trusted(r.delta_h if r.delta_h is not None else r.phase, r.mask) for r in result.peaks]
-
-
-def make_demodulator(
+def make_core(
     shape: tuple[int, int],
-    selection: Selection,
-    optics: Optics,
+    experiment: Experiment,
+    peaks: Sequence[Peak],
     settings: ProcessSettings,
     saturation: float | None = None,
-) -> Demodulator:
-    """Return the demodulator of a run (InputError for a radius or mode that cannot work)."""
-    return Demodulator(
+    *,
+    detected: Sequence[Peak] = (),
+    background: np.ndarray | None = None,
+) -> FrameCore:
+    """Return the per-frame core of a run, its demodulator built (InputError if it cannot work).
+
+    ``detected``: every peak found in the first frame; no automatic window reaches one.
+    ``background``: the object-free hologram absolute phases are taken against.
+    """
+    core = FrameCore(
         shape,
-        selection.peaks,
-        window=settings.window,
-        radius=settings.radius,
-        reference=settings.reference,
-        unwrap=settings.unwrap,
-        wavelength=optics.wavelength_m,
+        experiment,
+        peaks,
         saturation=saturation,
         threads=settings.threads,
+        neighbours=[p.carrier for p in detected],
+        background=background,
     )
+    core.build()
+    return core
+
+
+def _maps_wanted(n: int, every: int, relative: bool) -> np.ndarray:
+    """Positions demodulated without a sink: displacement frames and the last one.
+
+    In relative mode the frame before the last is demodulated too, so that the last
+    map (the report's) is against the previous frame; a displacement frame's map is
+    against the one demodulated before it, which only gives it more to measure.
+    """
+    wanted = np.zeros(n, dtype=bool)
+    wanted[::every] = True
+    wanted[n - 1] = True
+    if relative and n > 1:
+        wanted[n - 2] = True
+    return wanted
 
 
 def demodulate_frames(
     source: InputFile,
     frames: range,
     times: np.ndarray,
-    demodulator: Demodulator,
+    core: FrameCore,
     *,
     sink: MapSink | None = None,
     read_ahead: int = DEFAULT_DEPTH,
     progress: Callable[[int], None] | None = None,
 ) -> RunData:
-    """Stream ``frames`` of ``source`` through ``demodulator``; keep the series.
+    """Stream ``frames`` of ``source``: the carrier values of each, maps where wanted.
 
     Parameters
     ----------
@@ -246,10 +295,11 @@ def demodulate_frames(
         Input frame indices to process.
     times : ndarray, shape (len(frames),)
         Their times, s.
-    demodulator : Demodulator
-        Built for the selected peaks (its reference starts at the first frame).
+    core : FrameCore
+        Built for the selected peaks (its reference starts at the first frame); the
+        carrier probe measures the same peaks.
     sink : MapSink, optional
-        Receives every frame's maps (and fused map when every peak has alpha).
+        Receives every frame's maps (every frame is then demodulated).
     read_ahead : int
         Frames read ahead.
     progress : callable, optional
@@ -262,47 +312,46 @@ def demodulate_frames(
         series of the frames done and ``interrupted`` set; with none done, the
         interruption is raised again.
     """
+    demodulator = core.build()
+    assert demodulator is not None
     n, m = len(frames), len(demodulator.peaks)
-    values = np.full((n, m), np.nan + 0j, dtype=np.complex128)
-    noise = np.full((n, m), np.nan)
-    estimator = None
-    if m >= 2 and min(demodulator.box_shape) >= MIN_MAP_SIDE:
-        estimator = DisplacementEstimator(demodulator.box_shape, m)
+    carriers = CarrierCore(core.frame_shape, core.saturation)
+    carriers.configure(demodulator.peaks)
+    series = PhaseSeries([p.label or f"P{j}" for j, p in enumerate(demodulator.peaks)], n)
+    coregistration = Coregistration()
     every = max(1, n // COREGISTER_FRAMES)
-    frame_flags = dict.fromkeys(COUNTED_FRAME_FLAGS, 0)
-    peak_flags = [dict.fromkeys(COUNTED_PEAK_FLAGS, 0) for _ in range(m)]
-    with_alpha = all(p.alpha is not None for p in demodulator.peaks)
+    wanted = _maps_wanted(n, every, demodulator.reference == "relative")
     data = RunData(
-        frames=np.asarray(frames, dtype=np.int64),
-        times=np.asarray(times, dtype=np.float64),
-        values=values,
-        noise_rad=noise,
-        phase_steps=np.zeros((n, m), dtype=bool),
-        frame_flags=frame_flags,
-        peak_flags=peak_flags,
+        series=series,
+        map_noise_rad=np.full((n, m), np.nan),
+        map_flags=[dict.fromkeys(MAP_PEAK_FLAGS, 0) for _ in range(m)],
         box_shape=demodulator.box_shape,
         radius=demodulator.radius,
         last_maps=[None] * m,
-        maps_in_metres=with_alpha,
+        maps_in_metres=all(p.alpha is not None for p in demodulator.peaks),
     )
     start = time.perf_counter()
-    last: DemodResult | None = None
+    last = None
     done = 0
     reader = FrameReader(source.read, frames, depth=read_ahead)
     try:
         with reader:
             for position, (index, frame) in enumerate(reader):
                 t0 = time.perf_counter()
-                result = demodulator.process(frame)
-                measure = estimator is not None and position % every == 0
-                wanted = result.peaks and (measure or sink is not None)
-                maps = frame_maps(result) if wanted else []
-                if maps and measure:
-                    estimator.add(maps)  # type: ignore[union-attr]
+                measured = carriers.measure(frame)
+                assert measured is not None
+                series.add(float(times[position]), index, measured)
+                result = None
+                if sink is not None or wanted[position]:
+                    result = core.process(frame)
+                    assert result is not None
+                    _count(data, position, result)
+                maps = trusted_maps(result) if result is not None and result.peaks else []
+                if maps and position % every == 0:
+                    coregistration.add(result, maps)  # type: ignore[arg-type]
                 t1 = time.perf_counter()
                 data.demod_seconds += t1 - t0
-                _record(data, position, result)
-                if result.peaks:
+                if maps:
                     last, data.last_frame = result, index
                     if sink is not None:
                         for j, values_map in enumerate(maps):
@@ -316,13 +365,10 @@ def demodulate_frames(
             raise
         logger.warning("interrupted after %d of %d frames: results of those", done, n)
         data.interrupted = True
-        data.frames, data.times = data.frames[:done], data.times[:done]
-        data.values, data.noise_rad = data.values[:done], data.noise_rad[:done]
-        data.phase_steps = data.phase_steps[:done]
+        series.truncate(done)
     if last is not None:
-        data.last_maps = list(frame_maps(last))
-    if estimator is not None:
-        data.displacements = estimator.displacements()
+        data.last_maps = list(trusted_maps(last))
+    data.displacements = coregistration.displacements() or []
     data.read_seconds = reader.read_seconds
     data.wall_seconds = time.perf_counter() - start
     if not np.any(np.isfinite(data.values)):
@@ -330,14 +376,13 @@ def demodulate_frames(
     return data
 
 
-def _record(data: RunData, position: int, result: DemodResult) -> None:
-    for flag in result.flags:
-        if flag in data.frame_flags:
-            data.frame_flags[flag] += 1
+def _count(data: RunData, position: int, result: DemodResult) -> None:
+    """Keep a demodulated frame's map noise and count its map flags."""
+    data.demodulated += 1
+    if "no_signal" in result.flags:
+        data.no_signal += 1
     for j, r in enumerate(result.peaks):
-        data.values[position, j] = r.carrier_value
-        data.noise_rad[position, j] = r.noise
-        data.phase_steps[position, j] = "phase_step" in r.flags
+        data.map_noise_rad[position, j] = r.noise
         for flag in r.flags:
-            if flag in data.peak_flags[j]:
-                data.peak_flags[j][flag] += 1
+            if flag in data.map_flags[j]:
+                data.map_flags[j][flag] += 1

@@ -18,10 +18,13 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
+from holoview.engine.experiment import Experiment, LabelledPeak
 from holoview.errors import InputError
 from holoview.headless.analysis import Analysis, analyse
 from holoview.headless.inputs import (
@@ -40,14 +43,12 @@ from holoview.headless.outputs import (
     write_summary_json,
     write_trends_csv,
 )
-from holoview.headless.pipeline import ProcessSettings, RunData, demodulate_frames, make_demodulator
+from holoview.headless.pipeline import ProcessSettings, RunData, demodulate_frames, make_core
 from holoview.headless.selection import (
     Carrier,
     Selection,
-    load_peaks_file,
     select_auto,
-    select_by_model,
-    select_from_entries,
+    select_from_experiment,
 )
 from holoview.processing.peaks import Peak, find_peaks
 from holoview.processing.spectrum import display_spectrum
@@ -61,43 +62,51 @@ RESULTS_H5 = "results.h5"
 REPORT_PNG = "report.png"
 
 
+#: Peaks identified by PCA when nothing names them (no options, no experiment stored).
+DEFAULT_AUTO = 4
+
+
 @dataclass(frozen=True)
 class PeakChoice:
-    """How to choose the peaks: exactly one of a peaks file, labels, or a count.
+    """How to choose the peaks: at most one of an experiment file, labels, or a count.
+
+    With none, the experiment the recording carries is used, or ``--auto``
+    :data:`DEFAULT_AUTO` when it carries none.
 
     Attributes
     ----------
-    peaks_file : Path or None
-        A JSON peaks file.
+    experiment : Path or None
+        An experiment file (:mod:`holoview.engine.experiment`).
     labels : dict of str to (fx, fy)
-        Two or more labelled carriers (cycles/pixel) for the model.
+        Labelled carriers (cycles/pixel); with two or more of the model's families the
+        model adds the others.
     auto : int or None
         The number of strongest peaks to identify by PCA.
     anchor : (str, (fx, fy)) or None
         Auto mode: the reference peak's label and carrier (default: the brightest, RB1).
     """
 
-    peaks_file: Path | None = None
+    experiment: Path | None = None
     labels: dict[str, Carrier] = field(default_factory=dict)
     auto: int | None = None
     anchor: tuple[str, Carrier] | None = None
 
     def mode(self) -> str:
-        """``"file"``, ``"labels"`` or ``"auto"``; InputError unless exactly one is given."""
+        """``"experiment file"``, ``"labels"``, ``"auto"`` or ``"recording"`` (none given)."""
         given = [
             name
             for name, on in (
-                ("file", self.peaks_file is not None),
+                ("experiment file", self.experiment is not None),
                 ("labels", bool(self.labels)),
                 ("auto", self.auto is not None),
             )
             if on
         ]
-        if len(given) != 1:
-            raise InputError("choose the peaks one way: --peaks FILE, --auto N or --label (twice)")
-        if self.anchor is not None and given[0] != "auto":
+        if len(given) > 1:
+            raise InputError("choose the peaks one way: --experiment FILE, --label or --auto N")
+        if self.anchor is not None and given != ["auto"]:
             raise InputError("--anchor goes with --auto")
-        return given[0]
+        return given[0] if given else "recording"
 
 
 @dataclass(frozen=True)
@@ -106,25 +115,108 @@ class ProcessOutcome:
 
     out: Path
     selection: Selection
+    experiment: Experiment
     data: RunData
     analysis: Analysis
     summary: dict[str, Any]
     files: tuple[Path, ...]
 
 
-def choose_peaks(
-    choice: PeakChoice, detected: list[Peak], shape: tuple[int, int], optics: Optics
-) -> Selection:
-    """Apply a :class:`PeakChoice` to the peaks detected in the first frame."""
+def _base_experiment(
+    choice: PeakChoice, source: InputFile, first_frame: int
+) -> tuple[Experiment, str, list[str]]:
+    """The experiment a run starts from, where it came from, and notes.
+
+    An experiment file, else the recording's own (labels, settings) when it carries one;
+    ``--label`` replaces the peaks; with none, a recording without an experiment falls
+    back to ``--auto``.
+    """
     mode = choice.mode()
-    if mode == "file":
-        assert choice.peaks_file is not None
-        return select_from_entries(load_peaks_file(choice.peaks_file), detected, shape, optics)
+    if mode == "experiment file":
+        assert choice.experiment is not None
+        return Experiment.load(choice.experiment), mode, []
+    stored, notes = source.experiment_at(first_frame)
+    base = stored or Experiment(wavelength_m=None, pixel_pitch_m=None, n1=None, n2=None)
     if mode == "labels":
-        return select_by_model(choice.labels, detected, shape, optics)
-    optics.require("n2")
-    assert choice.auto is not None
-    return select_auto(choice.auto, detected, shape, choice.anchor)
+        peaks = tuple(LabelledPeak(k, c) for k, c in choice.labels.items())
+        return replace(base, peaks=peaks), mode, notes
+    if mode == "recording":
+        if stored is not None and stored.peaks:
+            return stored, "recording", notes
+        why = "carries no usable experiment" if stored is None else "names no peak"
+        notes.append(f"the recording {why}: peaks identified by --auto {DEFAULT_AUTO}")
+        return base, "auto", notes
+    return base, "auto", notes
+
+
+def _settle(
+    experiment: Experiment, settings: ProcessSettings, optics: Optics
+) -> tuple[Experiment, ProcessSettings]:
+    """Options over the experiment's demodulation settings; the resolved optics into it."""
+    experiment = experiment.updated(
+        window=settings.window, reference=settings.reference, unwrap=settings.unwrap
+    )
+    if settings.radius is not None:
+        experiment = replace(experiment, radius=settings.radius)
+    experiment = replace(
+        experiment,
+        wavelength_m=optics.wavelength_m,
+        pixel_pitch_m=optics.pixel_pitch_m,
+        n1=optics.n1,
+        n2=optics.n2,
+    )
+    settings = replace(
+        settings,
+        window=experiment.window,
+        reference=experiment.reference,
+        unwrap=experiment.unwrap,
+        radius=experiment.radius,
+    )
+    return experiment, settings
+
+
+def choose_peaks(
+    choice: PeakChoice,
+    *,
+    mode: str,
+    experiment: Experiment,
+    detected: list[Peak],
+    shape: tuple[int, int],
+    optics: Optics,
+) -> Selection:
+    """The peaks of a run: the experiment's (``mode`` names where it came from) or auto."""
+    if mode == "auto":
+        optics.require("n2")
+        return select_auto(choice.auto or DEFAULT_AUTO, detected, shape, choice.anchor)
+    return select_from_experiment(experiment, detected, shape, mode)
+
+
+def read_background(spec: str | None, source: InputFile) -> np.ndarray | None:
+    """The background hologram ``--background`` names: a frame index of ``source``, or a file.
+
+    Raises
+    ------
+    InputError
+        For an index outside the input, a file that cannot be read, or a frame of
+        another shape than the input's.
+    """
+    if spec is None:
+        return None
+    if spec.lstrip("-").isdigit():
+        index = int(spec)
+        if not 0 <= index < len(source):
+            raise InputError(
+                f"--background {spec}: {source.path} has frames 0 to {len(source) - 1}"
+            )
+        return source.read(index)
+    with InputFile(spec) as other:
+        frame = other.read(0)
+    if frame.shape != source.frame_shape:
+        raise InputError(
+            f"--background {spec}: frames of {frame.shape[0]} x {frame.shape[1]} pixels, "
+            f"the input's are {source.frame_shape[0]} x {source.frame_shape[1]}"
+        )
+    return frame
 
 
 def process_file(
@@ -151,9 +243,10 @@ def process_file(
         How to choose the peaks.
     optics_options : OpticsOptions, optional
         Wavelength (m), pixel pitch (m), n1, n2 or fluid, fps; they override the
-        recording's own values.
+        experiment's and the recording's own values.
     settings : ProcessSettings, optional
-        Reference mode, window, radius, unwrapping, maps, basin area.
+        Reference mode, window, radius, unwrapping (each over the experiment's), maps,
+        basin area.
     frames : str, optional
         ``START:STOP`` of the input's frames (all by default).
     report : bool
@@ -171,12 +264,20 @@ def process_file(
     Raises
     ------
     InputError
-        For an unreadable input, missing or wrong parameters, a bad peaks file or
-        labels, peaks the PCA cannot identify, or earlier results without ``overwrite``.
+        For an unreadable input, missing or wrong parameters, a bad experiment file or
+        labels (a label on no detected peak, an unknown label without alpha), peaks the
+        PCA cannot identify, or earlier results without ``overwrite``.
     OutputError
         An output could not be written (the folder keeps what it held).
     """
     settings = settings or ProcessSettings()
+    if settings.background is not None:
+        if settings.reference not in (None, "absolute"):
+            raise InputError(
+                f"--background is the reference of absolute phases: it goes with "
+                f"--reference absolute, not {settings.reference}"
+            )
+        settings = replace(settings, reference="absolute")
     options = optics_options or OpticsOptions()
     out_dir = Path(out)
     names = (TRENDS_CSV, SUMMARY_JSON, RESULTS_H5, REPORT_PNG)
@@ -184,24 +285,47 @@ def process_file(
         OutputFolder(out_dir, names, overwrite=overwrite) as outputs,
         InputFile(input_path) as source,
     ):
-        optics = resolve_optics(source.setup, options)
-        optics.require("wavelength_m")
         selected = parse_frame_range(frames, len(source))
+        base, mode, notes = _base_experiment(choice, source, selected[0])
+        from_file = base if mode == "experiment file" else None
+        optics = resolve_optics(source.setup, options, from_file)
+        optics.require("wavelength_m")
+        experiment, settings = _settle(base, settings, optics)
         times = source.times(selected, options.fps_hz)
         check_run_settings(
             area_m2=settings.area_m2, radius=settings.radius, frame_shape=source.frame_shape
         )
         _, first = first_good_frame(source, selected)
-        detected = find_peaks(first, radius=settings.radius, threads=settings.threads)
-        selection = choose_peaks(choice, detected, source.frame_shape, optics)
-        demodulator = make_demodulator(
-            source.frame_shape, selection, optics, settings, source.saturation
+        background = read_background(settings.background, source)
+        detected = find_peaks(first, radius=experiment.radius, threads=settings.threads)
+        selection = choose_peaks(
+            choice,
+            mode=mode,
+            experiment=experiment,
+            detected=detected,
+            shape=source.frame_shape,
+            optics=optics,
         )
+        selection = replace(selection, notes=(*notes, *selection.notes))
+        for note in notes:
+            logger.warning("%s", note)
+        core = make_core(
+            source.frame_shape,
+            experiment,
+            selection.peaks,
+            settings,
+            source.saturation,
+            detected=detected,
+            background=background,
+        )
+        demodulator = core.demodulator
+        assert demodulator is not None
         logger.info(
-            "%s: %d frames, peaks %s, window radius %.4f cycles/pixel, maps %s",
+            "%s: %d frames, peaks %s (from the %s), window radius %.4f cycles/pixel, maps %s",
             source.path,
             len(selected),
             ", ".join(p.label or "?" for p in selection.peaks),
+            selection.source,
             demodulator.radius,
             demodulator.box_shape,
         )
@@ -218,7 +342,7 @@ def process_file(
                 source,
                 selected,
                 times,
-                demodulator,
+                core,
                 sink=results if settings.maps else None,
                 read_ahead=settings.read_ahead,
                 progress=None if progress is None else lambda k: progress(k, len(selected)),
@@ -239,11 +363,12 @@ def process_file(
             input_info=source.info,
             optics=optics,
             settings=settings,
-            selection_mode=selection.mode,
+            selection_mode=selection.source,
             data=data,
             analysis=analysis,
             frame_shape=source.frame_shape,
         )
+        summary["experiment"] = experiment.to_dict()
         write_trends_csv(outputs.path(TRENDS_CSV), data, analysis)
         write_summary_json(outputs.path(SUMMARY_JSON), summary)
         if report:
@@ -261,4 +386,4 @@ def process_file(
                 + (" (interrupted)" if data.interrupted else ""),
             )
         files = outputs.finish(interrupted=data.interrupted)
-    return ProcessOutcome(out_dir, selection, data, analysis, summary, tuple(files))
+    return ProcessOutcome(out_dir, selection, experiment, data, analysis, summary, tuple(files))

@@ -35,9 +35,8 @@ A residual counts as measured when the cross-correlation's peak stands out of wh
 the maps' noise alone would give (:data:`MIN_SIGNIFICANCE`) and its standard
 errors are below :data:`MAX_STDERR`; a surface without structure in common leaves
 the estimate where it was (zero at first).
-Shifts are in pixels of the maps' grid, ``(dy, dx)``, with the convention of
-:func:`~holoview.processing.heights.estimate_displacement`: :func:`coregister`
-moves each map by ``-d`` onto the reference's grid.
+Shifts are in pixels of the maps' grid, ``(dy, dx)``, with ``moving(r) = reference(r - d)``:
+:func:`coregister` moves each map by ``-d`` onto the reference's grid.
 """
 
 from __future__ import annotations

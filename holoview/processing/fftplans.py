@@ -32,6 +32,16 @@ logger = logging.getLogger(__name__)
 #: set ``"FFTW_ESTIMATE"``: plans in microseconds, transforms a little slower).
 PLANNER_EFFORT = "FFTW_MEASURE"
 
+#: FFTW threads used when a caller gives none. One: a transform split over threads waits
+#: for its slowest thread, and on a machine whose cores are busy (the camera, the recorder,
+#: the GUI, other programs) that wait dominates. Measured with ``benchmarks/bench_threads.py``
+#: (1024 x 1024, 4 peaks, 2 cores): alone, one thread 10.0 ms a frame median (11.7 worst),
+#: two 8.4 ms (30 worst); beside two busy processes, one thread 14.1 ms (p90 26, worst 32),
+#: two 20.6 ms (p90 91, worst 132). The issue that asked for this saw 8 ms become 157 ms.
+#: ``holoview process`` and the live engine use one for the same reason; a caller that owns
+#: the machine may ask for more (``threads=usable_cpus()``).
+DEFAULT_THREADS = 1
+
 #: How many plans the per-process cache keeps before dropping the least recently used.
 MAX_CACHED_PLANS = 48
 
@@ -203,13 +213,12 @@ def ifft2_plan(
     return _plan("ifft2", (int(shape[0]), int(shape[1])), int(threads), effort or PLANNER_EFFORT)
 
 
-def default_threads() -> int:
-    """Return the FFTW thread count used when none is given: the usable CPUs, at most 4."""
+def usable_cpus() -> int:
+    """Return the CPUs this process may run on (at least 1)."""
     try:
-        usable = len(os.sched_getaffinity(0))
+        return max(1, len(os.sched_getaffinity(0)))
     except AttributeError:  # pragma: no cover - not on Linux
-        usable = os.cpu_count() or 1
-    return max(1, min(usable, 4))
+        return max(1, os.cpu_count() or 1)
 
 
 def clear_plans() -> None:

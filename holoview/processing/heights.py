@@ -1,13 +1,11 @@
-"""From phases to heights: conversion, co-registration between peaks, and fusion.
+"""From phases to heights: conversion and the fusion of co-registered maps.
 
 Each peak images a laterally shifted patch of the surface (paper section 2:
-``h_AB(r) = h(r + delta_AB)``). :func:`estimate_displacement` measures that shift
-between two maps by sub-pixel cross-correlation, :func:`shift_map` undoes it, and
-:func:`fuse` combines co-registered maps weighted by their noise, with the
-per-pixel uncertainty. For a stream of noisy maps, where one map pair holds too
-little structure, :mod:`holoview.processing.coregister` measures the shifts from
-many frames at once. :func:`plain_average` and :func:`rms_spread` are the
-paper's average and shaded spread (its Fig. 3g), kept for comparison.
+``h_AB(r) = h(r + delta_AB)``); :mod:`holoview.processing.coregister` measures those
+shifts from many frames and moves the maps onto one grid. :func:`fuse` combines
+co-registered maps weighted by their noise, with the per-pixel uncertainty.
+:func:`plain_average` and :func:`rms_spread` are the paper's average and shaded spread
+(its Fig. 3g), kept for comparison.
 """
 
 from __future__ import annotations
@@ -15,8 +13,6 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import numpy as np
-from scipy import ndimage
-from skimage.registration import phase_cross_correlation
 
 from holoview.errors import InputError
 
@@ -67,56 +63,6 @@ def _stack(maps: Sequence[np.ndarray], what: str = "maps") -> np.ndarray:
     if len(shapes) != 1 or arrays[0].ndim != 2:
         raise InputError(f"{what} must be 2-D and of one shape, got {sorted(shapes)}")
     return np.stack(arrays)
-
-
-def estimate_displacement(
-    reference: np.ndarray,
-    moving: np.ndarray,
-    *,
-    mask: np.ndarray | None = None,
-    upsample_factor: int = 20,
-) -> tuple[float, float]:
-    """Estimate how far ``moving`` is shifted from ``reference``, to a fraction of a pixel.
-
-    Parameters
-    ----------
-    reference, moving : ndarray, shape (rows, cols)
-        Two maps of the same surface (e.g. two peaks' delta-h); not modified.
-    mask : ndarray of bool, optional
-        Pixels trusted in both; the others are set to the trusted mean first.
-    upsample_factor : int
-        Sub-pixel resolution: 1 / upsample_factor pixel (Guizar-Sicairos et al. 2008).
-
-    Returns
-    -------
-    tuple of float
-        ``(dy, dx)`` in pixels of the maps' grid: ``moving(r) ~ reference(r - d)``,
-        so ``shift_map(moving, (-dy, -dx))`` co-registers it.
-    """
-    stack = _stack([reference, moving])
-    if mask is not None:
-        m = np.asarray(mask, dtype=bool)
-        if m.shape != stack.shape[1:]:
-            raise InputError(f"mask has shape {m.shape}, maps have {stack.shape[1:]}")
-        if not m.any():
-            raise InputError("mask leaves no pixel to correlate")
-        fill = stack[:, m].mean(axis=1)
-        stack = np.where(m, stack, fill[:, None, None])
-    stack = stack - stack.mean(axis=(1, 2), keepdims=True)
-    if not np.isfinite(stack).all():
-        raise InputError("maps hold NaN or infinite values; pass a mask instead")
-    if not (stack[0].any() and stack[1].any()):
-        raise InputError("a map is flat: no feature to correlate")
-    shift, _, _ = phase_cross_correlation(
-        stack[1], stack[0], upsample_factor=upsample_factor, normalization=None
-    )
-    return float(shift[0]), float(shift[1])
-
-
-def shift_map(array: np.ndarray, shift: tuple[float, float]) -> np.ndarray:
-    """Return a map moved by ``shift = (dy, dx)`` pixels (linear interpolation, edges held)."""
-    a = np.asarray(array, dtype=np.float64)
-    return ndimage.shift(a, shift, order=1, mode="nearest")
 
 
 def fuse(

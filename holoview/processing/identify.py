@@ -1,44 +1,46 @@
-"""Which family each peak is, from its phase prefactor (paper sections 3.2 and 4).
+"""Which family each peak is: by the carrier lattice, with the PCA of its phases.
 
-The temporal (or spatial) PCA of :mod:`holoview.processing.pca` gives every peak's
-prefactor alpha once one peak is labelled; the paper's procedure labels the brightest
-peak RB1 (``alpha = n2 - n1``). Each prefactor is then compared with the model
-(``n1`` for RF, ``j n2`` for FB_j, ``j n2 - n1`` for RB_j; B_l B_j has the alpha of
-FB_(l-j) and is reported as that family):
-
-- a **family** match: the first peak (in the caller's order, brightest first) whose
-  alpha lies within the tolerance of a family's;
-- a **repeat** (ghost): a later peak with the alpha of a family already matched, as
-  beam-splitter reflections make (the paper's holograms 1, 2, 3, 8, ... in the water data);
-- a **second order**: alpha within the tolerance of twice a family's (camera
-  nonlinearity, saturation). The second order of FB_j has the alpha and the carrier of
-  FB_(2j), so it is reported as that family;
-- **weak**: the principal component carries too little of the peak's variance; set
-  aside without a label (the paper's grey points);
-- **unexplained**: correlated with the surface, but no model alpha fits.
-
-A negative alpha means the peak's phase decreases with the height: it sits on the other
-twin (DESIGN.md, twin rule) and is matched on ``|alpha|`` with ``flipped`` set.
+With the peaks' carriers, names and alphas come from the carrier lattice
+(:func:`holoview.processing.lattice.identify_lattice`): exact where a peak sits on it,
+its PCA prefactor as the confirmation. The temporal (or spatial) PCA of
+:mod:`holoview.processing.pca` gives every peak's prefactor once one peak is labelled
+(the reference; the paper's procedure takes the brightest as RB1), and names a peak off
+the lattice, or every peak when no carriers are given, by the family whose alpha its
+prefactor matches (:func:`holoview.processing.prefactors.classify_prefactors`). On the
+lattice, a first order is a ``family``, a harmonic or an intermodulation product a
+``second order``, a ghost copy a ``repeat`` of its family (a ghost against its own
+arm carries no height: ``weak``).
 
 A peak whose phase steps past pi per frame unwraps in time to a wrong but clean line,
-so the temporal PCA gives it a wrong alpha. Given each peak's wrapped step per frame
-(:attr:`holoview.processing.trends.AliasingReport.measured_step`), :func:`identify_peaks`
-tries the aliases ``(step + 2 pi k) / (step_ref / alpha_ref)`` of a peak no model alpha
-explains, and reports a match with ``aliased`` set.
+so the temporal PCA gives it a wrong alpha; its carrier does not care. Off the lattice,
+given each peak's wrapped step per frame
+(:attr:`holoview.processing.phase_series.AliasingReport.measured_step`),
+:func:`identify_peaks` tries the aliases ``(step + 2 pi k) / (step_ref / alpha_ref)``
+of a peak no model alpha explains, and reports a match with ``aliased`` set.
 """
 
 from __future__ import annotations
 
 import logging
 from dataclasses import dataclass, replace
-from enum import StrEnum
 
 import numpy as np
 from numpy.typing import ArrayLike
 
 from holoview.errors import InputError
 from holoview.optics.families import alpha_of
+from holoview.processing.lattice import LatticeIdentification, LatticeKind, identify_lattice
 from holoview.processing.pca import PhasePCA, phase_pca
+from holoview.processing.prefactors import (
+    DEFAULT_MIN_EXPLAINED,
+    DEFAULT_TOLERANCE,
+    PeakIdentity,
+    PeakKind,
+    classify_prefactors,
+    family_alphas,
+    model_table,
+    nearest_family,
+)
 
 logger = logging.getLogger(__name__)
 
@@ -50,67 +52,6 @@ __all__ = [
     "family_alphas",
     "identify_peaks",
 ]
-
-#: Default relative tolerance on alpha for a match: 3 %, above the 2 % accuracy the PCA
-#: reaches on clean recordings and below half the smallest relative gap (about 12 %)
-#: between distinct model alphas up to third order for water and isopropanol.
-DEFAULT_TOLERANCE = 0.03
-
-#: Default share of a peak's variance the principal component must carry for the peak
-#: to count as correlated with the surface (a correlation coefficient of about 0.9).
-DEFAULT_MIN_EXPLAINED = 0.8
-
-
-class PeakKind(StrEnum):
-    """What a peak was identified as."""
-
-    FAMILY = "family"
-    REPEAT = "repeat"
-    SECOND_ORDER = "second order"
-    WEAK = "weak"
-    UNEXPLAINED = "unexplained"
-
-
-@dataclass(frozen=True)
-class PeakIdentity:
-    """The identification of one peak.
-
-    Attributes
-    ----------
-    index : int
-        Position of the peak in the caller's list.
-    alpha : float
-        Measured prefactor (dimensionless), signed: negative on the other twin.
-    kind : PeakKind
-    label : str or None
-        The family (``"RB1"``), for a repeat the family it repeats, for a second order
-        ``"2RB1"``; None when weak or unexplained.
-    expected_alpha : float or None
-        The model alpha of the label (positive), None without a label.
-    flipped : bool
-        True when the measured alpha is negative (the peak sits on the other twin).
-    explained : float
-        Share of the peak's variance carried by the principal component (0 to 1).
-    aliased : bool
-        True when the peak's phase steps past pi per frame and ``alpha`` is the
-        de-aliased prefactor (see :func:`identify_peaks`), not the PCA's.
-    """
-
-    index: int
-    alpha: float
-    kind: PeakKind
-    label: str | None
-    expected_alpha: float | None
-    flipped: bool
-    explained: float
-    aliased: bool = False
-
-    @property
-    def mismatch(self) -> float | None:
-        """Relative difference ``|alpha| / expected_alpha - 1``, None without a label."""
-        if self.expected_alpha is None:
-            return None
-        return abs(self.alpha) / self.expected_alpha - 1.0
 
 
 @dataclass(frozen=True)
@@ -128,6 +69,8 @@ class Identification:
         prefactor is in its :class:`PeakIdentity`.
     peaks : tuple of PeakIdentity
         One per peak, in the input order.
+    lattice : LatticeIdentification or None
+        The carrier lattice's identification, when carriers were given.
     """
 
     pca: PhasePCA
@@ -135,6 +78,7 @@ class Identification:
     reference_label: str
     alphas: np.ndarray
     peaks: tuple[PeakIdentity, ...]
+    lattice: LatticeIdentification | None = None
 
     @property
     def confidence(self) -> float:
@@ -146,124 +90,9 @@ class Identification:
         return {p.label: p.index for p in self.peaks if p.kind is PeakKind.FAMILY and p.label}
 
 
-def family_alphas(n1: float, n2: float, max_order: int = 3) -> dict[str, float]:
-    """Return the model prefactor of every first-order family up to ``max_order``.
-
-    Parameters
-    ----------
-    n1, n2 : float
-        Refractive indices of the medium above the fluid (air) and of the fluid.
-    max_order : int
-        Largest number ``j`` of internal passes for RB_j and FB_j.
-
-    Returns
-    -------
-    dict of str to float
-        ``{"RF": n1, "RB1": n2 - n1, "FB1": n2, ...}``, all positive (twin rule).
-    """
-    if max_order < 1:
-        raise InputError(f"max_order must be at least 1, got {max_order}")
-    labels = ["RF"] + [f"{kind}{j}" for j in range(1, max_order + 1) for kind in ("RB", "FB")]
-    return {label: alpha_of(label, n1, n2) for label in labels}
-
-
-def _nearest(value: float, table: dict[str, float], tolerance: float) -> str | None:
-    """The label whose alpha is nearest to ``value`` in relative terms, if within tolerance."""
-    best, best_error = None, tolerance
-    for label, alpha in table.items():
-        error = abs(value / alpha - 1.0)
-        if error <= best_error:
-            best, best_error = label, error
-    return best
-
-
-def classify_prefactors(
-    alphas: ArrayLike,
-    n1: float,
-    n2: float,
-    *,
-    explained: ArrayLike | None = None,
-    max_order: int = 3,
-    tolerance: float = DEFAULT_TOLERANCE,
-    min_explained: float = DEFAULT_MIN_EXPLAINED,
-) -> tuple[PeakIdentity, ...]:
-    """Classify measured prefactors against the model families.
-
-    Parameters
-    ----------
-    alphas : array_like of float, shape (M,)
-        Measured prefactors (dimensionless, signed), in the order that decides which of
-        two peaks with the same alpha is the family and which the repeat: brightest first.
-    n1, n2 : float
-        Refractive indices of the medium above the fluid and of the fluid.
-    explained : array_like of float, shape (M,), optional
-        Share of each peak's variance along the principal component; peaks below
-        ``min_explained`` are classified weak. All correlated when omitted.
-    max_order : int
-        Largest j of the RB_j and FB_j families compared.
-    tolerance : float
-        Largest relative difference ``| |alpha| / model - 1 |`` for a match.
-    min_explained : float
-        See ``explained``.
-
-    Returns
-    -------
-    tuple of PeakIdentity
-        One per peak, in the input order.
-    """
-    values = np.asarray(alphas, dtype=np.float64)
-    if values.ndim != 1:
-        raise InputError(f"prefactors must be a 1-D array, got shape {values.shape}")
-    shares = np.ones_like(values) if explained is None else np.asarray(explained, dtype=np.float64)
-    if shares.shape != values.shape:
-        raise InputError(f"explained has shape {shares.shape}, prefactors {values.shape}")
-    if not 0 < tolerance < 0.5:
-        raise InputError(f"tolerance must be between 0 and 0.5, got {tolerance}")
-    first = family_alphas(n1, n2, max_order)
-    # Second orders of FB_j coincide with FB_2j, which the first-order table matches first.
-    second = {
-        label: alpha
-        for label, alpha in _model_table(n1, n2, max_order).items()
-        if label not in first
-    }
-    seen: set[str] = set()
-    result = []
-    for index, (alpha, share) in enumerate(zip(values, shares, strict=True)):
-        magnitude = abs(float(alpha))
-        flipped = bool(alpha < 0)
-        kind, label, expected = PeakKind.UNEXPLAINED, None, None
-        if not np.isfinite(alpha) or share < min_explained or magnitude == 0.0:
-            kind = PeakKind.WEAK
-        elif (label := _nearest(magnitude, first, tolerance)) is not None:
-            kind = PeakKind.REPEAT if label in seen else PeakKind.FAMILY
-            seen.add(label)
-            expected = first[label]
-        elif (label := _nearest(magnitude, second, tolerance)) is not None:
-            kind = PeakKind.SECOND_ORDER
-            expected = second[label]
-        result.append(
-            PeakIdentity(
-                index=index,
-                alpha=float(alpha),
-                kind=kind,
-                label=label,
-                expected_alpha=expected,
-                flipped=flipped,
-                explained=float(share),
-            )
-        )
-    return tuple(result)
-
-
 #: Smallest step per frame (rad) of the reference peak for alias resolution: below it the
 #: level hardly moves and the steps carry no trend to de-alias.
 MIN_TREND_STEP = 0.05
-
-
-def _model_table(n1: float, n2: float, max_order: int) -> dict[str, float]:
-    """First-order families and their second orders."""
-    first = family_alphas(n1, n2, max_order)
-    return first | {f"2{label}": 2.0 * alpha for label, alpha in first.items()}
 
 
 def _resolve_aliases(
@@ -286,15 +115,54 @@ def _resolve_aliases(
     for m, (alpha, step) in enumerate(zip(alphas, steps, strict=True)):
         if not (eligible[m] and np.isfinite(alpha) and np.isfinite(step)):
             continue
-        if alpha != 0 and _nearest(abs(alpha), table, tolerance) is not None:
+        if alpha != 0 and nearest_family(abs(alpha), table, tolerance) is not None:
             continue
         for turns in (1, -1, 2, -2):
             candidate = (step + 2.0 * np.pi * turns) / per_alpha
-            if _nearest(abs(candidate), table, tolerance) is not None:
+            if nearest_family(abs(candidate), table, tolerance) is not None:
                 resolved[m], aliased[m] = candidate, True
                 logger.info("peak %d aliases in time: alpha %.3f, not %.3f", m, candidate, alpha)
                 break
     return resolved, aliased
+
+
+def _from_lattice(
+    lattice: LatticeIdentification,
+    by_pca: list[PeakIdentity],
+    alphas: np.ndarray,
+    explained: np.ndarray,
+) -> list[PeakIdentity]:
+    """The lattice's names as PCA identities; the PCA's own for peaks off the lattice."""
+    kinds = {
+        LatticeKind.FIRST_ORDER: PeakKind.FAMILY,
+        LatticeKind.SECOND_ORDER: PeakKind.SECOND_ORDER,
+        LatticeKind.INTERMODULATION: PeakKind.SECOND_ORDER,
+        LatticeKind.GHOST: PeakKind.REPEAT,
+    }
+    out = []
+    for p, own in zip(lattice.peaks, by_pca, strict=True):
+        if p.kind is LatticeKind.OFF_LATTICE:
+            kind = PeakKind.REPEAT if own.kind is PeakKind.FAMILY else own.kind
+            out.append(replace(own, kind=kind))
+            continue
+        if not p.alpha:  # a ghost against its own arm: no height
+            out.append(replace(own, kind=PeakKind.WEAK, label=None, expected_alpha=None))
+            continue
+        measured = abs(float(alphas[p.index]))
+        magnitude = measured if np.isfinite(measured) and measured > 0 else p.alpha
+        label = p.label.split("~")[0] if p.kind is LatticeKind.GHOST else p.label
+        out.append(
+            PeakIdentity(
+                index=p.index,
+                alpha=-magnitude if p.twin else magnitude,
+                kind=kinds[p.kind],
+                label=label,
+                expected_alpha=p.alpha,
+                flipped=p.twin,
+                explained=float(explained[p.index]),
+            )
+        )
+    return out
 
 
 def identify_peaks(
@@ -306,11 +174,13 @@ def identify_peaks(
     reference_label: str = "RB1",
     amplitudes: ArrayLike | None = None,
     steps: ArrayLike | None = None,
+    carriers: ArrayLike | None = None,
+    shape: tuple[int, int] | None = None,
     max_order: int = 3,
     tolerance: float = DEFAULT_TOLERANCE,
     min_explained: float = DEFAULT_MIN_EXPLAINED,
 ) -> Identification:
-    """Identify peaks by PCA of their phases with one labelled peak.
+    """Identify peaks by the carrier lattice and the PCA of their phases.
 
     Parameters
     ----------
@@ -321,19 +191,28 @@ def identify_peaks(
         Refractive indices of the medium above the fluid and of the fluid.
     reference : int, optional
         Index of the labelled peak. By default the brightest by ``amplitudes`` (the
-        paper's procedure: the brightest peak is RB1).
+        paper's procedure: the brightest peak is RB1). With carriers, its twin (as
+        given) fixes the lattice's global twin, and its name comes from the lattice
+        where it sits on it.
     reference_label : str
         The labelled peak's family, any label of
         :func:`holoview.optics.families.alpha_of` (``"RB1"``, ``"FB1"``, ``"RF"``,
-        ``"B2B1"``, ``"2RB1"``, ...).
+        ``"B2B1"``, ``"2RB1"``, ...): its alpha fixes the PCA's scale when the peak is
+        off the lattice or no carriers are given.
     amplitudes : array_like of float, shape (M,), optional
-        Peak amplitudes (any unit): choose the reference when it is not given, and order
-        the peaks for the family-or-repeat decision (brightest is the family).
+        Peak amplitudes (any unit): choose the reference when it is not given, order
+        the peaks for the family-or-repeat decision (brightest is the family), and
+        the lattice's brightness order.
     steps : array_like of float, shape (M,), optional
         Each peak's typical wrapped phase step per frame in rad (temporal PCA of a
         steadily moving level). With it, a peak no model alpha explains is tried at
         its temporal aliases (module documentation). Ignored when the reference peak
         moves less than :data:`MIN_TREND_STEP` per frame.
+    carriers : array_like, shape (M, 2), optional
+        Each peak's carrier ``(fx, fy)``, cycles/pixel, on the twin its phases were
+        measured on: names the peaks by the lattice.
+    shape : tuple of int, optional
+        Frame ``(rows, cols)``, pixels; needed with ``carriers``.
     max_order, tolerance, min_explained
         As in :func:`classify_prefactors`.
 
@@ -345,13 +224,11 @@ def identify_peaks(
     ------
     InputError
         With fewer than two peaks or frames, no common frames, a label that is not a
-        family, or neither ``reference`` nor ``amplitudes``.
+        family, neither ``reference`` nor ``amplitudes``, carriers without a shape, or
+        carriers the lattice cannot name (:func:`~holoview.processing.lattice.identify_lattice`).
     """
     pca = phase_pca(phases)
     n_peaks = pca.component.size
-    reference_alpha = alpha_of(reference_label, n1, n2)
-    if reference_alpha <= 0:
-        raise InputError(f"{reference_label} carries no height (alpha 0): label another peak")
     brightness = None
     if amplitudes is not None:
         brightness = np.asarray(amplitudes, dtype=np.float64)
@@ -361,8 +238,37 @@ def identify_peaks(
         if brightness is None:
             raise InputError("give the labelled peak's index or the peak amplitudes")
         reference = int(np.argmax(brightness))
-    alphas = pca.prefactors(reference, reference_alpha)  # checks the index
+    if not -n_peaks <= reference < n_peaks:
+        raise InputError(f"reference peak {reference} is not one of the {n_peaks} peaks")
     reference = int(reference) % n_peaks
+    lattice = None
+    if carriers is not None:
+        if shape is None:
+            raise InputError("carriers need the frame shape (rows, cols) to be named")
+        lattice = identify_lattice(
+            carriers,
+            shape,
+            n1,
+            n2,
+            values=phases,
+            amplitudes=brightness,
+            sign_reference=reference,
+        )
+        on = lattice.peaks[reference]
+        if on.label is not None and on.alpha and on.kind is not LatticeKind.OFF_LATTICE:
+            if on.label != reference_label:
+                logger.info(
+                    "the reference peak is %s on the lattice, not %s", on.label, reference_label
+                )
+            reference_label = on.label
+    reference_alpha = (
+        lattice.peaks[reference].alpha
+        if lattice is not None and lattice.peaks[reference].label == reference_label
+        else alpha_of(reference_label, n1, n2)
+    )
+    if not reference_alpha or reference_alpha <= 0:
+        raise InputError(f"{reference_label} carries no height (alpha 0): label another peak")
+    alphas = pca.prefactors(reference, reference_alpha)
     resolved, aliased = alphas.copy(), np.zeros(n_peaks, dtype=bool)
     if steps is not None:
         step = np.asarray(steps, dtype=np.float64)
@@ -373,7 +279,7 @@ def identify_peaks(
             step,
             reference=reference,
             reference_alpha=reference_alpha,
-            table=_model_table(n1, n2, max_order),
+            table=model_table(n1, n2, max_order),
             tolerance=tolerance,
             eligible=pca.explained >= min_explained,
         )
@@ -389,19 +295,21 @@ def identify_peaks(
         tolerance=tolerance,
         min_explained=min_explained,
     )
-    peaks: list[PeakIdentity | None] = [None] * n_peaks
+    by_pca: list[PeakIdentity] = [ranked[0]] * n_peaks
     for rank, identity in zip(order, ranked, strict=True):
-        peaks[int(rank)] = replace(identity, index=int(rank), aliased=bool(aliased[rank]))
+        by_pca[int(rank)] = replace(identity, index=int(rank), aliased=bool(aliased[rank]))
+    peaks = by_pca if lattice is None else _from_lattice(lattice, by_pca, alphas, pca.explained)
     logger.info(
         "PCA over %d samples: confidence %.4f; %s",
         pca.n_samples,
         pca.confidence,
-        ", ".join(f"{p.index}:{p.label or p.kind}" for p in peaks if p is not None),
+        ", ".join(f"{p.index}:{p.label or p.kind}" for p in peaks),
     )
     return Identification(
         pca=pca,
         reference=reference,
         reference_label=reference_label,
         alphas=alphas,
-        peaks=tuple(p for p in peaks if p is not None),
+        peaks=tuple(peaks),
+        lattice=lattice,
     )

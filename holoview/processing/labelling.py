@@ -1,12 +1,13 @@
 """Model-based labelling: from two labelled peaks, name every detected peak the model explains.
 
-The operator names two peaks (any two of RB1, FB1 and RF, or others that fix both
-mirror tilts); :func:`holoview.optics.families.infer_carriers` then places every family
-(RB_j, FB_j, RF, B_l B_j, the second orders). This module matches those predictions to
-the peaks :func:`holoview.processing.peaks.find_peaks` detected and reports both ways:
-what was predicted but not found, and what was found but predicted by none (beam-splitter
-ghosts, repeats, stray reflections). The paper's section 4 notes that a coarsely aligned
-bench shows many such extra peaks.
+The operator names two peaks (any two of RB1, FB1 and RF, or others that fix the
+lattice); the carrier lattice (:func:`holoview.processing.lattice.identify_lattice`, the
+one rule) names every detected peak. This module reports it as the model's predictions
+matched to the peaks :func:`holoview.processing.peaks.find_peaks` detected, both ways:
+what was predicted but not found (RF, RB_j, FB_j, B_l B_j up to ``max_order`` and
+their second orders), and what was found but predicted by none of those (beam-splitter
+ghosts, intermodulation products, stray reflections). The paper's section 4 notes
+that a coarsely aligned bench shows many such extra peaks.
 
 Carriers are in cycles per pixel, ``(fx, fy)``; distances in FFT bins (``fx * cols``,
 ``fy * rows``). A real frame shows each peak twice, at ``+f`` and ``-f``, and
@@ -17,11 +18,11 @@ camera sees them.
 
 The labelled positions are taken on the twin given (the stored twin, where the phase
 grows with the height), and the twin matters: with RB1 and FB1, taking FB1's other
-twin swaps the predictions of RF and RB2 (both then land on detected peaks, so the
-carriers alone cannot tell). ``flip_hint`` names a label whose other twin would explain
-more peaks. If every anchor was given on the twin whose phase falls with the height,
-every ``twin`` is inverted; the sign of a peak's phase against a known depth change (or
-the PCA of :mod:`holoview.processing.pca`) settles that.
+twin swaps the predictions of RF and RB2. Labels the lattice that explains the most
+peaks contradicts are an error naming the label; ``flip_hint`` names a label whose other
+twin would explain a little more. If every anchor was given on the twin whose phase
+falls with the height, every ``twin`` is inverted; the sign of a peak's phase against a
+known depth change settles that.
 """
 
 from __future__ import annotations
@@ -33,18 +34,22 @@ from dataclasses import dataclass
 import numpy as np
 
 from holoview.errors import InputError
-from holoview.optics.families import infer_carriers
+from holoview.processing.lattice import (
+    DEFAULT_MAX_ORDER,
+    LatticeIdentification,
+    LatticeKind,
+    identify_lattice,
+)
+from holoview.processing.lattice_geometry import Point, point_of
+from holoview.processing.snapping import SNAP_BINS
 
 logger = logging.getLogger(__name__)
 
-__all__ = ["DEFAULT_MATCH_BINS", "DEFAULT_SNAP_BINS", "ModelLabelling", "Prediction", "label_peaks"]
+__all__ = ["DEFAULT_MATCH_BINS", "ModelLabelling", "Prediction", "label_peaks"]
 
 #: Largest distance (FFT bins) between a predicted carrier and a detected peak that match:
-#: the sub-bin peak estimates and the small-angle model agree to well under a bin.
+#: the sub-bin peak estimates and the lattice agree to well under a bin.
 DEFAULT_MATCH_BINS = 1.5
-
-#: Largest distance (FFT bins) between an operator's click and the peak it names.
-DEFAULT_SNAP_BINS = 4.0
 
 
 @dataclass(frozen=True)
@@ -92,10 +97,13 @@ class ModelLabelling:
     missing : tuple of str
         Labels predicted but matching no detected peak (too faint to detect, or absent).
     unexplained : tuple of int
-        Detected peaks no prediction explains (ghosts, repeats, stray reflections).
+        Detected peaks no prediction explains (ghosts, products, stray reflections).
     flip_hint : tuple of str
         Labels (after the first) whose position, taken on the other twin, would let the
-        model explain more detected peaks: probably clicked on the wrong twin.
+        lattice explain a few more detected peaks: probably clicked on the wrong twin.
+    lattice : LatticeIdentification or None
+        The lattice identification behind it: per detected peak, its lattice point,
+        residual, kind and coupling.
     """
 
     anchors: dict[str, int]
@@ -104,6 +112,7 @@ class ModelLabelling:
     missing: tuple[str, ...]
     unexplained: tuple[int, ...]
     flip_hint: tuple[str, ...]
+    lattice: LatticeIdentification | None = None
 
     @property
     def labels(self) -> tuple[str | None, ...]:
@@ -118,18 +127,6 @@ class ModelLabelling:
         raise KeyError(label)
 
 
-def _fold(carrier: np.ndarray) -> np.ndarray:
-    """Fold carriers (cycles/pixel) into [-0.5, 0.5) per axis."""
-    return (carrier + 0.5) % 1.0 - 0.5
-
-
-def _distances(points: np.ndarray, target: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
-    """Bin distances from each point (N, 2) to ``target`` (2,), on the periodic spectrum."""
-    rows, cols = shape
-    delta = _fold(points - target)
-    return np.hypot(delta[:, 0] * cols, delta[:, 1] * rows)
-
-
 def _priority(label: str) -> tuple[int, str]:
     """Order of labels sharing a peak: first-order RF/RB/FB, then B_l B_j, then orders."""
     if label[0].isdigit():
@@ -139,33 +136,10 @@ def _priority(label: str) -> tuple[int, str]:
     return (0, label)
 
 
-def _match(
-    predicted: Mapping[str, tuple[float, float]],
-    carriers: np.ndarray,
-    shape: tuple[int, int],
-    tolerance: float,
-) -> list[Prediction]:
-    """Match each prediction to the nearest detected peak on either twin."""
-    result = []
-    for label, carrier in predicted.items():
-        unfolded = np.asarray(carrier, dtype=np.float64)
-        stored = _fold(unfolded)
-        direct = _distances(carriers, stored, shape)
-        mirrored = _distances(carriers, -stored, shape)
-        best = int(np.argmin(np.minimum(direct, mirrored)))
-        distance = float(min(direct[best], mirrored[best]))
-        matched = distance <= tolerance
-        result.append(
-            Prediction(
-                label=label,
-                carrier=(float(stored[0]), float(stored[1])),
-                folded=bool(np.any(np.abs(unfolded) >= 0.5)),
-                peak=best if matched else None,
-                distance=distance if matched else None,
-                twin=bool(matched and mirrored[best] < direct[best]),
-            )
-        )
-    return result
+def _predicted_labels(max_order: int) -> list[str]:
+    first = ["RF"] + [f"{kind}{j}" for j in range(1, max_order + 1) for kind in ("RB", "FB")]
+    between = [f"B{high}B{low}" for high in range(2, max_order + 1) for low in range(1, high)]
+    return first + between + [f"2{label}" for label in first]
 
 
 def label_peaks(
@@ -177,20 +151,20 @@ def label_peaks(
     *,
     max_order: int = 2,
     tolerance: float = DEFAULT_MATCH_BINS,
-    snap: float = DEFAULT_SNAP_BINS,
+    snap: float = SNAP_BINS,
 ) -> ModelLabelling:
-    """Label detected peaks from two (or more) labelled ones and the model.
+    """Label detected peaks from two (or more) labelled ones and the lattice.
 
     Parameters
     ----------
     carriers : sequence of (fx, fy)
         Detected peak carriers in cycles/pixel (for example ``[p.carrier for p in
-        find_peaks(frame)]``), either twin.
+        find_peaks(frame)]``), either twin, brightest first.
     labelled : mapping of str to (fx, fy)
         The operator's labels and where they pointed, in cycles/pixel (a click, or a
         detected carrier), on the stored twin of each; each is snapped to the nearest
-        detected peak, whose carrier (on the twin pointed at) then anchors the model.
-        At least two that fix both tilts (e.g. ``"RB1"`` and ``"FB1"``).
+        detected peak, whose carrier (on the twin pointed at) then anchors the lattice.
+        At least two that fix it (e.g. ``"RB1"`` and ``"FB1"``).
     n1, n2 : float
         Refractive indices above the fluid and of the fluid.
     shape : tuple of int
@@ -211,66 +185,51 @@ def label_peaks(
     ------
     InputError
         With no detected peaks, a labelled position that matches no detected peak, two
-        labels on one peak, or labels that do not fix both tilts.
+        labels on one peak, labels that do not fix the lattice, or labels the lattice
+        contradicts (:func:`~holoview.processing.lattice.identify_lattice`).
     """
     points = np.asarray(carriers, dtype=np.float64).reshape(-1, 2)
     if points.shape[0] == 0:
         raise InputError("no detected peaks to label")
-    if not np.all(np.isfinite(points)):
-        raise InputError("detected carriers must be finite (fx, fy) pairs")
-    rows, cols = (int(n) for n in shape)
-    if rows < 2 or cols < 2:
-        raise InputError(f"frame shape must be (rows, cols) of at least 2, got {shape}")
-    if not (tolerance > 0 and snap > 0):
-        raise InputError(f"tolerances must be positive bins, got {tolerance} and {snap}")
-    anchors: dict[str, int] = {}
-    anchor_carriers: dict[str, np.ndarray] = {}
-    for label, position in labelled.items():
-        click = np.asarray(position, dtype=np.float64)
-        if click.shape != (2,) or not np.all(np.isfinite(click)):
-            raise InputError(f"labelled position of {label!r} must be finite (fx, fy)")
-        direct = _distances(points, click, (rows, cols))
-        mirrored = _distances(points, -click, (rows, cols))
-        nearest = int(np.argmin(np.minimum(direct, mirrored)))
-        if min(direct[nearest], mirrored[nearest]) > snap:
-            raise InputError(
-                f"labelled peak {label} at ({click[0]:+.4f}, {click[1]:+.4f}) cycles/pixel "
-                f"matches no detected peak within {snap:g} bins"
-            )
-        if nearest in anchors.values():
-            other = next(k for k, v in anchors.items() if v == nearest)
-            raise InputError(f"labels {other} and {label} name the same detected peak")
-        anchors[label] = nearest
-        sign = 1.0 if direct[nearest] <= mirrored[nearest] else -1.0
-        anchor_carriers[label] = sign * points[nearest]
-    if len(anchors) < 2:
-        raise InputError(f"label at least two peaks (e.g. RB1 and FB1); got {sorted(anchors)}")
-    given = {name: (float(c[0]), float(c[1])) for name, c in anchor_carriers.items()}
-    best = _match(
-        infer_carriers(given, n1, n2, max_order=max_order), points, (rows, cols), tolerance
+    if isinstance(max_order, bool) or not isinstance(max_order, int) or max_order < 1:
+        raise InputError(f"max_order must be a positive integer, got {max_order!r}")
+    ident = identify_lattice(
+        points,
+        shape,
+        n1,
+        n2,
+        labels=labelled,
+        max_order=max(max_order, DEFAULT_MAX_ORDER),
+        tolerance=tolerance,
+        snap=snap,
     )
-    explained = len({m.peak for m in best if m.peak is not None})
-    # The twins matter: with RB1 and FB1, flipping FB1 swaps the predictions of RF and
-    # RB2. Report the labels whose flip alone would explain more detected peaks.
-    flip_hint = []
-    for name in list(given)[1:]:
-        flipped = dict(given)
-        flipped[name] = (-given[name][0], -given[name][1])
-        other = _match(
-            infer_carriers(flipped, n1, n2, max_order=max_order), points, (rows, cols), tolerance
-        )
-        if len({m.peak for m in other if m.peak is not None}) > explained:
-            flip_hint.append(name)
+    on_lattice: dict[Point, tuple[int, float, bool]] = {
+        p.lattice: (p.index, float(p.residual_bins or 0.0), p.twin)
+        for p in ident.peaks
+        if p.lattice is not None and p.kind is not LatticeKind.GHOST
+    }
+    matrix = ident.basis.matrix
+    predictions = []
     per_peak: list[list[str]] = [[] for _ in range(points.shape[0])]
-    for match in best:
-        if match.peak is not None:
-            per_peak[match.peak].append(match.label)
-    names_per_peak = tuple(tuple(sorted(labels, key=_priority)) for labels in per_peak)
-    missing = tuple(m.label for m in best if m.peak is None)
-    unexplained = tuple(i for i, labels in enumerate(names_per_peak) if not labels)
-    for label, index in anchors.items():
-        if label not in names_per_peak[index]:
-            logger.warning("labelled peak %s is not where the model puts it", label)
+    for label in _predicted_labels(max_order):
+        point = point_of(label, n1, n2)
+        unfolded = np.asarray(point, dtype=np.float64) @ matrix
+        found = on_lattice.get(point)
+        predictions.append(
+            Prediction(
+                label=label,
+                carrier=ident.basis.carrier(point),
+                folded=bool(np.any(np.abs(unfolded) >= 0.5)),
+                peak=None if found is None else found[0],
+                distance=None if found is None else found[1],
+                twin=bool(found is not None and found[2]),
+            )
+        )
+        if found is not None:
+            per_peak[found[0]].append(label)
+    names = tuple(tuple(sorted(labels, key=_priority)) for labels in per_peak)
+    missing = tuple(p.label for p in predictions if p.peak is None)
+    unexplained = tuple(i for i, labels in enumerate(names) if not labels)
     logger.info(
         "model labelling: %d of %d peaks explained; missing %s; unexplained %s",
         points.shape[0] - len(unexplained),
@@ -279,10 +238,11 @@ def label_peaks(
         list(unexplained),
     )
     return ModelLabelling(
-        anchors=anchors,
-        predictions=tuple(best),
-        names=names_per_peak,
+        anchors=dict(ident.anchors),
+        predictions=tuple(predictions),
+        names=names,
         missing=missing,
         unexplained=unexplained,
-        flip_hint=tuple(flip_hint),
+        flip_hint=ident.flip_hint,
+        lattice=ident,
     )

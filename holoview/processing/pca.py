@@ -166,7 +166,7 @@ def temporal_phase_pca(series: ArrayLike) -> PhasePCA:
     ----------
     series : array_like of float, shape (N, M)
         Per frame and peak, the mean phase unwrapped in time, in rad (for example
-        :func:`holoview.processing.trends.unwrap_in_time`). NaN marks a frame where the
+        :func:`holoview.processing.phase_series.unwrap_in_time`). NaN marks a frame where the
         peak was not measured.
     """
     return phase_pca(series)

@@ -39,14 +39,15 @@ from scipy import ndimage
 from scipy.spatial import cKDTree
 
 from holoview.errors import InputError
-from holoview.processing.fftplans import default_threads, rfft2_plan
+from holoview.processing.carriers import REFINE_ITERATIONS, refine_frequencies
+from holoview.processing.fftplans import DEFAULT_THREADS, rfft2_plan
 from holoview.processing.frames import (
     DamagedFrameError,
     check_frame,
     check_frame_content,
     frame_damage,
 )
-from holoview.processing.windows import auto_radius, wrap_frequency
+from holoview.processing.windows import auto_radii, auto_radius, wrap_frequency
 
 #: Default significance threshold: a peak's magnitude over the local background median.
 DEFAULT_THRESHOLD = 8.0
@@ -95,6 +96,9 @@ class Peak:
         A name such as ``"RB1"``.
     alpha : float or None
         Phase-to-height prefactor (``delta_h = delta_phi lambda / (4 pi alpha)``).
+    carrier_error : float or None
+        Uncertainty of ``carrier`` in FFT bins (standard error, both axes in
+        quadrature) where it was measured (:func:`refine_carriers`), else None.
     """
 
     carrier: tuple[float, float]
@@ -103,6 +107,7 @@ class Peak:
     flags: frozenset[str] = field(default_factory=frozenset)
     label: str | None = None
     alpha: float | None = None
+    carrier_error: float | None = None
 
     def relabelled(self, label: str | None, alpha: float | None = None) -> Peak:
         """Return a copy named ``label`` with prefactor ``alpha``."""
@@ -298,6 +303,7 @@ def find_peaks(
     min_separation: int = 3,
     radius: float | None = None,
     threads: int | None = None,
+    refine: bool = True,
 ) -> list[Peak]:
     """Find every significant carrier of a hologram, each physical peak once.
 
@@ -311,7 +317,9 @@ def find_peaks(
     Bins within ``dc_radius`` of zero frequency are skipped. Of each twin pair the
     canonical one is kept (module documentation). Carriers are refined below one bin
     by a parabola through the log magnitudes, and amplitudes corrected for the
-    Hann window's response at that offset.
+    Hann window's response at that offset; then, with ``refine``, moved to the mean
+    phase step of each one's field (:func:`refine_carriers`), which an object that
+    broadens the peak does not pull aside as it pulls the maximum.
 
     Parameters
     ----------
@@ -359,7 +367,7 @@ def find_peaks(
     if min_separation < 1:
         raise InputError(f"min_separation must be >= 1 bin, got {min_separation}")
     rows, cols = array.shape
-    plan = rfft2_plan(array.shape, threads=threads or default_threads())
+    plan = rfft2_plan(array.shape, threads=threads or DEFAULT_THREADS)
     apodise = np.outer(_hann(rows), _hann(cols))
     mean = float(np.mean(array, dtype=np.float64))
     buffer = plan.input_array
@@ -404,4 +412,69 @@ def find_peaks(
     found.sort(key=lambda p: p.amplitude, reverse=True)
     if max_peaks is not None:
         found = found[:max_peaks]
+    if refine and found:
+        np.copyto(buffer, array, casting="unsafe")
+        plan()
+        found = _refined(plan.output_array, (rows, cols), found)
     return flag_relations(found, (rows, cols), radius=radius)
+
+
+def _refined(
+    half: np.ndarray,
+    shape: tuple[int, int],
+    peaks: Sequence[Peak],
+    neighbours: Sequence[tuple[float, float]] = (),
+) -> list[Peak]:
+    """The peaks with carriers refined from the frame's plain half spectrum, errors set."""
+    carriers = np.array([p.carrier for p in peaks], dtype=np.float64)
+    radii = auto_radii(carriers, neighbours=neighbours, min_radius=MIN_RADIUS_BINS / min(shape))
+    moved, errors = refine_frequencies(half, shape, carriers, radii, iterations=REFINE_ITERATIONS)
+    return [
+        dataclasses.replace(
+            p,
+            carrier=(float(c[0]), float(c[1])),
+            carrier_error=float(e) if np.isfinite(e) else None,
+        )
+        for p, c, e in zip(peaks, moved, errors, strict=True)
+    ]
+
+
+def refine_carriers(
+    frame: np.ndarray,
+    peaks: Sequence[Peak],
+    *,
+    neighbours: Sequence[tuple[float, float]] = (),
+    threads: int | None = None,
+) -> list[Peak]:
+    """Return the peaks with carriers moved to their fields' mean phase step.
+
+    Each peak is demodulated from the frame's spectrum through a window of the widest
+    radius that reaches no other peak, twin, neighbour or the zero order, and
+    its carrier moved by the mean phase step between neighbouring pixels, three times
+    (:func:`~holoview.processing.carriers.refine_frequencies`); ``carrier_error`` is
+    set to the carrier's uncertainty in FFT bins.
+
+    Parameters
+    ----------
+    frame : ndarray, shape (rows, cols)
+        A hologram (counts); not modified.
+    peaks : sequence of Peak
+        Peaks with approximate carriers; labels, alphas and flags are kept.
+    neighbours : sequence of (fx, fy)
+        Other peaks of the spectrum (cycles/pixel) the windows must not reach.
+    threads : int, optional
+        FFTW threads of the frame's FFT.
+
+    Returns
+    -------
+    list of Peak
+        The same peaks, in the same order, with refined carriers (cycles/pixel).
+    """
+    array = check_frame(frame)
+    check_frame_content(array)
+    if not peaks:
+        return []
+    plan = rfft2_plan(array.shape, threads=threads or DEFAULT_THREADS)
+    np.copyto(plan.input_array, array, casting="unsafe")
+    plan()
+    return _refined(plan.output_array, array.shape, peaks, neighbours)

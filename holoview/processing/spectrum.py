@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from holoview.processing.fftplans import default_threads, rfft2_plan
+from holoview.processing.fftplans import DEFAULT_THREADS, rfft2_plan
 from holoview.processing.frames import check_frame
 
 
@@ -23,7 +23,8 @@ def rfft2(frame: np.ndarray, *, threads: int | None = None) -> np.ndarray:
     frame : ndarray, shape (rows, cols)
         Pixel values (counts), any integer or real dtype; not modified.
     threads : int, optional
-        FFTW threads; by default the usable CPUs (at most 4).
+        FFTW threads; by default
+        :data:`~holoview.processing.fftplans.DEFAULT_THREADS`.
 
     Returns
     -------
@@ -31,7 +32,7 @@ def rfft2(frame: np.ndarray, *, threads: int | None = None) -> np.ndarray:
         Unnormalised spectrum (counts), ``rfft2`` layout; a new array.
     """
     array = check_frame(frame)
-    plan = rfft2_plan(array.shape, threads=threads or default_threads())
+    plan = rfft2_plan(array.shape, threads=threads or DEFAULT_THREADS)
     np.copyto(plan.input_array, array, casting="unsafe")
     plan()
     return plan.output_array.copy()
@@ -98,7 +99,8 @@ def display_spectrum(frame: np.ndarray, *, threads: int | None = None) -> np.nda
     frame : ndarray, shape (rows, cols)
         Pixel values (counts); not modified.
     threads : int, optional
-        FFTW threads; by default the usable CPUs (at most 4).
+        FFTW threads; by default
+        :data:`~holoview.processing.fftplans.DEFAULT_THREADS`.
 
     Returns
     -------
@@ -107,7 +109,7 @@ def display_spectrum(frame: np.ndarray, *, threads: int | None = None) -> np.nda
         ``(rows // 2, cols // 2)``; the axes are given by :func:`frequencies`.
     """
     array = check_frame(frame)
-    plan = rfft2_plan(array.shape, threads=threads or default_threads())
+    plan = rfft2_plan(array.shape, threads=threads or DEFAULT_THREADS)
     np.copyto(plan.input_array, array, casting="unsafe")
     plan()
     return log_magnitude(plan.output_array, array.shape)

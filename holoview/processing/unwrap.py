@@ -4,7 +4,7 @@ Spatial unwrapping is Herraez et al. 2002 (Appl. Opt. 41, 7437), as implemented
 by :func:`skimage.restoration.unwrap_phase`; it costs 20-40 times a whole
 demodulation, so :func:`unwrap_spatial` first checks cheaply whether the map has
 any wrap at all and returns it unchanged when not. Mean phases are unwrapped in
-time by :func:`holoview.processing.trends.unwrap_in_time`.
+time by :func:`holoview.processing.phase_series.unwrap_in_time`.
 """
 
 from __future__ import annotations
@@ -199,11 +199,6 @@ def phase_ratio(phase: np.ndarray, guide: np.ndarray, mask: np.ndarray | None = 
     if energy <= 0:
         return 0.0
     return float(np.vdot(dg, dp)) / energy
-
-
-def amplitude_mask(field: np.ndarray, threshold: float) -> np.ndarray:
-    """Return the pixels whose field amplitude reaches ``threshold`` (unit of the field)."""
-    return np.abs(np.asarray(field)) >= threshold
 
 
 def aperture_mask(

@@ -24,15 +24,30 @@ from holoview.errors import InputError
 #: The window kinds :func:`radial_window` knows.
 WINDOW_KINDS: tuple[str, ...] = ("raised-cosine", "top-hat", "tukey")
 
-#: Default width of the Tukey window's cosine edge, as a fraction of the radius.
-DEFAULT_TAPER = 0.5
+#: The window used when none is given (see :func:`radial_window`), chosen by measurement
+#: with :data:`DEFAULT_TAPER` (``benchmarks/bench_windows.py``: optics simulator, 1024^2,
+#: moving waves of 25 nm rms change, windows at the bound of 0.034 cycles/pixel). RB1's
+#: map error with waves up to 0.01 / 0.02 / 0.03 cycles/pixel: Tukey 0.25 0.48 / 0.50 /
+#: 0.52 nm, Tukey 0.5 0.40 / 0.41 / 1.00, Tukey 0.75 0.32 / 0.57 / 1.47, top-hat
+#: 0.61 / 0.65 / 0.67, raised cosine 0.40 / 1.17 / 2.17. A wider taper passes less noise
+#: but attenuates the band; the quarter taper has the smallest worst case.
+DEFAULT_WINDOW = "tukey"
 
-#: Fraction of the distance to the nearest other carrier used by :func:`auto_radius`.
+#: Default width of the Tukey window's cosine edge, as a fraction of the radius.
+DEFAULT_TAPER = 0.25
+
+#: Fraction of the distance to the nearest other carrier used by :func:`auto_radii`:
+#: two neighbouring windows touch.
 SPACING_FRACTION = 0.5
 
-#: Fraction of the carrier's distance to zero frequency used by :func:`auto_radius`:
-#: the zero-order (autocorrelation) term is twice as wide as a carrier's sideband.
-DC_FRACTION = 1.0 / 3.0
+#: Fraction of the carrier's distance to zero frequency used by :func:`auto_radii`. The
+#: zero order is treated as one more neighbour: in this instrument every beam is close to
+#: a plane wave, so the zero order (the beams' intensities, uniform up to the illumination
+#: profile that every peak shares) is no wider than a sideband. The usual third holds for
+#: an object wave whose autocorrelation is twice as wide as its sideband (microscopy);
+#: measured on the simulator (``benchmarks/bench_windows.py``), a third left FB1 beside
+#: the zero order at 0.023 cycles/pixel where its neighbours allow 0.034.
+DC_FRACTION = 0.5
 
 #: Largest radius :func:`auto_radius` returns (cycles/pixel).
 MAX_AUTO_RADIUS = 0.2
@@ -87,7 +102,20 @@ def wrap_frequency(f: np.ndarray | float) -> np.ndarray:
     return (np.asarray(f, dtype=np.float64) + 0.5) % 1.0 - 0.5
 
 
-def spacing(carriers: Sequence[tuple[float, float]]) -> np.ndarray:
+def _distances(points: np.ndarray, others: np.ndarray) -> np.ndarray:
+    """Periodic distances (cycles/pixel) from each point to each other point, shape (n, m)."""
+    delta = wrap_frequency(points[:, None, :] - others[None, :, :])
+    return np.hypot(delta[..., 0], delta[..., 1])
+
+
+def _points(carriers: Sequence[tuple[float, float]] | np.ndarray) -> np.ndarray:
+    return np.asarray(carriers, dtype=np.float64).reshape(-1, 2)
+
+
+def spacing(
+    carriers: Sequence[tuple[float, float]],
+    neighbours: Sequence[tuple[float, float]] = (),
+) -> np.ndarray:
     """Return, per carrier, its distance to the nearest other carrier or twin (cycles/pixel).
 
     Distances are periodic (a carrier near Nyquist is close to its own aliased twin).
@@ -97,57 +125,85 @@ def spacing(carriers: Sequence[tuple[float, float]]) -> np.ndarray:
     ----------
     carriers : sequence of (fx, fy)
         Carrier frequencies (cycles/pixel).
+    neighbours : sequence of (fx, fy)
+        Other peaks of the spectrum (cycles/pixel) that count as neighbours, with
+        their twins, though they are not carriers themselves.
 
     Returns
     -------
     ndarray of float64, shape (len(carriers),)
     """
-    points = np.asarray(carriers, dtype=np.float64).reshape(-1, 2)
+    points = _points(carriers)
     if points.size == 0:
         return np.zeros(0)
-    others = np.concatenate([points, -points])
-    delta = wrap_frequency(points[:, None, :] - others[None, :, :])
-    dist = np.hypot(delta[..., 0], delta[..., 1])
+    extra = _points(neighbours)
+    others = np.concatenate([points, -points, extra, -extra])
+    dist = _distances(points, others)
     n = len(points)
     dist[np.arange(n), np.arange(n)] = np.inf
     return dist.min(axis=1)
 
 
-def auto_radius(
+def auto_radii(
     carriers: Sequence[tuple[float, float]],
     *,
+    neighbours: Sequence[tuple[float, float]] = (),
     min_radius: float = 0.0,
     max_radius: float = MAX_AUTO_RADIUS,
-) -> float:
-    """Return one window radius for all carriers, from the distance to the nearest other peak.
+) -> np.ndarray:
+    """Return each carrier's widest window radius that reaches no other peak (cycles/pixel).
 
-    The radius is half the smallest distance between two carriers (twins and
-    periodic aliases included), and at most a third of the smallest distance to
-    zero frequency, whose autocorrelation term is twice as wide as a sideband;
-    then clipped to ``[min_radius, max_radius]``.
+    Peak ``i`` gets :data:`SPACING_FRACTION` of the distance to the nearest other
+    carrier, twin or neighbour (periodic), and at most :data:`DC_FRACTION` of its
+    distance to zero frequency: two neighbouring windows of these radii touch and do
+    not overlap. Each radius is then clipped to ``[min_radius, max_radius]``.
 
     Parameters
     ----------
     carriers : sequence of (fx, fy)
         Carrier frequencies (cycles/pixel).
+    neighbours : sequence of (fx, fy)
+        Other peaks of the spectrum (not demodulated) that bound the radii too.
     min_radius, max_radius : float
         Bounds of the result (cycles/pixel).
 
     Returns
     -------
-    float
-        Radius in cycles/pixel.
+    ndarray of float64, shape (len(carriers),)
+        Radii in cycles/pixel.
+
+    Raises
+    ------
+    InputError
+        For no carrier, a non-finite one, or a carrier at zero frequency.
     """
-    points = np.asarray(carriers, dtype=np.float64).reshape(-1, 2)
+    points = _points(carriers)
     if points.size == 0:
         raise InputError("auto_radius needs at least one carrier")
-    if not np.isfinite(points).all():
+    if not (np.isfinite(points).all() and np.isfinite(_points(neighbours)).all()):
         raise InputError("carrier frequencies must be finite")
-    to_dc = np.hypot(*wrap_frequency(points).T).min()
-    if to_dc == 0:
+    to_dc = np.hypot(*wrap_frequency(points).T)
+    if (to_dc == 0).any():
         raise InputError("a carrier at zero frequency has no sideband to cut out")
-    radius = min(SPACING_FRACTION * spacing(points).min(), DC_FRACTION * to_dc, max_radius)
-    return float(max(radius, min_radius))
+    radii = np.minimum(SPACING_FRACTION * spacing(points, neighbours), DC_FRACTION * to_dc)
+    return np.clip(np.minimum(radii, max_radius), min_radius, None)
+
+
+def auto_radius(
+    carriers: Sequence[tuple[float, float]],
+    *,
+    neighbours: Sequence[tuple[float, float]] = (),
+    min_radius: float = 0.0,
+    max_radius: float = MAX_AUTO_RADIUS,
+) -> float:
+    """Return one window radius for all carriers: the smallest of :func:`auto_radii`.
+
+    Parameters and errors as :func:`auto_radii`; the result is in cycles/pixel.
+    """
+    radii = auto_radii(
+        carriers, neighbours=neighbours, min_radius=min_radius, max_radius=max_radius
+    )
+    return float(radii.min())
 
 
 def area_fraction(window_bins: np.ndarray, frame_shape: tuple[int, int]) -> float:

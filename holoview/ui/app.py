@@ -64,6 +64,7 @@ def run_live(
     source: str = "sim",
     quit_after: float | None = None,
     experiment: Path | None = None,
+    optics: dict[str, float] | None = None,
 ) -> int:
     """Open the main window on ``source`` and run the event loop.
 
@@ -74,7 +75,9 @@ def run_live(
     quit_after : float, optional
         Close the window after this many seconds.
     experiment : Path, optional
-        Experiment settings file to use (and keep up to date) instead of the default.
+        Experiment file to use (and keep up to date) instead of the default.
+    optics : dict, optional
+        ``wavelength_m``, ``pixel_pitch_m``, ``n1``, ``n2`` to use over the experiment's.
 
     Returns
     -------
@@ -82,7 +85,7 @@ def run_live(
         The exit status of the event loop.
     """
     app = application()
-    window = MainWindow(source=source, experiment_path=experiment)
+    window = MainWindow(source=source, experiment_path=experiment, optics=optics)
     window.show()
     if quit_after is not None:
         QTimer.singleShot(int(quit_after * 1000), window.close)

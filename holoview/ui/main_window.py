@@ -1,6 +1,6 @@
 """The main window: docks an operator can rearrange, a redraw timer, menus, shortcuts.
 
-The window owns no processing. A :class:`~holoview.ui.session.LiveSession` runs the
+The window owns no processing. A :class:`~holoview.live.session.LiveSession` runs the
 camera thread, the recorder and the demodulation worker; a QTimer (at most
 :data:`REDRAW_HZ`) reads the session's latest result and draws it, so the window
 never receives one signal per frame. Operator actions go back to the session as
@@ -11,7 +11,6 @@ in a banner and the status bar; the rest keeps running.
 from __future__ import annotations
 
 import logging
-import threading
 import time
 from dataclasses import replace
 from pathlib import Path
@@ -28,18 +27,15 @@ from PyQt6.QtWidgets import (
 )
 
 from holoview import __version__
+from holoview.engine.experiment import Experiment, LabelledPeak, default_experiment_path
 from holoview.errors import HoloviewError
+from holoview.live.rates import RateMeter
+from holoview.live.session import LiveResult, LiveSession, RecordRequest, discover_sources
+from holoview.ui.background import BackgroundCall
 from holoview.ui.exports import export_maps, export_window_png
 from holoview.ui.hologram_view import HologramView
-from holoview.ui.rates import RateMeter
-from holoview.ui.recording_panel import RecordingPanel, RecordRequest
-from holoview.ui.session import LiveResult, LiveSession, discover_sources
-from holoview.ui.settings import (
-    ExperimentSettings,
-    LabelledPeak,
-    default_experiment_path,
-    ui_settings,
-)
+from holoview.ui.recording_panel import RecordingPanel
+from holoview.ui.settings import ui_settings
 from holoview.ui.source_panel import SourcePanel
 from holoview.ui.spectrum_view import SpectrumView
 from holoview.ui.status_bar import LiveFigures, LiveStatusBar
@@ -69,6 +65,9 @@ class MainWindow(QMainWindow):
     source_options : dict, optional
         Passed to the constructor of ``source`` (e.g. the simulator's frame shape and
         rate) whenever that source is started; other sources get none.
+    optics : dict, optional
+        ``wavelength_m``, ``pixel_pitch_m``, ``n1``, ``n2`` over the experiment's (the
+        command line's); they also win over a source's own optics.
     """
 
     def __init__(
@@ -77,6 +76,7 @@ class MainWindow(QMainWindow):
         autostart: bool = True,
         experiment_path: Path | None = None,
         source_options: dict | None = None,
+        optics: dict[str, float] | None = None,
     ) -> None:
         super().__init__()
         self.setObjectName("holoview-main")
@@ -85,13 +85,15 @@ class MainWindow(QMainWindow):
         self.source_options = dict(source_options or {})
         self._optioned_source = source
         self._last_seq = -1
+        self._trend_seq = -1
         self._last_result: LiveResult | None = None
         self._drawn: LiveResult | None = None
         self.display_rate = RateMeter()
         self.last_latency_s: float | None = None
         self._banner_until = 0.0
         self.experiment_path = experiment_path or default_experiment_path()
-        self.experiment = ExperimentSettings()
+        self.experiment = Experiment()
+        self.optics = dict(optics or {})
         start_problem = self._load_experiment_at_start()
 
         self.hologram = HologramView()
@@ -152,19 +154,11 @@ class MainWindow(QMainWindow):
         self.timer.setObjectName("holoview-redraw")
         self.timer.setInterval(int(1000 / REDRAW_HZ))
         self.timer.timeout.connect(self.redraw)
-        self._opening: threading.Thread | None = None
+        self.opener = BackgroundCall("holoview-open", "holoview-open", self)
+        self.opener.done.connect(self._opened)
         self._opening_spec = ""
-        self._opening_outcome: list = []
-        self.open_timer = QTimer(self)
-        self.open_timer.setObjectName("holoview-open")
-        self.open_timer.setInterval(20)
-        self.open_timer.timeout.connect(self._opened)
-        self._discovery: threading.Thread | None = None
-        self._discovery_result: list = []
-        self.discovery_timer = QTimer(self)
-        self.discovery_timer.setObjectName("holoview-discovery")
-        self.discovery_timer.setInterval(50)
-        self.discovery_timer.timeout.connect(self._discovery_done)
+        self.discovery = BackgroundCall("holoview-discover", "holoview-discovery", self, 50)
+        self.discovery.done.connect(self._discovery_done)
         self.source_panel.set_sources(["sim"], current=source)
         if start_problem:
             self.show_message(start_problem)
@@ -263,50 +257,32 @@ class MainWindow(QMainWindow):
         (:attr:`opening` is False again) the views follow the new source, or the banner
         says why it could not start.
         """
-        if self._opening is not None:
+        if self.opener.busy:
             self.show_message(f"still opening {self._opening_spec}; try again when it is open")
             return
         self.stop_source()
         options = self.source_options if spec == self._optioned_source else None
         experiment = self.experiment
-        outcome: list = []
 
-        def open_session() -> None:
-            session = None
+        def open_session() -> LiveSession | str:
             try:
-                session = LiveSession(spec, experiment, source_options=options)
-                session.start()
-                outcome.append(session)
+                return LiveSession.open(spec, experiment, source_options=options)
             except HoloviewError as exc:
-                if session is not None:
-                    session.close()
-                outcome.append(f"cannot start {spec}: {exc}")
-            except Exception:  # a bug: keep the traceback in the log, the window running
-                logger.exception("opening %s failed", spec)
-                if session is not None:
-                    session.close()
-                outcome.append(f"cannot start {spec}: internal error (see the log)")
+                return f"cannot start {spec}: {exc}"
 
-        self._opening = threading.Thread(target=open_session, name="holoview-open", daemon=True)
-        self._opening_spec, self._opening_outcome = spec, outcome
+        self._opening_spec = spec
         self.source_panel.set_opening(spec)
-        self._opening.start()
-        self.open_timer.start()
+        self.opener.start(open_session)
 
     @property
     def opening(self) -> bool:
         """True while a source is being opened."""
-        return self._opening is not None
+        return self.opener.busy
 
-    def _opened(self) -> None:
-        if self._opening is None or self._opening.is_alive():
-            return
-        self._opening.join()
-        self._opening = None
-        self.open_timer.stop()
-        outcome = self._opening_outcome[0] if self._opening_outcome else "opening failed"
-        if isinstance(outcome, str):
-            self.show_message(outcome)
+    def _opened(self, outcome: object) -> None:
+        if not isinstance(outcome, LiveSession):
+            internal = f"cannot start {self._opening_spec}: internal error (see the log)"
+            self.show_message(outcome if isinstance(outcome, str) else internal)
             self.source_panel.set_streaming(False)
             return
         self.session = outcome
@@ -323,7 +299,7 @@ class MainWindow(QMainWindow):
     def _adopt_source_setup(self, setup: dict) -> None:
         """Take the optics a source knows (simulator, recording) into the experiment."""
         fields = ("wavelength_m", "pixel_pitch_m", "n1", "n2")
-        changes = {k: float(setup[k]) for k in fields if k in setup}
+        changes = {k: float(setup[k]) for k in fields if k in setup and k not in self.optics}
         if not changes or all(getattr(self.experiment, k) == v for k, v in changes.items()):
             return
         try:
@@ -347,29 +323,16 @@ class MainWindow(QMainWindow):
 
     def find_sources(self) -> None:
         """Look for GenICam cameras and V4L2 devices (on a thread) and offer them."""
-        if self._discovery is not None:
-            return
-        found: list = []
-        self._discovery = threading.Thread(
-            target=lambda: found.append(discover_sources()), name="holoview-discover", daemon=True
-        )
-        self._discovery_result = found
-        self.source_panel.refresh_button.setEnabled(False)
-        self.source_panel.state_label.setText("looking for cameras...")
-        self._discovery.start()
-        self.discovery_timer.start()
+        if self.discovery.start(discover_sources):
+            self.source_panel.refresh_button.setEnabled(False)
+            self.source_panel.state_label.setText("looking for cameras...")
 
-    def _discovery_done(self) -> None:
-        if self._discovery is None or self._discovery.is_alive():
-            return
-        self._discovery.join()
-        self._discovery = None
-        self.discovery_timer.stop()
+    def _discovery_done(self, outcome: object) -> None:
         self.source_panel.refresh_button.setEnabled(self.session is None)
-        if not self._discovery_result:
+        if not isinstance(outcome, tuple):
             self.show_message("looking for cameras failed (see the log)")
             return
-        specs, problems = self._discovery_result[0]
+        specs, problems = outcome
         self.source_panel.set_sources(specs)
         self.source_panel.state_label.setText(f"{len(specs)} sources found")
         for problem in problems:
@@ -389,7 +352,7 @@ class MainWindow(QMainWindow):
         self.source_panel.set_streaming(self.session.running, self.session.description)
 
     # ---- experiment --------------------------------------------------------
-    def _set_experiment(self, experiment: ExperimentSettings) -> None:
+    def _set_experiment(self, experiment: Experiment) -> None:
         self.experiment = experiment
         if self.session is not None:
             self.session.set_experiment(experiment)
@@ -416,7 +379,7 @@ class MainWindow(QMainWindow):
 
     def label_peak(self, label: str, fx: float, fy: float) -> None:
         """Name the peak at ``(fx, fy)`` cycles per pixel ``label``."""
-        self._set_experiment(self.experiment.with_peak(LabelledPeak(label, fx, fy)))
+        self._set_experiment(self.experiment.with_peak(LabelledPeak(label, (fx, fy))))
         self.status.showMessage(f"labelled {label} at ({fx:+.4f}, {fy:+.4f}) cycles/px", 4000)
 
     def clear_label(self, label: str) -> None:
@@ -446,18 +409,23 @@ class MainWindow(QMainWindow):
             self.session.reset_trends()
 
     def _load_experiment_at_start(self) -> str | None:
-        if not self.experiment_path.exists():
-            return None
+        problem = None
+        if self.experiment_path.exists():
+            try:
+                self.experiment = Experiment.load(self.experiment_path)
+            except HoloviewError as exc:
+                problem = f"experiment settings ignored: {exc}"
         try:
-            self.experiment = ExperimentSettings.load(self.experiment_path)
+            self.experiment = replace(self.experiment, **self.optics)
         except HoloviewError as exc:
-            return f"experiment settings ignored: {exc}"
-        return None
+            problem = f"optics options ignored: {exc}"
+            self.optics = {}
+        return problem
 
     def load_experiment(self, path: Path) -> None:
         """Read experiment settings from ``path`` and use them."""
         try:
-            experiment = ExperimentSettings.load(path)
+            experiment = Experiment.load(path)
         except HoloviewError as exc:
             self.show_message(str(exc))
             return
@@ -573,14 +541,22 @@ class MainWindow(QMainWindow):
             self._draw(result)
             self.display_rate.tick()
             self.last_latency_s = time.time() - result.t_host
+        trend = session.trend()
+        if trend is not None and trend.seq != self._trend_seq:
+            self._trend_seq = trend.seq
+            self.trends.set_series(trend.times_s, trend.depths_m)
+            self.trends.set_rate(trend.rate_m_per_s, trend.rate_stderr_m_per_s, trend.rate_fit)
+            self.trends.set_pca(trend.pca_confidence, trend.pca_prefactors)
         self.recording_panel.set_progress(session.recording_progress())
-        camera_fps, processing_fps, dropped = session.rates()
+        rates = session.rates()
         self.status.set_figures(
             LiveFigures(
-                camera_fps=camera_fps,
-                processing_fps=processing_fps,
+                camera_fps=rates.camera_fps,
+                series_fps=rates.series_fps,
+                maps_fps=rates.maps_fps,
                 display_fps=self.display_rate.rate(),
-                dropped=dropped,
+                series_missed=rates.series_missed,
+                dropped=rates.dropped,
                 latency_s=self.last_latency_s,
                 camera=session.description,
             )
@@ -601,7 +577,7 @@ class MainWindow(QMainWindow):
         ):
             self.spectrum.set_spectrum(result.spectrum)
         if previous is None or result.peaks != previous.peaks:
-            self.spectrum.set_peaks(result.peaks)
+            self.spectrum.set_peaks(result.peaks, result.frame.shape)
         self.spectrum.set_model(result.labelled, result.predicted, result.radius)
         self.spectrum.set_notes(result.notes)
         if result.heights_m or result.phases_rad:
@@ -612,12 +588,6 @@ class MainWindow(QMainWindow):
                 result.shifts_px,
                 result.grid_of,
             )
-        if result.trend_times_s is not None and (
-            previous is None or result.trend_times_s is not previous.trend_times_s
-        ):
-            self.trends.set_series(result.trend_times_s, result.trend_depths_m)
-            self.trends.set_rate(result.rate_m_per_s, result.rate_stderr_m_per_s, result.rate_fit)
-            self.trends.set_pca(result.pca_confidence, result.pca_prefactors)
 
     # ---- layout ------------------------------------------------------------
     def _restore_layout(self) -> None:
@@ -643,17 +613,10 @@ class MainWindow(QMainWindow):
     def closeEvent(self, event: QCloseEvent) -> None:
         """Stop every thread and timer, remember the layout, then close."""
         self.timer.stop()
-        self.discovery_timer.stop()
-        self.open_timer.stop()
-        if self._opening is not None:
-            self._opening.join()
-            self._opening = None
-            for outcome in self._opening_outcome:
-                if isinstance(outcome, LiveSession):
-                    outcome.close()
-        if self._discovery is not None:
-            self._discovery.join()
-            self._discovery = None
+        opened = self.opener.wait()
+        if isinstance(opened, LiveSession):
+            opened.close()
+        self.discovery.wait()
         self.stop_source()
         self.save_layout()
         super().closeEvent(event)

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from pathlib import Path
 
 from PyQt6.QtCore import pyqtSignal
@@ -20,35 +19,7 @@ from PyQt6.QtWidgets import (
     QWidget,
 )
 
-
-@dataclass(frozen=True)
-class RecordRequest:
-    """What the operator asked to record.
-
-    Attributes
-    ----------
-    path : Path
-        The HDF5 file to write.
-    duration_s : float or None
-        Stop after this many seconds (None: no time limit).
-    frames : int or None
-        Stop after this many frames (None: no frame limit).
-    """
-
-    path: Path
-    duration_s: float | None
-    frames: int | None
-
-
-@dataclass(frozen=True)
-class RecordingProgress:
-    """What the recorder has done so far: frames written, seconds, frames it missed."""
-
-    path: Path
-    frames: int
-    elapsed_s: float
-    dropped: int
-    active: bool
+from holoview.live.session import RecordingProgress, RecordRequest
 
 
 class RecordingPanel(QWidget):

@@ -17,8 +17,9 @@ from PyQt6.QtCore import QRectF, pyqtSignal
 from PyQt6.QtGui import QCursor
 from PyQt6.QtWidgets import QInputDialog, QLabel, QMenu, QVBoxLayout, QWidget
 
-from holoview.ui.peak_geometry import Carrier, snap_to_peak, swallowed_neighbour, window_warnings
-from holoview.ui.settings import PEAK_LABELS
+from holoview.engine.experiment import PEAK_LABELS
+from holoview.engine.peak_geometry import Carrier, swallowed_neighbour, window_warnings
+from holoview.processing.snapping import SNAP_BINS, snap
 
 #: Pen colour of a labelled peak's marker, window and label.
 LABEL_COLOUR = "#33ddff"
@@ -78,6 +79,7 @@ class SpectrumView(QWidget):
         super().__init__(parent)
         self.choose_label: LabelChooser = menu_label_chooser(self)
         self._peaks: list[Carrier] = []
+        self._shape: tuple[int, int] = (1024, 1024)
         self._labelled: dict[str, Carrier] = {}
         self._predicted: dict[str, Carrier] = {}
         self._radius = 0.06
@@ -187,9 +189,13 @@ class SpectrumView(QWidget):
         low, high = np.percentile(spectrum[::4, ::4], (50.0, 99.99))
         return float(low), float(max(high, low + 1e-6))
 
-    def set_peaks(self, peaks: Sequence[Carrier]) -> None:
-        """Mark detected peaks (cycles per pixel); twins are marked too."""
+    def set_peaks(self, peaks: Sequence[Carrier], frame_shape: tuple[int, int]) -> None:
+        """Mark detected peaks (cycles per pixel) of frames ``(rows, cols)``; twins too.
+
+        The frame shape sets the FFT bin a click snaps within (:data:`SNAP_BINS` bins).
+        """
         self._peaks = [(float(fx), float(fy)) for fx, fy in peaks]
+        self._shape = (int(frame_shape[0]), int(frame_shape[1]))
         pts = self._peaks + [(-fx, -fy) for fx, fy in self._peaks]
         self.detected_markers.setData(pos=np.asarray(pts, dtype=float).reshape(-1, 2))
 
@@ -197,7 +203,7 @@ class SpectrumView(QWidget):
         self,
         labelled: Mapping[str, Carrier],
         predicted: Mapping[str, Carrier],
-        radius: float,
+        radius: float | None,
     ) -> None:
         """Draw the labelled peaks with their windows, and the predicted carriers.
 
@@ -207,9 +213,11 @@ class SpectrumView(QWidget):
             Every named peak, by the operator or matched by the model, cycles per pixel.
         predicted : mapping of str to (float, float)
             Carriers the model predicts from two labels, cycles per pixel.
-        radius : float
-            Window radius, cycles per pixel.
+        radius : float or None
+            Window radius, cycles per pixel (None: automatic, not known yet; the
+            circles keep the last radius drawn).
         """
+        radius = self._radius if radius is None else radius
         labelled = {k: (float(v[0]), float(v[1])) for k, v in labelled.items()}
         predicted = {k: (float(v[0]), float(v[1])) for k, v in predicted.items()}
         if labelled == self._labelled and predicted == self._predicted and radius == self._radius:
@@ -274,10 +282,16 @@ class SpectrumView(QWidget):
     # ---- operator input -----------------------------------------------------
     def click_at(self, fx: float, fy: float) -> None:
         """Handle a click at carrier ``(fx, fy)``: snap to a peak and ask for its label."""
-        snapped = snap_to_peak((fx, fy), self._peaks)
-        if snapped is None:
-            self.message.emit(f"no peak near ({fx:+.3f}, {fy:+.3f}) cycles/px: nothing labelled")
+        found = snap((fx, fy), self._peaks, self._shape)
+        if found is None:
+            self.message.emit(
+                f"no peak within {SNAP_BINS:g} FFT bins of ({fx:+.3f}, {fy:+.3f}) cycles/px: "
+                "nothing labelled"
+            )
             return
+        index, twin = found
+        px, py = self._peaks[index]
+        snapped = (-px, -py) if twin else (px, py)
         current = next((n for n, f in self._labelled.items() if math.dist(f, snapped) < 1e-6), None)
         choice = self.choose_label(snapped, current)
         if choice is None:
@@ -332,7 +346,3 @@ class SpectrumView(QWidget):
         radius = float(circle.size()[0]) / 2.0
         if abs(radius - self._radius) > 1e-9:
             self.request_radius(label, radius)
-
-    def clear_model(self) -> None:
-        """Forget labels and predictions (the circles go too)."""
-        self.set_model({}, {}, self._radius)

@@ -1,4 +1,4 @@
-"""The status bar: camera, processing and display rates, dropped frames, latency."""
+"""The status bar: camera, series, maps and display rates, missed and dropped frames, latency."""
 
 from __future__ import annotations
 
@@ -13,11 +13,13 @@ class LiveFigures:
 
     Attributes
     ----------
-    camera_fps, processing_fps, display_fps : float
-        Frames per second delivered by the camera, demodulated, and drawn.
+    camera_fps, series_fps, maps_fps, display_fps : float
+        Frames per second delivered by the camera, measured by the series (every frame
+        when it keeps up), demodulated into maps (the newest), and drawn.
+    series_missed : int
+        Frames the ring overwrote before the series took them.
     dropped : int
-        Frames the ring overwrote before a consumer that takes every frame read them,
-        plus frames the camera or transport lost.
+        Frames the camera or transport lost, and frames the recorder missed.
     latency_s : float or None
         Time from the frame's host timestamp to when it was drawn, seconds.
     camera : str
@@ -25,8 +27,10 @@ class LiveFigures:
     """
 
     camera_fps: float = 0.0
-    processing_fps: float = 0.0
+    series_fps: float = 0.0
+    maps_fps: float = 0.0
     display_fps: float = 0.0
+    series_missed: int = 0
     dropped: int = 0
     latency_s: float | None = None
     camera: str = "no source"
@@ -39,14 +43,16 @@ class LiveStatusBar(QStatusBar):
         super().__init__(parent)
         self.camera_label = QLabel()
         self.camera_fps_label = QLabel()
-        self.processing_fps_label = QLabel()
+        self.series_fps_label = QLabel()
+        self.maps_fps_label = QLabel()
         self.display_fps_label = QLabel()
         self.dropped_label = QLabel()
         self.latency_label = QLabel()
         for label in (
             self.camera_label,
             self.camera_fps_label,
-            self.processing_fps_label,
+            self.series_fps_label,
+            self.maps_fps_label,
             self.display_fps_label,
             self.dropped_label,
             self.latency_label,
@@ -60,12 +66,16 @@ class LiveStatusBar(QStatusBar):
         previous, self._figures = self._figures, figures
         if figures == previous:
             return
-        if previous is None or bool(figures.dropped) != bool(previous.dropped):
-            self.dropped_label.setStyleSheet("color: #c00000;" if figures.dropped else "")
+        lost = figures.dropped + figures.series_missed
+        if previous is None or bool(lost) != bool(previous.dropped + previous.series_missed):
+            self.dropped_label.setStyleSheet("color: #c00000;" if lost else "")
         self.camera_label.setText(figures.camera)
         self.camera_fps_label.setText(f"camera {figures.camera_fps:5.1f} fps")
-        self.processing_fps_label.setText(f"processing {figures.processing_fps:5.1f} fps")
+        self.series_fps_label.setText(f"series {figures.series_fps:5.1f} fps")
+        self.maps_fps_label.setText(f"maps {figures.maps_fps:5.1f} fps")
         self.display_fps_label.setText(f"display {figures.display_fps:4.1f} fps")
-        self.dropped_label.setText(f"dropped {figures.dropped}")
+        self.dropped_label.setText(
+            f"dropped {figures.dropped}, series missed {figures.series_missed}"
+        )
         latency = "-" if figures.latency_s is None else f"{figures.latency_s * 1e3:4.0f} ms"
         self.latency_label.setText(f"latency {latency}")

@@ -27,8 +27,9 @@ from PyQt6.QtWidgets import (
     QWidget,
 )
 
+from holoview.engine.experiment import PEAK_LABELS
+from holoview.processing.demodulate import REFERENCE_MODES
 from holoview.ui.legends import side_legend
-from holoview.ui.settings import PEAK_LABELS, REFERENCE_MODES
 
 FUSED = "fused"
 #: Colour map of heights (perceptual) and of phases (cyclic).
@@ -366,12 +367,6 @@ class SurfaceView(QWidget):
             mirror = pg.PlotDataItem(pen=pg.mkPen("w", width=1.5, style=Qt.PenStyle.DashLine))
             self.plots[name].addItem(mirror)
             self._mirrors[name] = mirror
-
-    def set_line(self, start: tuple[float, float], end: tuple[float, float]) -> None:
-        """Put the profile line from ``start`` to ``end``, ``(x, y)`` fractions of the map."""
-        self._line = (start, end)
-        self._place_line_roi()
-        self._update_profile()
 
     def _place_line_roi(self) -> None:
         if self.line_roi is None or not self._names or self._names[0] not in self._data:

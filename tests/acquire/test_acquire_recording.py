@@ -117,6 +117,38 @@ def test_reader_follows_a_live_writer(tmp_path: Path) -> None:
             np.testing.assert_array_equal(reader[:], data)
 
 
+def test_experiment_and_its_changes_are_stored_with_the_frame_they_hold_from(
+    tmp_path: Path,
+) -> None:
+    data = frames(5)
+    path = tmp_path / "exp.h5"
+    first, later = '{"format": "holoview-experiment", "n": "\u00b5"}', '{"changed": 1}'
+    with RecordingWriter(path, (30, 40), np.uint16, experiment=first) as writer:
+        writer.append(data[0], 0, 0.0, 0.0)
+        writer.flush()
+        with RecordingReader(path) as reader:  # a reader following the live file sees them
+            writer.append(data[1], 1, 1.0, 1.0)
+            writer.note_experiment(later)  # holds from frame 2
+            for i in range(2, 5):
+                writer.append(data[i], i, float(i), float(i))
+            writer.flush()
+            assert reader.experiments() == [(0, first), (2, later)]
+    with h5py.File(path, "r") as f:  # plain h5py reads it too
+        size = len(first.encode())  # the micro sign takes two bytes
+        assert f["experiment/changes"][:].tolist() == [[0, 0, size], [2, size, len(later)]]
+
+
+def test_format_1_0_recordings_without_an_experiment_still_open(tmp_path: Path) -> None:
+    path = tmp_path / "old.h5"
+    write(path, frames(3))
+    with h5py.File(path, "a") as f:
+        del f["experiment"]
+        f.attrs["format_version"] = "1.0"
+    with RecordingReader(path) as reader:
+        assert reader.format_version == "1.0" and len(reader) == 3
+        assert reader.experiments() == []
+
+
 def test_flush_if_due_flushes_after_the_interval(tmp_path: Path) -> None:
     with RecordingWriter(tmp_path / "r.h5", (4, 4), np.uint8, flush_interval_s=0.05) as writer:
         assert not writer.flush_if_due()  # nothing appended

@@ -184,3 +184,44 @@ def test_source_failing_mid_run_keeps_the_recording_and_exits_2(tmp_path: Path) 
     assert "f2.png" in errors[-1]
     with RecordingReader(out) as reader:
         np.testing.assert_array_equal(reader[:], data[:2])
+
+
+def test_record_stores_the_experiment_with_the_optics_options_over_it(
+    tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    from holoview.engine.experiment import Experiment, LabelledPeak
+
+    make_recording(tmp_path / "in.h5")
+    given = Experiment(
+        wavelength_m=532e-9,
+        n1=1.0,
+        n2=1.333,
+        radius=0.1,
+        peaks=(LabelledPeak("RB1", (0.2, -0.1)), LabelledPeak("FB1", (0.1, 0.2))),
+    )
+    given.save(tmp_path / "exp.json")
+    out = tmp_path / "out.h5"
+    argv = ["-q", "record", str(out), "--source", f"replay:{tmp_path / 'in.h5'}", "--frames"]
+    argv += ["4", "--set", "speed=fast", "--experiment", str(tmp_path / "exp.json")]
+    assert main([*argv, "--wavelength-nm", "633", "--fluid", "ethanol"]) == 0
+    with RecordingReader(out) as reader:
+        stored = reader.experiments()
+        assert reader.setup["wavelength_m"] == pytest.approx(633e-9)
+        assert reader.setup["n2"] == pytest.approx(1.361)
+    assert [start for start, _ in stored] == [0]
+    experiment = Experiment.from_json(stored[0][1])
+    assert experiment.peaks == given.peaks and experiment.radius == 0.1
+    assert experiment.wavelength_m == pytest.approx(633e-9)
+    assert experiment.n2 == pytest.approx(1.361)
+
+
+def test_record_refuses_a_bad_experiment_before_creating_the_file(
+    tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    (tmp_path / "exp.json").write_text('{"format": "holoview-experiment", "version": 7}')
+    out = tmp_path / "out.h5"
+    assert (
+        main(["record", str(out), "--frames", "2", "--experiment", str(tmp_path / "exp.json")]) == 2
+    )
+    assert "version 7 is not supported" in capsys.readouterr().err
+    assert not out.exists()

@@ -151,3 +151,25 @@ def test_process_on_a_full_disk_keeps_the_earlier_results(
     assert {p.name: p.read_bytes() for p in out.iterdir()} == before  # no temporary left
     with h5py.File(out / "results.h5", "r") as f:
         assert f.attrs["format"] == "holoview-results"
+
+
+def test_the_live_view_says_when_the_disk_fills(small_disk: Path) -> None:
+    from holoview.engine.experiment import Experiment
+    from holoview.live.session import LiveSession, RecordRequest
+
+    options = {"shape": (256, 256), "frame_rate_hz": 60}
+    session = LiveSession("sim:evaporation", Experiment(), source_options=options)
+    try:
+        session.start()
+        path = small_disk / "live.h5"
+        session.start_recording(RecordRequest(path, duration_s=None, frames=None))
+        wait_for(lambda: not session.recording_progress().active, timeout=60, what="a full disk")
+        progress = session.recording_progress()
+        messages = session.drain_messages()
+        assert sum("the disk is full" in m for m in messages) == 1, messages
+        assert session.running  # the live view goes on
+    finally:
+        session.close()
+    pixels, ids, _ = plain_h5py_frames(path)
+    assert len(pixels) == progress.frames > 50
+    np.testing.assert_array_equal(np.diff(ids) > 0, True)

@@ -58,9 +58,9 @@ def test_a_stopped_simulation_leaves_no_file(tmp_path: Path) -> None:
 @pytest.mark.parametrize(
     ("args", "message"),
     [
-        (["--wavelength-nm", "nan"], "--wavelength-nm must be finite"),
+        (["--wavelength-nm", "nan"], "'nan' is not a finite positive number"),
         (["--wavelength-nm", "532e-9"], "looks like metres"),
-        (["--pixel-pitch-um", "-5"], "--pixel-pitch-um must be positive"),
+        (["--pixel-pitch-um", "-5"], "'-5' is not a finite positive number"),
         (["--n2", "0.9"], "--n2 0.9: a refractive index is at least 1"),
         (["--n1", "1.5"], "the source's n2 = 1.333 must be above n1 = 1.5"),
         (["--ring-mb", "1e9"], "more than half this machine's memory"),

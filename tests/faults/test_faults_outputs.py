@@ -109,8 +109,8 @@ def test_an_unreadable_frame_mid_run_keeps_the_earlier_results(
         "--overwrite",
         "--fps",
         "20",
-        "--wavelength",
-        "532e-9",
+        "--wavelength-nm",
+        "532",
         "--fluid",
         "water",
     )
@@ -137,8 +137,8 @@ def test_a_truncated_video_keeps_the_earlier_results(
         "--out",
         str(earlier),
         "--overwrite",
-        "--wavelength",
-        "532e-9",
+        "--wavelength-nm",
+        "532",
         "--fluid",
         "water",
     )

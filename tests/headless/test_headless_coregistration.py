@@ -11,6 +11,7 @@ import pytest
 import tifffile
 from headless_sim import Simulated, run_cli
 
+from holoview.engine.series import PhaseSeries
 from holoview.headless.pipeline import RunData, fuse_frame
 from holoview.processing.coregister import MIN_MAP_SIDE, Displacement, coregister
 from holoview.processing.heights import fuse
@@ -48,14 +49,18 @@ def test_displacements_are_reported_and_stored_with_the_maps(
 
 def run_data(steps: list[list[bool]], shifts: list[tuple[float, float]]) -> RunData:
     n, m = len(steps), len(steps[0])
-    return RunData(
-        frames=np.arange(n),
+    series = PhaseSeries.from_arrays(
+        [f"P{j}" for j in range(m)],
         times=np.arange(n, dtype=float),
+        frames=np.arange(n),
         values=np.ones((n, m), complex),
         noise_rad=np.full((n, m), 0.1),
         phase_steps=np.array(steps),
-        frame_flags={},
-        peak_flags=[{} for _ in range(m)],
+    )
+    return RunData(
+        series=series,
+        map_noise_rad=np.full((n, m), 0.1),
+        map_flags=[{"low_amplitude": 0, "overlap": 0} for _ in range(m)],
         box_shape=(32, 32),
         radius=0.1,
         displacements=[Displacement(s, (0.01, 0.01), True, 50) for s in shifts],
@@ -86,7 +91,7 @@ def test_maps_too_small_to_co_register_are_fused_as_they_are(
     path = tmp_path / "small.tif"
     tifffile.imwrite(path, frames)
     out = tmp_path / "out"
-    argv = ["process", str(path), "--out", str(out), "--maps", "--wavelength", "532e-9"]
+    argv = ["process", str(path), "--out", str(out), "--maps", "--wavelength-nm", "532"]
     argv += ["--fluid", "water", "--fps", str(evaporation.fps), "--radius", "0.06"]
     status, _, err = run_cli([*argv, *evaporation.label_args("RB1", "RF")], capsys)
     assert status == 0, err

@@ -13,6 +13,7 @@ import pytest
 import tifffile
 from headless_sim import Simulated, run_cli
 
+from holoview.acquire.recording import RecordingWriter
 from holoview.headless.outputs import TRENDS_HEADER
 
 FIRST_ORDER = {"RB1", "RF", "FB1", "RB2"}
@@ -82,10 +83,11 @@ def test_labels_mode_trends_rates_and_summary(
         to_height = evaporation.wavelength / (4 * np.pi * peak["alpha"])
         assert 0 < peak["map_noise_rad"] < 1
         assert peak["map_noise_m"] == pytest.approx(peak["map_noise_rad"] * to_height)
-    # RB3 steps 3.5 rad per frame at 20 frames/s: flagged and left out of the fusion
+    # RB3 steps 3.5 rad per frame at 20 frames/s: flagged, and unwrapped by the others
     if "RB3" in summary["peaks"]:
-        assert "aliased_in_time" in summary["peaks"]["RB3"]["flags"]
-        assert not summary["peaks"]["RB3"]["used_in_fused"]
+        rb3 = summary["peaks"]["RB3"]
+        assert "aliased_in_time" in rb3["flags"] and rb3["used_in_fused"]
+        assert rb3["rate_m_per_s"] == pytest.approx(evaporation.rate, rel=0.02)
     assert set(summary) >= {
         "format",
         "holoview_version",
@@ -166,17 +168,69 @@ def test_maps_against_the_truth(
         assert np.sqrt(np.mean((truth[keep] - measured[keep]) ** 2)) < 0.5 * np.std(truth[keep])
 
 
+def experiment_file(path: Path, peaks: list[dict], **fields: object) -> Path:
+    """Write a holoview-experiment file naming ``peaks``."""
+    document = {"format": "holoview-experiment", "version": 2, **fields, "peaks": peaks}
+    path.write_text(json.dumps(document))
+    return path
+
+
+def test_process_with_no_options_uses_the_experiment_the_recording_carries(
+    evaporation: Simulated, tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    """`holoview simulate` stores the true labels; `process` needs no peak options."""
+    out = tmp_path / "plain"
+    status, stdout, _ = run_cli(["process", str(evaporation.path), "--out", str(out)], capsys)
+    assert status == 0
+    assert "(from the recording)" in stdout
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["parameters"]["peaks_from"] == "recording"
+    assert set(summary["peaks"]) >= FIRST_ORDER
+    points = {"RB1": [1, -1], "RF": [0, 1], "FB1": [1, 0], "RB2": [2, -1]}
+    for label in FIRST_ORDER:
+        peak = summary["peaks"][label]
+        assert peak["alpha"] == pytest.approx(evaporation.alphas[label])
+        assert peak["lattice"] == points[label] and peak["residual_bins"] < 1.0
+        assert peak["coupling"] == points[label][1]
+    assert evaporation.rate < 0  # a falling level...
+    assert summary["fused"]["rate_m_per_s"] == pytest.approx(evaporation.rate, rel=0.01)
+    assert summary["experiment"]["format"] == "holoview-experiment"
+    assert not any("--auto" in note for note in summary["notes"])
+
+
+def test_an_unreadable_stored_experiment_falls_back_to_auto_with_a_note(
+    evaporation: Simulated,
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture,
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    path = tmp_path / "broken.h5"
+    with h5py.File(evaporation.path, "r") as f:
+        frames, times = f["frames"][:30], f["t_device_s"][:30]
+        setup = dict(f["setup"].attrs)
+    with RecordingWriter(
+        path, frames.shape[1:], frames.dtype, setup=setup, experiment="{oops"
+    ) as w:
+        for i, frame in enumerate(frames):
+            w.append(frame, i, float(times[i]), 0.0)
+    out = tmp_path / "out"
+    status, _, _ = run_cli(["process", str(path), "--out", str(out)], capsys)
+    assert status == 0
+    assert "not valid JSON" in caplog.text and "--auto 4" in caplog.text  # warned
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["parameters"]["peaks_from"] == "auto"
+    notes = "\n".join(summary["notes"])
+    assert "not valid JSON" in notes and "carries no usable experiment" in notes
+
+
 def test_peaks_file_and_auto_maps_agree(
     evaporation: Simulated, tmp_path: Path, capsys: pytest.CaptureFixture
 ) -> None:
-    """A peaks file and --auto give the same labelled maps (phase converted after the PCA)."""
-    peaks = {
-        "peaks": [
-            {"label": label, "carrier": list(evaporation.carriers[label])}
-            for label in ("RB1", "RF")
-        ]
-    }
-    (tmp_path / "peaks.json").write_text(json.dumps(peaks))
+    """An experiment file and --auto give the same labelled maps (phase converted after PCA)."""
+    peaks = [
+        {"label": label, "carrier": list(evaporation.carriers[label])} for label in ("RB1", "RF")
+    ]
+    experiment_file(tmp_path / "peaks.json", peaks)
     common = ["--maps", "--frames", "10:50"]
     status, _, _ = run_cli(
         [
@@ -184,7 +238,7 @@ def test_peaks_file_and_auto_maps_agree(
             str(evaporation.path),
             "--out",
             str(tmp_path / "file"),
-            "--peaks",
+            "--experiment",
             str(tmp_path / "peaks.json"),
             *common,
         ],
@@ -192,10 +246,14 @@ def test_peaks_file_and_auto_maps_agree(
     )
     assert status == 0
     fx, fy = evaporation.carriers["RB1"]
+    with h5py.File(tmp_path / "file" / "results.h5", "r") as a:
+        radius = str(a.attrs["radius_cpp"])  # the same windows: the same maps
     status, _, _ = run_cli(
         [
             "process",
             str(evaporation.path),
+            "--radius",
+            radius,
             "--out",
             str(tmp_path / "auto"),
             "--auto",
@@ -211,7 +269,9 @@ def test_peaks_file_and_auto_maps_agree(
         h5py.File(tmp_path / "file" / "results.h5", "r") as a,
         h5py.File(tmp_path / "auto" / "results.h5", "r") as b,
     ):
-        assert set(a["maps"]) == set(b["maps"]) == {"RB1", "RF", "fused"}
+        # the model adds the other families to two labels, as the live window does
+        assert set(a["maps"]) >= FIRST_ORDER | {"fused"}
+        assert set(b["maps"]) == {"RB1", "RF", "fused"}
         np.testing.assert_array_equal(a["trends/frame"][:], np.arange(10, 50))
         step = evaporation.rate / evaporation.fps
         heights = a["trends/mean_height_m"][:]
@@ -220,7 +280,7 @@ def test_peaks_file_and_auto_maps_agree(
             means = np.nanmean(a["maps"][name][1:], axis=(1, 2))
             np.testing.assert_allclose(means, np.diff(heights[:, j]), atol=1e-9)
             assert np.mean(means) == pytest.approx(step, rel=0.1)
-        for name in ("RB1", "RF", "fused"):
+        for name in ("RB1", "RF"):
             np.testing.assert_allclose(
                 a["maps"][name][1:], b["maps"][name][1:], atol=0.05 * abs(step)
             )
@@ -241,7 +301,7 @@ def test_image_files_with_options_and_volume(
         for i, frame in enumerate(frames):
             assert cv2.imwrite(str(path / f"frame{i}.png"), frame)
     out = tmp_path / "out"
-    argv = ["process", str(path), "--out", str(out), "--wavelength", "532e-9"]
+    argv = ["process", str(path), "--out", str(out), "--wavelength-nm", "532"]
     argv += ["--fluid", "water", "--n1", "1.000293", "--fps", str(evaporation.fps)]
     argv += ["--area", "0.01", *evaporation.label_args("RB1", "FB1")]
     status, _, _ = run_cli(argv, capsys)
@@ -270,15 +330,16 @@ def write_garbage(path: Path) -> Path:
     [
         (lambda e, t: [str(t / "missing.h5")], "no such file"),
         (lambda e, t: [str(write_garbage(t / "bad.h5"))], "not a readable HDF5"),
-        (lambda e, t: [str(e.path), "--wavelength", "-1"], "--wavelength must be positive"),
+        (lambda e, t: [str(e.path), "--wavelength-nm", "-1"], "not a finite positive number"),
         (lambda e, t: [str(e.path), "--n2", "0.9"], "must be above n1"),
         (lambda e, t: [str(e.path), "--frames", "500:"], "selects no frame"),
         (lambda e, t: [str(e.path), "--frames", "a:b"], "--frames takes integers"),
         (lambda e, t: [str(e.path), "--radius", "0.4"], "window radius"),
         (lambda e, t: [str(e.path), "--area", "0"], "--area must be a positive"),
-        (lambda e, t: [str(e.path), "--anchor", "RB1=0.1,0.1", "--peaks", "x"], "with --auto"),
-        (lambda e, t: [str(e.path), "--auto", "4", "--peaks", "x.json"], "one way"),
-        (lambda e, t: [str(e.path), "--label", "RB1=0.2,0.1"], "at least two"),
+        (lambda e, t: [str(e.path), "--anchor", "RB1=0.1,0.1", "--experiment", "x"], "with --auto"),
+        (lambda e, t: [str(e.path), "--auto", "4", "--experiment", "x.json"], "one way"),
+        (lambda e, t: [str(e.path), "--label", "RB1=0.01,0.4"], "RB1: no detected peak within"),
+        (lambda e, t: [str(e.path), "--experiment", str(t / "none.json")], "cannot be read"),
         (lambda e, t: [str(e.path), "--label", "RB1=0.9,0.1"], "outside the spectrum"),
         (lambda e, t: [str(e.path), "--auto", "4", "--anchor", "RB1=0.01,0.4"], "no detected"),
     ],
@@ -299,38 +360,51 @@ def test_bad_input_is_one_line_exit_2(
     assert message in lines[0]
 
 
+def _rb1(e: Simulated) -> list[float]:
+    return list(e.carriers["RB1"])
+
+
 @pytest.mark.parametrize(
-    ("content", "message"),
+    ("make_content", "message"),
     [
-        ("{not json", "not valid JSON"),
-        ('{"peaks": []}', "expected"),
-        ('{"peaks": [{"label": "RB1"}]}', '"carrier"'),
-        ('{"peaks": [{"label": "RB1", "carrier": [0.7, 0.1]}]}', "outside the spectrum"),
-        ('{"peaks": [{"label": "RB1", "carrier": "here"}]}', "carrier must be [fx, fy]"),
-        ('{"peaks": [{"label": "XY9", "carrier": [0.2, 0.1]}]}', "give its alpha"),
-        ('{"peaks": [{"label": "RB1", "carrier": [0.2, 0.1], "alpha": 0}]}', "nonzero"),
-        ('{"peaks": [{"label": "..", "carrier": [0.2, 0.1], "alpha": 1}]}', "not usable"),
+        (lambda e: "{not json", "not valid JSON"),
+        (lambda e: '{"peaks": []}', "not a holoview-experiment file"),
+        (lambda e: '{"format": "holoview-experiment", "version": 2}', "names no peak"),
+        (lambda e: [{"label": "RB1"}], '"carrier"'),
+        (lambda e: [{"label": "RB1", "carrier": [0.7, 0.1]}], "outside the spectrum"),
+        (lambda e: [{"label": "RB1", "carrier": "here"}], "carrier must be [fx, fy]"),
+        (lambda e: [{"label": "XY9", "carrier": _rb1(e)}], "give its alpha"),
+        (lambda e: [{"label": "RB1", "carrier": [0.2, 0.1], "alpha": 0}], "nonzero"),
+        (lambda e: [{"label": "..", "carrier": [0.2, 0.1], "alpha": 1}], "not usable"),
         (
-            '{"peaks": [{"label": "A", "carrier": [0.2, -0.06], "alpha": 1},'
-            ' {"label": "B", "carrier": [-0.2, 0.06], "alpha": 2}]}',
+            lambda e: [
+                {"label": "A", "carrier": _rb1(e), "alpha": 1},
+                {"label": "B", "carrier": [-c for c in _rb1(e)], "alpha": 2},
+            ],
             "same detected peak as A",
         ),
     ],
 )
-def test_bad_peaks_file_is_one_line_exit_2(
+def test_bad_experiment_file_is_one_line_exit_2(
     evaporation: Simulated,
     tmp_path: Path,
     capsys: pytest.CaptureFixture,
-    content: str,
+    make_content,
     message: str,
 ) -> None:
-    peaks = tmp_path / "peaks.json"
-    peaks.write_text(content)
-    argv = ["process", str(evaporation.path), "--out", str(tmp_path / "o"), "--peaks", str(peaks)]
+    content = make_content(evaporation)
+    path = tmp_path / "exp.json"
+    if isinstance(content, str):
+        path.write_text(content)
+    else:
+        experiment_file(path, content)
+    out = tmp_path / "o"
+    argv = ["process", str(evaporation.path), "--out", str(out), "--experiment", str(path)]
     status, _, err = run_cli(argv, capsys)
     assert status == 2
     assert len(err.strip().splitlines()) == 1, err
     assert message in err
+    assert not out.exists()  # nothing written
 
 
 def test_files_without_times_need_fps(
@@ -339,12 +413,12 @@ def test_files_without_times_need_fps(
     with h5py.File(evaporation.path, "r") as f:
         tifffile.imwrite(tmp_path / "stack.tif", f["frames"][:5])
     argv = ["process", str(tmp_path / "stack.tif"), "--out", str(tmp_path / "o")]
-    status, _, err = run_cli([*argv, "--wavelength", "532e-9", "--fluid", "water"], capsys)
+    status, _, err = run_cli([*argv, "--wavelength-nm", "532", "--fluid", "water"], capsys)
     assert status == 2
     assert "give --fps" in err
     status, _, err = run_cli([*argv, "--fluid", "water", "--fps", "10"], capsys)
     assert status == 2
-    assert "--wavelength" in err
+    assert "--wavelength-nm" in err
 
 
 def test_output_folder_that_is_a_file_is_one_line_exit_2(
@@ -365,3 +439,73 @@ def test_quiet_prints_nothing(
     assert status == 0
     assert out == "" and err == ""
     assert (tmp_path / "q" / "trends.csv").is_file()
+
+
+def test_labels_on_a_file_without_optics_ask_for_the_fluid(
+    evaporation: Simulated, tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    with h5py.File(evaporation.path, "r") as f:
+        tifffile.imwrite(tmp_path / "stack.tif", f["frames"][:5], photometric="minisblack")
+    argv = ["process", str(tmp_path / "stack.tif"), "--out", str(tmp_path / "o")]
+    argv += ["--wavelength-nm", "532", "--fps", "20", *evaporation.label_args("RB1", "FB1")]
+    status, _, err = run_cli(argv, capsys)
+    assert status == 2
+    assert "give --n2 or --fluid" in err and len(err.strip().splitlines()) == 1
+
+
+def test_background_hologram_by_index_or_file(
+    waves: Simulated, tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    """--background: absolute maps against frame 0 although the run starts at frame 10."""
+    common = [*waves.label_args("RB1", "FB1"), "--maps", "--frames", "10:40"]
+    with h5py.File(waves.path, "r") as f:
+        tifffile.imwrite(tmp_path / "empty.tif", f["frames"][0])
+    maps = {}
+    for name, spec in (("index", "0"), ("file", str(tmp_path / "empty.tif"))):
+        out = tmp_path / name
+        argv = ["process", str(waves.path), "--out", str(out), "--background", spec, *common]
+        status, _, _ = run_cli(argv, capsys)
+        assert status == 0
+        summary = json.loads((out / "summary.json").read_text())
+        assert summary["parameters"]["reference"] == "absolute"  # implied
+        assert summary["parameters"]["background"] == spec
+        with h5py.File(out / "results.h5", "r") as f:
+            maps[name] = f["maps/fused"][:]
+            step = f["maps/fused"].attrs["pixel_step_px"]
+            assert "background hologram" in f["maps/fused"].attrs["reference_description"]
+    np.testing.assert_allclose(maps["index"], maps["file"], equal_nan=True, atol=1e-12)
+    fused = maps["index"]
+    assert waves.height_maps is not None
+    rows = (np.arange(fused.shape[1]) * step[0]).round().astype(int)
+    cols = (np.arange(fused.shape[2]) * step[1]).round().astype(int)
+    inner = (slice(3, -3), slice(3, -3))
+    for k in (0, 29):  # run positions: frames 10 and 39, both against frame 0
+        truth = (waves.height_maps[10 + k] - waves.height_maps[0])[np.ix_(rows, cols)][inner]
+        measured = fused[k][inner]
+        keep = np.isfinite(measured)
+        assert np.corrcoef(truth[keep], measured[keep])[0, 1] > 0.9
+
+
+@pytest.mark.parametrize(
+    ("extra", "message"),
+    [
+        (["--background", "500"], "has frames 0 to"),
+        (["--background", "0", "--reference", "relative"], "--reference absolute"),
+        (["--background", "SMALL"], "the input's are"),
+    ],
+)
+def test_background_bad_input_is_one_line_exit_2(
+    waves: Simulated,
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture,
+    extra: list[str],
+    message: str,
+) -> None:
+    small = tmp_path / "small.tif"
+    tifffile.imwrite(small, np.zeros((16, 16), np.uint16))
+    extra = [str(small) if e == "SMALL" else e for e in extra]
+    argv = ["process", str(waves.path), "--out", str(tmp_path / "out"), *extra]
+    status, _, stderr = run_cli([*argv, *waves.label_args("RB1", "FB1")], capsys)
+    assert status == 2
+    assert message in stderr and len(stderr.strip().splitlines()) == 1
+    assert "Traceback" not in stderr

@@ -13,7 +13,7 @@ from holoview.processing.identify import (
     family_alphas,
     identify_peaks,
 )
-from holoview.processing.trends import check_aliasing, unwrap_in_time
+from holoview.processing.phase_series import check_aliasing, unwrap_in_time
 
 N1, N2 = 1.0, 1.333
 

@@ -61,15 +61,17 @@ def test_a_click_near_a_peak_snaps_to_it(detected):
     assert bins_apart(result.prediction("RF").carrier, truth["RF"].observed_carrier) < 1.0
 
 
-def test_the_wrong_twin_swaps_rf_and_rb2_and_is_hinted(detected):
+def test_a_label_on_the_wrong_twin_is_an_error_naming_it(detected):
+    """With FB1 on its other twin the labels' lattice would swap RF and RB2; the lattice
+    that explains the most peaks says which label is on the wrong twin."""
     carriers, truth = detected
     fb1 = truth["FB1"].observed_carrier
     anchors = {"RB1": truth["RB1"].observed_carrier, "FB1": (-fb1[0], -fb1[1])}
-    result = label_peaks(carriers, anchors, SETUP.n1, SETUP.n2, SETUP.shape, max_order=3)
-    rf = result.prediction("RF").carrier
-    rb2 = truth["RB2"].observed_carrier
-    assert bins_apart(rf, (-rb2[0], -rb2[1])) < 1.0
-    assert result.flip_hint == ("FB1",)
+    with pytest.raises(
+        InputError,
+        match="label FB1 contradicts the lattice: it is given on the other twin than RB1",
+    ):
+        label_peaks(carriers, anchors, SETUP.n1, SETUP.n2, SETUP.shape, max_order=3)
 
 
 def test_ghosts_are_found_but_not_predicted():
@@ -105,8 +107,11 @@ def test_bad_label_sets_are_errors(detected):
         label_peaks(carriers, {"RB1": rb1}, SETUP.n1, SETUP.n2, SETUP.shape)
     with pytest.raises(InputError, match="name the same detected peak"):
         label_peaks(carriers, {"RB1": rb1, "FB1": rb1}, SETUP.n1, SETUP.n2, SETUP.shape)
-    with pytest.raises(InputError, match="fix both RF and FB1"):
-        fb1, fb2 = truth["FB1"].observed_carrier, truth["RB2"].observed_carrier
-        label_peaks(carriers, {"FB1": fb1, "B2B1": fb2}, SETUP.n1, SETUP.n2, SETUP.shape)
+    fb1, rb2 = truth["FB1"].observed_carrier, truth["RB2"].observed_carrier
+    with pytest.raises(InputError, match="name one lattice point"):
+        label_peaks(carriers, {"FB1": fb1, "B2B1": rb2}, SETUP.n1, SETUP.n2, SETUP.shape)
+    rb3 = truth["RB3"].observed_carrier  # labelled FB3: FB1 and FB3 lie along one line
+    with pytest.raises(InputError, match="do not fix the lattice"):
+        label_peaks(carriers, {"FB1": fb1, "FB3": rb3}, SETUP.n1, SETUP.n2, SETUP.shape)
     with pytest.raises(InputError, match="no detected peaks"):
         label_peaks([], {"RB1": rb1}, SETUP.n1, SETUP.n2, SETUP.shape)

@@ -7,17 +7,12 @@ import pytest
 from processing_synth import BENCH, WAVELENGTH, bench_frame, bump, frame, intensity
 
 from holoview.errors import InputError
-from holoview.processing.demodulate import (
-    FRAME_FLAGS,
-    PEAK_RESULT_FLAGS,
-    Demodulator,
-    box_shape_for,
-    refine_carriers,
-)
+from holoview.processing.boxes import UNTRUSTED_BORDER, box_shape_for
+from holoview.processing.demodulate import FRAME_FLAGS, PEAK_RESULT_FLAGS, Demodulator
 from holoview.processing.heights import height_to_phase
-from holoview.processing.peaks import Peak, find_peaks
+from holoview.processing.peaks import Peak, find_peaks, refine_carriers
 from holoview.processing.resample import box_positions
-from holoview.processing.windows import radial_window
+from holoview.processing.windows import auto_radii, radial_window
 
 SHAPE = (256, 256)
 PHOTONS = 800.0
@@ -236,8 +231,12 @@ def test_dark_pixels_are_masked() -> None:
     )
     demod = Demodulator(SHAPE, [peak], reference="synthetic")
     r = demod.process(rng.poisson(mean).astype(np.uint16)).peaks[0]
-    _, bx = np.meshgrid(*box_positions(demod.box_shape, SHAPE), indexing="ij")
-    assert r.mask[bx < cols / 2 - 20].mean() > 0.95
+    by, bx = np.meshgrid(*box_positions(demod.box_shape, SHAPE), indexing="ij")
+    # the frame's border is untrusted whatever the amplitude (peak_windows.border_mask)
+    border = UNTRUSTED_BORDER / r.radius
+    inside = (np.minimum(by, SHAPE[0] - by) > border) & (np.minimum(bx, cols - bx) > border)
+    assert not r.mask[~inside].any()
+    assert r.mask[inside & (bx < cols / 2 - 20)].mean() > 0.95
     assert r.mask[bx > cols / 2 + 20].mean() < 0.05
     assert "low_amplitude" not in r.flags
 
@@ -280,7 +279,8 @@ def test_with_peaks_keeps_settings_and_recomputes_the_radius() -> None:
     )
     fewer = demod.with_peaks(bench_peaks()[:1])
     assert (fewer.reference, fewer.wavelength, fewer.window) == ("absolute", WAVELENGTH, "tukey")
-    assert fewer.radius > demod.radius
+    assert fewer.radii == tuple(auto_radii([bench_peaks()[0].carrier]))  # recomputed
+    assert fewer.radii[0] > min(demod.radii)
     other = demod.with_peaks(bench_peaks(), reference="relative", radius=0.05)
     assert (other.reference, other.radius) == ("relative", 0.05)
 
@@ -342,12 +342,13 @@ def test_refine_carriers_removes_the_residual_tilt() -> None:
     for _ in range(6):
         carrier = (rng.uniform(0.1, 0.4), rng.uniform(-0.4, 0.4))
         f = frame(shape, [carrier], [0.05], [rng.uniform(0, 6)], rng=rng)
-        found = find_peaks(f)[0].relabelled("X", alpha=1.0)
+        found = find_peaks(f, refine=False)[0].relabelled("X", alpha=1.0)
+        assert found.carrier_error is None
         refined = refine_carriers(f, [found])[0]
         assert (refined.label, refined.alpha, refined.amplitude) == ("X", 1.0, found.amplitude)
+        assert refined.carrier_error is not None and refined.carrier_error < 0.05
+        assert find_peaks(f)[0].carrier == pytest.approx(refined.carrier, abs=1e-9)
         before.append(np.hypot(*(np.subtract(found.carrier, carrier) * shape)))
         after.append(np.hypot(*(np.subtract(refined.carrier, carrier) * shape)))
     assert max(after) < 0.01  # bins
     assert np.mean(after) < np.mean(before) / 2
-    with pytest.raises(InputError, match="iterations"):
-        refine_carriers(f, [found], iterations=0)

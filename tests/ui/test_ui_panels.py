@@ -9,42 +9,15 @@ import pytest
 import tifffile
 
 from holoview.acquire.source import SettingInfo
+from holoview.engine.experiment import config_dir
 from holoview.errors import InputError
+from holoview.live.session import RecordingProgress
 from holoview.ui.exports import export_maps, export_window_png
-from holoview.ui.recording_panel import RecordingPanel, RecordingProgress
-from holoview.ui.settings import ExperimentSettings, LabelledPeak, config_dir, ui_settings
+from holoview.ui.recording_panel import RecordingPanel
+from holoview.ui.settings import ui_settings
 from holoview.ui.source_panel import SourcePanel
 
 pytestmark = pytest.mark.gui
-
-
-def test_experiment_settings_round_trip(tmp_path: Path) -> None:
-    settings = ExperimentSettings(n2=1.377, radius=0.05, reference="absolute").with_peak(
-        LabelledPeak("RB1", 0.12, -0.05)
-    )
-    settings = settings.with_peak(LabelledPeak("RB1", 0.13, -0.05))  # replaces, not adds
-    settings.save(tmp_path / "exp.json")
-    loaded = ExperimentSettings.load(tmp_path / "exp.json")
-    assert loaded == settings
-    assert loaded.peaks == (LabelledPeak("RB1", 0.13, -0.05),)
-    assert loaded.without_label("RB1").peaks == ()
-
-
-@pytest.mark.parametrize(
-    ("text", "message"),
-    [
-        ("{not json", "not valid JSON"),
-        ('{"format": "other"}', "not a holoview-experiment file"),
-        ('{"format": "holoview-experiment", "version": 1, "radius": 0.7}', "beyond Nyquist"),
-        ('{"format": "holoview-experiment", "version": 1, "reference": "x"}', "reference mode"),
-        ('{"format": "holoview-experiment", "version": 1, "peaks": [{"fx": 1}]}', "malformed"),
-    ],
-)
-def test_bad_experiment_file_is_one_clear_error(tmp_path: Path, text: str, message: str) -> None:
-    path = tmp_path / "bad.json"
-    path.write_text(text)
-    with pytest.raises(InputError, match=message):
-        ExperimentSettings.load(path)
 
 
 def test_ui_settings_live_under_xdg_config_home(tmp_path: Path, monkeypatch) -> None:

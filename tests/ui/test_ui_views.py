@@ -9,10 +9,8 @@ import pytest
 
 pytest.importorskip("pyqtgraph")
 
-from holoview.processing.trends import format_rate
+from holoview.processing.rates import format_rate
 from holoview.ui.hologram_view import HologramView
-from holoview.ui.peak_geometry import snap_to_peak, swallowed_neighbour, window_warnings
-from holoview.ui.rates import RateMeter
 from holoview.ui.spectrum_view import CLEAR, SpectrumView
 from holoview.ui.surface_view import FUSED, SurfaceView, sample_line
 from holoview.ui.trends_view import TrendsView
@@ -48,33 +46,11 @@ def test_hologram_saturation_and_readout(qtbot) -> None:
     assert view.readout_at(-1, 0).startswith("outside")
 
 
-def test_snap_to_peak_takes_the_twin_too() -> None:
-    peaks = [(0.1, 0.2), (0.3, -0.1)]
-    assert snap_to_peak((0.11, 0.19), peaks) == (0.1, 0.2)
-    assert snap_to_peak((-0.29, 0.11), peaks) == (-0.3, 0.1)
-    assert snap_to_peak((0.0, 0.4), peaks) is None
-
-
-def test_window_warnings_name_overlap_alias_and_zero_order() -> None:
-    lines = window_warnings({"RB1": (0.1, 0.1), "FB1": (0.15, 0.12)}, 0.05, {"RB2": (0.7, 0.0)})
-    text = "\n".join(lines)
-    assert "RB1 and FB1 windows overlap" in text
-    assert "predicted RB2" in text and "aliased to (-0.300" in text
-    assert window_warnings({"RB1": (0.25, 0.0)}, 0.05) == []
-    assert "zero order" in window_warnings({"RF": (0.05, 0.0)}, 0.05)[0]
-    assert "Nyquist" in window_warnings({"RF": (0.48, 0.0)}, 0.05)[0]
-
-
-def test_swallowed_neighbour() -> None:
-    assert swallowed_neighbour((0.2, 0.0), 0.05, [(0.3, 0.0)]) is None
-    assert swallowed_neighbour((0.2, 0.0), 0.15, [(0.3, 0.0)]) == (0.3, 0.0)
-
-
 def _spectrum_view(qtbot) -> tuple[SpectrumView, list]:
     view = SpectrumView()
     qtbot.addWidget(view)
     view.set_spectrum(np.random.default_rng(0).random((64, 64)).astype(np.float32))
-    view.set_peaks([(0.2, 0.1), (-0.1, 0.25)])
+    view.set_peaks([(0.2, 0.1), (-0.1, 0.25)], (256, 256))
     events: list = []
     view.peakLabelled.connect(lambda *a: events.append(("label", *a)))
     view.labelCleared.connect(lambda a: events.append(("clear", a)))
@@ -96,7 +72,11 @@ def test_click_with_no_peak_says_so(qtbot) -> None:
     view, events = _spectrum_view(qtbot)
     view.choose_label = lambda carrier, current: pytest.fail("no menu without a peak")
     view.click_at(0.45, -0.45)
-    assert len(events) == 1 and events[0][0] == "message" and "no peak near" in events[0][1]
+    assert (
+        len(events) == 1
+        and events[0][0] == "message"
+        and "no peak within 12 FFT bins" in events[0][1]
+    )
 
 
 def test_clear_label_from_the_menu(qtbot) -> None:
@@ -195,14 +175,6 @@ def test_trends_show_rate_in_um_per_min(qtbot) -> None:
     assert format_rate(-1.36e-8, 2e-11) == "-0.8160 ± 0.0012 µm/min"
     view.set_pca(0.9994, {"RB1": 0.333})
     assert "99.94 %" in view.pca_label.text()
-
-
-def test_rate_meter() -> None:
-    meter = RateMeter(window_s=1.0)
-    for i in range(31):
-        meter.tick(now=i / 30)
-    assert meter.rate(now=1.0) == pytest.approx(30.0, rel=0.05)
-    assert meter.rate(now=5.0) == 0.0
 
 
 @pytest.mark.qt_log_ignore(r"This plugin does not support propagateSizeHints\(\)")

@@ -12,9 +12,11 @@ import tifffile
 from PyQt6.QtCore import QTimer
 
 from holoview.acquire.recording import RecordingReader
+from holoview.engine.experiment import Experiment
+from holoview.headless.run import PeakChoice, process_file
+from holoview.live.session import RecordRequest
 from holoview.ui.main_window import MainWindow
-from holoview.ui.recording_panel import RecordRequest
-from holoview.ui.settings import ExperimentSettings, ui_settings
+from holoview.ui.settings import ui_settings
 
 from .holograms import FB1, N1, N2, RB1, WAVELENGTH_M
 
@@ -28,7 +30,7 @@ pytestmark = [
 def _window(qtbot, open_windows, tmp_path: Path, source: str, **kwargs) -> MainWindow:
     path = tmp_path / "experiment.json"
     if not path.exists():
-        ExperimentSettings(wavelength_m=WAVELENGTH_M, n1=N1, n2=N2, radius=0.05).save(path)
+        Experiment(wavelength_m=WAVELENGTH_M, n1=N1, n2=N2, radius=0.05).save(path)
     window = MainWindow(source=source, experiment_path=path, **kwargs)
     qtbot.addWidget(window)
     open_windows.append(window)
@@ -69,7 +71,7 @@ def test_window_shows_frames_labels_predictions_and_maps(
     )
     assert np.isfinite(window.surface.map_data("RB1")).any()
     # the labels are in the portable experiment file, not in the UI settings
-    saved = ExperimentSettings.load(window.experiment_path)
+    saved = Experiment.load(window.experiment_path)
     assert {p.label for p in saved.peaks} == {"RB1", "FB1"}
 
 
@@ -79,7 +81,7 @@ def test_click_with_no_peak_shows_a_message_and_keeps_running(
     window = _window(qtbot, open_windows, tmp_path, f"replay:{hologram_file}")
     _wait_frames(qtbot, window)
     window.spectrum.click_at(-0.45, -0.45)
-    assert "no peak near" in window.banner_text
+    assert "no peak within" in window.banner_text
     _wait_frames(qtbot, window)
     assert window.session is not None and window.session.running
 
@@ -99,6 +101,37 @@ def test_recording_from_the_window_writes_a_valid_file(
         assert np.all(np.diff(reader.frame_ids) > 0)
     with h5py.File(target) as f:
         assert f["setup"].attrs["n2"] == pytest.approx(N2)
+
+
+def test_a_recording_made_in_the_window_carries_the_operators_labels_to_process(
+    qtbot, open_windows, tmp_path, hologram_file
+):
+    """Label at alignment, record, change the radius mid-run, then process with no options."""
+    window = _window(qtbot, open_windows, tmp_path, f"replay:{hologram_file}")
+    _wait_frames(qtbot, window)
+    qtbot.waitUntil(lambda: len(window.spectrum._peaks) >= 4, timeout=5000)
+    choices = iter(["RB1", "FB1"])
+    window.spectrum.choose_label = lambda carrier, current: next(choices)
+    window.spectrum.click_at(*RB1)
+    window.spectrum.click_at(*FB1)
+    target = tmp_path / "labelled.h5"
+    window.start_recording(RecordRequest(target, duration_s=None, frames=30))
+    qtbot.waitUntil(lambda: window.session.recorder.written >= 3, timeout=10000)
+    window.set_radius(0.045)
+    qtbot.waitUntil(lambda: not window.recording_panel.recording, timeout=20000)
+    with RecordingReader(target) as reader:
+        stored = reader.experiments()
+    assert len(stored) == 2 and stored[0][0] == 0 and stored[1][0] >= 3
+    first, changed = (Experiment.from_json(text) for _, text in stored)
+    assert {p.label for p in first.peaks} == {"RB1", "FB1"} and changed.radius == 0.045
+    outcome = process_file(target, tmp_path / "out", choice=PeakChoice(), report=False)
+    assert outcome.selection.source == "recording"
+    labels = {p.label for p in outcome.selection.peaks}
+    assert labels >= {"RB1", "FB1", "RF", "RB2"}  # the operator's two, the model's rest
+    by_label = {p.label: p.carrier for p in outcome.selection.peaks}
+    for name, carrier in (("RB1", RB1), ("FB1", FB1)):
+        np.testing.assert_allclose(by_label[name], carrier, atol=2 / 256)  # the twin set
+    assert any("changes at frame" in note for note in outcome.summary["notes"])
 
 
 def test_bad_sources_show_a_message_and_the_window_stays(qtbot, open_windows, tmp_path):
@@ -150,7 +183,7 @@ def test_find_sources_runs_on_a_thread_and_offers_sim(qtbot, open_windows, tmp_p
     window = _window(qtbot, open_windows, tmp_path, "sim", autostart=False)
     window.find_sources()
     assert not window.source_panel.refresh_button.isEnabled()
-    qtbot.waitUntil(lambda: window._discovery is None, timeout=20000)
+    qtbot.waitUntil(lambda: not window.discovery.busy, timeout=20000)
     items = [
         window.source_panel.source_box.itemText(i)
         for i in range(window.source_panel.source_box.count())
@@ -236,15 +269,16 @@ def test_reference_mode_reaches_the_demodulator(qtbot, open_windows, tmp_path, h
     window = _labelled_window(qtbot, open_windows, tmp_path, hologram_file)
     window.surface.reference_box.setCurrentText("synthetic")
     assert window.experiment.reference == "synthetic"
-    stage = window.session.pipeline._demod
+    pipeline = window.session.pipeline
     qtbot.waitUntil(
-        lambda: stage._demod is not None and stage._demod.reference == "synthetic", timeout=5000
+        lambda: (d := pipeline.demodulator) is not None and d.reference == "synthetic",
+        timeout=5000,
     )
-    assert ExperimentSettings.load(window.experiment_path).reference == "synthetic"
+    assert Experiment.load(window.experiment_path).reference == "synthetic"
 
 
 def _flaky_window(qtbot, open_windows, tmp_path, monkeypatch, **options) -> MainWindow:
-    from holoview.ui import session
+    from holoview.live import session
 
     from .flaky_source import FlakySource
 
@@ -265,7 +299,7 @@ def test_camera_gone_mid_stream_is_shown_and_the_window_stays(
     assert "stopped answering" in window.banner_text
     assert window.source_panel.start_button.text() == "Start"
     window.spectrum.click_at(0.0, 0.45)  # the views still answer
-    assert "no peak near" in window.banner_text
+    assert "no peak within" in window.banner_text
 
 
 def test_roi_locked_while_streaming_restarts_the_stream(qtbot, open_windows, tmp_path, monkeypatch):
@@ -282,7 +316,7 @@ def test_opening_a_slow_source_does_not_freeze_the_window(
 ):
     import time as _time
 
-    from holoview.ui import session
+    from holoview.live import session
 
     from .flaky_source import FlakySource
 
@@ -304,3 +338,18 @@ def test_opening_a_slow_source_does_not_freeze_the_window(
     timer.stop()
     assert len(ticks) > 20 and max(np.diff(ticks)) < 0.1  # the event loop kept running
     assert window.session is not None and window.source_panel.start_button.isEnabled()
+
+
+def test_loading_a_bad_experiment_file_keeps_the_labels(qtbot, open_windows, tmp_path):
+    window = _window(qtbot, open_windows, tmp_path, "sim", autostart=False)
+    window.label_peak("RB1", *RB1)
+    before = window.experiment
+    bad = tmp_path / "other.json"
+    bad.write_text('{"format": "holoview-experiment", "version": 3}')
+    window.load_experiment(bad)
+    assert "version 3 is not supported" in window.banner_text and str(bad) in window.banner_text
+    assert window.experiment == before
+    good = tmp_path / "good.json"
+    Experiment(n2=1.361, peaks=()).save(good)
+    window.load_experiment(good)
+    assert window.experiment.n2 == 1.361 and window.experiment.peaks == ()

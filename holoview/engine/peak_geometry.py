@@ -1,16 +1,15 @@
-"""Display-side geometry of peaks in the spectrum: snapping a click, window warnings.
+"""Geometry of the windows around labelled peaks: overlaps, aliases, a radius that swallows a peak.
 
 Pure functions on carriers in cycles per pixel (``fx`` along columns, ``fy`` along
-rows). They decide what the spectrum view draws and says; nothing here is saved.
+rows): the warnings the spectrum view shows while the operator aligns and labels, and
+the check that refuses a window radius that would take in a neighbouring peak.
+Snapping a click or a carrier to a peak is :func:`holoview.engine.resolve.snap`.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-
-#: A click snaps to a peak no further than this, in cycles per pixel.
-SNAP_DISTANCE = 0.03
 
 Carrier = tuple[float, float]
 
@@ -23,27 +22,6 @@ def with_twins(peaks: Sequence[Carrier]) -> list[Carrier]:
             if all(math.dist(candidate, seen) > 1e-9 for seen in out):
                 out.append(candidate)
     return out
-
-
-def snap_to_peak(
-    click: Carrier, peaks: Sequence[Carrier], max_distance: float = SNAP_DISTANCE
-) -> Carrier | None:
-    """Return the peak (or twin) nearest to ``click`` within ``max_distance``, else None.
-
-    Parameters
-    ----------
-    click : (float, float)
-        Where the operator clicked, cycles per pixel.
-    peaks : sequence of (float, float)
-        Detected carriers, cycles per pixel; their twins count too.
-    max_distance : float
-        The snapping distance, cycles per pixel.
-    """
-    candidates = with_twins(peaks)
-    if not candidates:
-        return None
-    best = min(candidates, key=lambda p: math.dist(p, click))
-    return best if math.dist(best, click) <= max_distance else None
 
 
 def _aliased(f: float) -> float:

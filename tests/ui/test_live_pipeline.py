@@ -1,4 +1,4 @@
-"""The live pipeline on synthetic holograms: labels, model predictions, maps, trends."""
+"""The live pipeline (Qt-free) on synthetic holograms: labels, model predictions, maps, trends."""
 
 from __future__ import annotations
 
@@ -8,23 +8,25 @@ import numpy as np
 import pytest
 
 from holoview.acquire.source import FrameMeta
-from holoview.ui import live_pipeline
-from holoview.ui.live_pipeline import LivePipeline, block_max
-from holoview.ui.settings import ExperimentSettings, LabelledPeak
+from holoview.engine.experiment import Experiment, LabelledPeak
+from holoview.live import pipeline as live_pipeline
+from holoview.live import trends as live_trends
+from holoview.live.pipeline import LivePipeline, block_max
+from holoview.live.trends import SeriesPipeline
 
 from .holograms import FB1, N1, N2, RB1, WAVELENGTH_M, carriers, hologram_stack
 
 
-def _experiment(**changes: object) -> ExperimentSettings:
-    base = ExperimentSettings(
+def _experiment(**changes: object) -> Experiment:
+    base = Experiment(
         wavelength_m=WAVELENGTH_M,
         n1=N1,
         n2=N2,
         radius=0.05,
         reference="absolute",
-        peaks=(LabelledPeak("RB1", *RB1), LabelledPeak("FB1", *FB1)),
+        peaks=(LabelledPeak("RB1", RB1), LabelledPeak("FB1", FB1)),
     )
-    return ExperimentSettings(**{**base.__dict__, **changes})
+    return Experiment(**{**base.__dict__, **changes})
 
 
 def _run(pipeline: LivePipeline, frames: np.ndarray, dt: float = 0.1) -> list:
@@ -41,8 +43,7 @@ def test_block_max_keeps_narrow_peaks() -> None:
     assert small.shape == (512, 500) and small.max() == 5.0 and small[258, 1] == 5.0
 
 
-def test_two_labels_bring_predicted_peaks_maps_and_trend(monkeypatch) -> None:
-    monkeypatch.setattr(live_pipeline, "TREND_HZ", math.inf)  # a summary every frame
+def test_two_labels_bring_predicted_peaks_and_maps() -> None:
     frames = hologram_stack(6, (128, 128))
     results = _run(LivePipeline(_experiment(), (128, 128)), frames)
     last = results[-1]
@@ -57,9 +58,6 @@ def test_two_labels_bring_predicted_peaks_maps_and_trend(monkeypatch) -> None:
     # the bump rises 5 nm per frame at its centre; the absolute map after 5 frames shows ~25 nm
     centre = last.fused_m[last.fused_m.shape[0] // 2, last.fused_m.shape[1] // 2]
     assert centre == pytest.approx(25e-9, rel=0.3)
-    assert last.trend_times_s is not None and len(last.trend_times_s) == len(frames)
-    assert last.rate_m_per_s is not None and last.rate_m_per_s > 0
-    assert set(last.trend_depths_m) >= {"RB1", "fused"}
     assert last.spectrum is not None and last.spectrum.shape == (128, 128)
 
 
@@ -89,7 +87,7 @@ def test_maps_too_small_to_co_register_are_fused_unmoved() -> None:
 
 def test_custom_label_has_phase_but_no_height() -> None:
     frames = hologram_stack(3, (128, 128))
-    experiment = _experiment(peaks=(LabelledPeak("mine", *RB1),))
+    experiment = _experiment(peaks=(LabelledPeak("mine", RB1),))
     last = _run(LivePipeline(experiment, (128, 128)), frames)[-1]
     assert last.predicted == {}
     assert "mine" in last.phases_rad and "mine" not in last.heights_m
@@ -100,13 +98,11 @@ def test_commands_change_settings_between_frames() -> None:
     frames = hologram_stack(2, (128, 128))
     assert _run(pipeline, frames[:1])[0].labelled == {}
     pipeline.apply("experiment", _experiment())
-    pipeline.apply("pca", True)
     result = _run(pipeline, frames)[-1]
-    assert "RB1" in result.labelled and pipeline.pca
+    assert "RB1" in result.labelled
 
 
-def test_reset_restarts_series_and_absolute_reference(monkeypatch) -> None:
-    monkeypatch.setattr(live_pipeline, "TREND_HZ", math.inf)
+def test_reset_restarts_the_absolute_reference() -> None:
     pipeline = LivePipeline(_experiment(), (128, 128))
     frames = hologram_stack(6, (128, 128))
     before = _run(pipeline, frames[:4])[-1]
@@ -114,4 +110,43 @@ def test_reset_restarts_series_and_absolute_reference(monkeypatch) -> None:
     pipeline.apply("reset", None)
     after = _run(pipeline, frames[4:5])[-1]
     assert np.nanmax(np.abs(after.fused_m)) < 1e-12  # the new reference frame
-    assert after.trend_times_s is None  # fewer than three frames since the restart
+
+
+def _series_run(frames: np.ndarray, dt: float = 0.1) -> tuple[SeriesPipeline, list]:
+    """The maps pipeline resolves the peaks; the series pipeline takes every frame."""
+    maps = LivePipeline(_experiment(), (128, 128))
+    series = SeriesPipeline((128, 128))
+    trends = []
+    for i, frame in enumerate(frames):
+        meta = FrameMeta(frame_id=i, t_device=i * dt, t_host=100.0 + i * dt)
+        maps.process(frame, meta)
+        series.set_peaks(maps.peaks, maps.experiment)
+        trends.append(series.process(frame, meta))
+    return series, trends
+
+
+def test_series_takes_every_frame_and_summarises_depths_and_rate(monkeypatch) -> None:
+    monkeypatch.setattr(live_trends, "TREND_HZ", math.inf)  # a summary every frame
+    series, trends = _series_run(hologram_stack(6, (128, 128)))
+    assert trends[:2] == [None, None]  # fewer than three frames
+    last = trends[-1]
+    assert last is not None and len(last.times_s) == 6
+    np.testing.assert_allclose(last.times_s, np.arange(6) * 0.1)
+    assert set(last.depths_m) >= {"RB1", "FB1", "RF", "RB2", "fused"}
+    # the mean of the bump rises with it: a positive rate; the series holds every frame
+    assert last.rate_m_per_s is not None and last.rate_m_per_s > 0
+    assert series.series is not None and len(series.series) == 6
+    assert [t.seq for t in trends if t is not None] == [1, 2, 3, 4]
+
+
+def test_series_restarts_on_reset_and_on_new_peaks(monkeypatch) -> None:
+    monkeypatch.setattr(live_trends, "TREND_HZ", math.inf)
+    frames = hologram_stack(6, (128, 128))
+    series, _ = _series_run(frames[:4])
+    series.apply("reset")
+    assert series.process(frames[4], FrameMeta(4, 0.4, 0.4)) is None  # one frame since
+    assert len(series.series) == 1
+    series.set_peaks(series.carriers.peaks[:2], series.experiment)
+    assert series.series is None  # other peaks: a new series from the next frame
+    series.apply("pca", True)
+    assert series.pca

@@ -1,0 +1,387 @@
+"""The experiment: optics, labelled peaks and demodulation settings, with its one JSON format.
+
+An experiment is what an operator sets at alignment and what every later replay needs:
+the optics (wavelength, pixel pitch, refractive indices), the labelled peaks on the
+twin where the phase grows with the height (DESIGN.md), the window, its radius, the
+reference mode and the unwrapping policy. The GUI saves and loads it, ``holoview peaks
+--json`` writes it, ``holoview process --experiment`` and ``holoview live --experiment``
+read it, and every recording carries the one in force
+(:mod:`holoview.acquire.recording`).
+
+The JSON layout (format ``holoview-experiment``, version 2)::
+
+    {"format": "holoview-experiment", "version": 2,
+     "wavelength_m": 5.32e-07, "pixel_pitch_m": 5.5e-06, "n1": 1.0, "n2": 1.333,
+     "window": "tukey", "radius": null, "reference": "relative", "unwrap": "auto",
+     "peaks": [{"label": "RB1", "carrier": [0.12, -0.05]},
+               {"label": "G1", "carrier": [0.31, 0.02], "alpha": 0.5}]}
+
+Carriers and the radius are in cycles per pixel (``fx`` along columns, ``fy`` along
+rows), lengths in metres. ``radius: null`` is the automatic radius. A peak's
+``alpha`` is optional for the model's families (RF, RB_j, FB_j, ...), whose prefactor
+follows from the label and the indices, and needed for any other label. Every key
+but ``format`` and ``version`` may be left out (an experiment that only names peaks
+takes its optics from the recording). Version 1 files (peaks as ``{label, fx, fy}``)
+are still read.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import re
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+from holoview.errors import InputError, finite_number
+from holoview.optics.families import alpha_of
+from holoview.processing.demodulate import REFERENCE_MODES, UNWRAP_MODES
+from holoview.processing.windows import DEFAULT_WINDOW, WINDOW_KINDS
+
+__all__ = [
+    "EXPERIMENT_FORMAT",
+    "EXPERIMENT_VERSION",
+    "PEAK_LABELS",
+    "Experiment",
+    "LabelledPeak",
+    "check_carrier",
+    "check_label",
+    "config_dir",
+    "default_experiment_path",
+    "is_model_label",
+]
+
+EXPERIMENT_FORMAT = "holoview-experiment"
+EXPERIMENT_VERSION = 2
+#: Versions :meth:`Experiment.from_json` reads.
+READABLE_VERSIONS = (1, 2)
+
+#: Labels offered when an operator names a peak (any other usable name is allowed).
+PEAK_LABELS: tuple[str, ...] = ("RB1", "FB1", "RF", "RB2", "FB2")
+
+#: A label usable as a CSV value and an HDF5 name (``fused`` is reserved).
+LABEL_PATTERN = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.+~-]{0,31}")
+
+Carrier = tuple[float, float]
+
+
+def check_label(label: object, where: str) -> str:
+    """Return ``label`` if it can name a series, a CSV row and an HDF5 dataset."""
+    if not isinstance(label, str) or not LABEL_PATTERN.fullmatch(label) or label == "fused":
+        raise InputError(
+            f"{where}: label {label!r} is not usable (a letter or digit, then letters, "
+            "digits and _.+~-, at most 32 characters, not 'fused')"
+        )
+    return label
+
+
+def check_carrier(carrier: object, where: str) -> Carrier:
+    """Return a carrier ``(fx, fy)`` in cycles/pixel, or raise naming what is wrong."""
+    try:
+        fx, fy = (float(v) for v in carrier)  # type: ignore[union-attr]
+    except (TypeError, ValueError) as exc:
+        raise InputError(
+            f"{where}: carrier must be [fx, fy] in cycles/pixel, got {carrier!r}"
+        ) from exc
+    if not (math.isfinite(fx) and math.isfinite(fy)):
+        raise InputError(f"{where}: carrier ({fx}, {fy}) is not finite")
+    if abs(fx) > 0.5 or abs(fy) > 0.5:
+        raise InputError(
+            f"{where}: carrier ({fx:g}, {fy:g}) is outside the spectrum "
+            "(|fx|, |fy| <= 0.5 cycles/pixel)"
+        )
+    if fx == 0 and fy == 0:
+        raise InputError(f"{where}: carrier (0, 0) is zero frequency, not a carrier")
+    return fx, fy
+
+
+def is_model_label(label: str) -> bool:
+    """Whether ``label`` names one of the model's families (RF, RB_j, FB_j, B_lB_j, 2X, ...)."""
+    try:
+        alpha_of(label, 1.0, 1.5)
+    except InputError:
+        return False
+    return True
+
+
+@dataclass(frozen=True)
+class LabelledPeak:
+    """A peak the operator (or a file) named.
+
+    Attributes
+    ----------
+    label : str
+        The family name (``RB1``, ``FB1``, ``RF``, ...) or another usable name.
+    carrier : tuple of float
+        ``(fx, fy)`` in cycles per pixel on the twin whose phase grows with the height.
+    alpha : float or None
+        Phase-to-height prefactor (dimensionless); None: the model's, from the label.
+    """
+
+    label: str
+    carrier: Carrier
+    alpha: float | None = None
+
+    def __post_init__(self) -> None:
+        where = f"peak {self.label!r}"
+        check_label(self.label, where)
+        object.__setattr__(self, "carrier", check_carrier(self.carrier, where))
+        if self.alpha is not None:
+            if isinstance(self.alpha, bool) or not isinstance(self.alpha, int | float):
+                raise InputError(f"{where}: alpha must be a number, got {self.alpha!r}")
+            if not (math.isfinite(self.alpha) and self.alpha != 0):
+                raise InputError(f"{where}: alpha must be finite and nonzero, got {self.alpha}")
+
+    @property
+    def fx(self) -> float:
+        """Carrier along columns, cycles/pixel."""
+        return self.carrier[0]
+
+    @property
+    def fy(self) -> float:
+        """Carrier along rows, cycles/pixel."""
+        return self.carrier[1]
+
+    def to_dict(self) -> dict[str, Any]:
+        """The peak as its JSON object."""
+        out: dict[str, Any] = {"label": self.label, "carrier": [self.fx, self.fy]}
+        if self.alpha is not None:
+            out["alpha"] = self.alpha
+        return out
+
+
+def _optional_positive(name: str, value: object) -> float | None:
+    if value is None:
+        return None
+    number = finite_number(name, value)
+    if number <= 0:
+        raise InputError(f"{name} must be positive, got {value!r}")
+    return number
+
+
+@dataclass(frozen=True)
+class Experiment:
+    """Optics, labelled peaks and demodulation settings (SI units; cycles per pixel).
+
+    Attributes
+    ----------
+    wavelength_m : float or None
+        Laser wavelength in vacuum, m (None: not known here).
+    pixel_pitch_m : float or None
+        Object-side pixel pitch, m.
+    n1, n2 : float or None
+        Refractive indices above the surface (air) and of the fluid.
+    window : str
+        Spectral window around each peak (:data:`~holoview.processing.windows.WINDOW_KINDS`).
+    radius : float or None
+        Window radius, cycles/pixel; None: automatic from the carriers.
+    reference : {"relative", "absolute", "synthetic"}
+        Reference mode of the maps (DESIGN.md).
+    unwrap : {"auto", "always", "never"}
+        Spatial unwrapping of the maps.
+    peaks : tuple of LabelledPeak
+        The labelled peaks, each label once.
+
+    Raises
+    ------
+    InputError
+        For a value that is not usable, naming it.
+    """
+
+    wavelength_m: float | None = 532e-9
+    pixel_pitch_m: float | None = 5.5e-6
+    n1: float | None = 1.0
+    n2: float | None = 1.333
+    window: str = DEFAULT_WINDOW
+    radius: float | None = None
+    reference: str = "relative"
+    unwrap: str = "auto"
+    peaks: tuple[LabelledPeak, ...] = field(default_factory=tuple)
+
+    def __post_init__(self) -> None:
+        for name in ("wavelength_m", "pixel_pitch_m", "n1", "n2", "radius"):
+            object.__setattr__(self, name, _optional_positive(name, getattr(self, name)))
+        if self.radius is not None and self.radius >= 0.5:
+            raise InputError(f"window radius {self.radius} cycles/pixel is beyond Nyquist (0.5)")
+        for name, allowed in (
+            ("window", WINDOW_KINDS),
+            ("reference", REFERENCE_MODES),
+            ("unwrap", UNWRAP_MODES),
+        ):
+            if getattr(self, name) not in allowed:
+                raise InputError(
+                    f"{name} {getattr(self, name)!r} is not one of {', '.join(allowed)}"
+                )
+        if self.n1 is not None and self.n2 is not None and not self.n2 > self.n1:
+            raise InputError(
+                f"n2 ({self.n2:g}) must be above n1 ({self.n1:g}): the fluid is below the air"
+            )
+        object.__setattr__(self, "peaks", tuple(self.peaks))
+        labels = [p.label for p in self.peaks]
+        twice = sorted({k for k in labels if labels.count(k) > 1})
+        if twice:
+            raise InputError(f"label {', '.join(twice)} is given twice")
+
+    # ---- derived -----------------------------------------------------------
+    def alpha(self, peak: LabelledPeak) -> float | None:
+        """The prefactor of ``peak``: its own, else the model's for its label, else None."""
+        return peak.alpha if peak.alpha is not None else self.alpha_of_label(peak.label)
+
+    def alpha_of_label(self, label: str) -> float | None:
+        """The model's prefactor of a family label (RF, RB_j, FB_j, ...), else None."""
+        if self.n1 is None or self.n2 is None:
+            return None
+        try:
+            return alpha_of(label, self.n1, self.n2)
+        except InputError:
+            return None
+
+    def require(self, *names: str) -> None:
+        """Raise InputError naming the option to give for each parameter that is unknown."""
+        hints = {
+            "wavelength_m": "the laser wavelength is not known: give --wavelength-nm",
+            "pixel_pitch_m": "the pixel pitch is not known: give --pixel-pitch-um",
+            "n2": "the fluid's refractive index is not known: give --n2 or --fluid",
+            "n1": "the refractive index above the surface is not known: give --n1",
+        }
+        missing = [hints[name] for name in names if getattr(self, name) is None]
+        if missing:
+            raise InputError("; ".join(missing))
+
+    # ---- changes -----------------------------------------------------------
+    def with_peak(self, peak: LabelledPeak) -> Experiment:
+        """Return a copy where ``peak`` replaces any peak of the same label or carrier."""
+        kept = tuple(p for p in self.peaks if p.label != peak.label and p.carrier != peak.carrier)
+        return replace(self, peaks=(*kept, peak))
+
+    def without_label(self, label: str) -> Experiment:
+        """Return a copy without the peak named ``label``."""
+        return replace(self, peaks=tuple(p for p in self.peaks if p.label != label))
+
+    def updated(self, **changes: object) -> Experiment:
+        """Return a copy with ``changes`` (None values leave a field as it is)."""
+        return replace(self, **{k: v for k, v in changes.items() if v is not None})
+
+    # ---- JSON --------------------------------------------------------------
+    def to_dict(self) -> dict[str, Any]:
+        """The experiment as its JSON object (module docstring)."""
+        return {
+            "format": EXPERIMENT_FORMAT,
+            "version": EXPERIMENT_VERSION,
+            "wavelength_m": self.wavelength_m,
+            "pixel_pitch_m": self.pixel_pitch_m,
+            "n1": self.n1,
+            "n2": self.n2,
+            "window": self.window,
+            "radius": self.radius,
+            "reference": self.reference,
+            "unwrap": self.unwrap,
+            "peaks": [p.to_dict() for p in self.peaks],
+        }
+
+    def to_json(self) -> str:
+        """Return the experiment as JSON text."""
+        return json.dumps(self.to_dict(), indent=2)
+
+    @classmethod
+    def from_dict(cls, data: object, where: str = "experiment") -> Experiment:
+        """Build an experiment from its JSON object; InputError naming what is wrong.
+
+        Keys left out take no value (optics) or the default (demodulation settings).
+        """
+        if not isinstance(data, dict) or data.get("format") != EXPERIMENT_FORMAT:
+            raise InputError(
+                f"{where}: not a {EXPERIMENT_FORMAT} file (its format field is missing or "
+                "wrong; `holoview peaks --json` writes one)"
+            )
+        version = data.get("version")
+        if version not in READABLE_VERSIONS:
+            raise InputError(
+                f"{where}: {EXPERIMENT_FORMAT} version {version!r} is not supported "
+                f"(this holoview reads {', '.join(map(str, READABLE_VERSIONS))})"
+            )
+        items = data.get("peaks", [])
+        if not isinstance(items, list):
+            raise InputError(f"{where}: peaks must be a list")
+        peaks = []
+        for i, item in enumerate(items):
+            peaks.append(_peak_from_dict(item, version, f"{where}, peak {i}"))
+        known = ("wavelength_m", "pixel_pitch_m", "n1", "n2")
+        settings = ("window", "radius", "reference", "unwrap")
+        kwargs: dict[str, Any] = {k: data.get(k) for k in known}
+        kwargs.update({k: data[k] for k in settings if k in data})
+        try:
+            return cls(**kwargs, peaks=tuple(peaks))
+        except InputError as exc:
+            raise InputError(f"{where}: {exc}") from exc
+
+    @classmethod
+    def from_json(cls, text: str, where: str = "experiment") -> Experiment:
+        """Parse JSON text written by :meth:`to_json`; InputError naming what is wrong."""
+        try:
+            data = json.loads(text)
+        except json.JSONDecodeError as exc:
+            raise InputError(f"{where}: not valid JSON ({exc.msg}, line {exc.lineno})") from exc
+        return cls.from_dict(data, where)
+
+    def save(self, path: Path) -> None:
+        """Write the experiment to ``path`` (parent folders created; written whole or not)."""
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        partial = path.with_name(f".{path.name}.partial")
+        try:
+            partial.write_text(self.to_json(), encoding="utf-8")
+            os.replace(partial, path)
+        finally:
+            partial.unlink(missing_ok=True)
+
+    @classmethod
+    def load(cls, path: str | os.PathLike[str]) -> Experiment:
+        """Read an experiment file; InputError when it is missing, unreadable or malformed."""
+        p = Path(path)
+        try:
+            raw = p.read_bytes()
+        except OSError as exc:
+            raise InputError(
+                f"experiment file {p}: cannot be read ({exc.strerror or exc})"
+            ) from exc
+        try:
+            text = raw.decode("utf-8-sig")
+        except UnicodeDecodeError:
+            raise InputError(
+                f"experiment file {p}: not UTF-8 text (a UTF-16 or binary file? save it as UTF-8)"
+            ) from None
+        return cls.from_json(text, f"experiment file {p}")
+
+
+def _peak_from_dict(item: object, version: int, where: str) -> LabelledPeak:
+    """One peak entry: ``{label, carrier[, alpha]}`` (version 1: ``{label, fx, fy}``)."""
+    if not isinstance(item, dict):
+        raise InputError(f"{where}: expected an object with a label and a carrier")
+    if version == 1 and "carrier" not in item:
+        carrier: object = (item.get("fx"), item.get("fy"))
+    else:
+        carrier = item.get("carrier")
+    if "label" not in item or carrier is None:
+        raise InputError(f'{where}: expected {{"label": ..., "carrier": [fx, fy]}}')
+    try:
+        return LabelledPeak(item["label"], carrier, item.get("alpha"))
+    except InputError as exc:
+        raise InputError(f"{where}: {exc}") from exc
+
+
+def config_dir() -> Path:
+    """Return holoview's configuration folder, ``$XDG_CONFIG_HOME/holoview``.
+
+    Read from the environment on every call, so that tests (and users) can point it
+    elsewhere at any time.
+    """
+    base = os.environ.get("XDG_CONFIG_HOME") or str(Path.home() / ".config")
+    return Path(base) / "holoview"
+
+
+def default_experiment_path() -> Path:
+    """Return where the GUI keeps the experiment between sessions."""
+    return config_dir() / "experiment.json"

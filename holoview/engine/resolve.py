@@ -1,0 +1,226 @@
+"""Which peaks to demodulate: an experiment's labels snapped to detected peaks, plus the model's.
+
+One rule, used by the live window (a click, a label following a drifting peak) and by
+``holoview process`` (a carrier from an experiment file, ``--label``, a recording's
+experiment): a carrier names the detected peak nearest it on either twin, within
+:data:`~holoview.processing.snapping.SNAP_BINS` FFT bins on the periodic spectrum
+(:func:`holoview.processing.snapping.snap`). The detected peak is taken on the twin the
+carrier points at, so a label keeps the twin it was given (DESIGN.md: the twin where
+the phase grows with the height).
+
+With two or more labels of the model's families (RB1 and FB1, say), the model
+(:func:`holoview.processing.labelling.label_peaks`) places every first-order family up
+to :data:`MAX_ORDER`, and the detected peaks it lands on are demodulated too, with the
+model's alpha (:func:`resolve_peaks`).
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from holoview.engine.experiment import Experiment
+from holoview.errors import InputError
+from holoview.processing.labelling import ModelLabelling, label_peaks
+from holoview.processing.lattice import LatticePeak
+from holoview.processing.peaks import Peak
+from holoview.processing.snapping import SNAP_BINS, bin_distance, snap
+from holoview.processing.windows import wrap_frequency
+
+__all__ = ["MAX_ORDER", "Resolution", "resolve_peaks", "snap_peak"]
+
+#: Largest ``j`` of the first-order families (RB_j, FB_j) the model adds.
+MAX_ORDER = 3
+
+#: First-order family labels: the peaks the model adds to the labelled ones.
+FIRST_ORDER = re.compile(r"RF|RB[1-9]\d*|FB[1-9]\d*")
+
+Carrier = tuple[float, float]
+
+
+def snap_peak(
+    carrier: Carrier, detected: Sequence[Peak], shape: tuple[int, int]
+) -> tuple[int, Peak] | None:
+    """Return ``(index, peak)``: the detected peak :func:`snap` names, on ``carrier``'s twin."""
+    found = snap(carrier, [p.carrier for p in detected], shape)
+    if found is None:
+        return None
+    index, twin = found
+    return index, detected[index].flipped() if twin else detected[index]
+
+
+def _folded(carrier: Carrier) -> Carrier:
+    fx, fy = wrap_frequency(np.asarray(carrier, dtype=np.float64))
+    return float(fx), float(fy)
+
+
+@dataclass(frozen=True)
+class Resolution:
+    """The peaks to demodulate and what the operator should know about them.
+
+    Attributes
+    ----------
+    peaks : tuple of Peak
+        Labelled, with alpha where known (the label's, or given), brightest first; a
+        labelled carrier on no detected peak is demodulated where given (amplitude NaN).
+    predicted : dict of str to (float, float)
+        The model's carrier of every first-order family, cycles/pixel, folded into the
+        spectrum (for drawing).
+    unmatched : tuple of str
+        Labels whose carrier lies on no detected peak (or on one another label named).
+    problems : tuple of str
+        One line per unmatched label (also in ``notes``).
+    notes : tuple of str
+        One line per thing to know (unmatched labels, a label on the probable wrong
+        twin, a family past Nyquist, a model that cannot place the families).
+    labelling : ModelLabelling or None
+        The model labelling, when two or more labels are the model's families.
+    lattice : tuple of (LatticePeak or None)
+        Per peak, its place on the carrier lattice (point, residual, kind, coupling):
+        with the model labelling, for the peaks on a detected peak; else None.
+    """
+
+    peaks: tuple[Peak, ...]
+    predicted: dict[str, Carrier] = field(default_factory=dict)
+    unmatched: tuple[str, ...] = ()
+    problems: tuple[str, ...] = ()
+    notes: tuple[str, ...] = ()
+    labelling: ModelLabelling | None = None
+    lattice: tuple[LatticePeak | None, ...] = ()
+
+    @property
+    def labelled(self) -> dict[str, Carrier]:
+        """Each demodulated peak's carrier by label."""
+        return {p.label: p.carrier for p in self.peaks if p.label}
+
+    def strict(self) -> Resolution:
+        """Return self, or raise InputError when a label lies on no detected peak."""
+        if self.problems:
+            raise InputError("; ".join(self.problems))
+        return self
+
+
+def resolve_peaks(
+    experiment: Experiment,
+    detected: Sequence[Peak],
+    shape: tuple[int, int],
+    *,
+    previous: Mapping[str, Peak] | None = None,
+    max_order: int = MAX_ORDER,
+) -> Resolution:
+    """Snap the experiment's labels to detected peaks and add the model's families.
+
+    Parameters
+    ----------
+    experiment : Experiment
+        Labelled peaks and the indices n1, n2 (for the model and the alphas).
+    detected : sequence of Peak
+        Peaks :func:`~holoview.processing.peaks.find_peaks` detected.
+    shape : tuple of int
+        Frame shape ``(rows, cols)``, pixels.
+    previous : mapping of str to Peak, optional
+        The peaks of the last resolution, by label (live): a faint peak missed by this
+        detection keeps its last match while its label (or the model) still points
+        within :data:`SNAP_BINS` of it, so the set of maps does not flicker.
+    max_order : int
+        Largest ``j`` of the families the model adds.
+
+    Returns
+    -------
+    Resolution
+    """
+    problems: list[str] = []
+    unmatched: list[str] = []
+    chosen: list[Peak] = []
+    taken: dict[int, str] = {}
+    for lp in experiment.peaks:
+        alpha = experiment.alpha(lp)
+        found = snap_peak(lp.carrier, detected, shape)
+        if found is not None and found[0] in taken:
+            unmatched.append(lp.label)
+            problems.append(f"{lp.label}: names the same detected peak as {taken[found[0]]}")
+            continue
+        kept = (previous or {}).get(lp.label)
+        if (
+            found is None
+            and kept is not None
+            and bin_distance(np.subtract(kept.carrier, lp.carrier), shape) <= SNAP_BINS
+        ):
+            chosen.append(kept.relabelled(lp.label, alpha))
+            continue
+        if found is None:
+            unmatched.append(lp.label)
+            problems.append(
+                f"{lp.label}: no detected peak within {SNAP_BINS:g} bins of "
+                f"({lp.fx:+.4f}, {lp.fy:+.4f}) cycles/pixel; demodulated where given"
+            )
+            peak = Peak(carrier=_folded(lp.carrier), amplitude=math.nan, snr=0.0)
+        else:
+            taken[found[0]] = lp.label
+            peak = found[1]
+        chosen.append(peak.relabelled(lp.label, alpha))
+    notes = list(problems)
+    predicted: dict[str, Carrier] = {}
+    labelling = None
+    anchors = {p.label: p.carrier for p in chosen if p.label not in unmatched}
+    family_anchors = {k: c for k, c in anchors.items() if experiment.alpha_of_label(k)}
+    if len(family_anchors) >= 2 and detected and experiment.n1 and experiment.n2:
+        try:
+            labelling = label_peaks(
+                [p.carrier for p in detected],
+                family_anchors,
+                experiment.n1,
+                experiment.n2,
+                shape,
+                max_order=max_order,
+            )
+        except InputError as exc:
+            notes.append(f"the model cannot place the other families: {exc}")
+    if labelling is not None:
+        notes += [
+            f"{k} is probably on the wrong twin: label its twin instead"
+            for k in labelling.flip_hint
+        ]
+        names = {p.label for p in chosen}
+        for prediction in labelling.predictions:
+            name = prediction.label
+            if not FIRST_ORDER.fullmatch(name):
+                continue
+            predicted[name] = prediction.carrier
+            if prediction.folded:
+                notes.append(f"{name} lies past Nyquist: it appears folded back")
+            if name in names:
+                continue
+            if prediction.peak is not None and prediction.peak not in taken:
+                peak = detected[prediction.peak]
+                peak = peak.flipped() if prediction.twin else peak
+                taken[prediction.peak] = name
+            else:
+                peak = (previous or {}).get(name)
+                if (
+                    peak is None
+                    or bin_distance(np.subtract(peak.carrier, prediction.carrier), shape)
+                    > SNAP_BINS
+                ):
+                    continue
+            chosen.append(peak.relabelled(name, experiment.alpha_of_label(name)))
+            names.add(name)
+    chosen.sort(key=lambda p: -p.amplitude if p.amplitude == p.amplitude else math.inf)
+    on_lattice: dict[str, LatticePeak] = {}
+    if labelling is not None and labelling.lattice is not None:
+        detected_of = {name: index for index, name in taken.items()}
+        for name, index in detected_of.items():
+            on_lattice[name] = labelling.lattice.peaks[index]
+    return Resolution(
+        peaks=tuple(chosen),
+        predicted=predicted,
+        unmatched=tuple(unmatched),
+        problems=tuple(problems),
+        notes=tuple(notes),
+        labelling=labelling,
+        lattice=tuple(on_lattice.get(p.label or "") for p in chosen),
+    )

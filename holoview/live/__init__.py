@@ -1,0 +1,20 @@
+"""The live engine: a source streaming through a ring into the demodulation worker, Qt-free.
+
+:class:`~holoview.live.session.LiveSession` runs the camera thread, the frame ring, the
+recorder and the workers (:mod:`holoview.live.worker`), each frame processed by
+:class:`~holoview.live.pipeline.LivePipeline` on the engine's per-frame core. The GUI
+(:mod:`holoview.ui`) only reads the latest result and sends commands; a script or a
+test can do the same without a display.
+"""
+
+from holoview.live.pipeline import LivePipeline, LiveResult
+from holoview.live.session import LiveSession, RecordingProgress, RecordRequest, discover_sources
+
+__all__ = [
+    "LivePipeline",
+    "LiveResult",
+    "LiveSession",
+    "RecordRequest",
+    "RecordingProgress",
+    "discover_sources",
+]

@@ -1,0 +1,283 @@
+"""What the live maps worker does with the newest frame: the engine's core, on a schedule.
+
+Per frame: the display spectrum (at most :data:`SPECTRUM_HZ`), peak detection (at most
+:data:`PEAKS_HZ`; carriers drift slowly; each of the two at most a :data:`SIDE_SHARE`
+of the worker's time), the experiment's labels snapped to the detected peaks and the
+model's families added (:func:`holoview.engine.resolve.resolve_peaks`), the
+demodulated map of every peak (:class:`holoview.engine.frame_core.FrameCore`), their
+displacements (measured at most :data:`COREGISTER_HZ`) and the fused map. The
+demodulator's peaks (:attr:`LivePipeline.peaks`) go to the series worker, which takes
+every frame (:mod:`holoview.live.trends`). Every number comes from the engine, the same
+code ``holoview process`` runs; this module only decides when to call what, and packs
+a :class:`LiveResult` for the window.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from holoview.acquire.source import FrameMeta
+from holoview.engine.experiment import Experiment
+from holoview.engine.frame_core import (
+    FFT_THREADS,
+    Coregistration,
+    FrameCore,
+    fuse_maps,
+    trusted_maps,
+)
+from holoview.engine.resolve import Resolution, resolve_peaks
+from holoview.errors import InputError
+from holoview.processing.demodulate import Demodulator
+from holoview.processing.peaks import Peak, find_peaks
+from holoview.processing.spectrum import display_spectrum
+
+logger = logging.getLogger(__name__)
+
+__all__ = ["FFT_THREADS", "LivePipeline", "LiveResult", "block_max"]
+
+#: Highest rate of the display spectrum, Hz.
+SPECTRUM_HZ = 10.0
+#: Highest rate of peak detection, Hz.
+PEAKS_HZ = 1.0
+#: Most of the worker's time the display spectrum and the peak detection may each take
+#: (their rates drop below the ones above when a frame is large or the machine slow).
+SIDE_SHARE = 0.1
+#: Largest side of the spectrum image handed to the window (block maxima beyond).
+SPECTRUM_DISPLAY_MAX = 512
+#: Highest rate at which maps are added to the displacement estimate, Hz.
+COREGISTER_HZ = 2.0
+
+Carrier = tuple[float, float]
+
+
+@dataclass(frozen=True)
+class LiveResult:
+    """Everything the window draws for one processed frame.
+
+    Arrays are shared, never modified after publication. Heights in metres, phases
+    in radians, carriers and radius in cycles per pixel, times in seconds.
+    ``shifts_px`` holds the measured displacements ``(dy, dx)`` of the maps against
+    the map ``grid_of``, in camera pixels; the fused map is on that map's grid.
+    """
+
+    seq: int
+    frame: np.ndarray
+    frame_id: int
+    t_host: float
+    processing_s: float
+    spectrum: np.ndarray | None
+    peaks: list[Carrier]
+    labelled: dict[str, Carrier]
+    predicted: dict[str, Carrier]
+    radius: float | None
+    heights_m: dict[str, np.ndarray] = field(default_factory=dict)
+    fused_m: np.ndarray | None = None
+    phases_rad: dict[str, np.ndarray] = field(default_factory=dict)
+    shifts_px: dict[str, tuple[float, float]] = field(default_factory=dict)
+    grid_of: str | None = None
+    notes: tuple[str, ...] = ()
+
+
+def block_max(image: np.ndarray, limit: int) -> np.ndarray:
+    """Shrink ``image`` by an integer factor with block maxima so no side exceeds ``limit``.
+
+    Maxima keep narrow peaks visible where averaging would blur them away.
+    """
+    factor = max(1, math.ceil(max(image.shape) / limit))
+    if factor == 1:
+        return image
+    rows, cols = image.shape[0] // factor, image.shape[1] // factor
+    out = image[0 : rows * factor : factor, 0 : cols * factor : factor].copy()
+    for dy in range(factor):
+        for dx in range(factor):
+            if dy or dx:
+                np.maximum(
+                    out, image[dy : rows * factor : factor, dx : cols * factor : factor], out=out
+                )
+    return out
+
+
+class LivePipeline:
+    """Turn frames into :class:`LiveResult` objects; used by one thread at a time.
+
+    Commands (:meth:`apply`) change the experiment, or restart the absolute reference
+    from the next frame.
+
+    Parameters
+    ----------
+    experiment : Experiment
+        Optics, labelled peaks, window and reference mode.
+    frame_shape : tuple of int
+        ``(rows, cols)`` of the frames, pixels.
+    saturation : float, optional
+        Raw value at which the camera saturates.
+    """
+
+    def __init__(
+        self,
+        experiment: Experiment,
+        frame_shape: tuple[int, int],
+        saturation: float | None = None,
+    ) -> None:
+        self.experiment = experiment
+        self.frame_shape = frame_shape
+        #: Detect peaks inside :meth:`process` when due; the live worker turns this off
+        #: and feeds :meth:`set_peaks` from its own peak thread instead (the first
+        #: detection is always made inline, so the first frame is demodulated at the
+        #: detected carriers, as ``holoview process`` does).
+        self.detect_inline = True
+        self._seq = 0
+        self._spectrum: np.ndarray | None = None
+        self._spectrum_at = -math.inf
+        self._spectrum_cost = 0.0
+        self._peaks: list[Peak] | None = None
+        self._peaks_at = -math.inf
+        self._peaks_cost = 0.0
+        self._core = FrameCore(frame_shape, experiment, saturation=saturation)
+        self._coregistration = Coregistration()
+        self._coregistered_at = -math.inf
+        self._resolution_key: tuple | None = None
+        self._resolution = Resolution(peaks=())
+
+    # ---- commands ----------------------------------------------------------
+    def apply(self, name: str, value: object) -> None:
+        """Apply a command: ``experiment`` (new settings) or ``reset``."""
+        if name == "experiment":
+            if not isinstance(value, Experiment):
+                raise InputError(f"experiment command needs an Experiment, not {value!r}")
+            radius_changed = value.radius != self.experiment.radius
+            self.experiment = value
+            if radius_changed:
+                self._peaks_at = -math.inf  # detect again with the new radius
+        elif name == "reset":
+            self._core.reset_reference()
+        else:
+            raise InputError(f"unknown command {name!r}")
+
+    @property
+    def demodulator(self) -> Demodulator | None:
+        """The demodulator in use (None before the first frame with peaks)."""
+        return self._core.demodulator
+
+    @property
+    def peaks(self) -> tuple[Peak, ...]:
+        """The demodulator's peaks: labelled, with alpha where known (the series' peaks).
+
+        The same tuple until the demodulator is rebuilt (a label or alpha changed, a
+        carrier moved a whole bin).
+        """
+        demod = self._core.demodulator
+        return () if demod is None else demod.peaks
+
+    # ---- peak detection ----------------------------------------------------
+    def peaks_due(self, now: float | None = None) -> bool:
+        """Whether peak detection is due (at most :data:`PEAKS_HZ`, :data:`SIDE_SHARE`)."""
+        now = time.monotonic() if now is None else now
+        return now - self._peaks_at >= max(1.0 / PEAKS_HZ, self._peaks_cost / SIDE_SHARE)
+
+    def peaks_started(self) -> None:
+        """Note that a detection started now (on another thread)."""
+        self._peaks_at = time.monotonic()
+
+    def peaks_done(self, cost_s: float) -> None:
+        """Note what the last detection cost, seconds (it spaces the next one)."""
+        self._peaks_at = time.monotonic()
+        self._peaks_cost = cost_s
+
+    def set_peaks(self, peaks: list[Peak]) -> None:
+        """Use newly detected peaks from the next frame on."""
+        self._peaks = list(peaks)
+
+    def _detect(self, frame: np.ndarray) -> None:
+        tick = time.perf_counter()
+        self.set_peaks(find_peaks(frame, radius=self.experiment.radius, threads=FFT_THREADS))
+        self.peaks_done(time.perf_counter() - tick)
+
+    def resolution(self) -> Resolution:
+        """The peaks to demodulate now, the model's predicted carriers and the notes."""
+        key = (id(self._peaks), self.experiment)
+        if key != self._resolution_key:
+            previous = {p.label: p for p in self._resolution.peaks if p.label}
+            self._resolution = resolve_peaks(
+                self.experiment, self._peaks or [], self.frame_shape, previous=previous
+            )
+            self._resolution_key = key
+        return self._resolution
+
+    # ---- one frame ---------------------------------------------------------
+    def process(self, frame: np.ndarray, meta: FrameMeta) -> LiveResult:
+        """Process one frame; raise HoloviewError for a problem the operator can fix."""
+        start = time.perf_counter()
+        now = time.monotonic()
+        if now - self._spectrum_at >= max(1.0 / SPECTRUM_HZ, self._spectrum_cost / SIDE_SHARE):
+            tick = time.perf_counter()
+            self._spectrum = block_max(
+                display_spectrum(frame, threads=FFT_THREADS), SPECTRUM_DISPLAY_MAX
+            )
+            self._spectrum_cost = time.perf_counter() - tick
+            self._spectrum_at = now
+        if self._peaks is None or (self.detect_inline and self.peaks_due(now)):
+            self._detect(frame)
+        resolution = self.resolution()
+        self._core.configure(
+            self.experiment, resolution.peaks, [p.carrier for p in self._peaks or []]
+        )
+        demod = self._core.process(frame)
+        heights: dict[str, np.ndarray] = {}
+        phases: dict[str, np.ndarray] = {}
+        shifts: dict[str, tuple[float, float]] = {}
+        grid_of = fused = None
+        if demod is not None:
+            labels = tuple(r.peak.label or "?" for r in demod.peaks)
+            for name, r in zip(labels, demod.peaks, strict=True):
+                phases[name] = r.phase
+                if r.delta_h is not None:
+                    heights[name] = r.delta_h
+            maps = trusted_maps(demod)
+            if now - self._coregistered_at >= 1.0 / COREGISTER_HZ:
+                self._coregistration.add(demod, maps)
+                self._coregistered_at = now
+            displacements = self._coregistration.displacements(demod)
+            fused = fuse_maps(
+                [
+                    m if r.delta_h is not None else None
+                    for m, r in zip(maps, demod.peaks, strict=True)
+                ],
+                [r.noise_height for r in demod.peaks],
+                ["phase_step" in r.flags for r in demod.peaks],
+                displacements,
+                method="cubic",
+            )
+            if displacements is not None:
+                grid_of = labels[0]
+                step = (
+                    demod.frame_shape[0] / demod.box_shape[0],
+                    demod.frame_shape[1] / demod.box_shape[1],
+                )
+                for name, d in zip(labels, displacements, strict=True):
+                    if d.measured:
+                        shifts[name] = (d.shift[0] * step[0], d.shift[1] * step[1])
+        self._seq += 1
+        return LiveResult(
+            seq=self._seq,
+            frame=frame,
+            frame_id=meta.frame_id,
+            t_host=meta.t_host,
+            processing_s=time.perf_counter() - start,
+            spectrum=self._spectrum,
+            peaks=[p.carrier for p in self._peaks or []],
+            labelled=resolution.labelled,
+            predicted=resolution.predicted,
+            radius=self._core.radius,
+            heights_m=heights,
+            fused_m=fused,
+            phases_rad=phases,
+            shifts_px=shifts,
+            grid_of=grid_of,
+            notes=resolution.notes,
+        )

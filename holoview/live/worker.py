@@ -1,0 +1,355 @@
+"""The live worker threads: the series, the maps, peak detection.
+
+- The series worker (``holoview-series``) takes *every* frame from the ring and runs a
+  :class:`~holoview.live.trends.SeriesPipeline` on it: the carrier values, so the
+  trends, rates and the temporal unwrapping see the camera's full rate; frames the ring
+  overwrote before it read them are counted (:meth:`RingWorker.status`), never hidden.
+- The maps worker (``holoview-demod``) takes the *newest* frame (in order while at most
+  :data:`PROCESSING_MAX_LAG` frames wait, so one slow frame costs a little latency),
+  or every frame in order when asked (scripted runs, the parity test), and runs a
+  :class:`~holoview.live.pipeline.LivePipeline` on it: the maps, at whatever rate is
+  left. It hands the demodulator's peaks to the series worker.
+- Peak detection (``holoview-peaks``), much slower than a frame, runs beside them.
+
+Each publishes its newest result under a lock; all stop with a flag (or the ring
+closing) and are joined by their ``stop``.
+"""
+
+from __future__ import annotations
+
+import collections
+import logging
+import queue
+import threading
+import time
+from typing import Any
+
+import numpy as np
+
+from holoview.acquire.ring import CLOSED, FrameRing, RingConsumer, RingStatus
+from holoview.acquire.source import FrameMeta
+from holoview.engine.experiment import Experiment
+from holoview.errors import HoloviewError, InputError
+from holoview.live.pipeline import FFT_THREADS, LivePipeline, LiveResult
+from holoview.live.trends import SeriesPipeline, TrendSummary
+from holoview.processing.peaks import Peak, find_peaks
+
+logger = logging.getLogger(__name__)
+
+#: Most messages kept for the window between two redraws.
+MAX_MESSAGES = 20
+
+
+class PeakWorker:
+    """Find the peaks of one frame at a time on a thread named ``holoview-peaks``.
+
+    Peak detection takes much longer than demodulating a frame; on its own thread it
+    never holds up the frames behind it. :meth:`submit` hands over a frame when the
+    thread is idle; :meth:`take` returns each result once.
+    """
+
+    def __init__(self) -> None:
+        self._cond = threading.Condition()
+        self._job: tuple[np.ndarray, float] | None = None
+        self._result: tuple[list[Peak], float] | None = None
+        self._error: str | None = None
+        self._busy = False
+        self._stop = False
+        self._thread = threading.Thread(target=self._run, name="holoview-peaks", daemon=True)
+
+    def start(self) -> None:
+        """Start the thread."""
+        self._thread.start()
+
+    def stop(self, timeout: float = 5.0) -> None:
+        """Ask the thread to stop (after the detection under way) and join it."""
+        with self._cond:
+            self._stop = True
+            self._cond.notify()
+        if self._thread.ident is not None:
+            self._thread.join(timeout)
+
+    def submit(self, frame: np.ndarray, radius: float) -> bool:
+        """Detect the peaks of ``frame`` (not modified) with window radius ``radius``.
+
+        Returns False, doing nothing, while a detection is under way.
+        """
+        with self._cond:
+            if self._busy:
+                return False
+            self._busy = True
+            self._job = (frame, radius)
+            self._cond.notify()
+            return True
+
+    def take(self) -> tuple[list[Peak], float] | str | None:
+        """The newest (peaks, seconds it took), an error message, or None; each once."""
+        with self._cond:
+            out: tuple[list[Peak], float] | str | None = self._error or self._result
+            self._result, self._error = None, None
+            return out
+
+    def _run(self) -> None:
+        while True:
+            with self._cond:
+                while self._job is None and not self._stop:
+                    self._cond.wait()
+                if self._stop:
+                    return
+                frame, radius = self._job  # type: ignore[misc]
+                self._job = None
+            tick = time.perf_counter()
+            try:
+                peaks = find_peaks(frame, radius=radius, threads=FFT_THREADS)
+            except HoloviewError as exc:
+                with self._cond:
+                    self._error, self._busy = f"peak detection: {exc}", False
+                continue
+            except Exception:  # a bug: log it, keep the window running
+                logger.exception("peak detection failed")
+                with self._cond:
+                    self._error, self._busy = "peak detection failed (see the log)", False
+                continue
+            with self._cond:
+                self._result, self._busy = (peaks, time.perf_counter() - tick), False
+
+
+#: Frames the maps worker may fall behind the newest before it skips (33 ms at 60 frames/s).
+PROCESSING_MAX_LAG = 2
+
+
+class RingWorker:
+    """A thread that takes frames from a ring, runs a step on each and publishes the result.
+
+    Subclasses fill in :meth:`_step` (and :meth:`_apply`, for commands). Commands are
+    applied between frames; problems the operator can fix are kept as messages, each
+    once while it repeats.
+
+    Parameters
+    ----------
+    ring : FrameRing
+        Where frames come from.
+    name : str
+        The thread's name (``holoview-...``).
+    consumer : RingConsumer
+        This worker's cursor on the ring.
+    """
+
+    def __init__(self, ring: FrameRing, name: str, consumer: RingConsumer) -> None:
+        self.ring = ring
+        self._consumer = consumer
+        self._commands: queue.SimpleQueue[tuple[str, Any]] = queue.SimpleQueue()
+        self._lock = threading.Lock()
+        self._latest: Any = None
+        self._times: collections.deque[float] = collections.deque(maxlen=32)
+        self._messages: collections.deque[str] = collections.deque(maxlen=MAX_MESSAGES)
+        self._last_error = ""
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name=name, daemon=True)
+
+    def start(self) -> None:
+        """Start the thread."""
+        self._thread.start()
+
+    def stop(self, timeout: float = 5.0) -> None:
+        """Ask the thread to stop and join it."""
+        self._stop.set()
+        if self._thread.ident is not None:
+            self._thread.join(timeout)
+
+    @property
+    def running(self) -> bool:
+        """True while the thread runs."""
+        return self._thread.is_alive()
+
+    def post(self, name: str, value: Any = None) -> None:
+        """Queue a command, applied before the next frame."""
+        self._commands.put((name, value))
+
+    def status(self) -> RingStatus:
+        """The worker's ring accounting (acquired, dropped or skipped, transport losses)."""
+        return self._consumer.status()
+
+    def rate_hz(self) -> float:
+        """Frames processed per second over the last 32 frames (0 after 2 s without one)."""
+        with self._lock:
+            times = list(self._times)
+        if len(times) < 2 or times[-1] <= times[0]:
+            return 0.0
+        if time.monotonic() - times[-1] > 2.0:
+            return 0.0
+        return (len(times) - 1) / (times[-1] - times[0])
+
+    def drain_messages(self) -> list[str]:
+        """Return and forget the problems met since the last call."""
+        out = []
+        while self._messages:
+            out.append(self._messages.popleft())
+        return out
+
+    def _report(self, text: str) -> None:
+        if text != self._last_error:
+            self._last_error = text
+            self._messages.append(text)
+
+    def _publish(self, result: object | None) -> None:
+        """Count a processed frame; keep ``result`` as the newest when it is not None."""
+        with self._lock:
+            if result is not None:
+                self._latest = result
+            self._times.append(time.monotonic())
+
+    def _apply(self, name: str, value: Any) -> None:
+        raise InputError(f"unknown command {name!r}")
+
+    def _apply_commands(self) -> None:
+        while True:
+            try:
+                name, value = self._commands.get_nowait()
+            except queue.Empty:
+                return
+            try:
+                self._apply(name, value)
+            except HoloviewError as exc:
+                self._report(str(exc))
+
+    def _ready(self) -> bool:
+        """Whether to take frames now (a worker that waits for something says False)."""
+        return True
+
+    def _step(self, pixels: np.ndarray, meta: FrameMeta) -> None:
+        raise NotImplementedError
+
+    def _run(self) -> None:
+        try:
+            while not self._stop.is_set():
+                self._apply_commands()
+                if not self._ready():
+                    self._stop.wait(0.005)
+                    continue
+                item = self._consumer.get(timeout=0.1)
+                if item is CLOSED:
+                    break
+                if item is None:
+                    continue
+                try:
+                    self._step(*item)
+                except HoloviewError as exc:
+                    self._report(str(exc))
+                    continue
+                self._last_error = ""
+        except Exception:  # a bug: keep the traceback in the log, end the thread cleanly
+            logger.exception("%s failed", self._thread.name)
+            self._messages.append(
+                f"{self._thread.name} stopped after an internal error (see the log)"
+            )
+
+
+class DemodWorker(RingWorker):
+    """The maps: a :class:`LivePipeline` on the newest frame, on ``holoview-demod``.
+
+    Parameters
+    ----------
+    ring : FrameRing
+        Frames to process (a ``"newest"`` consumer with :data:`PROCESSING_MAX_LAG`).
+    pipeline : LivePipeline
+        What to do with each frame; commands (``experiment``, ``reset``) between frames.
+    every_frame : bool
+        Take every frame in order (an ``"every"`` consumer) instead of the newest.
+    """
+
+    def __init__(self, ring: FrameRing, pipeline: LivePipeline, every_frame: bool = False) -> None:
+        if every_frame:
+            consumer = ring.consumer("maps", mode="every")
+        else:
+            consumer = ring.consumer("maps", mode="newest", max_lag=PROCESSING_MAX_LAG)
+        super().__init__(ring, "holoview-demod", consumer)
+        self.pipeline = pipeline
+        pipeline.detect_inline = False
+        self.peaks = PeakWorker()
+        self._peak_set: tuple[tuple, Experiment] | None = None
+
+    def start(self) -> None:
+        """Start the thread and its peak thread."""
+        self.peaks.start()
+        super().start()
+
+    def stop(self, timeout: float = 5.0) -> None:
+        """Stop and join the thread and its peak thread."""
+        super().stop(timeout)
+        self.peaks.stop(timeout)
+
+    def latest(self) -> LiveResult | None:
+        """The newest result, or None before the first."""
+        with self._lock:
+            return self._latest
+
+    def peak_set(self) -> tuple[tuple, Experiment] | None:
+        """The demodulator's peaks and the experiment after the last frame; None before."""
+        with self._lock:
+            return self._peak_set
+
+    def _apply(self, name: str, value: Any) -> None:
+        self.pipeline.apply(name, value)
+
+    def _exchange_peaks(self, pixels: np.ndarray) -> None:
+        """Hand the newest detected peaks to the pipeline; start a detection when due."""
+        found = self.peaks.take()
+        if isinstance(found, str):
+            self._report(found)
+        elif found is not None:
+            self.pipeline.set_peaks(found[0])
+            self.pipeline.peaks_done(found[1])
+        due = self.pipeline.peaks_due()
+        if due and self.peaks.submit(pixels, self.pipeline.experiment.radius):
+            self.pipeline.peaks_started()
+
+    def _step(self, pixels: np.ndarray, meta: FrameMeta) -> None:
+        self._exchange_peaks(pixels)
+        try:
+            result = self.pipeline.process(pixels, meta)
+        finally:
+            with self._lock:
+                self._peak_set = (self.pipeline.peaks, self.pipeline.experiment)
+        self._publish(result)
+
+
+class SeriesWorker(RingWorker):
+    """The series: a :class:`SeriesPipeline` on every frame, on ``holoview-series``.
+
+    It takes no frame until the maps worker has resolved its first set of peaks (the
+    frames wait in the ring), so a series starts at the stream's first frame; it then
+    follows the maps worker's peaks, a new series for each new set.
+
+    Parameters
+    ----------
+    ring : FrameRing
+        Frames to measure (an ``"every"`` consumer: overwritten frames are counted).
+    pipeline : SeriesPipeline
+        What to do with each frame; commands (``pca``, ``reset``) between frames.
+    maps : DemodWorker
+        Where the peaks come from.
+    """
+
+    def __init__(self, ring: FrameRing, pipeline: SeriesPipeline, maps: DemodWorker) -> None:
+        super().__init__(ring, "holoview-series", ring.consumer("series", mode="every"))
+        self.pipeline = pipeline
+        self.maps = maps
+
+    def latest(self) -> TrendSummary | None:
+        """The newest trends summary, or None before the first."""
+        with self._lock:
+            return self._latest
+
+    def _apply(self, name: str, value: Any) -> None:
+        self.pipeline.apply(name, value)
+
+    def _ready(self) -> bool:
+        peak_set = self.maps.peak_set()
+        if peak_set is None:  # no peaks yet: wait, unless the maps worker has ended
+            return not self.maps.running
+        self.pipeline.set_peaks(*peak_set)
+        return True
+
+    def _step(self, pixels: np.ndarray, meta: FrameMeta) -> None:
+        self._publish(self.pipeline.process(pixels, meta))

@@ -1,0 +1,129 @@
+"""One snapping rule in FFT bins, labels resolved onto detected peaks, window geometry."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from holoview.engine.experiment import Experiment, LabelledPeak
+from holoview.engine.peak_geometry import swallowed_neighbour, window_warnings
+from holoview.engine.resolve import resolve_peaks
+from holoview.errors import InputError
+from holoview.optics.families import alpha_of, infer_carriers
+from holoview.processing.peaks import Peak
+from holoview.processing.snapping import SNAP_BINS, bin_distance, snap
+
+SHAPE = (512, 512)
+N1, N2 = 1.0, 1.333
+RB1, FB1 = (0.19, -0.06), (0.11, 0.17)
+
+
+def _detected(*names: str) -> list[Peak]:
+    """Peaks at the model's carriers, each on the canonical twin (fx > 0), brightest first."""
+    model = infer_carriers({"RB1": RB1, "FB1": FB1}, N1, N2)
+    out = []
+    for k, name in enumerate(names):
+        fx, fy = model[name]
+        if fx < 0:
+            fx, fy = -fx, -fy
+        out.append(Peak((fx, fy), amplitude=0.1 / (k + 1), snr=50.0))
+    return out
+
+
+def test_snap_is_in_wrapped_bins_on_either_twin() -> None:
+    carriers = [(0.1, 0.2), (0.3, -0.1), (0.499, 0.0)]
+    assert snap((0.1 + 5 / 512, 0.2), carriers, SHAPE) == (0, False)
+    assert snap((-0.3, 0.1 + 3 / 512), carriers, SHAPE) == (1, True)
+    assert snap((-0.499, 3 / 512), carriers, SHAPE)[0] == 2  # across Nyquist
+    assert snap((0.1 + 13 / 512, 0.2), carriers, SHAPE) is None  # past SNAP_BINS
+    assert snap((0.1 + 13 / 512, 0.2), carriers, (128, 128)) == (0, False)  # fewer, wider bins
+    assert snap((0.1, 0.2), [], SHAPE) is None
+    assert bin_distance(np.subtract((0.49, 0.0), (-0.49, 0.0)), SHAPE) == pytest.approx(0.02 * 512)
+
+
+def test_labels_follow_detected_peaks_on_their_twin_and_the_model_adds_families() -> None:
+    detected = _detected("RB1", "FB1", "RF", "RB2")
+    off = 4 / 512  # a click a few bins off
+    experiment = Experiment(
+        n1=N1,
+        n2=N2,
+        peaks=(
+            LabelledPeak("RB1", (RB1[0] + off, RB1[1])),
+            LabelledPeak("FB1", (FB1[0], FB1[1] - off)),
+        ),
+    )
+    resolution = resolve_peaks(experiment, detected, SHAPE)
+    model = infer_carriers({"RB1": RB1, "FB1": FB1}, N1, N2)
+    assert set(resolution.labelled) == {"RB1", "FB1", "RF", "RB2"}
+    for name, carrier in resolution.labelled.items():
+        assert carrier == pytest.approx(model[name], abs=1e-9), name  # the stored twin
+        peak = next(p for p in resolution.peaks if p.label == name)
+        assert peak.alpha == pytest.approx(alpha_of(name, N1, N2))
+    amplitudes = [p.amplitude for p in resolution.peaks]
+    assert amplitudes == sorted(amplitudes, reverse=True)
+    assert resolution.problems == () and resolution.labelling is not None
+    assert {"RF", "RB2", "FB2"} <= set(resolution.predicted)
+
+
+def test_a_label_on_no_detected_peak_is_a_problem_strict_callers_refuse() -> None:
+    experiment = Experiment(peaks=(LabelledPeak("RB1", RB1), LabelledPeak("X", (0.4, 0.4), 1.0)))
+    resolution = resolve_peaks(experiment, _detected("RB1"), SHAPE)
+    assert resolution.unmatched == ("X",)
+    assert "X: no detected peak within 12 bins" in resolution.problems[0]
+    x = next(p for p in resolution.peaks if p.label == "X")
+    assert x.carrier == (0.4, 0.4) and math.isnan(x.amplitude)  # demodulated where given
+    with pytest.raises(InputError, match="X: no detected peak"):
+        resolution.strict()
+
+
+def test_two_labels_on_one_peak_are_a_problem() -> None:
+    experiment = Experiment(
+        peaks=(LabelledPeak("RB1", RB1), LabelledPeak("RB2", (RB1[0] + 2 / 512, RB1[1])))
+    )
+    resolution = resolve_peaks(experiment, _detected("RB1"), SHAPE)
+    assert "RB2: names the same detected peak as RB1" in resolution.problems
+    assert [p.label for p in resolution.peaks] == ["RB1"]
+
+
+def test_a_missed_family_keeps_its_last_match_while_the_model_still_puts_it_there() -> None:
+    experiment = Experiment(
+        n1=N1, n2=N2, peaks=(LabelledPeak("RB1", RB1), LabelledPeak("FB1", FB1))
+    )
+    first = resolve_peaks(experiment, _detected("RB1", "FB1", "RF", "RB2"), SHAPE)
+    previous = {p.label: p for p in first.peaks}
+    later = resolve_peaks(experiment, _detected("RB1", "FB1", "RF"), SHAPE, previous=previous)
+    assert "RB2" in later.labelled  # RB2 faded below the threshold in this detection
+    assert "RB2" not in resolve_peaks(experiment, _detected("RB1", "FB1", "RF"), SHAPE).labelled
+
+
+def test_custom_labels_get_no_model() -> None:
+    experiment = Experiment(peaks=(LabelledPeak("mine", RB1), LabelledPeak("other", FB1)))
+    resolution = resolve_peaks(experiment, _detected("RB1", "FB1", "RF"), SHAPE)
+    assert resolution.predicted == {} and resolution.labelling is None
+    assert [p.alpha for p in resolution.peaks] == [None, None]
+    assert SNAP_BINS == 12.0
+
+
+def test_window_warnings_name_overlap_alias_and_zero_order() -> None:
+    lines = window_warnings({"RB1": (0.1, 0.1), "FB1": (0.15, 0.12)}, 0.05, {"RB2": (0.7, 0.0)})
+    text = "\n".join(lines)
+    assert "RB1 and FB1 windows overlap" in text
+    assert "predicted RB2" in text and "aliased to (-0.300" in text
+    assert window_warnings({"RB1": (0.25, 0.0)}, 0.05) == []
+    assert "zero order" in window_warnings({"RF": (0.05, 0.0)}, 0.05)[0]
+    assert "Nyquist" in window_warnings({"RF": (0.48, 0.0)}, 0.05)[0]
+
+
+def test_swallowed_neighbour() -> None:
+    assert swallowed_neighbour((0.2, 0.0), 0.05, [(0.3, 0.0)]) is None
+    assert swallowed_neighbour((0.2, 0.0), 0.15, [(0.3, 0.0)]) == (0.3, 0.0)
+
+
+def test_a_missed_label_keeps_its_last_match() -> None:
+    experiment = Experiment(peaks=(LabelledPeak("RB1", (RB1[0] + 3 / 512, RB1[1])),))
+    first = resolve_peaks(experiment, _detected("RB1"), SHAPE)
+    previous = {p.label: p for p in first.peaks}
+    later = resolve_peaks(experiment, [], SHAPE, previous=previous)
+    assert later.peaks == first.peaks and later.problems == ()

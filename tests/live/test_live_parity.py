@@ -1,0 +1,90 @@
+"""One engine: the live session and ``holoview process`` give the same numbers on the same frames.
+
+A simulated recording (which carries its true experiment) goes through the live engine
+(no Qt: a replay source, the camera thread, the ring, the series worker taking every
+frame) and through ``holoview process`` with no peak options; the per-frame carrier
+values, the mean heights per peak and fused, and the rates must agree to float32
+rounding.
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from holoview.cli import main
+from holoview.engine.depth import summarise
+from holoview.headless.run import PeakChoice, process_file
+from holoview.live import pipeline as live_pipeline
+from holoview.live.session import LiveSession
+
+
+@pytest.fixture(scope="module")
+def recording(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """Evaporation at 60 um/min, 128 x 128, 60 frames at 20 frames/s, with its experiment."""
+    path = tmp_path_factory.mktemp("parity") / "evaporation.h5"
+    argv = ["-q", "simulate", str(path), "--scenario", "evaporation", "--size", "128"]
+    argv += ["--frames", "60", "--fps", "20", "--seed", "5", "--evaporation-um-per-min", "60"]
+    assert main(argv) == 0
+    return path
+
+
+def _live_run(path: Path, experiment, monkeypatch: pytest.MonkeyPatch) -> LiveSession:
+    """Replay ``path`` once, as fast as it reads, every frame through the live worker."""
+    # peaks are detected once (on the first frame, as process does): the parity is the
+    # per-frame core's, not the live re-detection's schedule
+    monkeypatch.setattr(live_pipeline, "PEAKS_HZ", 1e-9)
+    session = LiveSession(
+        f"replay:{path}",
+        experiment,
+        source_options={"loop": False, "speed": "fast"},
+        every_frame=True,
+    )
+    session.start()
+    deadline = time.monotonic() + 60
+    while session.worker.running and time.monotonic() < deadline:
+        time.sleep(0.05)
+    session.close()
+    assert session.stop_reason == "stopped" or "end of stream" in session.stop_reason
+    return session
+
+
+@pytest.mark.parametrize("reference", ["relative", "absolute"])
+def test_live_engine_and_process_agree_on_every_frame(
+    recording: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, reference: str
+) -> None:
+    from holoview.headless.pipeline import ProcessSettings
+
+    outcome = process_file(
+        recording,
+        tmp_path / "out",
+        choice=PeakChoice(),
+        settings=ProcessSettings(reference=reference),
+        report=False,
+    )
+    assert outcome.selection.source == "recording"
+    session = _live_run(recording, outcome.experiment, monkeypatch)
+    for worker in (session.worker, session.series_worker):
+        status = worker.status()
+        assert status.dropped == 0 and status.skipped == 0 and status.read == 60
+    live, headless = session.series.series, outcome.data.series
+    assert live is not None and live.labels == headless.labels
+    assert {"RB1", "RF", "FB1", "RB2"} <= set(live.labels)
+    np.testing.assert_array_equal(live.frames, headless.frames)
+    np.testing.assert_allclose(live.times, headless.times, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(live.values, headless.values, rtol=2e-6)
+    alphas = [p.alpha for p in session.pipeline.demodulator.peaks]
+    assert alphas == [p.alpha for p in outcome.selection.peaks]
+    wavelength = outcome.experiment.wavelength_m
+    a, b = summarise(live, alphas, wavelength), session.summary()
+    assert b is not None
+    np.testing.assert_array_equal(a.heights, b.heights)  # the session's own summary
+    analysis = outcome.analysis
+    np.testing.assert_allclose(a.heights, analysis.heights, rtol=1e-5, atol=1e-12)
+    np.testing.assert_allclose(a.fused, analysis.fused, rtol=1e-5, atol=1e-12)
+    assert a.fit.rate == pytest.approx(analysis.fit.rate, rel=1e-5)
+    for fit, peak in zip(a.peak_fits, analysis.peaks, strict=True):
+        assert fit.rate == pytest.approx(peak.rate, rel=1e-5)

@@ -1,0 +1,15 @@
+"""Event rates over a sliding window (camera, processing and display rates)."""
+
+from __future__ import annotations
+
+import pytest
+
+from holoview.live.rates import RateMeter
+
+
+def test_rate_meter() -> None:
+    meter = RateMeter(window_s=1.0)
+    for i in range(31):
+        meter.tick(now=i / 30)
+    assert meter.rate(now=1.0) == pytest.approx(30.0, rel=0.05)
+    assert meter.rate(now=5.0) == 0.0
