@@ -174,6 +174,8 @@ def resolve_optics(
         "n1": options.n1,
         "n2": n2_option,
     }
+    first = {**given, "n1": given["n1"] or (DEFAULT_N1 if given["n2"] is not None else None)}
+    check_optics(**first, names=OPTION_NAMES)  # the user's own first, before any warning
     values: dict[str, float | None] = {}
     sources: dict[str, str] = {}
     for name, option in given.items():
