@@ -1,7 +1,8 @@
 """The exceptions holoview raises for problems a user can fix.
 
 Every subpackage derives its errors from :class:`HoloviewError`, so the command
-line can turn any of them into one line on stderr and exit status 2, and the GUI
+line can turn any of them into one line on stderr and exit status 2 (3 for an
+:class:`OutputError`: an output that could not be written), and the GUI
 can show it in the window while the rest keeps running. Programming errors are
 not ``HoloviewError`` and keep their tracebacks. :func:`finite_number` is the
 number check that the setup (optics) and camera settings (acquire) share;
