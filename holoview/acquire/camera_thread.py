@@ -74,6 +74,11 @@ class CameraThread:
         """True while the thread runs."""
         return self._thread.is_alive()
 
+    @property
+    def started(self) -> bool:
+        """True once :meth:`start` has started the thread (it closes the ring when it ends)."""
+        return self._thread.ident is not None
+
     def rate_hz(self) -> float:
         """Frame rate over the last 64 frames, frames per second (0 before two frames)."""
         times = list(self._times)

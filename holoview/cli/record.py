@@ -246,7 +246,8 @@ def _finish(camera: CameraThread, ring: FrameRing, recorder: Recorder, out: Path
     notice = f"holoview record: closing {out}; press Ctrl-C again to skip the frames still queued"
     with deferred_signals(notice) as received:
         camera.stop()
-        ring.close()  # also when the camera never started
+        if not camera.started:  # else the camera thread closes the ring when it ends
+            ring.close()
         while not recorder.join(0.2):
             if received:
                 recorder.stop(timeout=0.0, drain=False)
@@ -263,7 +264,9 @@ def _follow(camera: CameraThread, recorder: Recorder, args: argparse.Namespace, 
         file=sys.stderr,
         dynamic_ncols=True,
     ) as bar:
-        while not camera.join(0.2):
+        # poll, not join: Ctrl-C inside Thread.join can mark a running thread stopped
+        while camera.running:
+            time.sleep(0.2)
             bar.update(recorder.written - bar.n)
             status = recorder.status()
             bar.set_postfix(dropped=status.dropped, lost=status.transport_lost, refresh=False)
