@@ -4,7 +4,7 @@ Frames come from :func:`holoview.optics.scenarios.simulate` (the paper's forward
 model, fast synthesis) and go to a holoview recording (layout in
 :mod:`holoview.acquire.recording`; ``source`` is ``"simulate:SCENARIO"``, the setup
 attributes are :meth:`holoview.optics.setup.Setup.as_attributes`, and the stored
-experiment labels every visible first-order family on its true twin,
+experiment labels RF, RB1 and FB1 on their true twins (the lattice names the rest),
 :func:`true_experiment`, so ``holoview process`` needs no peak options). After the
 writer closes, this command reopens the file and adds the truth. The recording and
 the figure are written under temporary names and renamed when complete
@@ -400,16 +400,18 @@ def check_outputs(args: argparse.Namespace) -> None:
 def true_experiment(setup: Setup, families: list[Family], visible: dict[str, float]) -> Experiment:
     """The experiment an operator would set on this bench: its optics and true labels.
 
-    Every first-order family (RF, RB_j, FB_j) whose peak is at least
-    :data:`VISIBLE_AMPLITUDE` of the mean intensity is labelled where the camera sees
-    it (folded back when past Nyquist), on the twin whose phase grows with the height.
+    RF, RB1 and FB1, where their peak is at least :data:`VISIBLE_AMPLITUDE` of the mean
+    intensity, are labelled where the camera sees them (folded back when past
+    Nyquist), on the twin whose phase grows with the height, as an operator labels
+    them at alignment; the carrier lattice names the other families where they are
+    detected (two of the three fix it).
     """
     from holoview.engine.experiment import Experiment, LabelledPeak
 
     peaks = tuple(
         LabelledPeak(f.label, f.observed_carrier)
         for f in families
-        if f.kind in ("RF", "RB", "FB") and visible[f.label] >= VISIBLE_AMPLITUDE
+        if f.label in ("RF", "RB1", "FB1") and visible[f.label] >= VISIBLE_AMPLITUDE
     )
     return Experiment(
         wavelength_m=setup.wavelength,

@@ -37,6 +37,7 @@ from typing import Any
 
 from holoview.errors import InputError, finite_number
 from holoview.optics.families import alpha_of
+from holoview.optics.setup import check_optics
 from holoview.processing.demodulate import REFERENCE_MODES, UNWRAP_MODES
 from holoview.processing.windows import DEFAULT_WINDOW, WINDOW_KINDS
 
@@ -214,10 +215,9 @@ class Experiment:
                 raise InputError(
                     f"{name} {getattr(self, name)!r} is not one of {', '.join(allowed)}"
                 )
-        if self.n1 is not None and self.n2 is not None and not self.n2 > self.n1:
-            raise InputError(
-                f"n2 ({self.n2:g}) must be above n1 ({self.n1:g}): the fluid is below the air"
-            )
+        check_optics(
+            wavelength_m=self.wavelength_m, pixel_pitch_m=self.pixel_pitch_m, n1=self.n1, n2=self.n2
+        )
         object.__setattr__(self, "peaks", tuple(self.peaks))
         labels = [p.label for p in self.peaks]
         twice = sorted({k for k in labels if labels.count(k) > 1})
@@ -347,11 +347,13 @@ class Experiment:
             raise InputError(
                 f"experiment file {p}: cannot be read ({exc.strerror or exc})"
             ) from exc
+        # PowerShell's ">" writes UTF-16 with a byte-order mark; read it as what it is
+        encoding = "utf-16" if raw[:2] in (b"\xff\xfe", b"\xfe\xff") else "utf-8-sig"
         try:
-            text = raw.decode("utf-8-sig")
+            text = raw.decode(encoding)
         except UnicodeDecodeError:
             raise InputError(
-                f"experiment file {p}: not UTF-8 text (a UTF-16 or binary file? save it as UTF-8)"
+                f"experiment file {p}: not text (a binary file? save it as UTF-8 JSON)"
             ) from None
         return cls.from_json(text, f"experiment file {p}")
 

@@ -23,6 +23,7 @@ The mean-phase series, depths and rates are :mod:`holoview.engine.series`.
 from __future__ import annotations
 
 import logging
+import math
 from collections.abc import Sequence
 
 import numpy as np
@@ -36,6 +37,7 @@ from holoview.processing.coregister import (
     fuse_coregistered,
 )
 from holoview.processing.demodulate import DemodResult, Demodulator
+from holoview.processing.frames import DamagedFrameError, frame_damage
 from holoview.processing.peak_windows import distinct_neighbours, peak_radii
 from holoview.processing.peaks import Peak
 
@@ -108,8 +110,17 @@ class CarrierCore:
         return True
 
     def measure(self, frame: np.ndarray) -> CarrierValues | None:
-        """The carrier values of ``frame`` (not modified); None when there is no peak."""
-        return None if self._probe is None else self._probe.measure(frame)
+        """The carrier values of ``frame`` (not modified); None when there is no peak.
+
+        A frame damaged in transfer (rows lost, :func:`~holoview.processing.frames.frame_damage`)
+        gives NaN values and the flag ``"damaged"``: its values would be wrong, not noisy.
+        """
+        if self._probe is None:
+            return None
+        if frame_damage(np.asarray(frame)) is not None:
+            nan = np.full(len(self.peaks), np.nan)
+            return CarrierValues(nan + 0j, nan, math.nan, frozenset({"damaged"}))
+        return self._probe.measure(frame)
 
 
 class FrameCore:
@@ -250,9 +261,21 @@ class FrameCore:
             self._demod.reset_reference()
 
     def process(self, frame: np.ndarray) -> DemodResult | None:
-        """Demodulate ``frame`` (not modified); None when there is no peak."""
+        """Demodulate ``frame`` (not modified); None when there is no peak.
+
+        Raises
+        ------
+        DamagedFrameError
+            The frame was damaged in transfer (rows lost): no maps from it, the
+            reference untouched.
+        """
         demod = self.build()
-        return None if demod is None else demod.process(frame)
+        if demod is None:
+            return None
+        damage = frame_damage(np.asarray(frame))
+        if damage is not None:
+            raise DamagedFrameError(f"frame damaged in transfer: {damage}; no maps", damage)
+        return demod.process(frame)
 
 
 def trusted_maps(result: DemodResult) -> list[np.ndarray]:

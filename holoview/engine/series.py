@@ -38,7 +38,7 @@ logger = logging.getLogger(__name__)
 __all__ = ["LIVE_LENGTH", "SERIES_FRAME_FLAGS", "PhaseSeries", "coupling_of", "frame_time"]
 
 #: Frame flags a series counts (the carrier probe's).
-SERIES_FRAME_FLAGS = ("nonfinite", "saturated")
+SERIES_FRAME_FLAGS = ("nonfinite", "saturated", "damaged")
 #: Frames a live series keeps (10 minutes at 60 frames/s).
 LIVE_LENGTH = 36000
 
@@ -80,7 +80,7 @@ class PhaseSeries:
     Attributes
     ----------
     frame_flags : dict of str to int
-        Frames flagged ``nonfinite`` (values NaN) and ``saturated`` so far.
+        Frames flagged ``nonfinite`` or ``damaged`` (values NaN) and ``saturated`` so far.
     step_counts : ndarray of int
         Per peak, frames whose mean phase stepped past the limit so far.
     """

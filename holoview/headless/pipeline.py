@@ -342,7 +342,7 @@ def demodulate_frames(
                 assert measured is not None
                 series.add(float(times[position]), index, measured)
                 result = None
-                if sink is not None or wanted[position]:
+                if (sink is not None or wanted[position]) and "damaged" not in measured.flags:
                     result = core.process(frame)
                     assert result is not None
                     _count(data, position, result)
@@ -353,9 +353,10 @@ def demodulate_frames(
                 data.demod_seconds += t1 - t0
                 if maps:
                     last, data.last_frame = result, index
-                    if sink is not None:
-                        for j, values_map in enumerate(maps):
-                            sink.write_map(position, j, values_map)
+                if sink is not None:  # a damaged or non-finite frame leaves NaN maps
+                    blank = np.full(data.box_shape, np.nan, np.float32)
+                    for j in range(m):
+                        sink.write_map(position, j, maps[j] if maps else blank)
                 data.write_seconds += time.perf_counter() - t1
                 done = position + 1
                 if progress is not None:

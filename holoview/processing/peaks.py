@@ -73,6 +73,10 @@ MAX_CANDIDATES = 256
 #: The strongest peaks whose harmonics and pairwise sums are looked for.
 RELATION_PEAKS = 32
 
+#: Peaks whose carriers :func:`find_peaks` refines, the strongest first (a damaged frame
+#: that is not recognised as such can hold hundreds of spurious ones).
+MAX_REFINED = 32
+
 #: Every flag :func:`find_peaks` can put on a peak (see the module documentation).
 FLAGS: tuple[str, ...] = ("harmonic", "sum", "overlap", "near_nyquist", "weak")
 
@@ -318,7 +322,8 @@ def find_peaks(
     canonical one is kept (module documentation). Carriers are refined below one bin
     by a parabola through the log magnitudes, and amplitudes corrected for the
     Hann window's response at that offset; then, with ``refine``, moved to the mean
-    phase step of each one's field (:func:`refine_carriers`), which an object that
+    phase step of each one's field (:func:`refine_carriers`; the strongest
+    :data:`MAX_REFINED`), which an object that
     broadens the peak does not pull aside as it pulls the maximum.
 
     Parameters
@@ -415,7 +420,9 @@ def find_peaks(
     if refine and found:
         np.copyto(buffer, array, casting="unsafe")
         plan()
-        found = _refined(plan.output_array, (rows, cols), found)
+        rest = [p.carrier for p in found[MAX_REFINED:]]
+        strong = _refined(plan.output_array, (rows, cols), found[:MAX_REFINED], rest)
+        found = strong + found[MAX_REFINED:]
     return flag_relations(found, (rows, cols), radius=radius)
 
 

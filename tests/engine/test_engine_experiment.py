@@ -98,6 +98,7 @@ def test_partial_experiment_leaves_optics_unknown() -> None:
         ('{"format": "holoview-experiment", "version": 2, "reference": "x"}', "reference 'x'"),
         ('{"format": "holoview-experiment", "version": 2, "n1": 1.5, "n2": 1.3}', "above n1"),
         ('{"format": "holoview-experiment", "version": 2, "wavelength_m": -1}', "positive"),
+        ('{"format": "holoview-experiment", "version": 2, "wavelength_m": 532}', "nanometres"),
         ('{"format": "holoview-experiment", "version": 2, "peaks": {}}', "must be a list"),
         ('{"format": "holoview-experiment", "version": 2, "peaks": [{"fx": 1}]}', "peak 0"),
         (
@@ -130,11 +131,13 @@ def test_bad_experiment_file_is_one_clear_error(tmp_path: Path, text: str, messa
     assert str(path) in str(caught.value) and "\n" not in str(caught.value)
 
 
-def test_utf16_and_missing_files_are_named(tmp_path: Path) -> None:
+def test_utf16_is_read_binary_and_missing_files_are_named(tmp_path: Path) -> None:
     path = tmp_path / "powershell.json"
-    path.write_text(Experiment().to_json(), encoding="utf-16")
-    with pytest.raises(InputError, match="not UTF-8 text"):
-        Experiment.load(path)
+    path.write_text(Experiment(radius=0.05).to_json(), encoding="utf-16")
+    assert Experiment.load(path).radius == 0.05
+    (tmp_path / "binary.json").write_bytes(b"\x00\x93\xff\xd8binary")
+    with pytest.raises(InputError, match="not text"):
+        Experiment.load(tmp_path / "binary.json")
     with pytest.raises(InputError, match="cannot be read"):
         Experiment.load(tmp_path / "missing.json")
 

@@ -509,3 +509,33 @@ def test_background_bad_input_is_one_line_exit_2(
     assert status == 2
     assert message in stderr and len(stderr.strip().splitlines()) == 1
     assert "Traceback" not in stderr
+
+
+def test_frames_damaged_in_transfer_are_counted_and_left_out(
+    evaporation: Simulated, tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    """Lost packets (a band of zeroed rows) in two frames: no values, no maps, counted."""
+    path = tmp_path / "damaged.h5"
+    with h5py.File(evaporation.path, "r") as f:
+        frames, times = f["frames"][:40], f["t_device_s"][:40]
+        setup = dict(f["setup"].attrs)
+        experiment = f["experiment/json"][()].tobytes().decode()
+    frames[[10, 25], 40:72] = 0
+    with RecordingWriter(
+        path, frames.shape[1:], frames.dtype, setup=setup, experiment=experiment
+    ) as w:
+        for i, frame in enumerate(frames):
+            w.append(frame, i, float(times[i]), 0.0)
+    out = tmp_path / "out"
+    status, _, _ = run_cli(["process", str(path), "--out", str(out), "--maps"], capsys)
+    assert status == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["frames"]["damaged"] == 2
+    rate = summary["fused"]["rate_m_per_s"]
+    assert rate == pytest.approx(evaporation.rate, rel=0.02)
+    with h5py.File(out / "results.h5", "r") as f:
+        heights = f["trends/fused_height_m"][:]
+        assert np.isfinite(heights[[9, 11, 24, 26]]).all()
+        rb1 = f["maps/RB1"]
+        assert np.isnan(rb1[10]).all() and np.isnan(rb1[25]).all()
+        assert np.isfinite(rb1[11]).any()
