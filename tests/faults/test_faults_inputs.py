@@ -221,15 +221,15 @@ def test_nan_frames_are_named_and_skipped_for_detection(
     ("encode", "message"),
     [
         (lambda text: codecs.BOM_UTF8 + text.encode("utf-8"), None),  # Notepad's UTF-8
-        (lambda text: codecs.BOM_UTF16_LE + text.encode("utf-16-le"), "not UTF-8 text"),
-        (lambda text: bytes(range(256)) * 8, "not UTF-8 text"),
+        (lambda text: codecs.BOM_UTF16_LE + text.encode("utf-16-le"), None),  # PowerShell's
+        (lambda text: bytes(range(256)) * 8, "not text"),
     ],
     ids=["utf8-bom", "utf16", "binary"],
 )
 def test_experiment_files_from_windows_shells(
     sim_recording: Path, tmp_path: Path, capsys: pytest.CaptureFixture, encode, message
 ) -> None:
-    """PowerShell's ``>`` writes UTF-16: one line, never a traceback."""
+    """PowerShell's ``>`` writes UTF-16: read as such; a binary file is one line."""
     from holoview.acquire.recording import RecordingReader
 
     with RecordingReader(sim_recording) as reader:
