@@ -118,6 +118,10 @@ class Analysis:
         Weighted rms deviation of the fused peaks from it, m.
     fit : RateFit or None
         The fused depth's line (None with fewer than three frames or nothing fused).
+    vibration, margins, flagged : ndarray or None, shape (N,)
+        The joint estimate's reference-arm phase (rad), ambiguity margin (noise
+        standard deviations) and frames not resolved with confidence; None without a
+        joint estimate.
     pca : dict or None
         ``confidence``, ``reference`` (label), ``prefactors`` and ``explained`` per label,
         ``n_samples``; None when not computed.
@@ -133,6 +137,9 @@ class Analysis:
     fit: RateFit | None
     pca: dict[str, object] | None
     notes: tuple[str, ...]
+    vibration: np.ndarray | None = None
+    margins: np.ndarray | None = None
+    flagged: np.ndarray | None = None
 
     def map_fusion_scales(self) -> list[float | None]:
         """Per peak, metres per radian if its maps go into the fused map, else None.
@@ -290,6 +297,14 @@ def analyse(data: RunData, selection: Selection, optics: Optics) -> Analysis:
     if summary.note is not None:
         notes.append(summary.note)
         logger.warning("%s", summary.note)
+    if summary.flagged is not None and summary.flagged.any():
+        count, smallest = int(summary.flagged.sum()), float(np.min(summary.margins))
+        note = (
+            f"{count} frames' phase ambiguity not resolved with confidence (smallest margin "
+            f"{smallest:.2f} noise standard deviations; their best solution is used)"
+        )
+        notes.append(note)
+        logger.info("%s", note)
     for j, aliased in enumerate(summary.aliased):
         if aliased:
             flags[j].add("aliased_in_time")
@@ -348,4 +363,7 @@ def analyse(data: RunData, selection: Selection, optics: Optics) -> Analysis:
         fit=summary.fit,
         pca=pca_info,
         notes=tuple(notes),
+        vibration=summary.vibration,
+        margins=summary.margins,
+        flagged=summary.flagged,
     )

@@ -16,11 +16,14 @@
     ``pixel_pitch_m``, ``reference``, ``window``, ``radius_cpp``, ``unwrap``).
     ``/trends``: ``frame`` (N,), ``time_s`` (N,), ``label`` (M,), ``alpha`` (M,),
     ``mean_phase_rad`` (N, M), ``mean_height_m`` (N, M), ``carrier_value`` (N, M,
-    complex, counts), ``phase_noise_rad`` (N, M), ``fused_height_m`` (N,),
-    ``fused_spread_m`` (N,), with ``--area`` ``fused_volume_m3`` (N,); each with a
-    ``unit`` attribute. ``/peaks``: ``label``, ``carrier_cpp`` (M, 2), ``alpha``,
-    ``amplitude``, ``snr``, ``rate_m_per_s``, ``rate_stderr_m_per_s``,
-    ``used_in_fused``, ``flags`` (comma-separated).
+    complex, counts), ``phase_noise_rad`` (N, M, the maps' per-pixel noise where a
+    frame was demodulated), ``fused_height_m`` (N,), ``fused_spread_m`` (N,), with
+    ``--area`` ``fused_volume_m3`` (N,), and with the joint estimate ``vibration_rad``
+    (N,: the reference-arm phase), ``ambiguity_margin`` (N,: noise standard deviations)
+    and ``ambiguity_flagged`` (N,); each with a ``unit`` attribute. ``/peaks``:
+    ``label``, ``carrier_cpp`` (M, 2), ``alpha``, ``amplitude``, ``snr``,
+    ``rate_m_per_s``, ``rate_stderr_m_per_s``, ``used_in_fused``, ``flags``
+    (comma-separated).
     With maps, ``/maps/<label>`` and ``/maps/fused``: float32, metres, shape
     ``(frames, rows, cols)`` at the demodulation box's resolution (pixel ``(p, q)`` at
     frame position ``(p * pixel_step_px[0], q * pixel_step_px[1])``), NaN where not
@@ -229,6 +232,13 @@ def summary_document(
         if settings.area_m2 is not None and analysis.fit is not None:
             fused["volume_rate_m3_per_s"] = analysis.fit.rate * settings.area_m2
             fused["volume_rate_stderr_m3_per_s"] = analysis.fit.stderr * settings.area_m2
+        fused["joint"] = analysis.margins is not None
+        if analysis.margins is not None and analysis.flagged is not None:
+            finite = analysis.margins[np.isfinite(analysis.margins)]
+            fused["frames_flagged"] = int(analysis.flagged.sum())
+            fused["smallest_margin"] = float(finite.min()) if finite.size else None
+        if analysis.vibration is not None and np.isfinite(analysis.vibration).any():
+            fused["vibration_rms_rad"] = float(np.nanstd(analysis.vibration))
     document = {
         "format": SUMMARY_FORMAT,
         "format_version": FORMAT_VERSION,
@@ -496,6 +506,11 @@ class ResultsFile:
                 series["fused_spread_m"] = (analysis.fused_spread, "m")
             if settings.area_m2 is not None:
                 series["fused_volume_m3"] = (analysis.fused * settings.area_m2, "m^3")
+        if analysis.margins is not None:
+            series["ambiguity_margin"] = (analysis.margins, "")
+            series["ambiguity_flagged"] = (analysis.flagged, "")
+        if analysis.vibration is not None:
+            series["vibration_rad"] = (analysis.vibration, "rad")
         for name, (values, unit) in series.items():
             group[name] = values
             group[name].attrs["unit"] = unit
