@@ -5,12 +5,10 @@ each at its own pace, in one of two modes:
 
 - ``"every"`` (the recorder): every frame in order; a frame overwritten before the
   consumer read it is counted in its ``dropped``;
-- ``"newest"`` (processing, display): the newest frame not read yet; the frames
-  passed over are counted in ``skipped``, which is by design, not a loss. With
-  ``max_lag=k`` such a consumer reads in order while at most ``k`` frames wait behind
-  the one it takes, and skips only beyond that: a worker that keeps up on average
-  then rides out a slow frame without losing any, at a cost of at most ``k`` frame
-  periods of latency.
+- ``"newest"`` (the maps): the newest frame not read yet; the frames passed over are
+  counted in ``skipped``, which is by design, not a loss.
+
+A display reads the newest frame without a cursor (:meth:`FrameRing.newest`).
 
 The producer never waits for a consumer. It reserves a slot under a lock, copies
 the frame into it outside the lock, and publishes it under the lock; a consumer
@@ -154,6 +152,25 @@ class FrameRing:
             self._published = seq + 1
             self._cond.notify_all()
 
+    def newest(self) -> tuple[int, np.ndarray, FrameMeta] | None:
+        """Return ``(seq, pixels, meta)`` of the newest complete frame, or None.
+
+        For a display that shows the camera at its own rate: the pixels are a copy,
+        and no consumer's cursor moves. None before the first frame, or when the
+        frame was overwritten while it was being copied (the next call gets a newer).
+        """
+        with self._cond:
+            seq = self._published - 1
+            if seq < 0:
+                return None
+            slot = seq % self.capacity
+            meta = self._meta[slot]
+        pixels = self._data[slot].copy()
+        with self._cond:
+            if meta is None or seq < self._reserved - self.capacity:
+                return None
+        return seq, pixels, meta
+
     def add_transport_lost(self, n: int) -> None:
         """Count ``n`` more frames lost by the camera or transport before the ring."""
         if n > 0:
@@ -166,9 +183,7 @@ class FrameRing:
             self._closed = True
             self._cond.notify_all()
 
-    def consumer(
-        self, name: str, mode: Literal["every", "newest"] = "newest", *, max_lag: int = 0
-    ) -> RingConsumer:
+    def consumer(self, name: str, mode: Literal["every", "newest"] = "newest") -> RingConsumer:
         """Return a new consumer that starts with the next frame put.
 
         Parameters
@@ -177,16 +192,11 @@ class FrameRing:
             For logs and status displays (``"recorder"``, ``"processing"``).
         mode : {"every", "newest"}
             ``"every"``: every frame in order (drops counted); ``"newest"``: the newest.
-        max_lag : int
-            ``"newest"`` only: frames allowed to wait behind the one read before the
-            consumer skips ahead (0: always the newest).
         """
         if mode not in ("every", "newest"):
             raise InputError(f"consumer mode must be 'every' or 'newest', got {mode!r}")
-        if max_lag < 0 or (max_lag and mode != "newest"):
-            raise InputError(f"max_lag must be >= 0 and only for 'newest', got {max_lag}")
         with self._cond:
-            consumer = RingConsumer(self, name, mode, start=self._published, max_lag=max_lag)
+            consumer = RingConsumer(self, name, mode, start=self._published)
             self._consumers.append(consumer)
         return consumer
 
@@ -199,11 +209,10 @@ class FrameRing:
 class RingConsumer:
     """One reader of a :class:`FrameRing` with its own cursor; make it with ``ring.consumer``."""
 
-    def __init__(self, ring: FrameRing, name: str, mode: str, start: int, max_lag: int = 0) -> None:
+    def __init__(self, ring: FrameRing, name: str, mode: str, start: int) -> None:
         self.ring = ring
         self.name = name
         self.mode = mode
-        self.max_lag = max_lag
         self._next = start
         self._start = start
         self._read = 0
@@ -263,7 +272,7 @@ class RingConsumer:
                     ring._cond.wait(remaining)
                 oldest = max(0, ring._reserved - ring.capacity)
                 if self.mode == "newest":
-                    seq = max(self._next, ring._published - 1 - self.max_lag, oldest)
+                    seq = max(self._next, ring._published - 1, oldest)
                     self._skipped += seq - self._next
                 else:
                     seq = max(self._next, oldest)

@@ -168,7 +168,8 @@ class PhaseSeries:
         grow = size if self.max_length is None else min(size, self.max_length - size)
         for name in _ARRAYS:
             array = getattr(self, name)
-            setattr(self, name, np.concatenate([array, np.full_like(array[:grow], np.nan)]))
+            fill = np.nan if array.dtype.kind in "fc" else 0  # no value yet: NaN where it can be
+            setattr(self, name, np.concatenate([array, np.full_like(array[:grow], fill)]))
 
     def add(self, t_s: float, frame: int, measured: CarrierValues) -> None:
         """Add one frame: its time (s, any origin), input index and carrier values.

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import logging
 import time
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, NamedTuple
@@ -23,7 +23,7 @@ from holoview.acquire.camera_thread import CameraThread
 from holoview.acquire.pixel_formats import PIXEL_FORMATS
 from holoview.acquire.recorder import Recorder
 from holoview.acquire.ring import FrameRing
-from holoview.acquire.source import Source
+from holoview.acquire.source import FrameMeta, Source
 from holoview.engine.depth import DepthSummary
 from holoview.engine.experiment import Experiment
 from holoview.errors import HoloviewError, InputError
@@ -133,6 +133,7 @@ class LiveSession:
         self._error_shown = False
         self._messages: list[str] = []
         self._closed = False
+        self._maps_listener: Callable[[], None] | None = None
         try:
             self._build()
         except BaseException:
@@ -173,6 +174,7 @@ class LiveSession:
         saturation = self.saturation_value
         self.pipeline = LivePipeline(self.experiment, shape, saturation=saturation)
         self.worker = DemodWorker(self.ring, self.pipeline, every_frame=self.every_frame)
+        self.worker.listener = self._maps_listener
         self.series = SeriesPipeline(shape, saturation=saturation)
         self.series_worker = SeriesWorker(self.ring, self.series, self.worker)
 
@@ -290,6 +292,22 @@ class LiveSession:
     def latest(self) -> LiveResult | None:
         """The newest maps result, or None."""
         return self.worker.latest()
+
+    def on_maps(self, listener: Callable[[], None] | None) -> None:
+        """Call ``listener`` (on the maps thread; it must only wake its owner) at each result.
+
+        A window draws a result when it comes instead of at its next timer tick, which
+        would add up to a tick to the latency.
+        """
+        self._maps_listener = listener
+        self.worker.listener = listener
+
+    def newest_frame(self) -> tuple[int, np.ndarray, FrameMeta] | None:
+        """The camera's newest frame ``(seq, pixels, meta)`` (a copy), or None.
+
+        For a view of the camera at its own rate, whatever rate the maps come at.
+        """
+        return self.ring.newest()
 
     def trend(self) -> TrendSummary | None:
         """The newest summary of the series (depths, fused depth, rate), or None."""

@@ -4,9 +4,9 @@
   :class:`~holoview.live.trends.SeriesPipeline` on it: the carrier values, so the
   trends, rates and the temporal unwrapping see the camera's full rate; frames the ring
   overwrote before it read them are counted (:meth:`RingWorker.status`), never hidden.
-- The maps worker (``holoview-demod``) takes the *newest* frame (in order while at most
-  :data:`PROCESSING_MAX_LAG` frames wait, so one slow frame costs a little latency),
-  or every frame in order when asked (scripted runs, the parity test), and runs a
+- The maps worker (``holoview-demod``) takes the *newest* frame (the series has the
+  others, so a map is never older than it must be), or every frame in order when
+  asked (scripted runs, the parity test), and runs a
   :class:`~holoview.live.pipeline.LivePipeline` on it: the maps, at whatever rate is
   left. It hands the demodulator's peaks to the series worker.
 - Peak detection (``holoview-peaks``), much slower than a frame, runs beside them.
@@ -22,6 +22,7 @@ import logging
 import queue
 import threading
 import time
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -114,10 +115,6 @@ class PeakWorker:
                 self._result, self._busy = (peaks, time.perf_counter() - tick), False
 
 
-#: Frames the maps worker may fall behind the newest before it skips (33 ms at 60 frames/s).
-PROCESSING_MAX_LAG = 2
-
-
 class RingWorker:
     """A thread that takes frames from a ring, runs a step on each and publishes the result.
 
@@ -146,6 +143,8 @@ class RingWorker:
         self._last_error = ""
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name=name, daemon=True)
+        #: Called on this worker's thread after each new result (a window's wake-up).
+        self.listener: Callable[[], None] | None = None
 
     def start(self) -> None:
         """Start the thread."""
@@ -198,6 +197,8 @@ class RingWorker:
             if result is not None:
                 self._latest = result
             self._times.append(time.monotonic())
+        if result is not None and self.listener is not None:
+            self.listener()
 
     def _apply(self, name: str, value: Any) -> None:
         raise InputError(f"unknown command {name!r}")
@@ -251,7 +252,7 @@ class DemodWorker(RingWorker):
     Parameters
     ----------
     ring : FrameRing
-        Frames to process (a ``"newest"`` consumer with :data:`PROCESSING_MAX_LAG`).
+        Frames to process (a ``"newest"`` consumer).
     pipeline : LivePipeline
         What to do with each frame; commands (``experiment``, ``reset``) between frames.
     every_frame : bool
@@ -262,7 +263,7 @@ class DemodWorker(RingWorker):
         if every_frame:
             consumer = ring.consumer("maps", mode="every")
         else:
-            consumer = ring.consumer("maps", mode="newest", max_lag=PROCESSING_MAX_LAG)
+            consumer = ring.consumer("maps", mode="newest")
         super().__init__(ring, "holoview-demod", consumer)
         self.pipeline = pipeline
         pipeline.detect_inline = False

@@ -1,9 +1,11 @@
 """The main window: docks an operator can rearrange, a redraw timer, menus, shortcuts.
 
 The window owns no processing. A :class:`~holoview.live.session.LiveSession` runs the
-camera thread, the recorder and the demodulation worker; a QTimer (at most
-:data:`REDRAW_HZ`) reads the session's latest result and draws it, so the window
-never receives one signal per frame. Operator actions go back to the session as
+camera thread, the recorder and the demodulation worker. A QTimer (at most
+:data:`REDRAW_HZ`) draws the camera's newest frame, so the hologram moves at the
+display's rate whatever rate the maps come at; a maps result is drawn when it comes
+(the maps worker wakes the window, at most once a result), so the window never
+receives one signal per camera frame. Operator actions go back to the session as
 commands. Problems (a camera gone, a broken file, a click with no peak) are shown
 in a banner and the status bar; the rest keeps running.
 """
@@ -15,7 +17,8 @@ import time
 from dataclasses import replace
 from pathlib import Path
 
-from PyQt6.QtCore import QByteArray, Qt, QTimer
+import numpy as np
+from PyQt6.QtCore import QByteArray, Qt, QTimer, pyqtSignal
 from PyQt6.QtGui import QAction, QCloseEvent, QKeySequence
 from PyQt6.QtWidgets import (
     QDockWidget,
@@ -70,6 +73,9 @@ class MainWindow(QMainWindow):
         command line's); they also win over a source's own optics.
     """
 
+    #: Emitted on the maps thread when a result is ready (drawn on the GUI thread).
+    mapsReady = pyqtSignal()
+
     def __init__(
         self,
         source: str = "sim",
@@ -85,6 +91,7 @@ class MainWindow(QMainWindow):
         self.source_options = dict(source_options or {})
         self._optioned_source = source
         self._last_seq = -1
+        self._camera_seq = -1
         self._trend_seq = -1
         self._last_result: LiveResult | None = None
         self._drawn: LiveResult | None = None
@@ -154,6 +161,7 @@ class MainWindow(QMainWindow):
         self.timer.setObjectName("holoview-redraw")
         self.timer.setInterval(int(1000 / REDRAW_HZ))
         self.timer.timeout.connect(self.redraw)
+        self.mapsReady.connect(self.draw_maps)
         self.opener = BackgroundCall("holoview-open", "holoview-open", self)
         self.opener.done.connect(self._opened)
         self._opening_spec = ""
@@ -287,7 +295,9 @@ class MainWindow(QMainWindow):
             return
         self.session = outcome
         self._last_seq = -1
+        self._camera_seq = -1
         self._drawn = None
+        self.session.on_maps(self.mapsReady.emit)
         self._adopt_source_setup(self.session.source_setup())
         self.hologram.set_saturation_value(self.session.saturation_value)
         self.source_panel.set_settings(
@@ -348,6 +358,7 @@ class MainWindow(QMainWindow):
         except HoloviewError as exc:
             self.show_message(str(exc))
         self._last_seq = -1
+        self._camera_seq = -1
         self.source_panel.show_values(self.session.read_settings())
         self.source_panel.set_streaming(self.session.running, self.session.description)
 
@@ -525,7 +536,7 @@ class MainWindow(QMainWindow):
 
     # ---- redraw ------------------------------------------------------------
     def redraw(self) -> None:
-        """Draw the session's latest result if it is new; refresh figures and messages."""
+        """Draw the camera's newest frame and any new result; refresh figures and messages."""
         session = self.session
         if session is None:
             return
@@ -534,13 +545,12 @@ class MainWindow(QMainWindow):
         if self._banner_until and time.monotonic() > self._banner_until:
             self._banner_until = 0.0
             self.banner_bar.setVisible(False)
-        result = session.latest()
-        if result is not None and result.seq != self._last_seq:
-            self._last_seq = result.seq
-            self._last_result = result
-            self._draw(result)
+        newest = session.newest_frame()
+        if newest is not None and newest[0] != self._camera_seq:
+            self._camera_seq = newest[0]
+            self._draw_camera(newest[1])
             self.display_rate.tick()
-            self.last_latency_s = time.time() - result.t_host
+        self.draw_maps()
         trend = session.trend()
         if trend is not None and trend.seq != self._trend_seq:
             self._trend_seq = trend.seq
@@ -568,10 +578,21 @@ class MainWindow(QMainWindow):
                 self.show_message(f"{session.spec} stopped: {reason}")
             self.timer.stop()
 
+    def draw_maps(self) -> None:
+        """Draw the session's newest maps result if it was not drawn yet."""
+        result = None if self.session is None else self.session.latest()
+        if result is not None and result.seq != self._last_seq:
+            self._last_seq = result.seq
+            self._last_result = result
+            self._draw(result)
+            self.last_latency_s = time.time() - result.t_host
+
+    def _draw_camera(self, frame: np.ndarray) -> None:
+        self.hologram.set_frame(frame)
+
     def _draw(self, result: LiveResult) -> None:
         previous = self._drawn
         self._drawn = result
-        self.hologram.set_frame(result.frame)
         if result.spectrum is not None and (
             previous is None or result.spectrum is not previous.spectrum
         ):

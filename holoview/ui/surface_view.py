@@ -29,14 +29,12 @@ from PyQt6.QtWidgets import (
 
 from holoview.engine.experiment import PEAK_LABELS
 from holoview.processing.demodulate import REFERENCE_MODES
-from holoview.ui.legends import side_legend
+from holoview.ui.colour_index import colour_indices, colour_table
+from holoview.ui.legends import FUSED, curve_pen, side_legend
 
-FUSED = "fused"
 #: Colour map of heights (perceptual) and of phases (cyclic).
 HEIGHT_CMAP = "viridis"
 PHASE_CMAP = "CET-C6"
-#: Colours of the profile curves, in label order; the fused curve is dashed white.
-CURVE_COLOURS = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2")
 #: Seconds between colour-range updates while "follow" is on.
 FOLLOW_INTERVAL_S = 0.5
 #: Map titles: font size, and the height they take above a map, pixels.
@@ -112,9 +110,11 @@ class SurfaceView(QWidget):
         self._mode = "height"
         self._line = DEFAULT_LINE
         self._levels: tuple[float, float] | None = None
+        self._table = colour_table(HEIGHT_CMAP)
         self.plots: dict[str, pg.PlotItem] = {}
         self.images: dict[str, pg.ImageItem] = {}
         self._mirrors: dict[str, pg.PlotDataItem] = {}
+        self._mirrored: dict[str, tuple[list[float], list[float]]] = {}
         self.line_roi: pg.LineSegmentROI | None = None
         self._placing = False
         self._line_placed = False
@@ -153,6 +153,9 @@ class SurfaceView(QWidget):
         self.colour_bar = pg.ColorBarItem(
             values=(-1.0, 1.0), colorMap=pg.colormap.get(HEIGHT_CMAP), label="delta h (nm)"
         )
+        # the bar is the legend and the range control; the maps are coloured here
+        # (colour_index), not by the bar, which would colour them through pyqtgraph's
+        # float path
         self.colour_bar.sigLevelsChanged.connect(self._bar_levels_changed)
         self.profile = pg.PlotWidget()
         self.profile.setLabel("bottom", "position along the line", units="px")
@@ -225,11 +228,18 @@ class SurfaceView(QWidget):
         now = time.monotonic()
         follow = self.follow_box.isChecked() and now - self._range_at >= FOLLOW_INTERVAL_S
         if self._mode == "height" and (self._levels is None or follow):
-            self.auto_range()
-        for name, image in self.images.items():
-            image.setImage(data[name], autoLevels=False, levels=self._current_levels())
+            self._range_from_maps()
+        self._draw_maps()
         self._show_shifts(shifts_px or {}, grid_of)
         self._update_profile()
+
+    def _draw_maps(self) -> None:
+        """Colour the maps shown on the current range."""
+        low, high = self.levels
+        for name, image in self.images.items():
+            if name in self._data:
+                indices = colour_indices(self._data[name], low, high)
+                image.setImage(self._table[indices], autoLevels=False)
 
     def _show_shifts(
         self, shifts_px: Mapping[str, tuple[float, float]], grid_of: str | None
@@ -254,13 +264,19 @@ class SurfaceView(QWidget):
         """Return the array shown for ``name`` (nm or rad)."""
         return self._data[name]
 
-    def _current_levels(self) -> tuple[float, float]:
+    @property
+    def levels(self) -> tuple[float, float]:
+        """The values drawn with the colour map's ends: nm (heights) or rad (phases)."""
         if self._mode == "phase":
             return (-np.pi, np.pi)
         return self._levels or (-1.0, 1.0)
 
     def auto_range(self) -> None:
         """Set the height colour range from the 1-99 percentiles of the maps shown."""
+        self._range_from_maps()
+        self._draw_maps()
+
+    def _range_from_maps(self) -> None:
         self._range_at = time.monotonic()
         if self._mode == "phase" or not self._data:
             return
@@ -278,6 +294,7 @@ class SurfaceView(QWidget):
         if self._mode == "height":
             low, high = self.colour_bar.levels()
             self._levels = (float(low), float(high))
+            self._draw_maps()
 
     def _rebuild(self, names: list[str]) -> None:
         """Lay out one plot per name, reusing the plots of names already shown."""
@@ -302,7 +319,6 @@ class SurfaceView(QWidget):
                 self.images[name] = image
         self._columns = 0
         self._lay_out(names)
-        self.colour_bar.setImageItem([self.images[n] for n in names])
         self._apply_cmap()
         self._names = names
         self._make_line_items()
@@ -311,12 +327,7 @@ class SurfaceView(QWidget):
         self.curves.clear()
         self.profile_legend.setColumnCount(max(1, -(-len(names) // LEGEND_ROWS)))
         for i, name in enumerate(names):
-            pen = (
-                pg.mkPen("w", width=2, style=Qt.PenStyle.DashLine)
-                if name == FUSED
-                else pg.mkPen(CURVE_COLOURS[i % len(CURVE_COLOURS)], width=1.5)
-            )
-            self.curves[name] = self.profile.plot([], [], pen=pen, name=name)
+            self.curves[name] = self.profile.plot([], [], pen=curve_pen(name, i), name=name)
 
     def _lay_out(self, names: list[str]) -> None:
         """Put the maps in the number of columns that makes them largest, then the bar."""
@@ -353,6 +364,7 @@ class SurfaceView(QWidget):
         for name, mirror in self._mirrors.items():
             self.plots[name].removeItem(mirror)
         self._mirrors.clear()
+        self._mirrored.clear()
         self.line_roi = None
 
     def _make_line_items(self) -> None:
@@ -410,14 +422,17 @@ class SurfaceView(QWidget):
             length = max(length, float(x[-1]))
         # fixed ranges (the line's length, the colour range) instead of auto-ranging
         # every frame: the axes are then regenerated only when these change
-        ranges = ((0.0, length), self._current_levels())
+        ranges = ((0.0, length), self.levels)
         if ranges != self._profile_ranges:
             self._profile_ranges = ranges
             self.profile.setRange(xRange=ranges[0], yRange=ranges[1], padding=0.02)
         (x0, y0), (x1, y1) = self._line
         for name, mirror in self._mirrors.items():
             rows, cols = self._data[name].shape
-            mirror.setData([x0 * cols, x1 * cols], [y0 * rows, y1 * rows])
+            ends = ([x0 * cols, x1 * cols], [y0 * rows, y1 * rows])
+            if self._mirrored.get(name) != ends:  # redrawn only when the line moves
+                self._mirrored[name] = ends
+                mirror.setData(*ends)
 
     def _mode_changed(self, index: int) -> None:
         self._mode = "phase" if index == 1 else "height"
@@ -425,8 +440,10 @@ class SurfaceView(QWidget):
         unit = "phase (rad)" if self._mode == "phase" else "delta h (nm)"
         self.profile.setLabel("left", unit)
         self.colour_bar.getAxis("left").setLabel(unit)
-        self.colour_bar.setLevels(self._current_levels())
+        self.colour_bar.setLevels(self.levels)
 
     def _apply_cmap(self) -> None:
         name = PHASE_CMAP if self._mode == "phase" else HEIGHT_CMAP
         self.colour_bar.setColorMap(pg.colormap.get(name))
+        self._table = colour_table(name)
+        self._draw_maps()

@@ -10,8 +10,7 @@ from PyQt6.QtCore import Qt, pyqtSignal
 from PyQt6.QtWidgets import QCheckBox, QHBoxLayout, QLabel, QPushButton, QVBoxLayout, QWidget
 
 from holoview.processing.trends import format_rate
-from holoview.ui.legends import side_legend
-from holoview.ui.surface_view import CURVE_COLOURS, FUSED
+from holoview.ui.legends import curve_pen, side_legend
 
 
 class TrendsView(QWidget):
@@ -66,11 +65,7 @@ class TrendsView(QWidget):
         for i, (name, depth) in enumerate(depths_m.items()):
             curve = self.curves.get(name)
             if curve is None:
-                pen = (
-                    pg.mkPen("w", width=2, style=Qt.PenStyle.DashLine)
-                    if name == FUSED
-                    else pg.mkPen(CURVE_COLOURS[i % len(CURVE_COLOURS)], width=1.5)
-                )
+                pen = curve_pen(name, i)
                 curve = self.curves[name] = self.plot.plot([], [], pen=pen, name=name)
                 curve.setDownsampling(auto=True, method="peak")
                 curve.setClipToView(True)

@@ -69,25 +69,17 @@ def test_newest_consumer_skips_to_the_newest_and_counts_skips_not_drops() -> Non
     assert drain(every) == [0, 1, 2, 3]  # cursors are independent
 
 
-def test_newest_consumer_with_a_lag_reads_in_order_within_it() -> None:
-    ring = FrameRing(8, SHAPE, np.uint16)
-    worker = ring.consumer("processing", "newest", max_lag=2)
-    for i in range(6):
-        put(ring, i)
-    assert drain(worker) == [3, 4, 5]  # frames 0-2 were more than 2 behind the newest
-    put(ring, 6)
-    put(ring, 7)
-    assert drain(worker) == [6, 7]  # within the lag: nothing skipped
-    status = worker.status()
-    assert (status.skipped, status.dropped, status.read) == (3, 0, 5)
-
-
-def test_max_lag_only_for_newest_consumers() -> None:
+def test_newest_frame_is_a_copy_and_moves_no_cursor() -> None:
     ring = FrameRing(4, SHAPE, np.uint16)
-    with pytest.raises(InputError, match="max_lag"):
-        ring.consumer("recorder", "every", max_lag=1)
-    with pytest.raises(InputError, match="max_lag"):
-        ring.consumer("processing", "newest", max_lag=-1)
+    assert ring.newest() is None
+    every = ring.consumer("series", "every")
+    for i in range(3):
+        put(ring, i)
+    seq, pixels, meta = ring.newest()
+    assert (seq, meta.frame_id) == (2, 2) and (pixels == 2).all()
+    pixels[:] = 99  # the ring's slot is not touched
+    assert ring.newest()[1].max() == 2
+    assert drain(every) == [0, 1, 2]
 
 
 def test_consumer_starts_at_the_next_frame() -> None:

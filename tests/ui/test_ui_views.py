@@ -10,6 +10,7 @@ import pytest
 pytest.importorskip("pyqtgraph")
 
 from holoview.processing.rates import format_rate
+from holoview.ui.colour_index import colour_indices, colour_table
 from holoview.ui.hologram_view import HologramView
 from holoview.ui.spectrum_view import CLEAR, SpectrumView
 from holoview.ui.surface_view import FUSED, SurfaceView, sample_line
@@ -144,9 +145,40 @@ def test_surface_maps_in_nm_profiles_and_cyclic_phase(qtbot) -> None:
     view.mode_box.setCurrentIndex(1)
     view.set_maps(heights, bump, phases_rad={"RB1": bump * 1e8, "FB1": bump * 1e8})
     assert view.mode == "phase"
-    assert tuple(view.images["RB1"].levels) == pytest.approx((-np.pi, np.pi))
+    assert view.levels == pytest.approx((-np.pi, np.pi))
+    drawn = view.images["RB1"].image  # RGBA, coloured on [-pi, pi]
+    table = colour_table("CET-C6")
+    assert np.array_equal(drawn, table[colour_indices(bump * 1e8, -np.pi, np.pi)])
+    top = round(1 + (bump.max() * 1e8 + np.pi) / (2 * np.pi) * 254)
+    assert np.array_equal(drawn[24, 24], table[top])
     assert view.colour_bar.colorMap().name == "CET-C6"
     assert view.colour_bar.getAxis("left").labelText == "phase (rad)"
+
+
+def test_colour_indices_clip_round_and_keep_zero_for_no_value() -> None:
+    values = np.array([[-5.0, 0.0, 1.0, 2.0], [np.nan, np.inf, -np.inf, 0.5]], dtype=np.float32)
+    indices = colour_indices(values, 0.0, 2.0)
+    assert indices.dtype == np.uint8
+    assert indices.tolist() == [[1, 1, 128, 255], [0, 0, 0, 65]]
+    table = colour_table("viridis")
+    assert table.shape == (256, 4) and table[0, 3] == 0 and (table[1:, 3] == 255).all()
+
+
+def test_surface_maps_keep_their_no_value_border_transparent(qtbot) -> None:
+    view = SurfaceView()
+    qtbot.addWidget(view)
+    height = np.full((32, 32), np.nan)
+    height[4:-4, 4:-4] = np.linspace(0, 10e-9, 24)[None, :]
+    view.set_maps({"RB1": height})
+    alpha = view.images["RB1"].image[..., 3]
+    assert (alpha[:4] == 0).all() and (alpha[4:-4, 4:-4] == 255).all()
+    low, high = view.levels
+    assert 0.0 <= low < high <= 10.0  # the 1-99 percentiles of the finite values, nm
+    view.colour_bar.setLevels((0.0, 20.0))
+    view._bar_levels_changed()  # what dragging the bar's handles does
+    assert view.levels == (0.0, 20.0)
+    middle = colour_table("viridis")[colour_indices(np.array([10.0]), 0.0, 20.0)[0]]
+    assert np.array_equal(view.images["RB1"].image[10, -5], middle)
 
 
 def test_fused_title_and_tooltips_tell_the_co_registration(qtbot) -> None:
