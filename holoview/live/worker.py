@@ -19,7 +19,9 @@ from __future__ import annotations
 
 import collections
 import logging
+import os
 import queue
+import sys
 import threading
 import time
 from collections.abc import Callable
@@ -39,6 +41,25 @@ logger = logging.getLogger(__name__)
 
 #: Most messages kept for the window between two redraws.
 MAX_MESSAGES = 20
+#: Niceness added to the threads whose rate is whatever is left (maps, peak detection):
+#: on a machine with fewer cores than busy threads the series and the window, which
+#: must keep up, get the cores first.
+YIELDING_NICENESS = 5
+
+
+def yield_to_others(increment: int = YIELDING_NICENESS) -> None:
+    """Lower the calling thread's scheduling priority by ``increment`` (Linux; else nothing).
+
+    Linux gives every thread its own nice value (``setpriority`` on the thread id);
+    raising it needs no privilege. Elsewhere the call does nothing.
+    """
+    if not sys.platform.startswith("linux"):
+        return
+    tid = threading.get_native_id()
+    try:
+        os.setpriority(os.PRIO_PROCESS, tid, os.getpriority(os.PRIO_PROCESS, tid) + increment)
+    except OSError as exc:  # a sandbox that forbids it: run at the same priority
+        logger.debug("cannot lower the priority of %s: %s", threading.current_thread().name, exc)
 
 
 class PeakWorker:
@@ -91,6 +112,7 @@ class PeakWorker:
             return out
 
     def _run(self) -> None:
+        yield_to_others()
         while True:
             with self._cond:
                 while self._job is None and not self._stop:
@@ -131,6 +153,9 @@ class RingWorker:
     consumer : RingConsumer
         This worker's cursor on the ring.
     """
+
+    #: Niceness the thread adds to its own at start (:func:`yield_to_others`).
+    niceness = 0
 
     def __init__(self, ring: FrameRing, name: str, consumer: RingConsumer) -> None:
         self.ring = ring
@@ -222,6 +247,8 @@ class RingWorker:
         raise NotImplementedError
 
     def _run(self) -> None:
+        if self.niceness:
+            yield_to_others(self.niceness)
         try:
             while not self._stop.is_set():
                 self._apply_commands()
@@ -258,6 +285,8 @@ class DemodWorker(RingWorker):
     every_frame : bool
         Take every frame in order (an ``"every"`` consumer) instead of the newest.
     """
+
+    niceness = YIELDING_NICENESS
 
     def __init__(self, ring: FrameRing, pipeline: LivePipeline, every_frame: bool = False) -> None:
         if every_frame:
