@@ -15,13 +15,15 @@ class LiveFigures:
     ----------
     camera_fps, series_fps, maps_fps, display_fps : float
         Frames per second delivered by the camera, measured by the series (every frame
-        when it keeps up), demodulated into maps (the newest), and drawn.
+        when it keeps up), demodulated into maps (the newest), and shown in the camera
+        view (the newest camera frame at each redraw).
     series_missed : int
         Frames the ring overwrote before the series took them.
     dropped : int
         Frames the camera or transport lost, and frames the recorder missed.
     latency_s : float or None
-        Time from the frame's host timestamp to when it was drawn, seconds.
+        Time from the host timestamp of the newest map's frame to when the map was
+        drawn, seconds.
     camera : str
         What the source is (name, shape, pixel format).
     """
@@ -78,4 +80,4 @@ class LiveStatusBar(QStatusBar):
             f"dropped {figures.dropped}, series missed {figures.series_missed}"
         )
         latency = "-" if figures.latency_s is None else f"{figures.latency_s * 1e3:4.0f} ms"
-        self.latency_label.setText(f"latency {latency}")
+        self.latency_label.setText(f"map latency {latency}")
