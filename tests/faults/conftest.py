@@ -6,9 +6,16 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-from faults_helpers import mounted_tmpfs
+from faults_helpers import mounted_tmpfs, reap_children
 
 from holoview.cli import main
+
+
+@pytest.fixture(autouse=True)
+def _no_child_left() -> Iterator[None]:
+    """Children a failed test left running are killed at its end."""
+    yield
+    reap_children()
 
 
 @pytest.fixture

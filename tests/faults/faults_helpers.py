@@ -5,6 +5,7 @@ A module of its own (not ``conftest``) so that test modules import it by a uniqu
 
 from __future__ import annotations
 
+import errno
 import os
 import signal
 import subprocess
@@ -61,15 +62,30 @@ def run_holoview(*args: str, timeout: float = 120.0, cwd: Path | None = None) ->
     return Done(child.returncode, child.stdout, child.stderr, time.monotonic() - start)
 
 
+#: Children started by :func:`start_holoview` that may still run.
+_children: list[subprocess.Popen[str]] = []
+
+
 def start_holoview(*args: str) -> subprocess.Popen[str]:
     """Start ``python -m holoview ARGS``; stdout and stderr are pipes."""
-    return subprocess.Popen(
+    child = subprocess.Popen(
         [sys.executable, "-m", "holoview", *args],
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
         env=child_env(),
     )
+    _children.append(child)
+    return child
+
+
+def reap_children() -> None:
+    """Kill the started children a failed test left running, and close their pipes."""
+    while _children:
+        child = _children.pop()
+        if child.poll() is None:
+            child.kill()
+        child.communicate()
 
 
 def finish(child: subprocess.Popen[str], timeout: float = 60.0) -> Done:
@@ -121,17 +137,30 @@ def mounted_tmpfs(where: Path, size_mb: int = 20) -> Iterator[Path]:
     try:
         yield where
     finally:
+        reap_children()  # a child still writing there would keep the disk busy
         if subprocess.run(["umount", str(where)], check=False).returncode != 0:
             subprocess.run(["umount", "-l", str(where)], check=False)
 
 
 def fill_disk(folder: Path, leave_bytes: int) -> Path:
-    """Fill the file system of ``folder`` up to ``leave_bytes`` free; return the filler file."""
-    stats = os.statvfs(folder)
-    free = stats.f_bavail * stats.f_frsize
+    """Fill the file system of ``folder`` up to ``leave_bytes`` free; return the filler file.
+
+    Another program may be writing there meanwhile (a recording): the room it takes
+    between measuring and allocating is measured again, until the filler has what
+    is left.
+    """
     filler = folder / "filler"
     with open(filler, "wb") as f:
-        os.posix_fallocate(f.fileno(), 0, max(0, free - leave_bytes))
+        for _ in range(100):
+            stats = os.statvfs(folder)
+            room = stats.f_bavail * stats.f_frsize - leave_bytes
+            if room <= 0:
+                break
+            try:
+                os.posix_fallocate(f.fileno(), os.fstat(f.fileno()).st_size, room)
+            except OSError as exc:
+                if exc.errno != errno.ENOSPC:
+                    raise
     return filler
 
 
