@@ -56,7 +56,7 @@ class HologramView(QWidget):
         self._overlay_shown = False
         self._histogram_at = -math.inf
         self._step = 1
-        self._rect = QRectF()
+        self._placed: tuple[tuple[int, ...], QRectF] | None = None  # shown shape, rectangle
         self.overlay.setZValue(10)
         self.plot.addItem(self.image)
         self.plot.addItem(self.overlay)
@@ -140,10 +140,11 @@ class HologramView(QWidget):
         self._step = 1 if first else self.display_step()
         shown, rect = self._shown(frame, self._step)
         self.image.setImage(shown, autoLevels=False, levels=self._levels)
-        if rect != self._rect:
-            self._rect = rect
+        # setRect scales by the image's shape when called: a new display step changes
+        # the shape shown, not the rectangle, and needs it again
+        if (shown.shape, rect) != self._placed:
+            self._placed = (shown.shape, rect)
             self.image.setRect(rect)
-            self.overlay.setRect(rect)
         now = time.monotonic()
         if first or now - self._histogram_at >= HISTOGRAM_INTERVAL_S:
             self._histogram_at = now
@@ -192,7 +193,7 @@ class HologramView(QWidget):
             return
         self._overlay_shown = True
         step = self._step
-        shown, _ = self._shown(mask, step)
+        shown, rect = self._shown(mask, step)
         shown = shown.copy()
         for dy in range(step):
             for dx in range(step):
@@ -203,6 +204,7 @@ class HologramView(QWidget):
         rgba = np.zeros((*shown.shape, 4), dtype=np.uint8)
         rgba[shown] = SATURATION_RGBA
         self.overlay.setImage(rgba, autoLevels=False)
+        self.overlay.setRect(rect)  # the frame's extent at this step's shape
 
     def saturated_count(self) -> int:
         """Return how many pixels of the current frame are at or above saturation."""

@@ -225,3 +225,25 @@ def test_hologram_subsampled_to_the_screen_keeps_saturation(qtbot) -> None:
     assert view.image.image.shape == (1024 // step, 1024 // step)
     assert view.overlay.image[501 // step, 733 // step, 0] == 255
     assert view.readout_at(733.5, 501.5) == "row 501, column 733: 4095"
+
+
+@pytest.mark.qt_log_ignore(r"This plugin does not support propagateSizeHints\(\)")
+@pytest.mark.parametrize("shape", [(1024, 1024), (600, 1000), (1000, 601)])
+def test_hologram_shows_the_whole_frame_at_every_display_step(qtbot, shape) -> None:
+    """After frames at a display step > 1, image and overlay cover the frame's extent."""
+    view = HologramView()
+    qtbot.addWidget(view)
+    view.resize(300, 300)
+    view.show()
+    frame = np.full(shape, 100, np.uint16)
+    frame[-1, -1] = 4095  # a saturated pixel in the last corner
+    view.set_saturation_value(4095)
+    for _ in range(3):
+        view.set_frame(frame)
+    step = view.display_step()
+    assert step >= 2
+    rows, cols = (shape[0] // step) * step, (shape[1] // step) * step
+    for item in (view.image, view.overlay):
+        extent = item.mapRectToParent(item.boundingRect())  # in data coordinates
+        assert (extent.left(), extent.top()) == (0, 0)
+        assert (extent.width(), extent.height()) == pytest.approx((cols, rows))
