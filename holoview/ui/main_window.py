@@ -18,7 +18,7 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
-from PyQt6.QtCore import QByteArray, Qt, QTimer, pyqtSignal
+from PyQt6.QtCore import QByteArray, QRect, Qt, QTimer, pyqtSignal
 from PyQt6.QtGui import QAction, QCloseEvent, QKeySequence
 from PyQt6.QtWidgets import (
     QDockWidget,
@@ -44,6 +44,13 @@ from holoview.ui.spectrum_view import SpectrumView
 from holoview.ui.status_bar import LiveFigures, LiveStatusBar
 from holoview.ui.surface_view import FUSED, SurfaceView
 from holoview.ui.trends_view import TrendsView
+from holoview.ui.window_layout import (
+    FRAME_ALLOWANCE,
+    arrange_docks,
+    fitted,
+    initial_size,
+    layout_for,
+)
 
 logger = logging.getLogger(__name__)
 
@@ -127,27 +134,16 @@ class MainWindow(QMainWindow):
         central = QWidget()
         central.setMaximumSize(0, 0)
         self.setCentralWidget(central)
-        left = Qt.DockWidgetArea.LeftDockWidgetArea
-        right = Qt.DockWidgetArea.RightDockWidgetArea
-        horizontal, vertical = Qt.Orientation.Horizontal, Qt.Orientation.Vertical
-        self._add_dock("Source", self.source_panel, left)
-        self._add_dock("Recording", self.recording_panel, left)
-        self._add_dock("Hologram", self.hologram, left)
-        self._add_dock("Spectrum", self.spectrum, left)
-        self._add_dock("Surface", self.surface, right)
-        self._add_dock("Trends", self.trends, right)
-        self.splitDockWidget(self.docks["Source"], self.docks["Hologram"], horizontal)
-        self.splitDockWidget(self.docks["Hologram"], self.docks["Spectrum"], vertical)
-        self.splitDockWidget(self.docks["Surface"], self.docks["Trends"], vertical)
-        self.tabifyDockWidget(self.docks["Source"], self.docks["Recording"])
-        self.docks["Source"].raise_()
-        self.resize(1800, 1000)
-        self.resizeDocks(
-            [self.docks["Source"], self.docks["Hologram"], self.docks["Surface"]],
-            [330, 620, 850],
-            horizontal,
-        )
-        self.resizeDocks([self.docks["Surface"], self.docks["Trends"]], [620, 380], vertical)
+        self._add_dock("Source", self.source_panel)
+        self._add_dock("Recording", self.recording_panel)
+        self._add_dock("Hologram", self.hologram)
+        self._add_dock("Spectrum", self.spectrum)
+        self._add_dock("Surface", self.surface)
+        self._add_dock("Trends", self.trends)
+        available = self.screen().availableGeometry().size()
+        self.resize(initial_size(available))
+        self.dock_layout = layout_for(available)
+        arrange_docks(self, self.docks, self.dock_layout)
         self._default_state = self.saveState()
         self._make_actions()
         self._connect()
@@ -174,11 +170,10 @@ class MainWindow(QMainWindow):
             self.start_source(source)
 
     # ---- construction ------------------------------------------------------
-    def _add_dock(self, title: str, widget: QWidget, area: Qt.DockWidgetArea) -> None:
+    def _add_dock(self, title: str, widget: QWidget) -> None:
         dock = QDockWidget(title, self)
         dock.setObjectName(f"dock-{title.lower()}")
         dock.setWidget(widget)
-        self.addDockWidget(area, dock)
         self.docks[title] = dock
 
     def _make_actions(self) -> None:
@@ -619,6 +614,19 @@ class MainWindow(QMainWindow):
             self.restoreGeometry(geometry)
         if isinstance(state, QByteArray):
             self.restoreState(state)
+        self.fit_to_screen()
+
+    def fit_to_screen(self) -> None:
+        """Move and shrink the window (a restored geometry too) into its screen's free area."""
+        self.layout().activate()  # the docks' minimum sizes as they are arranged now
+        frame, client = self.frameGeometry(), self.geometry()
+        margins = frame.size() - client.size()
+        if not self.isVisible():  # the window manager's frame is not known yet
+            margins = margins.expandedTo(FRAME_ALLOWANCE)
+            frame = QRect(frame.topLeft(), client.size() + margins)
+        position, size = fitted(frame, margins, self.screen().availableGeometry())
+        self.resize(size)
+        self.move(position)
 
     def save_layout(self) -> None:
         """Remember the window geometry and dock layout (QSettings)."""

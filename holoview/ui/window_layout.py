@@ -1,0 +1,110 @@
+"""Where the main window's docks go, by the screen's size, and a window that fits its screen.
+
+Three layouts, chosen from the available screen area (the screen less task bars):
+
+- **wide** (at least :data:`WIDE` pixels): three columns, the controls (Source and
+  Recording, tabbed), the camera (Hologram over Spectrum), the results (Surface over
+  Trends);
+- **medium** (a laptop's 1366 x 768): the same columns, Surface and Trends tabbed so
+  that the maps keep their height;
+- **compact** (below :data:`MEDIUM`, down to 1024 x 600 and less): two columns, the
+  controls and one tab group of Spectrum, Hologram, Surface and Trends.
+
+Every dock stays reachable: a tabbed dock is one click away, and the window (restored
+geometry included) is moved and shrunk into the available area.
+"""
+
+from __future__ import annotations
+
+from PyQt6.QtCore import QPoint, QRect, QSize, Qt
+from PyQt6.QtWidgets import QDockWidget, QMainWindow
+
+#: Smallest available area (width, height) of the wide and of the medium layout, pixels.
+WIDE = (1600, 900)
+MEDIUM = (1200, 700)
+#: The window's size where the screen has room for it, pixels.
+PREFERRED = QSize(1800, 1000)
+#: Room left for a window manager's frame (title bar, borders) before the window is
+#: shown and its frame known, pixels.
+FRAME_ALLOWANCE = QSize(16, 40)
+
+
+def layout_for(available: QSize) -> str:
+    """``"wide"``, ``"medium"`` or ``"compact"`` for an available screen area."""
+    if available.width() >= WIDE[0] and available.height() >= WIDE[1]:
+        return "wide"
+    if available.width() >= MEDIUM[0] and available.height() >= MEDIUM[1]:
+        return "medium"
+    return "compact"
+
+
+def arrange_docks(window: QMainWindow, docks: dict[str, QDockWidget], layout: str) -> None:
+    """Place the docks (``Source``, ``Recording``, ``Hologram``, ``Spectrum``, ``Surface``,
+    ``Trends``) of ``window`` in ``layout`` and size the columns to its width."""
+    left = Qt.DockWidgetArea.LeftDockWidgetArea
+    right = Qt.DockWidgetArea.RightDockWidgetArea
+    horizontal, vertical = Qt.Orientation.Horizontal, Qt.Orientation.Vertical
+    for name in ("Source", "Recording", "Hologram", "Spectrum"):
+        window.addDockWidget(left, docks[name])
+    for name in ("Surface", "Trends"):
+        window.addDockWidget(right, docks[name])
+    window.splitDockWidget(docks["Source"], docks["Hologram"], horizontal)
+    window.tabifyDockWidget(docks["Source"], docks["Recording"])
+    width = window.width()
+    if layout == "compact":
+        window.splitDockWidget(docks["Hologram"], docks["Spectrum"], vertical)
+        for name in ("Hologram", "Surface", "Trends"):
+            window.tabifyDockWidget(docks["Spectrum"], docks[name])
+        docks["Spectrum"].raise_()
+        window.resizeDocks(
+            [docks["Source"], docks["Spectrum"]], [width // 4, width - width // 4], horizontal
+        )
+    else:
+        window.splitDockWidget(docks["Hologram"], docks["Spectrum"], vertical)
+        window.splitDockWidget(docks["Surface"], docks["Trends"], vertical)
+        if layout == "medium":
+            window.tabifyDockWidget(docks["Surface"], docks["Trends"])
+            docks["Surface"].raise_()
+        window.resizeDocks(
+            [docks["Source"], docks["Hologram"], docks["Surface"]],
+            [width * 18 // 100, width * 35 // 100, width * 47 // 100],
+            horizontal,
+        )
+        if layout == "wide":
+            height = window.height()
+            shares = [height * 62 // 100, height * 38 // 100]
+            window.resizeDocks([docks["Surface"], docks["Trends"]], shares, vertical)
+    docks["Source"].raise_()
+
+
+def fitted(frame: QRect, frame_margins: QSize, available: QRect) -> tuple[QPoint, QSize]:
+    """Return where to move the window and its client size so that it fits ``available``.
+
+    Parameters
+    ----------
+    frame : QRect
+        The window's frame geometry now (its client area plus ``frame_margins``).
+    frame_margins : QSize
+        Width and height the frame adds to the client area.
+    available : QRect
+        The screen's available geometry.
+
+    Returns
+    -------
+    (QPoint, QSize)
+        The frame's top-left corner (for ``move``) and the client size (for ``resize``).
+    """
+    width = min(frame.width(), available.width())
+    height = min(frame.height(), available.height())
+    x = min(max(frame.x(), available.x()), available.right() + 1 - width)
+    y = min(max(frame.y(), available.y()), available.bottom() + 1 - height)
+    client = QSize(max(1, width - frame_margins.width()), max(1, height - frame_margins.height()))
+    return QPoint(x, y), client
+
+
+def initial_size(available: QSize) -> QSize:
+    """The window's first size: :data:`PREFERRED`, or the available area less a frame."""
+    return QSize(
+        min(PREFERRED.width(), available.width() - FRAME_ALLOWANCE.width()),
+        min(PREFERRED.height(), available.height() - FRAME_ALLOWANCE.height()),
+    )
