@@ -4,10 +4,11 @@ Frames come from :func:`holoview.optics.scenarios.simulate` (the paper's forward
 model, fast synthesis) and go to a holoview recording (layout in
 :mod:`holoview.acquire.recording`; ``source`` is ``"simulate:SCENARIO"``, the setup
 attributes are :meth:`holoview.optics.setup.Setup.as_attributes`, and the stored
-experiment labels RF, RB1 and FB1 on their true twins (the lattice names the rest),
-:func:`true_experiment`, so ``holoview process`` needs no peak options). After the
-writer closes, this command reopens the file and adds the truth. The recording and
-the figure are written under temporary names and renamed when complete
+experiment labels RF, RB1 and FB1 on their true twins (the lattice names the rest:
+:func:`holoview.engine.true_labels.true_experiment`), so ``holoview process`` needs no
+peak options. After the writer closes, this command reopens the file and adds the
+truth. The recording and the figure are written under temporary names and renamed
+when complete
 (:mod:`holoview.atomic`): a simulation that fails or is stopped leaves no file, and
 neither an existing recording nor an existing figure is overwritten. Every option
 is checked before the simulation starts.
@@ -53,7 +54,6 @@ if TYPE_CHECKING:
 
     import numpy as np
 
-    from holoview.engine.experiment import Experiment
     from holoview.optics.families import Family
     from holoview.optics.scenarios import FrameTruth, ScenarioConfig
     from holoview.optics.setup import Setup
@@ -68,10 +68,6 @@ MAX_SIZE = 8192
 
 #: Seeds are stored as an int64 attribute.
 MAX_SEED = 2**63 - 1
-
-#: A first-order family is labelled in the stored experiment when its peak reaches this
-#: fraction of the mean intensity (the figure marks the same peaks).
-VISIBLE_AMPLITUDE = 1e-3
 
 #: The scenario config fields and the SI unit suffixes of their /truth attributes.
 _CONFIG_UNITS = {
@@ -306,20 +302,6 @@ def write_truth(
         table["peak_displacement_m"] = np.array([p[1:] for p in peaks]).reshape(-1, 2)
 
 
-def visible_amplitudes(setup: Setup, families: list[Family]) -> dict[str, float]:
-    """Return each family's peak size: the coherent field sum for first orders.
-
-    Pairs sharing a carrier add up (and cancel, at FB_j near a lossless mirror); a
-    second-order peak keeps its own amplitude.
-    """
-    from holoview.optics.families import coherent_amplitude
-
-    return {
-        f.label: f.amplitude if f.kind == "second-order" else coherent_amplitude(setup, f.label)
-        for f in families
-    }
-
-
 def spectrum_figure(
     frame: np.ndarray,
     families: list[Family],
@@ -335,6 +317,8 @@ def spectrum_figure(
     """
     import cv2
     import numpy as np
+
+    from holoview.engine.true_labels import VISIBLE_AMPLITUDE
 
     data = frame.astype(np.float64)
     low, high = np.percentile(data, (0.5, 99.5))
@@ -397,31 +381,6 @@ def check_outputs(args: argparse.Namespace) -> None:
         raise InputError(f"--png {args.png}: no image writer for that suffix (use .png)")
 
 
-def true_experiment(setup: Setup, families: list[Family], visible: dict[str, float]) -> Experiment:
-    """The experiment an operator would set on this bench: its optics and true labels.
-
-    RF, RB1 and FB1, where their peak is at least :data:`VISIBLE_AMPLITUDE` of the mean
-    intensity, are labelled where the camera sees them (folded back when past
-    Nyquist), on the twin whose phase grows with the height, as an operator labels
-    them at alignment; the carrier lattice names the other families where they are
-    detected (two of the three fix it).
-    """
-    from holoview.engine.experiment import Experiment, LabelledPeak
-
-    peaks = tuple(
-        LabelledPeak(f.label, f.observed_carrier)
-        for f in families
-        if f.label in ("RF", "RB1", "FB1") and visible[f.label] >= VISIBLE_AMPLITUDE
-    )
-    return Experiment(
-        wavelength_m=setup.wavelength,
-        pixel_pitch_m=setup.pixel_pitch,
-        n1=setup.n1,
-        n2=setup.n2,
-        peaks=peaks,
-    )
-
-
 def run(args: argparse.Namespace) -> int:
     """Simulate, write the recording and its truth, and the figure if asked."""
     import dataclasses
@@ -432,6 +391,7 @@ def run(args: argparse.Namespace) -> int:
 
     from holoview.acquire.recording import RecordingWriter
     from holoview.atomic import atomic_path
+    from holoview.engine.true_labels import true_experiment, visible_amplitudes
     from holoview.optics.families import predict_families
     from holoview.optics.scenarios import make_surface, simulate
 

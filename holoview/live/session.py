@@ -22,10 +22,12 @@ import numpy as np
 from holoview.acquire.camera_thread import CameraThread
 from holoview.acquire.pixel_formats import PIXEL_FORMATS
 from holoview.acquire.recorder import Recorder
+from holoview.acquire.recording import RecordingReader
 from holoview.acquire.ring import FrameRing
 from holoview.acquire.source import FrameMeta, Source
 from holoview.engine.depth import DepthSummary
 from holoview.engine.experiment import Experiment
+from holoview.engine.true_labels import true_experiment
 from holoview.errors import HoloviewError, InputError
 from holoview.live.pipeline import LivePipeline, LiveResult
 from holoview.live.trends import SeriesPipeline, TrendSummary
@@ -233,6 +235,31 @@ class LiveSession:
             except HoloviewError as exc:
                 logger.warning("%s: pixel format unreadable: %s", self.source.name, exc)
         return fmt.bits if fmt is not None else np.dtype(self.source.dtype).itemsize * 8
+
+    def known_experiment(self) -> tuple[Experiment, str] | None:
+        """The labels the source itself knows, and where they come from; None if none.
+
+        The simulated camera's true labels
+        (:func:`~holoview.engine.true_labels.true_experiment`); a replayed recording's
+        stored experiment (the last it carries: the labels in force when it ended).
+
+        Raises
+        ------
+        HoloviewError
+            A recording's stored experiment that cannot be read (named).
+        """
+        setup = getattr(self.source, "sim_setup", None)
+        if setup is not None:
+            return true_experiment(setup), "the simulator's setup"
+        path = getattr(self.source, "path", None)
+        if not isinstance(path, Path) or path.suffix.lower() not in (".h5", ".hdf5"):
+            return None
+        with RecordingReader(path) as reader:
+            stored = reader.experiments()
+        if not stored:
+            return None
+        where = f"{path.name}'s stored experiment"
+        return Experiment.from_json(stored[-1][1], where=where), f"the recording {path.name}"
 
     # ---- source settings ---------------------------------------------------
     def source_setup(self) -> dict[str, Any]:

@@ -105,6 +105,7 @@ class MainWindow(QMainWindow):
         self.display_rate = RateMeter()
         self.last_latency_s: float | None = None
         self._banner_until = 0.0
+        self._known: tuple[Experiment, str] | None = None
         self.experiment_path = experiment_path or default_experiment_path()
         self.experiment = Experiment()
         self.optics = dict(optics or {})
@@ -231,6 +232,7 @@ class MainWindow(QMainWindow):
         self.spectrum.peakLabelled.connect(self.label_peak)
         self.spectrum.labelCleared.connect(self.clear_label)
         self.spectrum.radiusChanged.connect(self.set_radius)
+        self.spectrum.suggestionsAccepted.connect(self.use_known_labels)
         self.spectrum.message.connect(self.show_message)
         self.surface.referenceChanged.connect(self.set_reference)
         self.trends.pcaRequested.connect(self._pca_requested)
@@ -294,6 +296,7 @@ class MainWindow(QMainWindow):
         self._drawn = None
         self.session.on_maps(self.mapsReady.emit)
         self._adopt_source_setup(self.session.source_setup())
+        self._learn_known_labels()
         self.hologram.set_saturation_value(self.session.saturation_value)
         self.source_panel.set_settings(
             self.session.describe_settings(), self.session.read_settings()
@@ -362,24 +365,50 @@ class MainWindow(QMainWindow):
         self.experiment = experiment
         if self.session is not None:
             self.session.set_experiment(experiment)
+        self._offer_known_labels()
         try:
             experiment.save(self.experiment_path)
         except OSError as exc:
             self.show_message(f"cannot save experiment settings to {self.experiment_path}: {exc}")
 
+    def _learn_known_labels(self) -> None:
+        """Ask the new source which labels it knows (simulator, recording)."""
+        try:
+            self._known = self.session.known_experiment() if self.session else None
+        except HoloviewError as exc:
+            self._known = None
+            self.show_message(f"no labels to suggest: {exc}")
+        self._offer_known_labels()
+
+    def _offer_known_labels(self) -> None:
+        """Draw the known labels on the spectrum while no peak is labelled."""
+        offer = self._known if self._known and self._known[0].peaks else None
+        if offer is None or self.experiment.peaks:
+            self.spectrum.set_suggestions({})
+            return
+        experiment, where = offer
+        self.spectrum.set_suggestions({p.label: p.carrier for p in experiment.peaks}, where)
+
+    def use_known_labels(self) -> None:
+        """Label the peaks the source knows (the spectrum's "Use these labels")."""
+        if not self._known or not self._known[0].peaks:
+            self.show_message("this source suggests no labels: click a peak to name it")
+            return
+        experiment, where = self._known
+        self._set_experiment(replace(self.experiment, peaks=experiment.peaks))
+        names = ", ".join(p.label for p in experiment.peaks)
+        self.status.showMessage(f"labelled {names} from {where}", 6000)
+
     def suggested_labels(self) -> list[tuple[str, float, float]]:
-        """Return ``(label, fx, fy)`` for RB1 and FB1, for scripted runs.
+        """Return ``(label, fx, fy)`` to label, for scripted runs.
 
-        Where the simulated camera's setup puts them when the source is the simulator;
-        otherwise the two brightest detected peaks, the brightest taken as RB1 (the
-        paper's procedure). Fewer than two when fewer peaks were detected.
+        The labels the source knows (the simulator's true RF, RB1 and FB1, a recording's
+        stored labels); otherwise the two brightest detected peaks as RB1 and FB1, the
+        brightest taken as RB1 (the paper's procedure). Fewer than two when fewer peaks
+        were detected.
         """
-        from holoview.optics.families import predict_families
-
-        setup = getattr(self.session.source, "sim_setup", None) if self.session else None
-        if setup is not None:
-            families = {f.label: f.carrier for f in predict_families(setup)}
-            return [(name, *families[name]) for name in ("RB1", "FB1")]
+        if self._known and self._known[0].peaks:
+            return [(p.label, *p.carrier) for p in self._known[0].peaks]
         peaks = self._last_result.peaks[:2] if self._last_result else []
         return [(name, *c) for name, c in zip(("RB1", "FB1"), peaks, strict=False)]
 

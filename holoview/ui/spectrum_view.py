@@ -13,9 +13,18 @@ from collections.abc import Callable, Mapping, Sequence
 
 import numpy as np
 import pyqtgraph as pg
-from PyQt6.QtCore import QRectF, pyqtSignal
+from PyQt6.QtCore import QRectF, Qt, pyqtSignal
 from PyQt6.QtGui import QCursor
-from PyQt6.QtWidgets import QInputDialog, QLabel, QMenu, QVBoxLayout, QWidget
+from PyQt6.QtWidgets import (
+    QGraphicsEllipseItem,
+    QHBoxLayout,
+    QInputDialog,
+    QLabel,
+    QMenu,
+    QPushButton,
+    QVBoxLayout,
+    QWidget,
+)
 
 from holoview.engine.experiment import PEAK_LABELS
 from holoview.engine.peak_geometry import Carrier, swallowed_neighbour, window_warnings
@@ -25,6 +34,13 @@ from holoview.processing.snapping import SNAP_BINS, snap
 LABEL_COLOUR = "#33ddff"
 #: Pen colour of model-predicted carriers.
 PREDICTED_COLOUR = "#ffd24d"
+#: Pen colour of the labels a source suggests before the operator accepts them.
+SUGGESTED_COLOUR = "#b0b0b0"
+#: What the spectrum says while no peak is labelled.
+FIRST_STEP = (
+    "No peak labelled yet: click a bright peak and name it (RB1, FB1, RF); "
+    "two names let the model name the others."
+)
 #: Margin around the spectrum plot, pixels, so that the end tick labels show.
 SPECTRUM_MARGIN_PX = 10.0
 #: Choice returned by the label menu to remove a label.
@@ -66,6 +82,8 @@ class SpectrumView(QWidget):
         The operator removed this label.
     radiusChanged(float)
         New window radius in cycles per pixel, after a drag that was accepted.
+    suggestionsAccepted()
+        The operator took the labels the source suggests (:meth:`set_suggestions`).
     message(str)
         A problem to show the operator (no peak near the click, radius refused).
     """
@@ -73,6 +91,7 @@ class SpectrumView(QWidget):
     peakLabelled = pyqtSignal(str, float, float)
     labelCleared = pyqtSignal(str)
     radiusChanged = pyqtSignal(float)
+    suggestionsAccepted = pyqtSignal()
     message = pyqtSignal(str)
 
     def __init__(self, parent: QWidget | None = None) -> None:
@@ -87,6 +106,9 @@ class SpectrumView(QWidget):
         self._levels: tuple[float, float] | None = None
         self._circles: dict[str, pg.CircleROI] = {}
         self._texts: list[pg.TextItem] = []
+        self._suggested: dict[str, Carrier] = {}
+        self._suggested_from = ""
+        self._suggestion_items: list[pg.GraphicsObject] = []
         self._updating = False
 
         self.graphics = pg.GraphicsLayoutWidget()
@@ -122,12 +144,26 @@ class SpectrumView(QWidget):
         self.warning_label.hide()
         hint = QLabel("click near a peak to label it; drag a circle's handle to change the radius")
         hint.setStyleSheet("color: gray;")
+        hint.setWordWrap(True)
+        self.first_step = QLabel(FIRST_STEP)
+        self.first_step.setWordWrap(True)
+        self.first_step.setStyleSheet("font-weight: bold;")
+        self.use_suggestions = QPushButton("Use these labels")
+        self.use_suggestions.setToolTip("label the peaks where the source says they are")
+        self.use_suggestions.clicked.connect(self.suggestionsAccepted.emit)
+        self.first_run = QWidget()
+        row = QHBoxLayout(self.first_run)
+        row.setContentsMargins(4, 2, 4, 2)
+        row.addWidget(self.first_step, 1)
+        row.addWidget(self.use_suggestions)
         layout = QVBoxLayout(self)
         layout.setContentsMargins(2, 2, 2, 2)
+        layout.addWidget(self.first_run)
         layout.addWidget(self.graphics, 1)
         layout.addWidget(self.warning_label)
         layout.addWidget(hint)
         self.graphics.scene().sigMouseClicked.connect(self._scene_clicked)
+        self._show_first_run()
 
     # ---- data in -------------------------------------------------------------
     @property
@@ -260,6 +296,57 @@ class SpectrumView(QWidget):
         finally:
             self._updating = False
         self._show_warnings(window_warnings(self._labelled, self._radius, self._predicted))
+        self._show_first_run()
+
+    def set_suggestions(self, labels: Mapping[str, Carrier], where: str = "") -> None:
+        """Show the labels a source suggests (grey, dashed) while no peak is labelled.
+
+        Parameters
+        ----------
+        labels : mapping of str to (float, float)
+            Suggested label and carrier, cycles per pixel; empty: no suggestion.
+        where : str
+            Where they come from, for the hint (``the simulator's setup``).
+        """
+        suggested = {k: (float(v[0]), float(v[1])) for k, v in labels.items()}
+        if suggested == self._suggested and where == self._suggested_from:
+            return
+        self._suggested, self._suggested_from = suggested, where
+        self._show_first_run()
+
+    @property
+    def suggestions(self) -> dict[str, Carrier]:
+        """The suggested labels drawn now (none once a peak is labelled)."""
+        return dict(self._suggested) if self._suggestion_items else {}
+
+    def _show_first_run(self) -> None:
+        """The first step's hint and the suggestions, while no peak is labelled."""
+        for item in self._suggestion_items:
+            self.plot.removeItem(item)
+        self._suggestion_items = []
+        first = not self._labelled
+        self.first_run.setVisible(first)
+        offer = first and bool(self._suggested)
+        self.use_suggestions.setVisible(offer)
+        if not offer:
+            self.first_step.setText(FIRST_STEP)
+            return
+        names = ", ".join(self._suggested)
+        self.first_step.setText(
+            f"No peak labelled yet. {self._suggested_from or 'The source'} suggests {names} "
+            "(grey): use them, or click a peak to name it."
+        )
+        r = self._radius
+        pen = pg.mkPen(SUGGESTED_COLOUR, width=1.5, style=Qt.PenStyle.DashLine)
+        for name, (fx, fy) in self._suggested.items():
+            circle = QGraphicsEllipseItem(fx - r, fy - r, 2 * r, 2 * r)
+            circle.setPen(pen)
+            text = pg.TextItem(f"{name} (suggested)", color=SUGGESTED_COLOUR, anchor=(0, 1))
+            text.setPos(fx + 0.01, fy - 0.01)
+            for item in (circle, text):
+                item.setZValue(15)
+                self.plot.addItem(item)
+                self._suggestion_items.append(item)
 
     def _add_text(self, text: str, fx: float, fy: float, colour: str) -> None:
         item = pg.TextItem(text, color=colour, anchor=(0, 1))

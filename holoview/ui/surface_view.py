@@ -45,6 +45,11 @@ COLOUR_BAR_WIDTH_PX = 90.0
 #: Entries per column of the profile's legend (more go in further columns), so
 #: that the legend fits the short profile plot.
 LEGEND_ROWS = 3
+#: What the panel says before the first maps.
+NO_MAPS = (
+    "No maps yet. Label a peak in the Spectrum (click it and name it), or take the "
+    "labels it suggests: a delta-h map per labelled peak and the fused map appear here."
+)
 #: Default line, as fractions of (width, height): a horizontal diameter.
 DEFAULT_LINE = ((0.05, 0.5), (0.95, 0.5))
 
@@ -171,7 +176,14 @@ class SurfaceView(QWidget):
         splitter.setSizes([500, 200])
         layout = QVBoxLayout(self)
         layout.setContentsMargins(2, 2, 2, 2)
+        self.empty_hint = QLabel(NO_MAPS)
+        self.empty_hint.setWordWrap(True)
+        self.empty_hint.setAlignment(Qt.AlignmentFlag.AlignCenter)
+        self.empty_hint.setStyleSheet("color: gray; font-size: 11pt; padding: 24px;")
+        self.splitter = splitter
+        splitter.hide()
         layout.addLayout(controls)
+        layout.addWidget(self.empty_hint, 1)
         layout.addWidget(splitter, 1)
 
     @property
@@ -321,6 +333,8 @@ class SurfaceView(QWidget):
         self._lay_out(names)
         self._apply_cmap()
         self._names = names
+        self.empty_hint.setVisible(not names)
+        self.splitter.setVisible(bool(names))
         self._make_line_items()
         for curve in self.curves.values():
             self.profile.removeItem(curve)

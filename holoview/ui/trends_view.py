@@ -53,12 +53,20 @@ class TrendsView(QWidget):
         row.addWidget(self.reset_button)
         layout = QVBoxLayout(self)
         layout.setContentsMargins(2, 2, 2, 2)
+        self.empty_hint = QLabel(
+            "Trends start once a peak is labelled in the Spectrum: the mean depth change of "
+            "every labelled peak and the fused depth, from every camera frame."
+        )
+        self.empty_hint.setWordWrap(True)
+        self.empty_hint.setStyleSheet("color: gray;")
         layout.addLayout(row)
+        layout.addWidget(self.empty_hint)
         layout.addWidget(self.plot, 1)
         layout.addWidget(self.pca_label)
 
     def set_series(self, times_s: np.ndarray, depths_m: Mapping[str, np.ndarray]) -> None:
         """Show the mean depth change (metres, shown in nm) of each series against time (s)."""
+        self.empty_hint.setVisible(not depths_m)
         for name in list(self.curves):
             if name not in depths_m:
                 self.plot.removeItem(self.curves.pop(name))
