@@ -30,7 +30,7 @@ from PyQt6.QtWidgets import (
 )
 
 from holoview import __version__
-from holoview.engine.experiment import Experiment, LabelledPeak, default_experiment_path
+from holoview.engine.experiment import Experiment, default_experiment_path
 from holoview.errors import HoloviewError
 from holoview.live.rates import RateMeter
 from holoview.live.session import LiveResult, LiveSession, RecordRequest, discover_sources
@@ -44,6 +44,7 @@ from holoview.ui.spectrum_view import SpectrumView
 from holoview.ui.status_bar import LiveFigures, LiveStatusBar
 from holoview.ui.surface_view import FUSED, SurfaceView
 from holoview.ui.trends_view import TrendsView
+from holoview.ui.window_experiment import ExperimentActions
 from holoview.ui.window_layout import (
     FRAME_ALLOWANCE,
     arrange_docks,
@@ -60,7 +61,7 @@ REDRAW_HZ = 30.0
 BANNER_S = 8.0
 
 
-class MainWindow(QMainWindow):
+class MainWindow(ExperimentActions, QMainWindow):
     """holoview's live window.
 
     Parameters
@@ -360,81 +361,7 @@ class MainWindow(QMainWindow):
         self.source_panel.show_values(self.session.read_settings())
         self.source_panel.set_streaming(self.session.running, self.session.description)
 
-    # ---- experiment --------------------------------------------------------
-    def _set_experiment(self, experiment: Experiment) -> None:
-        self.experiment = experiment
-        if self.session is not None:
-            self.session.set_experiment(experiment)
-        self._offer_known_labels()
-        try:
-            experiment.save(self.experiment_path)
-        except OSError as exc:
-            self.show_message(f"cannot save experiment settings to {self.experiment_path}: {exc}")
-
-    def _learn_known_labels(self) -> None:
-        """Ask the new source which labels it knows (simulator, recording)."""
-        try:
-            self._known = self.session.known_experiment() if self.session else None
-        except HoloviewError as exc:
-            self._known = None
-            self.show_message(f"no labels to suggest: {exc}")
-        self._offer_known_labels()
-
-    def _offer_known_labels(self) -> None:
-        """Draw the known labels on the spectrum while no peak is labelled."""
-        offer = self._known if self._known and self._known[0].peaks else None
-        if offer is None or self.experiment.peaks:
-            self.spectrum.set_suggestions({})
-            return
-        experiment, where = offer
-        self.spectrum.set_suggestions({p.label: p.carrier for p in experiment.peaks}, where)
-
-    def use_known_labels(self) -> None:
-        """Label the peaks the source knows (the spectrum's "Use these labels")."""
-        if not self._known or not self._known[0].peaks:
-            self.show_message("this source suggests no labels: click a peak to name it")
-            return
-        experiment, where = self._known
-        self._set_experiment(replace(self.experiment, peaks=experiment.peaks))
-        names = ", ".join(p.label for p in experiment.peaks)
-        self.status.showMessage(f"labelled {names} from {where}", 6000)
-
-    def suggested_labels(self) -> list[tuple[str, float, float]]:
-        """Return ``(label, fx, fy)`` to label, for scripted runs.
-
-        The labels the source knows (the simulator's true RF, RB1 and FB1, a recording's
-        stored labels); otherwise the two brightest detected peaks as RB1 and FB1, the
-        brightest taken as RB1 (the paper's procedure). Fewer than two when fewer peaks
-        were detected.
-        """
-        if self._known and self._known[0].peaks:
-            return [(p.label, *p.carrier) for p in self._known[0].peaks]
-        peaks = self._last_result.peaks[:2] if self._last_result else []
-        return [(name, *c) for name, c in zip(("RB1", "FB1"), peaks, strict=False)]
-
-    def label_peak(self, label: str, fx: float, fy: float) -> None:
-        """Name the peak at ``(fx, fy)`` cycles per pixel ``label``."""
-        self._set_experiment(self.experiment.with_peak(LabelledPeak(label, (fx, fy))))
-        self.status.showMessage(f"labelled {label} at ({fx:+.4f}, {fy:+.4f}) cycles/px", 4000)
-
-    def clear_label(self, label: str) -> None:
-        """Forget the peak named ``label``."""
-        self._set_experiment(self.experiment.without_label(label))
-
-    def set_radius(self, radius: float) -> None:
-        """Use window radius ``radius`` cycles per pixel."""
-        try:
-            self._set_experiment(replace(self.experiment, radius=radius))
-        except HoloviewError as exc:
-            self.show_message(str(exc))
-
-    def set_reference(self, mode: str) -> None:
-        """Use reference mode ``mode`` (relative, absolute, synthetic)."""
-        try:
-            self._set_experiment(replace(self.experiment, reference=mode))
-        except HoloviewError as exc:
-            self.show_message(str(exc))
-
+    # ---- trends -----------------------------------------------------------
     def _pca_requested(self, on: bool) -> None:
         if self.session is not None:
             self.session.set_pca(on)
@@ -442,47 +369,6 @@ class MainWindow(QMainWindow):
     def _reset_trends(self) -> None:
         if self.session is not None:
             self.session.reset_trends()
-
-    def _load_experiment_at_start(self) -> str | None:
-        problem = None
-        if self.experiment_path.exists():
-            try:
-                self.experiment = Experiment.load(self.experiment_path)
-            except HoloviewError as exc:
-                problem = f"experiment settings ignored: {exc}"
-        try:
-            self.experiment = replace(self.experiment, **self.optics)
-        except HoloviewError as exc:
-            problem = f"optics options ignored: {exc}"
-            self.optics = {}
-        return problem
-
-    def load_experiment(self, path: Path) -> None:
-        """Read experiment settings from ``path`` and use them."""
-        try:
-            experiment = Experiment.load(path)
-        except HoloviewError as exc:
-            self.show_message(str(exc))
-            return
-        self._set_experiment(experiment)
-        self.surface.set_reference(experiment.reference)
-
-    def load_experiment_dialog(self) -> None:
-        """Ask for an experiment settings file and load it."""
-        path, _ = QFileDialog.getOpenFileName(self, "Load experiment settings", "", "JSON (*.json)")
-        if path:
-            self.load_experiment(Path(path))
-
-    def save_experiment_dialog(self) -> None:
-        """Ask where to save the experiment settings."""
-        path, _ = QFileDialog.getSaveFileName(
-            self, "Save experiment settings", str(self.experiment_path), "JSON (*.json)"
-        )
-        if path:
-            try:
-                self.experiment.save(Path(path))
-            except OSError as exc:
-                self.show_message(f"cannot save {path}: {exc}")
 
     # ---- recording ---------------------------------------------------------
     def start_recording(self, request: RecordRequest) -> None:
