@@ -2,15 +2,16 @@
 
 Usage::
 
-    xvfb-run -a -s "-screen 0 1920x1080x24" .venv/bin/python scripts/screenshots.py \\
-        [--source sim] [--out resources/screenshots] [--label RB1=FX,FY --label FB1=FX,FY]
+    xvfb-run -a -s "-screen 0 1366x768x24" .venv/bin/python scripts/screenshots.py \\
+        [--source sim] [--size 1024] [--out resources/screenshots] [--label RB1=FX,FY ...]
 
-States saved, one PNG each: ``1-start`` (frames, spectrum, detected peaks),
-``2-labelled`` (two peaks labelled: predicted carriers, windows, maps, profile),
-``3-phase`` (the same maps as phase with the cyclic colour map), ``4-recording``
-(a recording running, its indicator), ``5-trends`` (the depth series and rate).
-Without ``--label`` the two brightest detected peaks are labelled RB1 and FB1
-(the paper's procedure names the brightest RB1).
+The window opens as it would on that screen (its own layout for the screen's size),
+and the PNGs go to ``OUT/WIDTHxHEIGHT/``. States saved, one PNG each: ``1-start``
+(frames, spectrum, detected peaks, the first step and the suggested labels),
+``2-labelled`` (the suggested labels used: predicted carriers, windows, maps,
+profile), ``3-phase`` (the same maps as phase with the cyclic colour map),
+``4-recording`` (a recording running, its indicator), ``5-trends`` (the depth series
+and rate). ``--label`` names peaks instead of the source's suggestions.
 """
 
 from __future__ import annotations
@@ -48,14 +49,16 @@ def parse_label(text: str) -> tuple[str, float, float]:
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--source", default="sim:evaporation")
-    parser.add_argument("--size", type=int, default=512, help="simulated frame side, pixels")
+    parser.add_argument("--size", type=int, default=1024, help="simulated frame side, pixels")
     parser.add_argument("--out", type=Path, default=Path("resources/screenshots"))
     parser.add_argument("--label", action="append", type=parse_label, default=[])
     parser.add_argument("--settle", type=float, default=3.0, help="seconds per state")
     args = parser.parse_args()
     logging.basicConfig(level=logging.INFO)
-    args.out.mkdir(parents=True, exist_ok=True)
     app = application()
+    screen = app.primaryScreen().geometry()
+    args.out = args.out / f"{screen.width()}x{screen.height()}"
+    args.out.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory() as tmp:
         os.environ["XDG_CONFIG_HOME"] = tmp  # the default layout, not the user's
         options = {"shape": (args.size, args.size)} if args.source.startswith("sim") else {}
@@ -64,7 +67,6 @@ def main() -> int:
             experiment_path=Path(tmp) / "experiment.json",
             source_options=options,
         )
-        window.resize(1800, 1000)
         window.show()
         while window.opening:
             app.processEvents()
@@ -81,9 +83,11 @@ def main() -> int:
             window.close()
             return 1
         save("1-start")
-        labels = args.label or window.suggested_labels()
-        for name, fx, fy in labels:
-            window.label_peak(name, fx, fy)
+        if args.label:
+            for name, fx, fy in args.label:
+                window.label_peak(name, fx, fy)
+        else:
+            window.use_known_labels()
         window.surface.reference_box.setCurrentText("absolute")
         wait(app, args.settle)
         window.surface.auto_range()
@@ -100,6 +104,7 @@ def main() -> int:
         save("4-recording")
         window.stop_recording()
         window.docks["Source"].raise_()
+        window.docks["Trends"].raise_()  # tabbed with the maps on smaller screens
         window.trends.pca_box.setChecked(True)
         wait(app, args.settle * 2)
         save("5-trends")

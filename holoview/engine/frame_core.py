@@ -199,6 +199,13 @@ class FrameCore:
         """The window radius in use, cycles/pixel (the experiment's before the first frame)."""
         return self.experiment.radius if self._demod is None else self._demod.radius
 
+    def radii(self) -> dict[str, float]:
+        """Each labelled peak's window radius in use, cycles/pixel (empty before a frame)."""
+        demod = self._demod
+        if demod is None:
+            return {}
+        return {p.label: r for p, r in zip(demod.peaks, demod.radii, strict=True) if p.label}
+
     def _settings(self) -> tuple:
         e = self.experiment
         return (e.window, e.radius, e.reference, e.unwrap, e.wavelength_m)

@@ -28,26 +28,45 @@ def _aliased(f: float) -> float:
     return (f + 0.5) % 1.0 - 0.5
 
 
+#: Windows that touch (radii at the bound: half the distance between carriers) are not
+#: overlapping: a relative tolerance on the radii for floating-point rounding.
+_TOUCHING = 1e-9
+
+
 def window_warnings(
-    labelled: Mapping[str, Carrier], radius: float, predicted: Mapping[str, Carrier] | None = None
+    labelled: Mapping[str, Carrier],
+    radius: float,
+    predicted: Mapping[str, Carrier] | None = None,
+    radii: Mapping[str, float] | None = None,
 ) -> list[str]:
     """Return one line per problem of the labelled windows, for the operator to read.
 
-    Flags windows of radius ``radius`` (cycles per pixel) that overlap each other or
-    each other's twins, overlap the zero order, or cross the Nyquist edge, and
-    predicted carriers beyond Nyquist (aliased: they appear folded back).
+    Flags windows that overlap each other or each other's twins, overlap the zero
+    order (a window reaching past half its carrier's frequency), or cross the Nyquist
+    edge, and predicted carriers beyond Nyquist (aliased: they appear folded back).
+
+    Parameters
+    ----------
+    labelled, predicted : mapping of str to (float, float)
+        Carriers, cycles per pixel.
+    radius : float
+        Window radius of a labelled peak without one in ``radii``, cycles per pixel.
+    radii : mapping of str to float, optional
+        Each labelled peak's window radius in use, cycles per pixel.
     """
     problems: list[str] = []
     items = list(labelled.items())
+    size = {name: (radii or {}).get(name, radius) * (1 - _TOUCHING) for name, _ in items}
     for i, (name, f) in enumerate(items):
-        if math.hypot(*f) < 2 * radius:
+        if math.hypot(*f) < 2 * size[name]:
             problems.append(f"{name} window overlaps the zero order (|f| < 2 r)")
-        if max(abs(f[0]), abs(f[1])) + radius > 0.5:
+        if max(abs(f[0]), abs(f[1])) + size[name] > 0.5:
             problems.append(f"{name} window crosses the Nyquist edge (aliasing)")
         for other, g in items[i + 1 :]:
-            if math.dist(f, g) < 2 * radius:
+            reach = size[name] + size[other]
+            if math.dist(f, g) < reach:
                 problems.append(f"{name} and {other} windows overlap")
-            elif math.dist(f, (-g[0], -g[1])) < 2 * radius:
+            elif math.dist(f, (-g[0], -g[1])) < reach:
                 problems.append(f"{name} overlaps the twin of {other}")
     for name, (fx, fy) in (predicted or {}).items():
         if max(abs(fx), abs(fy)) > 0.5:

@@ -60,7 +60,8 @@ class LiveResult:
     """Everything the window draws for one processed frame.
 
     Arrays are shared, never modified after publication. Heights in metres, phases
-    in radians, carriers and radius in cycles per pixel, times in seconds.
+    in radians, carriers, the largest window radius and each labelled peak's
+    (``radii``) in cycles per pixel, times in seconds.
     ``shifts_px`` holds the measured displacements ``(dy, dx)`` of the maps against
     the map ``grid_of``, in camera pixels; the fused map is on that map's grid.
     """
@@ -75,6 +76,7 @@ class LiveResult:
     labelled: dict[str, Carrier]
     predicted: dict[str, Carrier]
     radius: float | None
+    radii: dict[str, float] = field(default_factory=dict)
     heights_m: dict[str, np.ndarray] = field(default_factory=dict)
     fused_m: np.ndarray | None = None
     phases_rad: dict[str, np.ndarray] = field(default_factory=dict)
@@ -274,6 +276,7 @@ class LivePipeline:
             labelled=resolution.labelled,
             predicted=resolution.predicted,
             radius=self._core.radius,
+            radii=self._core.radii(),
             heights_m=heights,
             fused_m=fused,
             phases_rad=phases,

@@ -111,9 +111,13 @@ class HologramView(QWidget):
         self._saturation_value = value
         self._update_overlay()
 
+    def shown(self) -> bool:
+        """Whether any of the view is on screen (not closed, not a tab behind another)."""
+        return self.isVisible() and not self.visibleRegion().isEmpty()
+
     def display_step(self) -> int:
         """Frame pixels per screen pixel, rounded down (1 when zoomed in or not shown)."""
-        if self._frame is None or not self.plot.vb.isVisible():
+        if self._frame is None or not self.shown():
             return 1
         try:
             px, py = self.plot.vb.viewPixelSize()

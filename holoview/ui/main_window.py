@@ -455,7 +455,7 @@ class MainWindow(ExperimentActions, QMainWindow):
         if self._banner_until and time.monotonic() > self._banner_until:
             self._banner_until = 0.0
             self.banner_bar.setVisible(False)
-        newest = session.newest_frame()
+        newest = session.newest_frame() if self.hologram.shown() else None
         if newest is not None and newest[0] != self._camera_seq:
             self._camera_seq = newest[0]
             self._draw_camera(newest[1])
@@ -509,7 +509,7 @@ class MainWindow(ExperimentActions, QMainWindow):
             self.spectrum.set_spectrum(result.spectrum)
         if previous is None or result.peaks != previous.peaks:
             self.spectrum.set_peaks(result.peaks, result.frame.shape)
-        self.spectrum.set_model(result.labelled, result.predicted, result.radius)
+        self.spectrum.set_model(result.labelled, result.predicted, result.radius, result.radii)
         self.spectrum.set_notes(result.notes)
         if result.heights_m or result.phases_rad:
             self.surface.set_maps(

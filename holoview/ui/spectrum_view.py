@@ -102,6 +102,7 @@ class SpectrumView(QWidget):
         self._labelled: dict[str, Carrier] = {}
         self._predicted: dict[str, Carrier] = {}
         self._radius = 0.06
+        self._radii: dict[str, float] = {}
         self._notes: tuple[str, ...] = ()
         self._levels: tuple[float, float] | None = None
         self._circles: dict[str, pg.CircleROI] = {}
@@ -240,6 +241,7 @@ class SpectrumView(QWidget):
         labelled: Mapping[str, Carrier],
         predicted: Mapping[str, Carrier],
         radius: float | None,
+        radii: Mapping[str, float] | None = None,
     ) -> None:
         """Draw the labelled peaks with their windows, and the predicted carriers.
 
@@ -252,14 +254,27 @@ class SpectrumView(QWidget):
         radius : float or None
             Window radius, cycles per pixel (None: automatic, not known yet; the
             circles keep the last radius drawn).
+        radii : mapping of str to float, optional
+            Each labelled peak's own window radius in use (automatic radii differ
+            from peak to peak), cycles per pixel.
         """
         radius = self._radius if radius is None else radius
         labelled = {k: (float(v[0]), float(v[1])) for k, v in labelled.items()}
         predicted = {k: (float(v[0]), float(v[1])) for k, v in predicted.items()}
-        if labelled == self._labelled and predicted == self._predicted and radius == self._radius:
+        radii = {k: float(v) for k, v in (radii or {}).items()}
+        if (labelled, predicted, radius, radii) == (
+            self._labelled,
+            self._predicted,
+            self._radius,
+            self._radii,
+        ):
             return
         self._labelled, self._predicted, self._radius = labelled, predicted, float(radius)
+        self._radii = radii
         self._draw_model()
+
+    def _warnings(self) -> list[str]:
+        return window_warnings(self._labelled, self._radius, self._predicted, self._radii)
 
     def _draw_model(self) -> None:
         self._updating = True
@@ -279,8 +294,8 @@ class SpectrumView(QWidget):
             for name in list(self._circles):
                 if name not in self._labelled:
                     self.plot.removeItem(self._circles.pop(name))
-            r = self._radius
             for name, (fx, fy) in self._labelled.items():
+                r = self._radii.get(name, self._radius)
                 circle = self._circles.get(name)
                 if circle is None:
                     circle = pg.CircleROI(
@@ -295,7 +310,7 @@ class SpectrumView(QWidget):
                     circle.setSize([2 * r, 2 * r], update=True, finish=False)
         finally:
             self._updating = False
-        self._show_warnings(window_warnings(self._labelled, self._radius, self._predicted))
+        self._show_warnings(self._warnings())
         self._show_first_run()
 
     def set_suggestions(self, labels: Mapping[str, Carrier], where: str = "") -> None:
@@ -332,16 +347,17 @@ class SpectrumView(QWidget):
             self.first_step.setText(FIRST_STEP)
             return
         names = ", ".join(self._suggested)
+        where = self._suggested_from or "the source"
         self.first_step.setText(
-            f"No peak labelled yet. {self._suggested_from or 'The source'} suggests {names} "
-            "(grey): use them, or click a peak to name it."
+            f"No peak labelled yet. Suggested by {where}: {names} (grey, dashed). "
+            "Use them, or click a peak to name it."
         )
         r = self._radius
         pen = pg.mkPen(SUGGESTED_COLOUR, width=1.5, style=Qt.PenStyle.DashLine)
         for name, (fx, fy) in self._suggested.items():
             circle = QGraphicsEllipseItem(fx - r, fy - r, 2 * r, 2 * r)
             circle.setPen(pen)
-            text = pg.TextItem(f"{name} (suggested)", color=SUGGESTED_COLOUR, anchor=(0, 1))
+            text = pg.TextItem(name, color=SUGGESTED_COLOUR, anchor=(0, 1))
             text.setPos(fx + 0.01, fy - 0.01)
             for item in (circle, text):
                 item.setZValue(15)
@@ -359,7 +375,7 @@ class SpectrumView(QWidget):
         """Show ``notes`` (from the labelling) under the window warnings."""
         if tuple(notes) != self._notes:
             self._notes = tuple(notes)
-            self._show_warnings(window_warnings(self._labelled, self._radius, self._predicted))
+            self._show_warnings(self._warnings())
 
     def _show_warnings(self, lines: list[str]) -> None:
         lines = [*lines, *self._notes]
@@ -415,11 +431,12 @@ class SpectrumView(QWidget):
             where = f" the peak at ({swallowed[0]:+.3f}, {swallowed[1]:+.3f})" if swallowed else ""
             self.message.emit(
                 f"radius {radius:.3f} cycles/px around {label} would swallow{where}: kept "
-                f"{self._radius:.3f}"
+                f"{self._radii.get(label, self._radius):.3f}"
             )
             self._draw_model()
             return False
         self._radius = float(radius)
+        self._radii = {}  # one radius for every peak from now on
         self._draw_model()
         self.radiusChanged.emit(self._radius)
         return True
@@ -431,5 +448,5 @@ class SpectrumView(QWidget):
         if label is None:
             return
         radius = float(circle.size()[0]) / 2.0
-        if abs(radius - self._radius) > 1e-9:
+        if abs(radius - self._radii.get(label, self._radius)) > 1e-9:
             self.request_radius(label, radius)

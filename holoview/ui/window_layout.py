@@ -5,10 +5,10 @@ Three layouts, chosen from the available screen area (the screen less task bars)
 - **wide** (at least :data:`WIDE` pixels): three columns, the controls (Source and
   Recording, tabbed), the camera (Hologram over Spectrum), the results (Surface over
   Trends);
-- **medium** (a laptop's 1366 x 768): the same columns, Surface and Trends tabbed so
-  that the maps keep their height;
-- **compact** (below :data:`MEDIUM`, down to 1024 x 600 and less): two columns, the
-  controls and one tab group of Spectrum, Hologram, Surface and Trends.
+- **medium** (a laptop's 1366 x 768): the same columns, the maps given more of the
+  height and the camera more of the width;
+- **compact** (below :data:`MEDIUM`, down to 800 x 600): two columns, Source and one
+  tab group of Spectrum, Hologram, Surface, Trends and Recording.
 
 Every dock stays reachable: a tabbed dock is one click away, and the window (restored
 geometry included) is moved and shrunk into the available area.
@@ -40,7 +40,11 @@ def layout_for(available: QSize) -> str:
 
 def arrange_docks(window: QMainWindow, docks: dict[str, QDockWidget], layout: str) -> None:
     """Place the docks (``Source``, ``Recording``, ``Hologram``, ``Spectrum``, ``Surface``,
-    ``Trends``) of ``window`` in ``layout`` and size the columns to its width."""
+    ``Trends``) of ``window`` in ``layout`` and size the columns to its window.
+
+    Each layout has one group of tabs: Qt (6.11) leaves a second group's tab bar drawn
+    twice when two groups are made before the window is shown.
+    """
     left = Qt.DockWidgetArea.LeftDockWidgetArea
     right = Qt.DockWidgetArea.RightDockWidgetArea
     horizontal, vertical = Qt.Orientation.Horizontal, Qt.Orientation.Vertical
@@ -49,32 +53,29 @@ def arrange_docks(window: QMainWindow, docks: dict[str, QDockWidget], layout: st
     for name in ("Surface", "Trends"):
         window.addDockWidget(right, docks[name])
     window.splitDockWidget(docks["Source"], docks["Hologram"], horizontal)
-    window.tabifyDockWidget(docks["Source"], docks["Recording"])
-    width = window.width()
+    width, height = window.width(), window.height()
     if layout == "compact":
         window.splitDockWidget(docks["Hologram"], docks["Spectrum"], vertical)
-        for name in ("Hologram", "Surface", "Trends"):
+        for name in ("Hologram", "Surface", "Trends", "Recording"):
             window.tabifyDockWidget(docks["Spectrum"], docks[name])
         docks["Spectrum"].raise_()
         window.resizeDocks(
             [docks["Source"], docks["Spectrum"]], [width // 4, width - width // 4], horizontal
         )
-    else:
-        window.splitDockWidget(docks["Hologram"], docks["Spectrum"], vertical)
-        window.splitDockWidget(docks["Surface"], docks["Trends"], vertical)
-        if layout == "medium":
-            window.tabifyDockWidget(docks["Surface"], docks["Trends"])
-            docks["Surface"].raise_()
-        window.resizeDocks(
-            [docks["Source"], docks["Hologram"], docks["Surface"]],
-            [width * 18 // 100, width * 35 // 100, width * 47 // 100],
-            horizontal,
-        )
-        if layout == "wide":
-            height = window.height()
-            shares = [height * 62 // 100, height * 38 // 100]
-            window.resizeDocks([docks["Surface"], docks["Trends"]], shares, vertical)
+        return
+    window.tabifyDockWidget(docks["Source"], docks["Recording"])
     docks["Source"].raise_()
+    window.splitDockWidget(docks["Hologram"], docks["Spectrum"], vertical)
+    window.splitDockWidget(docks["Surface"], docks["Trends"], vertical)
+    middle = 35 if layout == "wide" else 40
+    window.resizeDocks(
+        [docks["Source"], docks["Hologram"], docks["Surface"]],
+        [width * 18 // 100, width * middle // 100, width * (82 - middle) // 100],
+        horizontal,
+    )
+    maps = 62 if layout == "wide" else 68  # the maps keep their height on a short screen
+    shares = [height * maps // 100, height * (100 - maps) // 100]
+    window.resizeDocks([docks["Surface"], docks["Trends"]], shares, vertical)
 
 
 def fitted(frame: QRect, frame_margins: QSize, available: QRect) -> tuple[QPoint, QSize]:

@@ -127,3 +127,13 @@ def test_a_missed_label_keeps_its_last_match() -> None:
     previous = {p.label: p for p in first.peaks}
     later = resolve_peaks(experiment, [], SHAPE, previous=previous)
     assert later.peaks == first.peaks and later.problems == ()
+
+
+def test_window_warnings_use_each_peaks_own_radius() -> None:
+    carriers = {"RB1": (0.2, 0.0), "FB1": (0.05, 0.0), "RF": (0.3, 0.0)}
+    # radii at the bound: half the distance to the nearest carrier or the zero order
+    at_bound = {"RB1": 0.05, "FB1": 0.025, "RF": 0.05}
+    assert window_warnings(carriers, 0.06, radii=at_bound) == []
+    lines = window_warnings(carriers, 0.06)  # one radius for all: FB1's reaches zero
+    assert any("FB1 window overlaps the zero order" in line for line in lines)
+    assert "RB1 and RF windows overlap" in window_warnings(carriers, 0.06, radii={"RB1": 0.06})

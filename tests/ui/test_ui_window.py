@@ -35,6 +35,7 @@ def _window(qtbot, open_windows, tmp_path: Path, source: str, **kwargs) -> MainW
     qtbot.addWidget(window)
     open_windows.append(window)
     window.show()
+    window.docks["Hologram"].raise_()  # the offscreen screen is small: the docks are tabbed
     _wait_opened(qtbot, window)
     return window
 
