@@ -29,8 +29,9 @@ def _aliased(f: float) -> float:
 
 
 #: Windows that touch (radii at the bound: half the distance between carriers) are not
-#: overlapping: a relative tolerance on the radii for floating-point rounding.
-_TOUCHING = 1e-9
+#: overlapping: a relative tolerance on the radii, for the labelled carriers drawn
+#: being the refined ones, a fraction of a bin from those the radii were set from.
+_TOUCHING = 0.02
 
 
 def window_warnings(
