@@ -220,6 +220,6 @@ def test_an_image_of_a_folder_removed_while_replayed_is_named(tmp_path: Path) ->
     for i in range(40):
         cv2.imwrite(str(folder / f"f{i:02d}.png"), np.full(SHAPE, i, np.uint8))
     with ReplaySource(folder, rate_hz=50.0) as source:
-        camera = _camera_until_error(source, lambda: (folder / "f30.png").unlink())
+        camera = _camera_until_error(source, (folder / "f30.png").unlink)
     assert isinstance(camera.error, InputError)
     assert "f30.png: the image of frame 30 disappeared" in str(camera.error)

@@ -23,7 +23,7 @@ from holoview.errors import InputError
 from holoview.live import trends as live_trends
 from holoview.live.continuity import Continuity
 from holoview.live.pipeline import LivePipeline, LiveResult
-from holoview.live.replay_control import FASTEST, ReplayControl
+from holoview.live.replay_control import FASTEST
 from holoview.live.session import LiveSession
 
 
@@ -149,7 +149,7 @@ def test_a_steered_session_follows_seeks_and_restarts_its_trends(
         assert (state.index, state.n_frames, state.paused) == (33, 40, True)
         assert state.time_s == pytest.approx(33 * 0.05)
         assert state.text == "frame 33 / 39 · 1.650 s"
-        with pytest.raises(InputError, match="frame 40 is outside evaporation.h5"):
+        with pytest.raises(InputError, match=r"frame 40 is outside evaporation\.h5"):
             control.seek(40)
         assert session.running  # a bad seek changes nothing
     finally:
