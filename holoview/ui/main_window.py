@@ -479,7 +479,7 @@ class MainWindow(ExperimentActions, QMainWindow):
         trend = session.trend()
         if trend is not None and trend.seq != self._trend_seq:
             self._trend_seq = trend.seq
-            self.trends.set_series(trend.times_s, trend.depths_m)
+            self.trends.set_series(trend.times_s, trend.depths_m, jumped=trend.segment > 0)
             self.trends.set_rate(trend.rate_m_per_s, trend.rate_stderr_m_per_s, trend.rate_fit)
             self.trends.set_pca(trend.pca_confidence, trend.pca_prefactors)
         self.recording_panel.set_progress(session.recording_progress())

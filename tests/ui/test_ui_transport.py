@@ -3,15 +3,18 @@ move the frame shown; a seek outside the file is a banner message."""
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import pytest
 from PyQt6.QtCore import Qt
 
-from holoview.engine.experiment import Experiment
+from holoview.engine.experiment import Experiment, LabelledPeak
+from holoview.live import trends as live_trends
 from holoview.ui.main_window import MainWindow
+from holoview.ui.trends_view import JUMPED
 
-from .holograms import N1, N2, WAVELENGTH_M
+from .holograms import FB1, N1, N2, RB1, WAVELENGTH_M
 
 pytestmark = [
     pytest.mark.gui,
@@ -19,9 +22,9 @@ pytestmark = [
 ]
 
 
-def _window(qtbot, open_windows, tmp_path: Path, source: str) -> MainWindow:
+def _window(qtbot, open_windows, tmp_path: Path, source: str, peaks=()) -> MainWindow:
     path = tmp_path / "experiment.json"
-    Experiment(wavelength_m=WAVELENGTH_M, n1=N1, n2=N2, radius=0.05).save(path)
+    Experiment(wavelength_m=WAVELENGTH_M, n1=N1, n2=N2, radius=0.05, peaks=peaks).save(path)
     window = MainWindow(source=source, experiment_path=path)
     qtbot.addWidget(window)
     open_windows.append(window)
@@ -88,18 +91,31 @@ def test_buttons_keys_and_slider_move_the_frame_shown(qtbot, open_windows, tmp_p
     assert not window.session.replay.state().paused
 
 
-def test_the_maps_follow_a_seek_as_a_new_segment(qtbot, open_windows, tmp_path, hologram_file):
-    window = _window(qtbot, open_windows, tmp_path, f"replay:{hologram_file}")
+def test_maps_and_trends_follow_a_jump(qtbot, open_windows, tmp_path, hologram_file, monkeypatch):
+    monkeypatch.setattr(live_trends, "TREND_HZ", math.inf)
+    peaks = (LabelledPeak("RB1", RB1), LabelledPeak("FB1", FB1))
+    window = _window(qtbot, open_windows, tmp_path, f"replay:{hologram_file}", peaks)
+    assert window.experiment.reference == "relative"
     window.transport.toggle()  # pause
     window.transport.seek(9)
     qtbot.waitUntil(
         lambda: window._last_result is not None and window._last_result.frame_index == 9,
         timeout=10000,
     )
-    first = window._last_result.segment
+    sought = window._last_result
+    assert sought.heights_m and not any(h.any() for h in sought.heights_m.values())
+    qtbot.waitUntil(lambda: window.trends.empty_hint.isVisibleTo(window.trends), timeout=5000)
+    assert window.trends.empty_hint.text() == JUMPED
+    for index in (10, 11):
+        window.transport.step(1)
+        qtbot.waitUntil(lambda i=index: window._last_result.frame_index == i, timeout=10000)
+        assert window._last_result.segment == sought.segment
+    assert any(h.any() for h in window._last_result.heights_m.values())  # 11 against 10
+    qtbot.waitUntil(lambda: not window.trends.empty_hint.isVisibleTo(window.trends), timeout=5000)
+    assert len(window.trends.curves["RB1"].getData()[0]) == 3  # frames 9, 10, 11 only
     window.transport.step(-1)
-    qtbot.waitUntil(lambda: window._last_result.frame_index == 8, timeout=10000)
-    assert window._last_result.segment == first + 1
+    qtbot.waitUntil(lambda: window._last_result.frame_index == 10, timeout=10000)
+    assert window._last_result.segment == sought.segment + 1
 
 
 def test_a_seek_outside_the_file_is_a_message_and_the_replay_goes_on(
