@@ -546,6 +546,7 @@ class MainWindow(ExperimentActions, QMainWindow):
             self.restoreGeometry(geometry)
         if isinstance(state, QByteArray):
             self.restoreState(state)
+            self.transport.attach(self.transport.control)  # shown only while steering
         self.fit_to_screen()
 
     def fit_to_screen(self) -> None:
@@ -570,6 +571,7 @@ class MainWindow(ExperimentActions, QMainWindow):
     def reset_layout(self) -> None:
         """Put the docks back where they start."""
         self.restoreState(self._default_state)
+        self.transport.attach(self.transport.control)
 
     def closeEvent(self, event: QCloseEvent) -> None:
         """Stop every thread and timer, remember the layout, then close."""

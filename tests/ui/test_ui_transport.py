@@ -57,6 +57,8 @@ def test_the_bar_is_shown_for_a_replay_and_not_for_the_simulator(
     qtbot.waitUntil(lambda: not window.opening, timeout=20000)
     assert window.transport.isVisibleTo(window)
     assert all(act.isEnabled() for act in window.transport.shortcuts)
+    window.reset_layout()  # the default layout was saved with the bar hidden
+    assert window.transport.isVisibleTo(window)
     window.stop_source()
     assert not window.transport.isVisibleTo(window)
 
