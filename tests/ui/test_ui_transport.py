@@ -141,3 +141,18 @@ def test_unticking_loop_holds_the_last_frame(qtbot, open_windows, tmp_path, holo
     assert _newest_index(window) == 15 and window.session.running
     window.redraw()
     assert bar.play_button.toolTip() == "play (Space)"
+
+
+def test_a_replayed_file_that_disappears_is_a_message_and_the_window_goes_on(
+    qtbot, open_windows, tmp_path, hologram_file
+):
+    window = _window(qtbot, open_windows, tmp_path, f"replay:{hologram_file}")
+    qtbot.waitUntil(lambda: _newest_index(window) >= 0, timeout=5000)
+    hologram_file.unlink()
+    qtbot.waitUntil(lambda: "disappeared" in window.banner_text, timeout=5000)
+    assert window.banner_text.startswith(f"replay:{hologram_file} stopped: {hologram_file}: ")
+    assert "the file disappeared while it was replayed (at frame " in window.banner_text
+    assert not window.transport.isVisibleTo(window)
+    window.start_source("sim")  # the window still works
+    qtbot.waitUntil(lambda: not window.opening, timeout=20000)
+    assert window.session is not None and window.session.running
