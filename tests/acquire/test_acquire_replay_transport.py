@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from holoview.acquire import camera_thread
 from holoview.acquire.camera_thread import CameraThread
 from holoview.acquire.recording import RecordingWriter
 from holoview.acquire.replay import ReplaySource
@@ -223,3 +224,20 @@ def test_an_image_of_a_folder_removed_while_replayed_is_named(tmp_path: Path) ->
         camera = _camera_until_error(source, (folder / "f30.png").unlink)
     assert isinstance(camera.error, InputError)
     assert "f30.png: the image of frame 30 disappeared" in str(camera.error)
+
+
+def test_a_paused_replay_reads_as_no_frames_per_second(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setattr(camera_thread, "RATE_STALE_S", 0.2)
+    with ReplaySource(write_h5(tmp_path / "r.h5", 200), loop=True) as source:
+        camera = CameraThread(source, FrameRing(8, source.frame_shape, source.dtype))
+        camera.start()
+        deadline = time.monotonic() + 5
+        while camera.frames < 5 and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert camera.rate_hz() > 0
+        source.pause()
+        time.sleep(0.4)
+        assert camera.rate_hz() == 0.0
+        camera.stop()
