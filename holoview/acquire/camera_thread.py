@@ -21,6 +21,9 @@ from holoview.errors import HoloviewError, InputError
 
 logger = logging.getLogger(__name__)
 
+#: Seconds without a frame after which the frame rate reads 0.
+RATE_STALE_S = 2.0
+
 
 class CameraThread:
     """Drive a started :class:`Source` into a :class:`FrameRing` on its own thread.
@@ -80,9 +83,15 @@ class CameraThread:
         return self._thread.ident is not None
 
     def rate_hz(self) -> float:
-        """Frame rate over the last 64 frames, frames per second (0 before two frames)."""
+        """Frame rate over the last 64 frames, frames per second.
+
+        0 before two frames, and after :data:`RATE_STALE_S` without one (a paused
+        replay, a stalled camera).
+        """
         times = list(self._times)
         if len(times) < 2 or times[-1] <= times[0]:
+            return 0.0
+        if time.monotonic() - times[-1] > RATE_STALE_S:
             return 0.0
         return (len(times) - 1) / (times[-1] - times[0])
 

@@ -4,15 +4,30 @@ Three speeds (the ``speed`` setting):
 
 - ``"recorded"``: a holoview recording at the pace of its timestamps (device
   clock where every frame has one, else host arrival times); other files at
-  ``rate_hz`` (default: the video's own rate, or 30 frames/s for images);
+  ``rate_hz`` (default: the video's own rate, or 30 frames/s for images); the
+  ``speed_factor`` setting plays faster or slower than that (0.25 to 8 times);
 - ``"fast"``: as fast as frames can be read;
-- ``"step"``: one frame per :meth:`ReplaySource.step` call (a GUI's "next" button).
+- ``"step"``: frames only on :meth:`ReplaySource.step` and :meth:`ReplaySource.seek`.
+
+The replay can be steered while it streams, from any thread (a transport bar):
+:meth:`~ReplaySource.pause` and :meth:`~ReplaySource.resume`,
+:meth:`~ReplaySource.step` (one frame either way, pausing), :meth:`~ReplaySource.seek`
+(a frame index; one past the end is a one-line :class:`~holoview.errors.InputError`).
+Each frame's :class:`~holoview.acquire.source.FrameMeta` carries its ``index`` in
+the file and its ``segment``: a frame that is not the one after the previous frame
+delivered (a seek, a step back, the loop starting over) opens a new segment, so
+processing never pairs frames across a jump.
 
 With ``loop`` the file starts over at its end (frame ids keep increasing, device
-times too), otherwise :meth:`~holoview.acquire.source.Source.fetch` raises
+times too); otherwise, with ``hold``, the replay pauses on the last frame (a
+window keeps showing it; resuming plays from the start again); otherwise
+:meth:`~holoview.acquire.source.Source.fetch` raises
 :class:`~holoview.acquire.source.EndOfStream` after the last frame. A holoview
 recording still being written is followed: at its end the replay refreshes it
-and goes on with the frames flushed since.
+and goes on with the frames flushed since. Before each frame is read the file is
+checked (:meth:`~holoview.acquire.replay_files.FrameFile.check`): a file that
+disappeared or shrank since it was opened ends the stream with a one-line error
+naming it and the frame.
 """
 
 from __future__ import annotations
@@ -40,6 +55,8 @@ from holoview.errors import InputError
 DEFAULT_RATE_HZ = 30.0
 #: The replay speeds.
 SPEEDS = ("recorded", "fast", "step")
+#: Slowest and fastest ``speed_factor`` against the recorded pace.
+SPEED_FACTOR_LIMITS = (0.25, 8.0)
 
 
 class ReplaySource(Source):
@@ -56,6 +73,17 @@ class ReplaySource(Source):
         Playback rate, frames per second, for files without timestamps.
     loop : bool
         Start over at the end instead of ending the stream.
+    hold : bool
+        Without ``loop``: pause on the last frame instead of ending the stream.
+    speed_factor : float
+        Times the recorded pace (``"recorded"`` speed), within :data:`SPEED_FACTOR_LIMITS`.
+
+    Examples
+    --------
+    >>> source = ReplaySource("run.h5", hold=True)  # doctest: +SKIP
+    >>> source.open(); source.start()  # doctest: +SKIP
+    >>> source.pause(); source.seek(120); source.step(-1)  # doctest: +SKIP
+    119
     """
 
     def __init__(
@@ -65,6 +93,8 @@ class ReplaySource(Source):
         speed: str = "recorded",
         rate_hz: float | None = None,
         loop: bool = False,
+        hold: bool = False,
+        speed_factor: float = 1.0,
     ) -> None:
         super().__init__(f"replay:{path}")
         self.path = Path(path)
@@ -72,9 +102,15 @@ class ReplaySource(Source):
         self._speed = speed
         self._rate_hz = rate_hz
         self._loop = bool(loop)
-        self._position = 0
+        self._hold = bool(hold)
+        self._factor = 1.0
+        self._position = 0  # the next frame to play
+        self._shown = -1  # the last frame delivered
+        self._jump: int | None = None  # a frame to deliver at once (seek, step)
+        self._paused = False
+        self._held = False
+        self._segment = 0
         self._loops = 0
-        self._permits = 0
         self._due = 0.0
         self._cond = threading.Condition()
         self.add_setting(
@@ -85,6 +121,16 @@ class ReplaySource(Source):
                 self._set_speed,
                 choices=SPEEDS,
                 doc="recorded pace, as fast as possible, or one frame per step",
+            )
+        )
+        self.add_setting(
+            Setting(
+                "speed_factor",
+                "float",
+                lambda: self._factor,
+                self._set_factor,
+                limits=SPEED_FACTOR_LIMITS,
+                doc="times the recorded pace (0.25 to 8)",
             )
         )
         self.add_setting(
@@ -102,28 +148,19 @@ class ReplaySource(Source):
             Setting("loop", "bool", lambda: self._loop, self._set_loop, doc="start over at the end")
         )
         self.add_setting(
-            Setting(
-                "position",
-                "int",
-                lambda: self._position,
-                self._seek,
-                limits=lambda: (0, max(0, self.n_frames - 1)),
-                increment=1,
-                doc="index of the next frame played",
-            )
-        )
-        self.add_setting(
             Setting("n_frames", "int", lambda: self.n_frames, doc="frames in the file")
         )
         self.add_setting(Setting("pixel_format", "enum", lambda: self._require_file().pixel_format))
         if speed not in SPEEDS:
             raise InputError(f"replay speed must be one of {', '.join(SPEEDS)}, got {speed!r}")
+        self._set_factor(self._settings["speed_factor"].validate(speed_factor))
 
     # -- Source hooks ------------------------------------------------------------
     def _do_open(self) -> None:
         self._file = open_frame_file(self.path)
-        self._position = 0
-        self._loops = 0
+        with self._cond:
+            self._position, self._shown, self._jump = 0, -1, None
+            self._loops, self._segment, self._held = 0, 0, False
 
     def _do_close(self) -> None:
         if self._file is not None:
@@ -131,9 +168,8 @@ class ReplaySource(Source):
             self._file = None
 
     def _do_start(self) -> None:
-        self._due = time.monotonic()
         with self._cond:
-            self._permits = 0
+            self._due = time.monotonic()
 
     def _do_stop(self) -> None:
         with self._cond:
@@ -163,11 +199,96 @@ class ReplaySource(Source):
         """The optical setup stored in the file (holoview recordings), else empty."""
         return dict(self._require_file().setup)
 
-    def step(self, n: int = 1) -> None:
-        """Release ``n`` more frames in ``"step"`` speed."""
+    @property
+    def shown(self) -> int:
+        """Index of the last frame delivered (-1 before the first)."""
         with self._cond:
-            self._permits += max(0, int(n))
+            return self._shown
+
+    @property
+    def paused(self) -> bool:
+        """True while frames come only on :meth:`step` and :meth:`seek`."""
+        with self._cond:
+            return self._paused or self._speed == "step"
+
+    @property
+    def held(self) -> bool:
+        """True while the replay holds on its last frame (the end, without ``loop``)."""
+        with self._cond:
+            return self._held
+
+    @property
+    def loop(self) -> bool:
+        """Whether the replay starts over at its end."""
+        return self._loop
+
+    @property
+    def speed_factor(self) -> float:
+        """Times the recorded pace."""
+        return self._factor
+
+    def frame_time_s(self, index: int) -> float:
+        """Time of frame ``index`` in the recording since its first frame, seconds.
+
+        From the file's timestamps (a recording's device or host clock, a video's rate),
+        else ``index`` over the playback rate.
+        """
+        file = self._require_file()
+        t = file.time_s(index) if 0 <= index < len(file) else math.nan
+        return t if math.isfinite(t) else index / self._effective_rate()
+
+    def pause(self) -> None:
+        """Stop delivering frames until :meth:`resume` (steps and seeks still do)."""
+        with self._cond:
+            self._paused = True
+
+    def resume(self) -> None:
+        """Play on from the frame after the one shown (from the start when held at the end)."""
+        with self._cond:
+            if self._held:
+                self._position = 0
+            self._paused = self._held = False
+            self._due = time.monotonic()
             self._cond.notify_all()
+
+    def seek(self, index: int) -> int:
+        """Deliver frame ``index`` next (at once, paused or not); play goes on after it.
+
+        Returns
+        -------
+        int
+            The index sought.
+
+        Raises
+        ------
+        InputError
+            ``index`` is negative or past the last frame (one line, with the range).
+        """
+        with self._cond:
+            n = len(self._require_file())
+            if not 0 <= int(index) < n:
+                raise InputError(
+                    f"frame {index} is outside {self.path.name}: it has {n} frames, 0 to {n - 1}"
+                )
+            self._jump = int(index)
+            self._held = False
+            self._cond.notify_all()
+            return self._jump
+
+    def step(self, n: int = 1) -> int:
+        """Pause and show the frame ``n`` after the one shown (before it for negative ``n``).
+
+        The frame is clamped to the file's first and last. Returns its index.
+        """
+        with self._cond:
+            last = len(self._require_file()) - 1
+            base = self._jump if self._jump is not None else self._position - 1
+            target = min(max(base + int(n), 0), last)
+            self._jump = target
+            self._paused = True
+            self._held = False
+            self._cond.notify_all()
+            return target
 
     def _require_file(self) -> FrameFile:
         if self._file is None:
@@ -186,65 +307,87 @@ class ReplaySource(Source):
             self._due = time.monotonic()
             self._cond.notify_all()
 
+    def _set_factor(self, factor: float) -> None:
+        with self._cond:
+            self._factor = float(factor)
+            self._due = time.monotonic()
+            self._cond.notify_all()
+
     def _set_rate(self, rate: float) -> None:
         self._rate_hz = float(rate)
 
     def _set_loop(self, loop: bool) -> None:
-        self._loop = bool(loop)
-
-    def _seek(self, index: int) -> None:
-        self._position = int(index)
+        with self._cond:
+            self._loop = bool(loop)
+            self._cond.notify_all()
 
     def _interval(self, file: FrameFile, index: int) -> float:
         if isinstance(file, HDF5File) and self._rate_hz is None:
             dt = file.interval_s(index)
             if dt is not None:
-                return dt
-        return 1.0 / self._effective_rate()
+                return dt / self._factor
+        return 1.0 / (self._effective_rate() * self._factor)
 
-    def _wait_turn(self, file: FrameFile, timeout: float | None) -> bool:
-        """Wait until the next frame may go; False when ``timeout`` seconds pass first."""
+    def _take_turn(self, file: FrameFile, timeout: float | None) -> int | None:
+        """Wait until a frame may go and return its index; None when ``timeout`` s pass first.
+
+        Raises
+        ------
+        EndOfStream
+            The last frame has gone, without ``loop`` or ``hold``.
+        """
         deadline = None if timeout is None else time.monotonic() + timeout
         with self._cond:
             while self._streaming:
-                if self._speed == "fast":
-                    return True
                 now = time.monotonic()
-                if self._speed == "step":
-                    if self._permits > 0:
-                        self._permits -= 1
-                        return True
-                    wake = deadline
-                else:
-                    if now >= self._due:
+                if self._jump is not None:
+                    index, self._jump = self._jump, None
+                    self._position = index + 1
+                    self._due = now + self._interval(file, index + 1)
+                    return index
+                wake = deadline
+                if not self._paused and self._speed != "step":
+                    if self._position >= len(file) and file.refresh() <= self._position:
+                        if self._loop:
+                            self._loops += 1
+                            self._position = 0
+                        elif self._hold:
+                            self._paused = self._held = True
+                            continue
+                        else:
+                            raise EndOfStream
+                    if self._speed == "fast" or now >= self._due:
                         self._due = max(self._due, now - 1.0) + self._interval(
                             file, self._position + 1
                         )
-                        return True
+                        self._position += 1
+                        return self._position - 1
                     wake = self._due if deadline is None else min(self._due, deadline)
                 if deadline is not None and now >= deadline:
-                    return False
+                    return None
                 self._cond.wait(None if wake is None else max(0.0, wake - now))
-        return False
+        return None
 
     def _do_fetch(self, timeout: float | None) -> Frame | None:
         file = self._require_file()
-        if self._position >= len(file) and file.refresh() <= self._position:
-            if not self._loop:
-                raise EndOfStream
-            self._loops += 1
-            self._position = 0
-        if not self._wait_turn(file, timeout):
+        index = self._take_turn(file, timeout)
+        if index is None:
             return None
-        index = self._position
+        file.check(index)
         data = file.read(index)
-        self._position = index + 1
+        with self._cond:
+            if self._shown >= 0 and index != self._shown + 1:
+                self._segment += 1
+            self._shown = index
+            segment = self._segment
         id_offset, t_offset = self._loop_offsets(file)
         meta = FrameMeta(
             frame_id=id_offset + file.frame_id(index),
             t_device=file.t_device(index) + t_offset,
             t_host=time.time(),
             pixel_format=file.pixel_format,
+            index=index,
+            segment=segment,
         )
         return Frame(data, meta)
 

@@ -77,6 +77,7 @@ class FrameFile(ABC):
         self.frame_shape: tuple[int, int] = (0, 0)
         self.dtype = np.dtype(np.uint16)
         self.pixel_format = ""
+        self._size = path.stat().st_size if path.is_file() else 0
 
     def _set_format(self, shape: tuple[int, ...], dtype: np.dtype) -> None:
         self.frame_shape = (int(shape[0]), int(shape[1]))
@@ -100,9 +101,40 @@ class FrameFile(ABC):
         """The device timestamp of frame ``index``, seconds (NaN where the file has none)."""
         return math.nan
 
+    def time_s(self, index: int) -> float:
+        """Time of frame ``index`` since frame 0, seconds (NaN where the file has none)."""
+        return self.t_device(index) - self.t_device(0)
+
     def refresh(self) -> int:
         """See frames appended since opening (live recordings); return the frame count."""
         return len(self)
+
+    def check(self, index: int) -> None:
+        """Check that the file is still whole before frame ``index`` is read.
+
+        A file deleted while open stays readable through its open handle on POSIX, and
+        one cut short can give garbage or crash a reader, so both are looked for here.
+
+        Raises
+        ------
+        InputError
+            The file has disappeared, or is shorter than when it was opened (the
+            message names the file and the frame).
+        """
+        try:
+            size = self.path.stat().st_size
+        except FileNotFoundError:
+            raise InputError(
+                f"{self.path}: the file disappeared while it was replayed (at frame {index})"
+            ) from None
+        except OSError as exc:
+            raise InputError(f"{self.path}: unreadable at frame {index} ({exc})") from exc
+        if size < self._size:
+            raise InputError(
+                f"{self.path}: the file shrank from {self._size} to {size} bytes while it was "
+                f"replayed (at frame {index})"
+            )
+        self._size = size  # a recording still being written grows
 
     def close(self) -> None:  # noqa: B027 (most files need nothing)
         """Release the file."""
@@ -165,6 +197,10 @@ class HDF5File(FrameFile):
 
     def t_device(self, index: int) -> float:
         return float(self._t_device[index])
+
+    def time_s(self, index: int) -> float:
+        dt = float(self._times[index] - self._times[0])
+        return dt if math.isfinite(dt) else math.nan
 
     def interval_s(self, index: int) -> float | None:
         """Recorded time between frame ``index - 1`` and ``index``, seconds, where known."""
@@ -323,6 +359,17 @@ class ImageFolder(FrameFile):
 
     def __len__(self) -> int:
         return len(self._files)
+
+    def check(self, index: int) -> None:
+        if not self.path.is_dir():
+            raise InputError(
+                f"{self.path}: the folder disappeared while it was replayed (at frame {index})"
+            )
+        if not self._files[index].is_file():
+            raise InputError(
+                f"{self._files[index]}: the image of frame {index} disappeared while the "
+                "folder was replayed"
+            )
 
     def read(self, index: int) -> np.ndarray:
         path = self._files[index]

@@ -87,6 +87,12 @@ class FrameMeta(NamedTuple):
         Gain in the unit of the source's ``gain`` setting (NaN when unknown).
     pixel_format : str
         GenICam pixel format name of the raw values (``Mono8``, ``Mono12``, ...).
+    index : int
+        The frame's index in the file a replay plays (-1 for a camera).
+    segment : int
+        Which unbroken run of frames the frame belongs to: a replay starts a new
+        segment at each jump (a seek, a step back, a loop back to the start), so the
+        frames of one segment follow each other in the file; a camera keeps 0.
     """
 
     frame_id: int
@@ -95,6 +101,8 @@ class FrameMeta(NamedTuple):
     exposure_s: float = math.nan
     gain: float = math.nan
     pixel_format: str = "Mono16"
+    index: int = -1
+    segment: int = 0
 
 
 class Frame(NamedTuple):

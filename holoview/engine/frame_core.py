@@ -267,6 +267,14 @@ class FrameCore:
         if self._demod is not None:
             self._demod.reset_reference()
 
+    def break_sequence(self) -> None:
+        """The next frame does not follow the previous one (a replay jumped): no map pairs them.
+
+        See :meth:`~holoview.processing.demodulate.Demodulator.break_sequence`.
+        """
+        if self._demod is not None:
+            self._demod.break_sequence()
+
     def process(self, frame: np.ndarray) -> DemodResult | None:
         """Demodulate ``frame`` (not modified); None when there is no peak.
 

@@ -32,6 +32,7 @@ from holoview.engine.frame_core import (
 )
 from holoview.engine.resolve import Resolution, resolve_peaks
 from holoview.errors import InputError
+from holoview.live.continuity import Continuity
 from holoview.processing.demodulate import Demodulator
 from holoview.processing.peaks import Peak, find_peaks
 from holoview.processing.spectrum import display_spectrum
@@ -64,6 +65,8 @@ class LiveResult:
     (``radii``) in cycles per pixel, times in seconds.
     ``shifts_px`` holds the measured displacements ``(dy, dx)`` of the maps against
     the map ``grid_of``, in camera pixels; the fused map is on that map's grid.
+    ``frame_index`` is the frame's index in a replayed file (-1 for a camera) and
+    ``segment`` its unbroken run of frames (:mod:`holoview.live.continuity`).
     """
 
     seq: int
@@ -83,6 +86,8 @@ class LiveResult:
     shifts_px: dict[str, tuple[float, float]] = field(default_factory=dict)
     grid_of: str | None = None
     notes: tuple[str, ...] = ()
+    frame_index: int = -1
+    segment: int = 0
 
 
 def block_max(image: np.ndarray, limit: int) -> np.ndarray:
@@ -145,6 +150,7 @@ class LivePipeline:
         self._coregistered_at = -math.inf
         self._resolution_key: tuple | None = None
         self._resolution = Resolution(peaks=())
+        self._continuity = Continuity()
 
     # ---- commands ----------------------------------------------------------
     def apply(self, name: str, value: object) -> None:
@@ -213,8 +219,14 @@ class LivePipeline:
 
     # ---- one frame ---------------------------------------------------------
     def process(self, frame: np.ndarray, meta: FrameMeta) -> LiveResult:
-        """Process one frame; raise HoloviewError for a problem the operator can fix."""
+        """Process one frame; raise HoloviewError for a problem the operator can fix.
+
+        A frame of another segment than the last (a replay jumped) is not paired with
+        the frame before it (:meth:`FrameCore.break_sequence`).
+        """
         start = time.perf_counter()
+        if self._continuity.breaks(meta):
+            self._core.break_sequence()
         now = time.monotonic()
         if now - self._spectrum_at >= max(1.0 / SPECTRUM_HZ, self._spectrum_cost / SIDE_SHARE):
             tick = time.perf_counter()
@@ -283,4 +295,6 @@ class LivePipeline:
             shifts_px=shifts,
             grid_of=grid_of,
             notes=resolution.notes,
+            frame_index=meta.index,
+            segment=meta.segment,
         )

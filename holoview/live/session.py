@@ -30,6 +30,7 @@ from holoview.engine.experiment import Experiment
 from holoview.engine.true_labels import true_experiment
 from holoview.errors import HoloviewError, InputError
 from holoview.live.pipeline import LivePipeline, LiveResult
+from holoview.live.replay_control import ReplayControl
 from holoview.live.trends import SeriesPipeline, TrendSummary
 from holoview.live.worker import DemodWorker, SeriesWorker
 
@@ -104,7 +105,8 @@ class LiveSession:
         Optics, labelled peaks, window and reference mode.
     source_options : mapping, optional
         Passed to the source's constructor (e.g. ``frame_rate_hz`` of the simulator);
-        replays loop unless ``loop=False`` is given.
+        replays loop unless ``loop=False`` is given, and hold on their last frame when
+        not looping unless ``hold=False`` is given (then the stream ends there).
     every_frame : bool
         Process every frame in order (frames the ring overwrote first are counted as
         dropped) instead of the newest: for scripted runs on a source the worker keeps
@@ -128,6 +130,8 @@ class LiveSession:
         self.every_frame = every_frame
         self.experiment = experiment
         self.source: Source = _open_source(spec, source_options or {})
+        #: The replay's transport (play, pause, step, seek, speed, loop); None for a camera.
+        self.replay: ReplayControl | None = ReplayControl.of(self.source)
         self.recorder: Recorder | None = None
         self._request: RecordRequest | None = None
         self._recording_started = 0.0
@@ -425,12 +429,13 @@ class LiveSession:
 
 
 def _open_source(spec: str, options: Mapping[str, Any]) -> Source:
-    """Open the source ``spec`` with constructor ``options``; replays loop by default."""
+    """Open the source ``spec`` with constructor ``options``; replays loop (and hold) by default."""
     from holoview.acquire.factory import open_source, parse_source_spec
 
     kwargs = dict(options)
     if parse_source_spec(spec).kind == "replay":
         kwargs.setdefault("loop", True)
+        kwargs.setdefault("hold", True)
     return open_source(spec, **kwargs)
 
 

@@ -10,7 +10,8 @@ series, its temporal unwrapping and the rates use every frame while the maps tak
 newest frame at whatever rate is left. The series is estimated jointly over the peaks
 the lattice places (:meth:`holoview.engine.series.PhaseSeries.track_joint`), frame by
 frame as ``holoview process`` does over a file. The peaks come from the maps pipeline
-(the demodulator's, :meth:`set_peaks`); a new set of peaks starts a new series.
+(the demodulator's, :meth:`set_peaks`); a new set of peaks starts a new series, and
+so does a replay's jump (:mod:`holoview.live.continuity`): no rate is fitted across it.
 """
 
 from __future__ import annotations
@@ -29,6 +30,7 @@ from holoview.engine.experiment import Experiment
 from holoview.engine.frame_core import CarrierCore
 from holoview.engine.series import LIVE_LENGTH, PhaseSeries, coupling_of, frame_time
 from holoview.errors import HoloviewError, InputError
+from holoview.live.continuity import Continuity
 from holoview.processing.peaks import Peak
 
 logger = logging.getLogger(__name__)
@@ -43,7 +45,9 @@ TREND_HZ = 2.0
 class TrendSummary:
     """What the trends view draws: depth series by label (and ``fused``), rate, PCA.
 
-    Times in s from the series' first frame, depths in m, rates in m/s.
+    Times in s from the series' first frame, depths in m, rates in m/s. ``segment``:
+    the replay segment the series belongs to (:mod:`holoview.live.continuity`); a
+    summary with no depth starts a segment's series.
     """
 
     seq: int
@@ -54,10 +58,15 @@ class TrendSummary:
     rate_fit: tuple[list[float], list[float]] | None
     pca_confidence: float | None = None
     pca_prefactors: dict[str, float] | None = None
+    segment: int = 0
 
 
 def trend_summary(
-    seq: int, summary: DepthSummary, labels: tuple[str, ...], pca: dict[str, Any] | None
+    seq: int,
+    summary: DepthSummary,
+    labels: tuple[str, ...],
+    pca: dict[str, Any] | None,
+    segment: int = 0,
 ) -> TrendSummary:
     """Pack a series' :class:`~holoview.engine.series.DepthSummary` for the trends view."""
     depths = {
@@ -80,6 +89,7 @@ def trend_summary(
         rate_fit=line,
         pca_confidence=None if pca is None else float(pca["confidence"]),
         pca_prefactors=None if pca is None else dict(pca["prefactors"]),
+        segment=segment,
     )
 
 
@@ -104,6 +114,7 @@ class SeriesPipeline:
         self.experiment: Experiment | None = None
         self._seq = 0
         self._trend_at = -math.inf
+        self._continuity = Continuity()
 
     def apply(self, name: str, value: object = None) -> None:
         """Apply a command: ``pca`` (bool) or ``reset``."""
@@ -134,17 +145,28 @@ class SeriesPipeline:
     def process(self, frame: np.ndarray, meta: FrameMeta) -> TrendSummary | None:
         """Add ``frame`` to the series; return a new summary when one is due, else None.
 
+        A frame of another segment than the last (a replay jumped) starts a new series,
+        and an empty summary is returned at once (the trends view clears).
+
         Raises
         ------
         HoloviewError
             A frame of another shape or type (the message names it).
         """
+        broken = self._continuity.breaks(meta)
+        if broken:
+            self.series = None
         measured = self.carriers.measure(frame)
         if measured is None:
             return None
         if self.series is None:
             self.series = self._new_series()
         self.series.add(frame_time(meta.t_device, meta.t_host), meta.frame_id, measured)
+        if broken:
+            self._seq += 1
+            self._trend_at = time.monotonic()
+            empty = np.empty(0)
+            return TrendSummary(self._seq, empty, {}, None, None, None, segment=meta.segment)
         now = time.monotonic()
         if now - self._trend_at < 1.0 / TREND_HZ:
             return None
@@ -186,4 +208,6 @@ class SeriesPipeline:
             alphas = [p.alpha for p in self.carriers.peaks]
             pca = pca_check(summary.phases, self.series.labels, alphas)
         self._seq += 1
-        return trend_summary(self._seq, summary, self.series.labels, pca)
+        return trend_summary(
+            self._seq, summary, self.series.labels, pca, segment=self._continuity.segment or 0
+        )

@@ -283,6 +283,22 @@ class Demodulator:
                 self._ref_value[i] = value
             self._ref_floor = self._background_floor
 
+    def break_sequence(self) -> None:
+        """Forget the previous frame: the next one does not follow it (a replay jumped).
+
+        Relative maps start over (the next frame is a reference frame: no map pairs
+        frames from before and after the jump); an absolute reference, or a background
+        hologram, is kept; the mean phase is not unwrapped in time across the break
+        (the next frame's is taken as it is, against the reference), and no phase step
+        is measured over it.
+        """
+        n = len(self.peaks)
+        self._prev_value = [None] * n
+        if self.reference == "relative":
+            self._ref_conj = [None] * n
+            self._ref_value = [None] * n
+            self._ref_floor = None
+
     def set_background(self, background: np.ndarray | None) -> None:
         """Take absolute phases against an object-free hologram from the next frame on.
 
@@ -532,7 +548,7 @@ class Demodulator:
                 mean_phase = step
             else:
                 mean_phase = cmath.phase(value * self._ref_value[i].conjugate())
-                if prev is None:  # the first frame against a background hologram
+                if prev is None:  # the first against a background, or after a break
                     self._unwrapped_mean[i] = mean_phase
         if product is None:
             phase = np.zeros(field.shape, dtype=np.float32)

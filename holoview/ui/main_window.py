@@ -43,6 +43,7 @@ from holoview.ui.source_panel import SourcePanel
 from holoview.ui.spectrum_view import SpectrumView
 from holoview.ui.status_bar import LiveFigures, LiveStatusBar
 from holoview.ui.surface_view import FUSED, SurfaceView
+from holoview.ui.transport_bar import TransportBar
 from holoview.ui.trends_view import TrendsView
 from holoview.ui.window_experiment import ExperimentActions
 from holoview.ui.window_layout import (
@@ -130,6 +131,8 @@ class MainWindow(ExperimentActions, QMainWindow):
         self.banner_bar.addWidget(self.banner)
         self.banner_bar.setVisible(False)
         self.addToolBar(Qt.ToolBarArea.TopToolBarArea, self.banner_bar)
+        self.transport = TransportBar(self)
+        self.addToolBar(Qt.ToolBarArea.BottomToolBarArea, self.transport)
 
         self.docks: dict[str, QDockWidget] = {}
         self.setDockNestingEnabled(True)
@@ -223,6 +226,10 @@ class MainWindow(ExperimentActions, QMainWindow):
         view.addAction(self.banner_bar.toggleViewAction())
         view.addSeparator()
         view.addAction(self.reset_layout_action)
+        replay = menus.addMenu("&Replay")
+        for act in self.transport.shortcuts:
+            replay.addAction(act)
+            self.addAction(act)
 
     def _connect(self) -> None:
         self.source_panel.startRequested.connect(self.start_source)
@@ -240,6 +247,8 @@ class MainWindow(ExperimentActions, QMainWindow):
         self.trends.resetRequested.connect(self._reset_trends)
         self.recording_panel.startRequested.connect(self.start_recording)
         self.recording_panel.stopRequested.connect(self.stop_recording)
+        self.transport.message.connect(self.show_message)
+        self.transport.changed.connect(self._show_source_values)
 
     # ---- messages ----------------------------------------------------------
     def show_message(self, text: str) -> None:
@@ -303,6 +312,7 @@ class MainWindow(ExperimentActions, QMainWindow):
             self.session.describe_settings(), self.session.read_settings()
         )
         self.source_panel.set_streaming(True, self.session.description)
+        self.transport.attach(self.session.replay)
         self.timer.start()
 
     def _adopt_source_setup(self, setup: dict) -> None:
@@ -324,6 +334,7 @@ class MainWindow(ExperimentActions, QMainWindow):
         if self.session is None:
             return
         self.timer.stop()
+        self.transport.attach(None)
         self.session.close()
         self.session = None
         self.recording_panel.set_progress(None)
@@ -360,6 +371,10 @@ class MainWindow(ExperimentActions, QMainWindow):
         self._camera_seq = -1
         self.source_panel.show_values(self.session.read_settings())
         self.source_panel.set_streaming(self.session.running, self.session.description)
+
+    def _show_source_values(self) -> None:
+        if self.session is not None:
+            self.source_panel.show_values(self.session.read_settings())
 
     # ---- trends -----------------------------------------------------------
     def _pca_requested(self, on: bool) -> None:
@@ -464,10 +479,11 @@ class MainWindow(ExperimentActions, QMainWindow):
         trend = session.trend()
         if trend is not None and trend.seq != self._trend_seq:
             self._trend_seq = trend.seq
-            self.trends.set_series(trend.times_s, trend.depths_m)
+            self.trends.set_series(trend.times_s, trend.depths_m, jumped=trend.segment > 0)
             self.trends.set_rate(trend.rate_m_per_s, trend.rate_stderr_m_per_s, trend.rate_fit)
             self.trends.set_pca(trend.pca_confidence, trend.pca_prefactors)
         self.recording_panel.set_progress(session.recording_progress())
+        self.transport.refresh()
         rates = session.rates()
         self.status.set_figures(
             LiveFigures(
@@ -484,6 +500,7 @@ class MainWindow(ExperimentActions, QMainWindow):
         if not session.running:
             reason = session.stop_reason
             self.source_panel.set_streaming(False, "stopped: " + reason)
+            self.transport.attach(None)
             if session.camera.error is not None:
                 self.show_message(f"{session.spec} stopped: {reason}")
             self.timer.stop()
@@ -529,6 +546,7 @@ class MainWindow(ExperimentActions, QMainWindow):
             self.restoreGeometry(geometry)
         if isinstance(state, QByteArray):
             self.restoreState(state)
+            self.transport.attach(self.transport.control)  # shown only while steering
         self.fit_to_screen()
 
     def fit_to_screen(self) -> None:
@@ -553,6 +571,7 @@ class MainWindow(ExperimentActions, QMainWindow):
     def reset_layout(self) -> None:
         """Put the docks back where they start."""
         self.restoreState(self._default_state)
+        self.transport.attach(self.transport.control)
 
     def closeEvent(self, event: QCloseEvent) -> None:
         """Stop every thread and timer, remember the layout, then close."""

@@ -12,6 +12,17 @@ from PyQt6.QtWidgets import QCheckBox, QHBoxLayout, QLabel, QPushButton, QVBoxLa
 from holoview.processing.trends import format_rate
 from holoview.ui.legends import curve_pen, side_legend
 
+#: What the empty view says before a peak is labelled.
+NO_TRENDS = (
+    "Trends start once a peak is labelled in the Spectrum: the mean depth change of "
+    "every labelled peak and the fused depth, from every camera frame."
+)
+#: What the empty view says after a replay jumped (a seek, a step back, a loop).
+JUMPED = (
+    "The replay jumped: the trends start over from the frame shown (no rate is fitted "
+    "across a jump) and are drawn from the third frame played on."
+)
+
 
 class TrendsView(QWidget):
     """Depth change against time per peak and fused; rate, PCA confidence and prefactors.
@@ -53,10 +64,7 @@ class TrendsView(QWidget):
         row.addWidget(self.reset_button)
         layout = QVBoxLayout(self)
         layout.setContentsMargins(2, 2, 2, 2)
-        self.empty_hint = QLabel(
-            "Trends start once a peak is labelled in the Spectrum: the mean depth change of "
-            "every labelled peak and the fused depth, from every camera frame."
-        )
+        self.empty_hint = QLabel(NO_TRENDS)
         self.empty_hint.setWordWrap(True)
         self.empty_hint.setStyleSheet("color: gray;")
         layout.addLayout(row)
@@ -64,8 +72,15 @@ class TrendsView(QWidget):
         layout.addWidget(self.plot, 1)
         layout.addWidget(self.pca_label)
 
-    def set_series(self, times_s: np.ndarray, depths_m: Mapping[str, np.ndarray]) -> None:
-        """Show the mean depth change (metres, shown in nm) of each series against time (s)."""
+    def set_series(
+        self, times_s: np.ndarray, depths_m: Mapping[str, np.ndarray], *, jumped: bool = False
+    ) -> None:
+        """Show the mean depth change (metres, shown in nm) of each series against time (s).
+
+        With no series the view says how they come: ``jumped`` says a replay jumped
+        (the series start over), else that a peak must be labelled.
+        """
+        self.empty_hint.setText(JUMPED if jumped else NO_TRENDS)
         self.empty_hint.setVisible(not depths_m)
         for name in list(self.curves):
             if name not in depths_m:

@@ -92,11 +92,10 @@ def test_step_speed_releases_one_frame_per_step(tmp_path: Path) -> None:
     with ReplaySource(path, speed="step") as source:
         source.start()
         assert source.fetch(timeout=0.05) is None
-        source.step()
+        assert source.step() == 0
         assert source.fetch(timeout=1).meta.frame_id == 100
         assert source.fetch(timeout=0.05) is None
-        source.set("position", 3)
-        source.step(1)
+        source.seek(3)
         assert source.fetch(timeout=1).meta.frame_id == 103
         source.stop()
 

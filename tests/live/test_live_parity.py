@@ -41,7 +41,7 @@ def _live_run(path: Path, experiment, monkeypatch: pytest.MonkeyPatch) -> LiveSe
     session = LiveSession(
         f"replay:{path}",
         experiment,
-        source_options={"loop": False, "speed": "fast"},
+        source_options={"loop": False, "hold": False, "speed": "fast"},
         every_frame=True,
     )
     session.start()

@@ -161,6 +161,38 @@ def test_reset_reference_starts_over() -> None:
 
 
 @pytest.mark.parametrize("reference", ["relative", "absolute", "synthetic"])
+def test_break_sequence_pairs_no_frames_across_a_jump(reference: str) -> None:
+    """A replay's jump: relative maps start over, an absolute reference stays, no step flagged."""
+    rng = np.random.default_rng(26)
+    peak = bench_peaks()[0]
+
+    def piston(phase: float) -> np.ndarray:
+        return frame(SHAPE, [peak.carrier], [peak.amplitude], [phase], rng=rng)
+
+    demod = Demodulator(SHAPE, [peak], reference=reference)
+    demod.process(piston(0.0))
+    demod.process(piston(0.5))
+    demod.break_sequence()
+    jumped = demod.process(piston(0.5 + 2.8)).peaks[0]  # a step the demodulator would flag
+    after = demod.process(piston(0.5 + 2.8 + 0.4)).peaks[0]
+    assert "phase_step" not in jumped.flags
+    wrapped = float(np.angle(np.exp(1j * 3.3)))
+    if reference == "relative":
+        assert "reference" in jumped.flags and not jumped.phase.any()
+        assert after.mean_phase == pytest.approx(0.4, abs=0.02)
+    elif reference == "absolute":
+        assert "reference" not in jumped.flags  # still against the first frame
+        assert jumped.mean_phase == pytest.approx(wrapped, abs=0.02)
+        assert jumped.mean_phase_unwrapped == pytest.approx(wrapped, abs=0.02)
+        assert after.mean_phase_unwrapped == pytest.approx(wrapped + 0.4, abs=0.02)
+    else:
+        assert jumped.mean_phase_unwrapped == pytest.approx(jumped.mean_phase, abs=1e-6)
+        assert after.mean_phase_unwrapped - jumped.mean_phase_unwrapped == pytest.approx(
+            0.4, abs=0.02
+        )
+
+
+@pytest.mark.parametrize("reference", ["relative", "absolute", "synthetic"])
 @pytest.mark.parametrize("with_alpha", [True, False])
 def test_auto_unwrapping_only_when_wrapped(reference: str, with_alpha: bool) -> None:
     rng = np.random.default_rng(26)

@@ -1,0 +1,195 @@
+"""Replays steered through the live engine (no Qt): jumps never mix frames, trends start over.
+
+A simulated evaporation (50 nm per frame) is recorded with its experiment; its frames go
+through the maps pipeline with the segments a replay stamps, and through a live session
+steered by :class:`~holoview.live.replay_control.ReplayControl`.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from holoview.acquire.recording import RecordingReader
+from holoview.acquire.source import FrameMeta
+from holoview.cli import main
+from holoview.engine.experiment import Experiment
+from holoview.errors import InputError
+from holoview.live import trends as live_trends
+from holoview.live.continuity import Continuity
+from holoview.live.pipeline import LivePipeline, LiveResult
+from holoview.live.replay_control import FASTEST
+from holoview.live.session import LiveSession
+
+
+@pytest.fixture(scope="module")
+def recording(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """Evaporation at 60 um/min, 128 x 128, 40 frames at 20 frames/s, with its experiment."""
+    path = tmp_path_factory.mktemp("replay") / "evaporation.h5"
+    argv = ["-q", "simulate", str(path), "--scenario", "evaporation", "--size", "128"]
+    argv += ["--frames", "40", "--fps", "20", "--seed", "5", "--evaporation-um-per-min", "60"]
+    assert main(argv) == 0
+    return path
+
+
+def _stored(path: Path, reference: str) -> Experiment:
+    with RecordingReader(path) as reader:
+        text = reader.experiments()[-1][1]
+    return replace(Experiment.from_json(text, where=path.name), reference=reference)
+
+
+def _frames(path: Path) -> np.ndarray:
+    with RecordingReader(path) as reader:
+        return reader[:]
+
+
+def _play(pipeline: LivePipeline, frames: np.ndarray, plan: list[tuple[int, int]]) -> list:
+    """Process ``(index, segment)`` in order, as a replay would deliver them."""
+    return [
+        pipeline.process(frames[i], FrameMeta(i, i * 0.05, 100 + i * 0.05, index=i, segment=s))
+        for i, s in plan
+    ]
+
+
+def _mean_nm(result: LiveResult, name: str) -> float:
+    return float(np.nanmean(result.heights_m[name])) * 1e9
+
+
+def test_continuity_breaks_only_where_the_segment_changes() -> None:
+    c = Continuity()
+    segments = [0, 0, 1, 1, 1, 2]
+    assert [c.breaks(FrameMeta(0, 0.0, 0.0, segment=s)) for s in segments] == [
+        False,
+        False,
+        True,
+        False,
+        False,
+        True,
+    ]
+
+
+def test_relative_maps_never_pair_frames_across_a_jump(recording: Path) -> None:
+    frames = _frames(recording)
+    pipeline = LivePipeline(_stored(recording, "relative"), frames.shape[1:])
+    plan = [(0, 0), (1, 0), (2, 0), (20, 1), (21, 1), (20, 2)]
+    results = _play(pipeline, frames, plan)
+    assert [(r.frame_index, r.segment) for r in results] == plan
+    name = "RB1"
+    one_frame = _mean_nm(results[1], name)  # frame 1 against frame 0: 50 nm of evaporation
+    assert abs(one_frame) > 20
+    for jumped in (results[3], results[5]):  # right after the seek, right after the step back
+        assert jumped.heights_m, "a frame after a jump still gives maps"
+        for heights in jumped.heights_m.values():
+            assert not np.any(heights), "a relative map paired frames across a jump"
+    # frame 21 is taken against frame 20, the frame before it in the file
+    assert _mean_nm(results[4], name) == pytest.approx(one_frame, rel=0.25)
+
+
+def test_absolute_reference_is_kept_across_a_jump(recording: Path) -> None:
+    frames = _frames(recording)
+    pipeline = LivePipeline(_stored(recording, "absolute"), frames.shape[1:])
+    results = _play(pipeline, frames, [(0, 0), (1, 0), (10, 1), (11, 1)])
+    name = "RB1"
+    assert not np.any(results[0].heights_m[name])  # the reference frame
+    # against frame 0 still: 10 frames, 500 nm (RB1's phase wraps every ~800 nm)
+    assert abs(_mean_nm(results[2], name)) > 5 * abs(_mean_nm(results[1], name))
+    step = _mean_nm(results[3], name) - _mean_nm(results[2], name)
+    assert step == pytest.approx(_mean_nm(results[1], name), rel=0.25)
+
+
+def _wait(predicate, timeout: float = 20.0) -> None:
+    deadline = time.monotonic() + timeout
+    while not predicate():
+        assert time.monotonic() < deadline, "timed out"
+        time.sleep(0.01)
+
+
+def _shown(session: LiveSession, index: int) -> LiveResult:
+    """Wait until the maps of frame ``index`` are out; return them."""
+    _wait(lambda: (r := session.latest()) is not None and r.frame_index == index)
+    result = session.latest()
+    assert result is not None
+    return result
+
+
+def test_a_steered_session_follows_seeks_and_restarts_its_trends(
+    recording: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setattr(live_trends, "TREND_HZ", math.inf)
+    session = LiveSession(
+        f"replay:{recording}",
+        _stored(recording, "relative"),
+        source_options={"speed": "step"},
+        every_frame=True,
+    )
+    try:
+        control = session.replay
+        assert control is not None
+        session.start()
+        for i in range(4):
+            assert control.step(1) == i
+            assert _shown(session, i).segment == 0
+        assert control.seek(30) == 30
+        sought = _shown(session, 30)
+        assert sought.segment == 1 and not any(np.any(h) for h in sought.heights_m.values())
+        for i in (31, 32, 33):
+            control.step(1)
+            assert _shown(session, i).segment == 1
+        _wait(lambda: (t := session.trend()) is not None and len(t.times_s) == 4)
+        trend = session.trend()
+        assert trend is not None and trend.segment == 1
+        np.testing.assert_allclose(trend.times_s, [0.0, 0.05, 0.1, 0.15], atol=1e-9)
+        assert trend.rate_m_per_s is not None  # fitted over frames 30 to 33 only
+        state = control.state()
+        assert (state.index, state.n_frames, state.paused) == (33, 40, True)
+        assert state.time_s == pytest.approx(33 * 0.05)
+        assert state.text == "frame 33 / 39 · 1.650 s"
+        with pytest.raises(InputError, match=r"frame 40 is outside evaporation\.h5"):
+            control.seek(40)
+        assert session.running  # a bad seek changes nothing
+    finally:
+        session.close()
+    assert session.series.series is not None
+    np.testing.assert_array_equal(session.series.series.frames, [30, 31, 32, 33])
+
+
+def test_play_pause_speed_and_loop_through_the_control(recording: Path) -> None:
+    session = LiveSession(f"replay:{recording}", _stored(recording, "relative"))
+    try:
+        control = session.replay
+        assert control is not None
+        control.pause()
+        session.start()
+        assert control.state().paused and control.state().index == -1
+        assert control.state().text == "frame - / 39"
+        assert control.set_speed(4.0) == 4.0
+        assert control.faster() == 8.0 and control.faster() == FASTEST
+        assert control.faster() == FASTEST  # the top
+        assert control.slower() == 8.0
+        assert control.toggle() is True  # plays
+        _wait(lambda: control.state().index >= 5)
+        assert control.toggle() is False
+        control.set_loop(False)
+        assert control.to_end() == 39
+        _wait(lambda: control.state().index == 39)
+        control.play()  # from the last frame without loop: held at the end
+        _wait(lambda: control.state().held)
+        assert control.state().index == 39 and session.running
+        control.play()  # held: plays from the start
+        _wait(lambda: 0 <= control.state().index < 39)
+        assert control.to_start() == 0
+    finally:
+        session.close()
+
+
+def test_a_camera_has_no_transport() -> None:
+    session = LiveSession("sim", Experiment())
+    try:
+        assert session.replay is None
+    finally:
+        session.close()
