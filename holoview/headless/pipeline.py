@@ -142,8 +142,11 @@ class RunData:
     interrupted : bool
         The run was interrupted (Ctrl-C): the series hold the frames done before.
     read_seconds, demod_seconds, write_seconds, wall_seconds : float
-        Time reading the input (on the reader thread), demodulating, writing maps,
-        and in all, s.
+        Time reading the input (on the reader threads), demodulating, writing maps,
+        and in all, s (reading and demodulating summed over the processes).
+    workers : str
+        Where the carrier values were measured (``"1 process"``, ``"4 processes"``,
+        ``"Dask at ..."``).
     """
 
     series: PhaseSeries
@@ -162,6 +165,7 @@ class RunData:
     wall_seconds: float = 0.0
     no_signal: int = 0
     demodulated: int = 0
+    workers: str = "1 process"
 
     @property
     def frames(self) -> np.ndarray:
