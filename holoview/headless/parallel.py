@@ -39,7 +39,7 @@ from holoview.headless.chunks import ChunkResult, ChunkTask, measure_chunk
 logger = logging.getLogger(__name__)
 
 #: Seconds to wait for a scheduler to answer before giving up.
-CONNECT_TIMEOUT_S = 10.0
+CONNECT_TIMEOUT_S = 5.0
 
 #: Seconds a remote cluster is given to have at least one worker.
 WORKERS_TIMEOUT_S = 30.0
