@@ -186,6 +186,8 @@ class DaskRunner(ChunkRunner):
                 processes=True,
                 dashboard_address=None,
                 silence_logs=logging.ERROR,
+                # its HTTP server (health, metrics) on a free port, not on 8787
+                scheduler_kwargs={"dashboard_address": ":0"},
             )
             address = self._cluster.scheduler_address
         else:
