@@ -13,6 +13,7 @@ import os
 import signal
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import h5py
 import numpy as np
@@ -150,9 +151,20 @@ def test_the_command_line_jobs_option(
             ["-q", "process", str(evaporation.path), "--out", str(out), "--jobs", jobs], capsys
         )
         assert status == 0, err
-    assert (tmp_path / "1" / "trends.csv").read_bytes() == (tmp_path / "2" / "trends.csv").read_bytes()
+    assert (tmp_path / "1" / "trends.csv").read_bytes() == (
+        tmp_path / "2" / "trends.csv"
+    ).read_bytes()
     summary = json.loads((tmp_path / "2" / "summary.json").read_text())
     assert summary["timing"]["workers"] == "2 processes"
+
+
+def _chunks_started(dask_scheduler: Any) -> int:
+    """On the scheduler: how many times a chunk task went to a worker."""
+    return sum(
+        1
+        for key, _, finish, *_ in dask_scheduler.transition_log
+        if str(key).startswith("measure_chunk") and finish == "processing"
+    )
 
 
 @pytest.mark.slow
@@ -178,6 +190,8 @@ def test_a_dask_worker_killed_mid_run_is_replaced_and_the_result_unchanged(
             os.kill(killed[0], 0)
         client.wait_for_workers(2, timeout=60)
         assert killed[0] not in client.run(os.getpid).values()  # the nanny started another
+        chunks = len(split_frames(evaporation.frames, 2))
+        assert client.run_on_scheduler(_chunks_started) > chunks  # some measured again
     _assert_same(serial, other, "a worker killed")
 
 
@@ -220,11 +234,8 @@ def test_more_jobs_than_frames_warns_and_uses_fewer(
     caplog: pytest.LogCaptureFixture,
 ) -> None:
     """``--jobs 9`` on 4 frames: a warning, 4 jobs, the results of one."""
-    status, _, err = run_cli(
-        ["process", str(evaporation.path), "--out", str(tmp_path / "o"), "--jobs", "9"]
-        + ["--frames", "0:4"],
-        capsys,
-    )
+    argv = ["process", str(evaporation.path), "--out", str(tmp_path / "o")]
+    status, _, err = run_cli([*argv, "--jobs", "9", "--frames", "0:4"], capsys)
     assert status == 0, err
     assert "--jobs 9: the run has 4 frames; using 4" in caplog.text
     summary = json.loads((tmp_path / "o" / "summary.json").read_text())
@@ -246,9 +257,7 @@ def test_a_scheduler_that_does_not_answer_is_one_line_and_exit_2(
     assert not out.exists()
 
 
-def test_a_worker_that_cannot_see_the_file_is_named(
-    evaporation: Simulated, tmp_path: Path
-) -> None:
+def test_a_worker_that_cannot_see_the_file_is_named(evaporation: Simulated, tmp_path: Path) -> None:
     """A task on a path the workers do not have: an InputError naming the worker's host."""
     task = make_tasks(
         tmp_path / "elsewhere.h5",
