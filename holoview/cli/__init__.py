@@ -18,6 +18,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import logging
+import os
 import sys
 from collections.abc import Sequence
 from typing import NoReturn
@@ -72,6 +73,10 @@ def configure_logging(verbose: int, quiet: bool) -> None:
     )
     logging.basicConfig(level=level, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
     logging.getLogger("py.warnings").setLevel(logging.WARNING if verbose else logging.ERROR)
+    # Dask (``process --scheduler``) sets its loggers' levels from its configuration when
+    # imported, here and in its worker processes, which inherit the environment.
+    dask_level = "info" if verbose >= 2 else ("error" if quiet else "warning")
+    os.environ.setdefault("DASK_LOGGING__DISTRIBUTED", dask_level)
 
 
 def _quiet_hdf5_cleanup(unraisable: sys.UnraisableHookArgs) -> None:

@@ -2,14 +2,15 @@
 
 The offline replay and test mode of DESIGN.md: the same processing as the GUI, no
 display (:mod:`holoview.headless`). Output files and their layout are documented in
-:mod:`holoview.headless.outputs` and the README.
+:mod:`holoview.headless.outputs` and the README. ``--jobs`` and ``--scheduler`` spread
+the frames over processes or a Dask cluster (:mod:`holoview.headless.parallel`); a
+folder of recordings or a glob is a batch (:mod:`holoview.headless.batch`).
 """
 
 from __future__ import annotations
 
 import argparse
 import logging
-import os
 import sys
 from pathlib import Path
 
@@ -33,14 +34,6 @@ def folder_path(text: str) -> Path:
     return Path(text)
 
 
-def usable_cores() -> int:
-    """CPU cores this process may run on."""
-    try:
-        return len(os.sched_getaffinity(0))
-    except (AttributeError, OSError):
-        return os.cpu_count() or 1
-
-
 def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     """Register ``process``."""
     parser = subparsers.add_parser(
@@ -48,10 +41,15 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
         help="process a recording headless: trends, rates, maps, report",
         description="Demodulate every frame of INPUT (a holoview recording, a multi-page "
         "TIFF, a folder of images or a video) at the chosen peaks and write trends.csv, "
-        "summary.json, results.h5 and report.png into DIR.",
+        "summary.json, results.h5 and report.png into DIR. INPUT may also be a folder of "
+        "recordings or a quoted glob ('runs/*.h5'): then DIR/NAME per recording and "
+        "DIR/index.csv of every run's rates.",
     )
     parser.add_argument(
-        "input", type=Path, metavar="INPUT", help="recording, TIFF, folder or video"
+        "input",
+        type=Path,
+        metavar="INPUT",
+        help="recording, TIFF, folder or video; or a folder of recordings, or a glob",
     )
     parser.add_argument(
         "--out", type=folder_path, required=True, metavar="DIR", help="output folder"
@@ -111,6 +109,22 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
         metavar="N",
         help="FFTW threads per frame (default 1; more only on an otherwise idle machine)",
     )
+    spread = parser.add_argument_group("parallel runs")
+    spread.add_argument(
+        "--jobs",
+        type=int,
+        metavar="N",
+        help="processes measuring the frames, chunks of the recording each (default: "
+        "every core but one, when the recording is long enough to gain); with "
+        "--scheduler local, the local cluster's workers",
+    )
+    spread.add_argument(
+        "--scheduler",
+        metavar="ADDRESS",
+        help="run the chunks on the Dask cluster whose scheduler is at ADDRESS "
+        "(host:port; its workers must see INPUT at the same path), or 'local' for a "
+        "local Dask cluster",
+    )
     parser.add_argument("--maps", action="store_true", help="also write the delta-h maps")
     parser.add_argument("--frames", metavar="START:STOP", help="process these frames only")
     parser.add_argument("--area", type=float, metavar="M2", help="basin area, m^2 (volume rates)")
@@ -138,10 +152,14 @@ def _rate_text(rate: float | None, stderr: float | None) -> str:
 
 def run(args: argparse.Namespace) -> int:
     """Process, show progress, print one line of what came out."""
+    from holoview.headless.batch import find_recordings
+    from holoview.headless.chunks import usable_cores
     from holoview.headless.pipeline import ProcessSettings
     from holoview.headless.run import PeakChoice, process_file
     from holoview.headless.selection import parse_assignment
 
+    if args.jobs is not None and args.jobs < 1:
+        raise InputError(f"--jobs must be at least 1, got {args.jobs}")
     if args.threads < 1:
         raise InputError(f"--threads must be at least 1, got {args.threads}")
     cores = usable_cores()
@@ -166,17 +184,25 @@ def run(args: argparse.Namespace) -> int:
         threads=args.threads,
         background=args.background,
     )
+    options = {
+        "choice": choice,
+        "optics_options": optics_options(args, args.fps),
+        "settings": settings,
+        "frames": args.frames,
+    }
+    recordings = find_recordings(args.input)
+    if recordings is not None:
+        return _run_batch(args, recordings, options)
     bar, update = _progress_bar(args.quiet)
     with bar:
         outcome = process_file(
             args.input,
             args.out,
-            choice=choice,
-            optics_options=optics_options(args, args.fps),
-            settings=settings,
-            frames=args.frames,
             progress=update,
             overwrite=args.overwrite,
+            jobs=args.jobs,
+            scheduler=args.scheduler,
+            **options,
         )
     if outcome.data.interrupted:
         done = len(outcome.data.frames)
@@ -202,3 +228,36 @@ def run(args: argparse.Namespace) -> int:
             f"{_rate_text(fit.rate if fit else None, fit.stderr if fit else None)}"
         )
     return 0
+
+
+def _run_batch(args: argparse.Namespace, recordings: list[Path], options: dict) -> int:
+    """Process a folder or glob of recordings; one line per failure, and the totals."""
+    from holoview.headless.batch import process_batch
+
+    bar, update = _progress_bar(args.quiet)
+    with bar:
+        outcome = process_batch(
+            recordings,
+            args.out,
+            progress=update,
+            jobs=args.jobs,
+            scheduler=args.scheduler,
+            overwrite=args.overwrite,
+            **options,
+        )
+    for row in outcome.failed:
+        print(f"holoview process: {row.input}: {row.message}", file=sys.stderr)
+    done = sum(r.status == "ok" for r in outcome.rows)
+    if outcome.interrupted:
+        print(
+            f"holoview process: interrupted after {done} of {len(outcome.rows)} recordings; "
+            f"{outcome.index} lists them",
+            file=sys.stderr,
+        )
+        return 130
+    if not args.quiet:
+        emit(
+            f"{outcome.index}: {done} of {len(outcome.rows)} recordings processed"
+            + (f", {len(outcome.failed)} failed" if outcome.failed else "")
+        )
+    return 2 if outcome.failed else 0

@@ -217,7 +217,7 @@ def summary_document(
     when nothing was fused); ``pca`` (``confidence``, ``reference``, ``prefactors``,
     ``explained``, ``n_samples``; None when not computed); ``frames`` (``processed``,
     counts of ``nonfinite``, ``no_signal``, ``saturated`` frames); ``timing``
-    (seconds in all, reading, demodulating, frames per second); ``notes``.
+    (seconds in all, reading, demodulating, frames per second, ``workers``); ``notes``.
     Values not known are null.
     """
     n = len(data.frames)
@@ -280,6 +280,7 @@ def summary_document(
             "read_seconds": data.read_seconds,
             "demodulate_seconds": data.demod_seconds,
             "frames_per_second": n / data.wall_seconds if data.wall_seconds > 0 else None,
+            "workers": data.workers,
         },
         "notes": list(analysis.notes),
     }

@@ -142,8 +142,11 @@ class RunData:
     interrupted : bool
         The run was interrupted (Ctrl-C): the series hold the frames done before.
     read_seconds, demod_seconds, write_seconds, wall_seconds : float
-        Time reading the input (on the reader thread), demodulating, writing maps,
-        and in all, s.
+        Time reading the input (on the reader threads), demodulating, writing maps,
+        and in all, s (reading and demodulating summed over the processes).
+    workers : str
+        Where the carrier values were measured (``"1 process"``, ``"4 processes"``,
+        ``"Dask at ..."``).
     """
 
     series: PhaseSeries
@@ -162,6 +165,7 @@ class RunData:
     wall_seconds: float = 0.0
     no_signal: int = 0
     demodulated: int = 0
+    workers: str = "1 process"
 
     @property
     def frames(self) -> np.ndarray:
@@ -275,6 +279,104 @@ def _maps_wanted(n: int, every: int, relative: bool) -> np.ndarray:
     return wanted
 
 
+class MapsPass:
+    """The maps of a run, frame after frame in order: the stateful half of the loop.
+
+    The carrier values of a frame depend on that frame alone; the maps do not (their
+    reference is the previous demodulated frame, or the first; the displacements are
+    measured over frames in order). A run feeds this pass the frames it wants
+    (:attr:`wanted`), in order, whether it measures the carriers in the same loop
+    (:func:`demodulate_frames`) or on other processes
+    (:func:`holoview.headless.stitch.demodulate_chunks`): both give the same maps.
+
+    Parameters
+    ----------
+    core : FrameCore
+        Built for the selected peaks (its reference starts at the first frame fed).
+    data : RunData
+        The run's record, whose map noise, flags, counts and timings this pass fills.
+    n : int
+        Frames in the run.
+    sink : MapSink, optional
+        Receives every frame's maps (every frame is then wanted).
+
+    Attributes
+    ----------
+    wanted : ndarray of bool, shape (n,)
+        The positions whose frames the pass needs.
+    """
+
+    def __init__(self, core: FrameCore, data: RunData, n: int, sink: MapSink | None) -> None:
+        demodulator = core.build()
+        assert demodulator is not None
+        self._core = core
+        self._data = data
+        self._sink = sink
+        self._every = max(1, n // COREGISTER_FRAMES)
+        relative = demodulator.reference == "relative"
+        self.wanted = np.ones(n, bool) if sink else _maps_wanted(n, self._every, relative)
+        self._coregistration = Coregistration()
+        self._last: DemodResult | None = None
+
+    def feed(self, position: int, index: int, frame: np.ndarray, damaged: bool) -> None:
+        """Demodulate the ``position``-th frame (input ``index``) unless ``damaged``.
+
+        Frames not :attr:`wanted` are ignored; a damaged or non-finite frame leaves
+        NaN maps in the sink.
+        """
+        if not self.wanted[position]:
+            return
+        data = self._data
+        t0 = time.perf_counter()
+        result = None
+        if not damaged:
+            result = self._core.process(frame)
+            assert result is not None
+            _count(data, position, result)
+        maps = trusted_maps(result) if result is not None and result.peaks else []
+        if maps and position % self._every == 0:
+            self._coregistration.add(result, maps)  # type: ignore[arg-type]
+        t1 = time.perf_counter()
+        data.demod_seconds += t1 - t0
+        if maps:
+            self._last, data.last_frame = result, index
+        if self._sink is not None:
+            blank = np.full(data.box_shape, np.nan, np.float32)
+            for j in range(len(data.map_flags)):
+                self._sink.write_map(position, j, maps[j] if maps else blank)
+        data.write_seconds += time.perf_counter() - t1
+
+    def finish(self) -> None:
+        """Keep the last maps and the displacements in the run's record."""
+        if self._last is not None:
+            self._data.last_maps = list(trusted_maps(self._last))
+        self._data.displacements = self._coregistration.displacements() or []
+
+
+def new_run_data(core: FrameCore, n: int) -> RunData:
+    """An empty record of a run of ``n`` frames through ``core`` (built), its series sized."""
+    demodulator = core.build()
+    assert demodulator is not None
+    m = len(demodulator.peaks)
+    series = PhaseSeries([p.label or f"P{j}" for j, p in enumerate(demodulator.peaks)], n)
+    return RunData(
+        series=series,
+        map_noise_rad=np.full((n, m), np.nan),
+        map_flags=[dict.fromkeys(MAP_PEAK_FLAGS, 0) for _ in range(m)],
+        box_shape=demodulator.box_shape,
+        radius=demodulator.radius,
+        last_maps=[None] * m,
+        maps_in_metres=all(p.alpha is not None for p in demodulator.peaks),
+    )
+
+
+def check_run(data: RunData) -> RunData:
+    """Return ``data``; InputError when no frame could be demodulated."""
+    if not np.any(np.isfinite(data.values)):
+        raise InputError("no frame could be demodulated (every frame is NaN or infinite)")
+    return data
+
+
 def demodulate_frames(
     source: InputFile,
     frames: range,
@@ -312,26 +414,15 @@ def demodulate_frames(
         series of the frames done and ``interrupted`` set; with none done, the
         interruption is raised again.
     """
+    n = len(frames)
+    data = new_run_data(core, n)
+    series = data.series
     demodulator = core.build()
     assert demodulator is not None
-    n, m = len(frames), len(demodulator.peaks)
     carriers = CarrierCore(core.frame_shape, core.saturation)
     carriers.configure(demodulator.peaks)
-    series = PhaseSeries([p.label or f"P{j}" for j, p in enumerate(demodulator.peaks)], n)
-    coregistration = Coregistration()
-    every = max(1, n // COREGISTER_FRAMES)
-    wanted = _maps_wanted(n, every, demodulator.reference == "relative")
-    data = RunData(
-        series=series,
-        map_noise_rad=np.full((n, m), np.nan),
-        map_flags=[dict.fromkeys(MAP_PEAK_FLAGS, 0) for _ in range(m)],
-        box_shape=demodulator.box_shape,
-        radius=demodulator.radius,
-        last_maps=[None] * m,
-        maps_in_metres=all(p.alpha is not None for p in demodulator.peaks),
-    )
+    maps = MapsPass(core, data, n, sink)
     start = time.perf_counter()
-    last = None
     done = 0
     reader = FrameReader(source.read, frames, depth=read_ahead)
     try:
@@ -341,23 +432,8 @@ def demodulate_frames(
                 measured = carriers.measure(frame)
                 assert measured is not None
                 series.add(float(times[position]), index, measured)
-                result = None
-                if (sink is not None or wanted[position]) and "damaged" not in measured.flags:
-                    result = core.process(frame)
-                    assert result is not None
-                    _count(data, position, result)
-                maps = trusted_maps(result) if result is not None and result.peaks else []
-                if maps and position % every == 0:
-                    coregistration.add(result, maps)  # type: ignore[arg-type]
-                t1 = time.perf_counter()
-                data.demod_seconds += t1 - t0
-                if maps:
-                    last, data.last_frame = result, index
-                if sink is not None:  # a damaged or non-finite frame leaves NaN maps
-                    blank = np.full(data.box_shape, np.nan, np.float32)
-                    for j in range(m):
-                        sink.write_map(position, j, maps[j] if maps else blank)
-                data.write_seconds += time.perf_counter() - t1
+                data.demod_seconds += time.perf_counter() - t0
+                maps.feed(position, index, frame, "damaged" in measured.flags)
                 done = position + 1
                 if progress is not None:
                     progress(done)
@@ -367,14 +443,10 @@ def demodulate_frames(
         logger.warning("interrupted after %d of %d frames: results of those", done, n)
         data.interrupted = True
         series.truncate(done)
-    if last is not None:
-        data.last_maps = list(trusted_maps(last))
-    data.displacements = coregistration.displacements() or []
+    maps.finish()
     data.read_seconds = reader.read_seconds
     data.wall_seconds = time.perf_counter() - start
-    if not np.any(np.isfinite(data.values)):
-        raise InputError("no frame could be demodulated (every frame is NaN or infinite)")
-    return data
+    return check_run(data)
 
 
 def _count(data: RunData, position: int, result: DemodResult) -> None:

@@ -16,6 +16,7 @@ then, and only with ``overwrite`` (:mod:`~holoview.headless.output_folder`).
 
 from __future__ import annotations
 
+import contextlib
 import logging
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
@@ -27,6 +28,7 @@ import numpy as np
 from holoview.engine.experiment import Experiment, LabelledPeak
 from holoview.errors import InputError
 from holoview.headless.analysis import Analysis, analyse
+from holoview.headless.chunks import plan_jobs
 from holoview.headless.inputs import (
     InputFile,
     Optics,
@@ -43,6 +45,7 @@ from holoview.headless.outputs import (
     write_summary_json,
     write_trends_csv,
 )
+from holoview.headless.parallel import ChunkRunner, open_runner
 from holoview.headless.pipeline import ProcessSettings, RunData, demodulate_frames, make_core
 from holoview.headless.selection import (
     Carrier,
@@ -50,6 +53,7 @@ from holoview.headless.selection import (
     select_auto,
     select_from_experiment,
 )
+from holoview.headless.stitch import demodulate_chunks
 from holoview.processing.peaks import Peak, find_peaks
 from holoview.processing.spectrum import display_spectrum
 
@@ -230,6 +234,9 @@ def process_file(
     report: bool = True,
     progress: Callable[[int, int], None] | None = None,
     overwrite: bool = False,
+    jobs: int | None = 1,
+    scheduler: str | None = None,
+    runner: ChunkRunner | None = None,
 ) -> ProcessOutcome:
     """Process a recording headless and write the results into the folder ``out``.
 
@@ -255,6 +262,16 @@ def process_file(
         ``progress(done, total)`` after each frame.
     overwrite : bool
         Replace an earlier run's results in ``out`` when this run completes.
+    jobs : int or None
+        Processes measuring the frames (:func:`~holoview.headless.chunks.plan_jobs`;
+        None: every core but one when the run is long enough); with ``scheduler``
+        ``"local"``, the local cluster's workers.
+    scheduler : str, optional
+        A Dask scheduler's address, or ``"local"``
+        (:mod:`holoview.headless.parallel`).
+    runner : ChunkRunner, optional
+        Workers already started (a batch of recordings shares them); ``jobs`` and
+        ``scheduler`` are then not used.
 
     Returns
     -------
@@ -266,7 +283,8 @@ def process_file(
     InputError
         For an unreadable input, missing or wrong parameters, a bad experiment file or
         labels (a label on no detected peak, an unknown label without alpha), peaks the
-        PCA cannot identify, or earlier results without ``overwrite``.
+        PCA cannot identify, earlier results without ``overwrite``, ``jobs`` below 1,
+        a scheduler that does not answer, or workers that cannot read the input.
     OutputError
         An output could not be written (the folder keeps what it held).
     """
@@ -284,6 +302,7 @@ def process_file(
     with (
         OutputFolder(out_dir, names, overwrite=overwrite) as outputs,
         InputFile(input_path) as source,
+        contextlib.ExitStack() as stack,
     ):
         selected = parse_frame_range(frames, len(source))
         base, mode, notes = _base_experiment(choice, source, selected[0])
@@ -329,6 +348,14 @@ def process_file(
             demodulator.radius,
             demodulator.box_shape,
         )
+        if runner is None:
+            planned = plan_jobs(jobs, len(selected), source.kind)
+            if scheduler is not None and planned == 1 and source.kind == "video":
+                scheduler = None  # plan_jobs said why: a video is read in one process
+            if planned > 1 or scheduler is not None:
+                runner = stack.enter_context(open_runner(planned, scheduler))
+        elif runner.workers > 1 and plan_jobs(runner.workers, len(selected), source.kind) == 1:
+            runner = None
         outputs.create()
         results = ResultsFile(
             outputs.path(RESULTS_H5),
@@ -338,15 +365,29 @@ def process_file(
             maps=settings.maps,
         )
         try:
-            data = demodulate_frames(
-                source,
-                selected,
-                times,
-                core,
-                sink=results if settings.maps else None,
-                read_ahead=settings.read_ahead,
-                progress=None if progress is None else lambda k: progress(k, len(selected)),
-            )
+            sink = results if settings.maps else None
+            step = None if progress is None else lambda k: progress(k, len(selected))
+            if runner is None:
+                data = demodulate_frames(
+                    source,
+                    selected,
+                    times,
+                    core,
+                    sink=sink,
+                    read_ahead=settings.read_ahead,
+                    progress=step,
+                )
+            else:
+                data = demodulate_chunks(
+                    source,
+                    selected,
+                    times,
+                    core,
+                    runner,
+                    sink=sink,
+                    read_ahead=settings.read_ahead,
+                    progress=step,
+                )
             analysis = analyse(data, selection, optics)
             results.finish(
                 data=data,

@@ -1,0 +1,263 @@
+"""Where chunks are measured: processes on this machine, or the workers of a Dask cluster.
+
+A :class:`ChunkRunner` takes :class:`~holoview.headless.chunks.ChunkTask` objects and
+hands back their :class:`~holoview.headless.chunks.ChunkResult` as they complete, in any
+order (the stitching puts them in order):
+
+- :class:`ProcessRunner` (``--jobs N``): a pool of ``N`` processes started with
+  ``spawn`` (nothing of the parent's FFTW plans, HDF5 handles or threads is inherited).
+  The workers ignore Ctrl-C, which the terminal sends to the whole process group: the
+  parent decides, and when it is interrupted or fails it sends its workers SIGTERM; on
+  Linux a worker also gets SIGTERM if the parent dies without a word.
+- :class:`DaskRunner` (``--scheduler ADDRESS``, or ``local`` for a
+  :class:`distributed.LocalCluster` of ``--jobs`` worker processes): the same tasks as
+  Dask futures. The workers open the input by its path (it must be on storage they
+  share, with holoview installed in their environment); a worker lost mid-run has its
+  chunks measured again by Dask on another (``distributed.scheduler.allowed-failures``
+  times), and the result is the same, since a chunk's values depend on its frames alone.
+
+:func:`open_runner` picks one from the options. Dask is imported only when asked for.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import ctypes
+import logging
+import multiprocessing
+import signal
+from abc import ABC, abstractmethod
+from collections.abc import Iterator, Sequence
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from concurrent.futures.process import BrokenProcessPool
+from types import TracebackType
+from typing import Any, Self
+
+from holoview.errors import HoloviewError, InputError
+from holoview.headless.chunks import ChunkResult, ChunkTask, measure_chunk
+
+logger = logging.getLogger(__name__)
+
+#: Seconds to wait for a scheduler to answer before giving up.
+CONNECT_TIMEOUT_S = 5.0
+
+#: Seconds a remote cluster is given to have at least one worker.
+WORKERS_TIMEOUT_S = 30.0
+
+#: ``prctl`` option: the signal a process gets when its parent dies (Linux).
+_PR_SET_PDEATHSIG = 1
+
+
+def _worker_start() -> None:
+    """In each local worker: leave Ctrl-C to the parent; SIGTERM when the parent dies."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    with contextlib.suppress(OSError, AttributeError):
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(_PR_SET_PDEATHSIG, int(signal.SIGTERM), 0, 0, 0)
+
+
+class ChunkRunner(ABC):
+    """Measures chunks somewhere; a context manager (an error or interruption aborts it).
+
+    Attributes
+    ----------
+    workers : int
+        Processes measuring chunks at once.
+    name : str
+        Where, in words (``"4 processes"``, ``"Dask at tcp://..."``).
+    """
+
+    workers: int = 1
+    name: str = ""
+
+    @abstractmethod
+    def run(self, tasks: Sequence[ChunkTask]) -> Iterator[ChunkResult]:
+        """Measure ``tasks``; yield each result as it completes (the rest cancelled on close).
+
+        Raises
+        ------
+        InputError
+            A worker cannot read the input (the message names it).
+        HoloviewError
+            The workers were lost for good.
+        """
+
+    @abstractmethod
+    def abort(self) -> None:
+        """Stop the work now (an interruption): workers are stopped, not waited for."""
+
+    @abstractmethod
+    def close(self) -> None:
+        """Release the workers once the work is done."""
+
+    def __enter__(self) -> Self:
+        return self
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        if exc is not None:
+            self.abort()
+        self.close()
+
+
+class ProcessRunner(ChunkRunner):
+    """``jobs`` worker processes on this machine (module documentation).
+
+    Parameters
+    ----------
+    jobs : int
+        Worker processes, at least 1.
+    """
+
+    def __init__(self, jobs: int) -> None:
+        self.workers = int(jobs)
+        self.name = f"{self.workers} processes"
+        self._executor = ProcessPoolExecutor(
+            max_workers=self.workers,
+            mp_context=multiprocessing.get_context("spawn"),
+            initializer=_worker_start,
+        )
+
+    def run(self, tasks: Sequence[ChunkTask]) -> Iterator[ChunkResult]:
+        pending: set[Future[ChunkResult]] = {
+            self._executor.submit(measure_chunk, task) for task in tasks
+        }
+        try:
+            while pending:
+                done, pending = wait(pending, return_when=FIRST_COMPLETED)
+                for future in done:
+                    yield future.result()
+        except BrokenProcessPool as exc:
+            raise HoloviewError(
+                "a worker process ended abruptly (killed, or out of memory?): run again, "
+                "with fewer --jobs"
+            ) from exc
+        finally:
+            for future in pending:
+                future.cancel()
+
+    def abort(self) -> None:
+        # Python 3.14 has terminate_workers(); before, the pool's processes are only
+        # reachable through its _processes mapping.
+        terminate = getattr(self._executor, "terminate_workers", None)
+        if terminate is not None:
+            terminate(signal.SIGTERM)
+            return
+        processes: dict[int, Any] = getattr(self._executor, "_processes", None) or {}
+        for process in list(processes.values()):
+            with contextlib.suppress(OSError, ValueError, AttributeError):
+                process.terminate()
+        self._executor.shutdown(wait=False, cancel_futures=True)
+
+    def close(self) -> None:
+        self._executor.shutdown(wait=True, cancel_futures=True)
+
+
+class DaskRunner(ChunkRunner):
+    """Chunks as Dask futures on a cluster (module documentation).
+
+    Parameters
+    ----------
+    scheduler : str
+        The scheduler's address (``tcp://host:8786``, ``host:8786``), or ``"local"``
+        for a :class:`distributed.LocalCluster` of ``jobs`` worker processes.
+    jobs : int
+        Worker processes of a local cluster (a remote cluster has its own).
+
+    Raises
+    ------
+    InputError
+        No scheduler answers at the address within :data:`CONNECT_TIMEOUT_S`, or it has
+        no worker within :data:`WORKERS_TIMEOUT_S`.
+    """
+
+    def __init__(self, scheduler: str, jobs: int = 1) -> None:
+        import distributed
+
+        self._cluster: Any = None
+        if scheduler == "local":
+            self._cluster = distributed.LocalCluster(
+                n_workers=max(1, int(jobs)),
+                threads_per_worker=1,
+                processes=True,
+                dashboard_address=None,
+                silence_logs=logging.ERROR,
+                # its HTTP server (health, metrics) on a free port, not on 8787
+                scheduler_kwargs={"dashboard_address": ":0"},
+            )
+            address = self._cluster.scheduler_address
+        else:
+            address = scheduler
+        try:
+            self._client = distributed.Client(address, timeout=CONNECT_TIMEOUT_S)
+        except (OSError, TimeoutError, ValueError) as exc:
+            self._close_cluster()
+            raise InputError(
+                f"--scheduler {scheduler}: no Dask scheduler answers there ({exc})"
+            ) from None
+        try:
+            self._client.wait_for_workers(1, timeout=WORKERS_TIMEOUT_S)
+        except (OSError, TimeoutError) as exc:
+            self.close()
+            raise InputError(
+                f"--scheduler {scheduler}: the scheduler has no worker ({exc})"
+            ) from None
+        self.workers = max(1, len(self._client.scheduler_info().get("workers", {})))
+        self.name = f"Dask at {address} ({self.workers} workers)"
+
+    @property
+    def client(self) -> Any:
+        """The :class:`distributed.Client` (tests find its workers through it)."""
+        return self._client
+
+    def run(self, tasks: Sequence[ChunkTask]) -> Iterator[ChunkResult]:
+        import distributed
+
+        futures = self._client.map(measure_chunk, list(tasks), pure=False)
+        try:
+            for future in distributed.as_completed(futures):
+                yield future.result()
+        except distributed.client.FutureCancelledError as exc:
+            raise HoloviewError(f"the Dask cluster dropped the work ({exc})") from None
+        except distributed.scheduler.KilledWorker as exc:
+            raise HoloviewError(
+                f"Dask workers kept dying on a chunk of frames ({exc}): out of memory?"
+            ) from None
+        finally:
+            self._client.cancel(futures)
+
+    def abort(self) -> None:
+        self.close()
+
+    def _close_cluster(self) -> None:
+        if self._cluster is not None:
+            self._cluster.close()
+            self._cluster = None
+
+    def close(self) -> None:
+        client = getattr(self, "_client", None)
+        if client is not None:
+            client.close()
+            self._client = None
+        self._close_cluster()
+
+
+def open_runner(jobs: int, scheduler: str | None = None) -> ChunkRunner:
+    """The runner for ``--jobs`` and ``--scheduler`` (a Dask one when a scheduler is given).
+
+    Raises
+    ------
+    InputError
+        For ``jobs`` below 1, or a scheduler that does not answer.
+    """
+    if jobs < 1:
+        raise InputError(f"--jobs must be at least 1, got {jobs}")
+    if scheduler is not None:
+        if not scheduler.strip():
+            raise InputError("--scheduler: give an address (host:port) or 'local'")
+        return DaskRunner(scheduler.strip(), jobs)
+    return ProcessRunner(jobs)
