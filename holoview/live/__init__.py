@@ -4,10 +4,12 @@
 recorder and the workers (:mod:`holoview.live.worker`), each frame processed by
 :class:`~holoview.live.pipeline.LivePipeline` on the engine's per-frame core. The GUI
 (:mod:`holoview.ui`) only reads the latest result and sends commands; a script or a
-test can do the same without a display.
+test can do the same without a display; a replay is steered through
+:class:`~holoview.live.replay_control.ReplayControl` (``LiveSession.replay``).
 """
 
 from holoview.live.pipeline import LivePipeline, LiveResult
+from holoview.live.replay_control import ReplayControl, ReplayState
 from holoview.live.session import LiveSession, RecordingProgress, RecordRequest, discover_sources
 
 __all__ = [
@@ -16,5 +18,7 @@ __all__ = [
     "LiveSession",
     "RecordRequest",
     "RecordingProgress",
+    "ReplayControl",
+    "ReplayState",
     "discover_sources",
 ]
