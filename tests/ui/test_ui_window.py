@@ -340,7 +340,9 @@ def test_opening_a_slow_source_does_not_freeze_the_window(
     timer.start(10)
     _wait_opened(qtbot, window)
     timer.stop()
-    assert len(ticks) > 20 and max(np.diff(ticks)) < 0.1  # the event loop kept running
+    # the event loop kept running: no gap near the 0.6 s the opening takes (a loaded
+    # machine's scheduling can delay a 10 ms tick by a few tenths of that)
+    assert len(ticks) > 20 and max(np.diff(ticks)) < 0.3
     assert window.session is not None and window.source_panel.start_button.isEnabled()
 
 
