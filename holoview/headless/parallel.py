@@ -5,7 +5,8 @@ hands back their :class:`~holoview.headless.chunks.ChunkResult` as they complete
 order (the stitching puts them in order):
 
 - :class:`ProcessRunner` (``--jobs N``): a pool of ``N`` processes started with
-  ``spawn`` (nothing of the parent's FFTW plans, HDF5 handles or threads is inherited).
+  ``spawn`` (nothing of the parent's FFTW plans, HDF5 handles or threads is inherited),
+  all at once when it is made, so that they start while the parent prepares the run.
   The workers ignore Ctrl-C, which the terminal sends to the whole process group: the
   parent decides, and when it is interrupted or fails it sends its workers SIGTERM; on
   Linux a worker also gets SIGTERM if the parent dies without a word.
@@ -25,6 +26,7 @@ import contextlib
 import ctypes
 import logging
 import multiprocessing
+import os
 import signal
 from abc import ABC, abstractmethod
 from collections.abc import Iterator, Sequence
@@ -54,6 +56,11 @@ def _worker_start() -> None:
     with contextlib.suppress(OSError, AttributeError):
         libc = ctypes.CDLL(None, use_errno=True)
         libc.prctl(_PR_SET_PDEATHSIG, int(signal.SIGTERM), 0, 0, 0)
+
+
+def _ready() -> int:
+    """A worker's first task: started, and holoview imported (unpickling this imported it)."""
+    return os.getpid()
 
 
 class ChunkRunner(ABC):
@@ -121,6 +128,10 @@ class ProcessRunner(ChunkRunner):
             mp_context=multiprocessing.get_context("spawn"),
             initializer=_worker_start,
         )
+        # start every worker now, so that they import holoview (a second or two) while
+        # the parent opens the input and detects the peaks
+        for _ in range(self.workers):
+            self._executor.submit(_ready)
 
     def run(self, tasks: Sequence[ChunkTask]) -> Iterator[ChunkResult]:
         pending: set[Future[ChunkResult]] = {
