@@ -27,7 +27,7 @@ import numpy as np
 
 from holoview.engine.experiment import Experiment, LabelledPeak
 from holoview.errors import InputError
-from holoview.headless.analysis import Analysis, analyse
+from holoview.headless.analysis import Analysis, analyse, known_joint
 from holoview.headless.chunks import plan_jobs
 from holoview.headless.inputs import (
     InputFile,
@@ -387,6 +387,7 @@ def process_file(
                     sink=sink,
                     read_ahead=settings.read_ahead,
                     progress=step,
+                    joint=known_joint(selection, optics),
                 )
             analysis = analyse(data, selection, optics)
             results.finish(
