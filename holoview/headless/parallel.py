@@ -32,6 +32,7 @@ import logging
 import multiprocessing
 import os
 import signal
+import threading
 from abc import ABC, abstractmethod
 from collections.abc import Iterator, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
@@ -154,12 +155,20 @@ class ProcessRunner(ChunkRunner):
         self._executor = ProcessPoolExecutor(
             max_workers=self.workers, mp_context=context, initializer=_worker_start
         )
-        # every worker (and the forkserver, on first use) starts now, in this environment
+        # every worker (and the forkserver, on first use) starts now, on a thread: the
+        # forkserver's import of holoview would otherwise hold this one for a second
+        self._starting = threading.Thread(
+            target=self._start, name="holoview-workers-start", daemon=True
+        )
+        self._starting.start()
+
+    def _start(self) -> None:
         with _environment(SINGLE_THREADED):
             for _ in range(self.workers):
                 self._executor.submit(_ready)
 
     def run(self, tasks: Sequence[ChunkTask]) -> Iterator[ChunkResult]:
+        self._starting.join()
         pending: set[Future[ChunkResult]] = {
             self._executor.submit(measure_chunk, task) for task in tasks
         }
@@ -178,6 +187,7 @@ class ProcessRunner(ChunkRunner):
                 future.cancel()
 
     def abort(self) -> None:
+        self._starting.join()
         # Python 3.14 has terminate_workers(); before, the pool's processes are only
         # reachable through its _processes mapping.
         terminate = getattr(self._executor, "terminate_workers", None)
@@ -191,6 +201,7 @@ class ProcessRunner(ChunkRunner):
         self._executor.shutdown(wait=False, cancel_futures=True)
 
     def close(self) -> None:
+        self._starting.join()
         self._executor.shutdown(wait=True, cancel_futures=True)
 
 
