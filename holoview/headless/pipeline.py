@@ -147,6 +147,11 @@ class RunData:
     workers : str
         Where the carrier values were measured (``"1 process"``, ``"4 processes"``,
         ``"Dask at ..."``).
+    worker_seconds, parent_seconds : float
+        A parallel run's time measuring carrier values in the workers (summed), and in
+        the parent demodulating the maps and stitching the series in order (its
+        sequential part, which bounds the frames per second whatever the workers), s;
+        0 for a run in one process.
     """
 
     series: PhaseSeries
@@ -166,6 +171,8 @@ class RunData:
     no_signal: int = 0
     demodulated: int = 0
     workers: str = "1 process"
+    worker_seconds: float = 0.0
+    parent_seconds: float = 0.0
 
     @property
     def frames(self) -> np.ndarray:

@@ -161,11 +161,14 @@ def demodulate_chunks(
         series.track_joint(joint.alphas, joint.couplings, joint.wavelength_m, joint.exclude)
 
     def add(result: ChunkResult) -> None:
+        start = time.perf_counter()
         for k in range(len(result)):
             position = result.start + k
             series.add(float(times[position]), frames[position], result.measured(k))
         data.read_seconds += result.read_seconds
         data.demod_seconds += result.measure_seconds
+        data.worker_seconds += result.measure_seconds
+        data.parent_seconds += time.perf_counter() - start
 
     gathered = _Gathered(runner.run(tasks), [c.start for c in chunks], n, progress, add)
     positions = np.flatnonzero(maps.wanted)
@@ -175,7 +178,9 @@ def demodulate_chunks(
             for k, (index, frame) in enumerate(reader):
                 position = int(positions[k])
                 gathered.until(position)
+                start = time.perf_counter()
                 maps.feed(position, index, frame, gathered.damaged(position))
+                data.parent_seconds += time.perf_counter() - start
         gathered.until(n - 1)
     except KeyboardInterrupt:
         runner.abort()
