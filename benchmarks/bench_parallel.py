@@ -16,12 +16,13 @@ uncompressed 16-bit) in a temporary folder under /tmp, then prints in one run:
    (target >= 1.7 on two cores), and that their ``trends.csv`` are the same bytes;
 3. a scaling model to 16 and 64 cores from ``--jobs 2``'s summary: a worker's time per
    frame ``c`` (carrier probe and reading from the page cache), the parent's sequential
-   time per frame ``p`` (the maps of about 50 frames, the series stitched in order with
-   its joint estimate), and the read time per frame ``r`` (the frame's bytes over the
-   measured disk rate, or a network's). With ``W`` workers (cores minus one) the frames
-   go at ``min(W / c, 1 / p, 1 / r)`` frames/s, plus the run's fixed part (start,
-   detection, analysis, outputs). The disk (or network) becomes the limit beyond
-   ``W = c / r`` workers, the parent beyond ``W = c / p``.
+   time per frame ``p`` (the series stitched in order with its joint estimate), and the
+   read time per frame ``r`` (the frame's bytes over the measured disk rate, or a
+   network's). With ``W`` workers (cores minus one) the frames go at
+   ``min(W / c, 1 / p, 1 / r)`` frames/s, plus the run's fixed part (start, detection,
+   the maps of about 50 frames demodulated in the parent, analysis, outputs). The disk
+   (or network) becomes the limit beyond ``W = c / r`` workers, the parent beyond
+   ``W = c / p``.
 
 The recording and the outputs are deleted at the end.
 """
@@ -126,15 +127,17 @@ def main() -> None:
         two = json.loads((work / "jobs2" / "summary.json").read_text())["timing"]
         n = args.frames
         worker = (two["worker_seconds"] + two["read_seconds"]) / n
-        parent = two["parent_seconds"] / n
-        fixed = t2 - two["seconds"]
+        maps = two["demodulate_seconds"] - two["worker_seconds"]  # the parent's ~50 frames
+        parent = (two["parent_seconds"] - maps) / n
+        fixed = t2 - two["seconds"] + maps
         print(
             f"  --jobs 1: frame loop {one['seconds']:.1f} s, the rest (start, detection, "
             f"analysis, outputs) {t1 - one['seconds']:.1f} s; --jobs 2: frame loop "
-            f"{two['seconds']:.1f} s, the rest {fixed:.1f} s; per frame: worker "
+            f"{two['seconds']:.1f} s (the parent's maps of ~50 frames {maps:.1f} s), the rest "
+            f"{t2 - two['seconds']:.1f} s; per frame: a worker "
             f"{two['worker_seconds'] / n * 1e3:.2f} ms carriers + "
-            f"{two['read_seconds'] / n * 1e3:.2f} ms reading, parent (maps of ~50 frames, "
-            f"stitching, joint estimate) {parent * 1e3:.2f} ms"
+            f"{two['read_seconds'] / n * 1e3:.2f} ms reading, the parent (stitching in order, "
+            f"joint estimate) {parent * 1e3:.2f} ms"
         )
         print(f"load average at end: {', '.join(f'{x:.2f}' for x in os.getloadavg())}")
         _model(n, worker, parent, fixed=fixed, frame_bytes=frame_bytes, disk=cold)
