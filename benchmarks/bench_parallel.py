@@ -14,9 +14,10 @@ uncompressed 16-bit) in a temporary folder under /tmp, then prints in one run:
    analysis, outputs), ``--jobs 1`` and ``--jobs 2`` in turn, ``--repeat`` times each,
    the file in the page cache for both: the best wall time of each, their ratio
    (target >= 1.7 on two cores), and that their ``trends.csv`` are the same bytes;
-3. a scaling model to 16 and 64 cores from ``--jobs 2``'s summary: a worker's time per
-   frame ``c`` (carrier probe and reading from the page cache), the parent's sequential
-   time per frame ``p`` (the series stitched in order with its joint estimate), and the
+3. a scaling model to 16 and 64 cores: a worker's time per frame ``c`` (carrier probe
+   and reading from the page cache, from ``--jobs 1``, a process with a core to itself as
+   a worker of a large machine has), the parent's sequential time per frame ``p`` (the
+   series stitched in order with its joint estimate, from ``--jobs 2``), and the
    read time per frame ``r`` (the frame's bytes over the measured disk rate, or a
    network's). With ``W`` workers (cores minus one) the frames go at
    ``min(W / c, 1 / p, 1 / r)`` frames/s, plus the run's fixed part (start, detection,
@@ -126,18 +127,22 @@ def main() -> None:
         one = json.loads((work / "jobs1" / "summary.json").read_text())["timing"]
         two = json.loads((work / "jobs2" / "summary.json").read_text())["timing"]
         n = args.frames
-        worker = (two["worker_seconds"] + two["read_seconds"]) / n
-        maps = two["demodulate_seconds"] - two["worker_seconds"]  # the parent's ~50 frames
-        parent = (two["parent_seconds"] - maps) / n
-        fixed = t2 - two["seconds"] + maps
+        carriers = (one["demodulate_seconds"] - one["maps_seconds"]) / n
+        worker = carriers + one["read_seconds"] / n
+        parent = (two["parent_seconds"] - two["maps_seconds"]) / n
+        fixed = t2 - two["seconds"] + one["maps_seconds"]
         print(
-            f"  --jobs 1: frame loop {one['seconds']:.1f} s, the rest (start, detection, "
-            f"analysis, outputs) {t1 - one['seconds']:.1f} s; --jobs 2: frame loop "
-            f"{two['seconds']:.1f} s (the parent's maps of ~50 frames {maps:.1f} s), the rest "
-            f"{t2 - two['seconds']:.1f} s; per frame: a worker "
-            f"{two['worker_seconds'] / n * 1e3:.2f} ms carriers + "
-            f"{two['read_seconds'] / n * 1e3:.2f} ms reading, the parent (stitching in order, "
-            f"joint estimate) {parent * 1e3:.2f} ms"
+            f"  --jobs 1: frame loop {one['seconds']:.1f} s (maps of ~50 frames "
+            f"{one['maps_seconds']:.1f} s), the rest (start, detection, analysis, outputs) "
+            f"{t1 - one['seconds']:.1f} s; per frame {carriers * 1e3:.2f} ms carriers + "
+            f"{one['read_seconds'] / n * 1e3:.2f} ms reading (its thread)"
+        )
+        print(
+            f"  --jobs 2: frame loop {two['seconds']:.1f} s (the parent's maps "
+            f"{two['maps_seconds']:.1f} s), the rest {t2 - two['seconds']:.1f} s; per frame: "
+            f"a worker {two['worker_seconds'] / n * 1e3:.2f} ms carriers + "
+            f"{(two['read_seconds']) / n * 1e3:.2f} ms reading, the parent (stitching in "
+            f"order, joint estimate) {parent * 1e3:.2f} ms; three processes on two cores"
         )
         print(f"load average at end: {', '.join(f'{x:.2f}' for x in os.getloadavg())}")
         _model(n, worker, parent, fixed=fixed, frame_bytes=frame_bytes, disk=cold)
