@@ -14,13 +14,16 @@ uncompressed 16-bit) in a temporary folder under /tmp, then prints in one run:
    analysis, outputs), ``--jobs 1`` and ``--jobs 2`` in turn, ``--repeat`` times each,
    the file in the page cache for both: the best wall time of each, their ratio
    (target >= 1.7 on two cores), and that their ``trends.csv`` are the same bytes;
-3. a scaling model to 16 and 64 cores, from the per-frame compute time ``c`` (the
-   carrier probe, one core; from ``--jobs 1``'s summary) and the read time per frame
-   ``r`` (the frame's bytes over the measured disk rate, or a network's): with ``W``
-   workers (cores minus one), the frames go at ``min(W / c, 1 / r)`` frames/s, plus the
-   run's fixed part (start, detection, analysis, outputs, and the maps of about 50
-   frames demodulated in the parent). The disk (or network) becomes the limit beyond
-   ``W = c / r`` workers.
+3. a scaling model to 16 and 64 cores: a worker's time per frame ``c`` (carrier probe
+   and reading from the page cache, from ``--jobs 1``, a process with a core to itself as
+   a worker of a large machine has), the parent's sequential time per frame ``p`` (the
+   series stitched in order with its joint estimate, from ``--jobs 2``), and the
+   read time per frame ``r`` (the frame's bytes over the measured disk rate, or a
+   network's). With ``W`` workers (cores minus one) the frames go at
+   ``min(W / c, 1 / p, 1 / r)`` frames/s, plus the run's fixed part (start, detection,
+   the maps of about 50 frames demodulated in the parent, analysis, outputs). The disk
+   (or network) becomes the limit beyond ``W = c / r`` workers, the parent beyond
+   ``W = c / p``.
 
 The recording and the outputs are deleted at the end.
 """
@@ -121,45 +124,65 @@ def main() -> None:
             "  all runs, s: "
             + "; ".join(f"--jobs {j}: {', '.join(f'{w:.1f}' for w in walls[j])}" for j in walls)
         )
-        summary = json.loads((work / "jobs1" / "summary.json").read_text())
-        timing = summary["timing"]
-        compute = timing["demodulate_seconds"] / args.frames
-        loop = timing["seconds"]
-        fixed = t1 - loop
+        one = json.loads((work / "jobs1" / "summary.json").read_text())["timing"]
+        two = json.loads((work / "jobs2" / "summary.json").read_text())["timing"]
+        n = args.frames
+        carriers = (one["demodulate_seconds"] - one["maps_seconds"]) / n
+        worker = carriers + one["read_seconds"] / n
+        parent = (two["parent_seconds"] - two["maps_seconds"]) / n
+        fixed = t2 - two["seconds"] + one["maps_seconds"]
         print(
-            f"  --jobs 1: frame loop {loop:.1f} s, of which carriers and ~50 maps "
-            f"{compute * 1e3:.2f} ms a frame on one core; the rest of the run (start, "
-            f"detection, analysis, outputs) {fixed:.1f} s"
+            f"  --jobs 1: frame loop {one['seconds']:.1f} s (maps of ~50 frames "
+            f"{one['maps_seconds']:.1f} s), the rest (start, detection, analysis, outputs) "
+            f"{t1 - one['seconds']:.1f} s; per frame {carriers * 1e3:.2f} ms carriers + "
+            f"{one['read_seconds'] / n * 1e3:.2f} ms reading (its thread)"
+        )
+        print(
+            f"  --jobs 2: frame loop {two['seconds']:.1f} s (the parent's maps "
+            f"{two['maps_seconds']:.1f} s), the rest {t2 - two['seconds']:.1f} s; per frame: "
+            f"a worker {two['worker_seconds'] / n * 1e3:.2f} ms carriers + "
+            f"{(two['read_seconds']) / n * 1e3:.2f} ms reading, the parent (stitching in "
+            f"order, joint estimate) {parent * 1e3:.2f} ms; three processes on two cores"
         )
         print(f"load average at end: {', '.join(f'{x:.2f}' for x in os.getloadavg())}")
-        _model(args.frames, compute, fixed, frame_bytes, cold)
+        _model(n, worker, parent, fixed=fixed, frame_bytes=frame_bytes, disk=cold)
     finally:
         shutil.rmtree(work, ignore_errors=True)
 
 
-def _model(frames: int, compute: float, fixed: float, frame_bytes: float, disk: float) -> None:
+def _model(
+    frames: int, worker: float, parent: float, *, fixed: float, frame_bytes: float, disk: float
+) -> None:
     """Print the scaling model (module documentation) for this machine's figures."""
     print(
-        f"scaling model: c = {compute * 1e3:.2f} ms a frame (one core), frame "
-        f"{frame_bytes / 1e6:.2f} MB; W = cores - 1 workers; frames/s = min(W / c, rate / "
-        f"frame); fixed part {fixed:.1f} s"
+        f"scaling model: W = cores - 1 workers at {worker * 1e3:.2f} ms a frame each, the "
+        f"parent's sequential {parent * 1e3:.2f} ms a frame, frames of "
+        f"{frame_bytes / 1e6:.2f} MB read at R bytes/s: frames/s = min(W / "
+        f"{worker * 1e3:.2f} ms, 1 / {parent * 1e3:.2f} ms, R / frame), plus {fixed:.1f} s "
+        "fixed"
     )
     reads = [("this disk", disk), *NETWORKS]
+    print(f"  the parent's stitching limits a run to {1 / parent:.0f} frames/s whatever the cores")
     for name, rate in reads:
         limit = rate / frame_bytes
         print(
-            f"  read from {name} ({rate / 1e6:.0f} MB/s): at most {limit:.0f} frames/s; "
-            f"the limit beyond {compute * limit:.1f} workers"
+            f"  read from {name} ({rate / 1e6:.0f} MB/s): at most {limit:.0f} frames/s, "
+            f"the limit beyond {worker * limit:.1f} workers"
         )
     for cores in MODEL_CORES:
         workers = max(1, cores - 1)
         parts = []
         for name, rate in reads:
-            per_s = min(workers / compute, rate / frame_bytes)
-            bound = "compute" if workers / compute <= rate / frame_bytes else "read"
+            bounds = {
+                "compute": workers / worker,
+                "parent": 1 / parent,
+                "read": rate / frame_bytes,
+            }
+            bound = min(bounds, key=bounds.__getitem__)
+            per_s = bounds[bound]
             parts.append(
-                f"{name}: {per_s:.0f} frames/s ({bound}-bound), "
-                f"{frames} frames in {fixed + frames / per_s:.1f} s"
+                f"{name} {per_s:.0f} frames/s ({bound}-bound, {frames} frames in "
+                f"{fixed + frames / per_s:.1f} s)"
             )
         print(f"  {cores} cores: " + "; ".join(parts))
 

@@ -64,6 +64,15 @@ def frame_time(t_device: float, t_host: float) -> float:
     return t_device if math.isfinite(t_device) else t_host
 
 
+def _joint_key(
+    alphas: Sequence[float | None],
+    couplings: Sequence[int | None],
+    wavelength_m: float,
+    exclude: Sequence[bool],
+) -> tuple:
+    return (tuple(alphas), tuple(couplings), float(wavelength_m), tuple(bool(e) for e in exclude))
+
+
 class PhaseSeries:
     """Per-frame carrier values, their phase noise and the frames' flags, for fixed peaks.
 
@@ -104,6 +113,7 @@ class PhaseSeries:
         self._t0: float | None = None
         self._last = np.full(m, np.nan + 0j)
         self._joint: JointEstimator | None = None
+        self._joint_key: tuple | None = None
         self._joint_columns: np.ndarray = np.zeros(0, dtype=np.int64)
         self._joint_signs: np.ndarray = np.ones(0)
         self._joint_couplings: np.ndarray = np.zeros(0)
@@ -160,6 +170,7 @@ class PhaseSeries:
             return
         if self.max_length is not None and size >= self.max_length:
             keep = self.max_length - max(1, self.max_length // 10)
+            self._joint_key = None  # a new estimate over the frames kept would differ
             for name in _ARRAYS:
                 array = getattr(self, name)
                 array[:keep] = array[self._n - keep : self._n]
@@ -231,6 +242,7 @@ class PhaseSeries:
             Peaks left out of the joint estimate.
         """
         skip = list(exclude) if exclude is not None else [False] * len(self.labels)
+        self._joint_key = _joint_key(alphas, couplings, wavelength_m, skip)
         columns = [
             j
             for j, (a, c) in enumerate(zip(alphas, couplings, strict=True))
@@ -250,6 +262,21 @@ class PhaseSeries:
         )
         for i in range(self._n):
             self._joint_update(i)
+
+    def tracks_joint(
+        self,
+        alphas: Sequence[float | None],
+        couplings: Sequence[int | None],
+        wavelength_m: float,
+        exclude: Sequence[bool] | None = None,
+    ) -> bool:
+        """Whether :meth:`track_joint` with these arguments would change nothing.
+
+        True when the series has estimated every frame it holds, from its first, with
+        the same arguments (a run that knew its prefactors before its frames came).
+        """
+        skip = list(exclude) if exclude is not None else [False] * len(self.labels)
+        return self._joint_key == _joint_key(alphas, couplings, wavelength_m, skip)
 
     def _joint_update(self, i: int) -> None:
         assert self._joint is not None

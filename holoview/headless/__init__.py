@@ -17,7 +17,13 @@ the pieces:
   them and fits the rates;
 - :mod:`~holoview.headless.outputs` writes ``trends.csv``, ``summary.json`` and
   ``results.h5``, and :mod:`~holoview.headless.report` draws ``report.png`` with the
-  OpenCV helpers of :mod:`~holoview.headless.plotting`.
+  OpenCV helpers of :mod:`~holoview.headless.plotting`;
+- on many cores or a Dask cluster: :mod:`~holoview.headless.chunks` splits the frames
+  and measures a chunk's carrier values in a worker, :mod:`~holoview.headless.parallel`
+  runs the chunks (local processes or Dask), :mod:`~holoview.headless.stitch` joins
+  them in order with the maps and the series of the run;
+- :mod:`~holoview.headless.batch` processes a folder or a glob of recordings into a
+  folder each, with ``index.csv`` of their rates.
 
 No Qt here (an import-linter contract enforces it).
 """

@@ -219,6 +219,34 @@ def _given_names(selection: Selection) -> _Naming:
     )
 
 
+@dataclass(frozen=True)
+class JointSetup:
+    """The joint estimate's arguments (:meth:`~holoview.engine.series.PhaseSeries.track_joint`)."""
+
+    alphas: list[float | None]
+    couplings: list[int | None]
+    wavelength_m: float
+    exclude: list[bool]
+
+
+def known_joint(selection: Selection, optics: Optics) -> JointSetup | None:
+    """The joint estimate :func:`analyse` will make, when it is known before the frames.
+
+    Known prefactors (labels, an experiment): a run can estimate the frames jointly as
+    they come, and :func:`analyse` keeps that estimate. None in auto mode (the PCA
+    names the peaks after the run).
+    """
+    if selection.mode == "auto" or optics.wavelength_m is None:
+        return None
+    naming = _given_names(selection)
+    return JointSetup(
+        alphas=naming.signed,
+        couplings=[coupling_of(label, optics.n1, optics.n2) for label in naming.labels],
+        wavelength_m=optics.wavelength_m,
+        exclude=[not f for f in naming.fusable],
+    )
+
+
 def _pca_names(ident: Identification, flags: list[set[str]]) -> _Naming:
     """Labels and prefactors from the PCA identification (module docstring); adds flags."""
     m = len(ident.peaks)
@@ -291,7 +319,8 @@ def analyse(data: RunData, selection: Selection, optics: Optics) -> Analysis:
     alphas = [abs(a) if a is not None else None for a in signed]
     exclude = [not f for f in fusable]
     couplings = [coupling_of(label, optics.n1, optics.n2) for label in labels]
-    data.series.track_joint(signed, couplings, wavelength, exclude=exclude)
+    if not data.series.tracks_joint(signed, couplings, wavelength, exclude=exclude):
+        data.series.track_joint(signed, couplings, wavelength, exclude=exclude)
     summary = summarise(data.series, signed, wavelength, exclude=exclude)
     notes = list(selection.notes)
     if summary.note is not None:

@@ -217,7 +217,9 @@ def summary_document(
     when nothing was fused); ``pca`` (``confidence``, ``reference``, ``prefactors``,
     ``explained``, ``n_samples``; None when not computed); ``frames`` (``processed``,
     counts of ``nonfinite``, ``no_signal``, ``saturated`` frames); ``timing``
-    (seconds in all, reading, demodulating, frames per second, ``workers``); ``notes``.
+    (seconds in all, reading, demodulating and of it the maps, frames per second,
+    ``workers``, and for a parallel run ``worker_seconds`` and ``parent_seconds``);
+    ``notes``.
     Values not known are null.
     """
     n = len(data.frames)
@@ -280,7 +282,10 @@ def summary_document(
             "read_seconds": data.read_seconds,
             "demodulate_seconds": data.demod_seconds,
             "frames_per_second": n / data.wall_seconds if data.wall_seconds > 0 else None,
+            "maps_seconds": data.maps_seconds,
             "workers": data.workers,
+            "worker_seconds": data.worker_seconds,
+            "parent_seconds": data.parent_seconds,
         },
         "notes": list(analysis.notes),
     }

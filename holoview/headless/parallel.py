@@ -4,8 +4,13 @@ A :class:`ChunkRunner` takes :class:`~holoview.headless.chunks.ChunkTask` object
 hands back their :class:`~holoview.headless.chunks.ChunkResult` as they complete, in any
 order (the stitching puts them in order):
 
-- :class:`ProcessRunner` (``--jobs N``): a pool of ``N`` processes started with
-  ``spawn`` (nothing of the parent's FFTW plans, HDF5 handles or threads is inherited).
+- :class:`ProcessRunner` (``--jobs N``): a pool of ``N`` processes forked from a
+  ``forkserver`` that imported holoview once (nothing of the parent's FFTW plans, HDF5
+  handles or threads is inherited, and the import, a second or two of CPU, is not
+  repeated per worker), all started when the pool is made, so that they start while
+  the parent prepares the run. Their BLAS runs one thread each
+  (:data:`SINGLE_THREADED`): one worker per core, not a BLAS thread pool per worker
+  spinning on cores the other workers need.
   The workers ignore Ctrl-C, which the terminal sends to the whole process group: the
   parent decides, and when it is interrupted or fails it sends its workers SIGTERM; on
   Linux a worker also gets SIGTERM if the parent dies without a word.
@@ -25,7 +30,9 @@ import contextlib
 import ctypes
 import logging
 import multiprocessing
+import os
 import signal
+import threading
 from abc import ABC, abstractmethod
 from collections.abc import Iterator, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
@@ -44,6 +51,16 @@ CONNECT_TIMEOUT_S = 5.0
 #: Seconds a remote cluster is given to have at least one worker.
 WORKERS_TIMEOUT_S = 30.0
 
+#: The environment of the local workers: one thread each for BLAS and OpenMP.
+SINGLE_THREADED = {
+    "OPENBLAS_NUM_THREADS": "1",
+    "OMP_NUM_THREADS": "1",
+    "MKL_NUM_THREADS": "1",
+}
+
+#: What the forkserver imports once for every local worker.
+PRELOAD = ["holoview.headless.chunks"]
+
 #: ``prctl`` option: the signal a process gets when its parent dies (Linux).
 _PR_SET_PDEATHSIG = 1
 
@@ -54,6 +71,23 @@ def _worker_start() -> None:
     with contextlib.suppress(OSError, AttributeError):
         libc = ctypes.CDLL(None, use_errno=True)
         libc.prctl(_PR_SET_PDEATHSIG, int(signal.SIGTERM), 0, 0, 0)
+
+
+@contextlib.contextmanager
+def _environment(values: dict[str, str]) -> Iterator[None]:
+    """Within the block, ``values`` set in ``os.environ`` (where the user set none)."""
+    added = {k: v for k, v in values.items() if k not in os.environ}
+    os.environ.update(added)
+    try:
+        yield
+    finally:
+        for key in added:
+            os.environ.pop(key, None)
+
+
+def _ready() -> int:
+    """A worker's first task: started, and holoview imported (unpickling this imported it)."""
+    return os.getpid()
 
 
 class ChunkRunner(ABC):
@@ -116,13 +150,25 @@ class ProcessRunner(ChunkRunner):
     def __init__(self, jobs: int) -> None:
         self.workers = int(jobs)
         self.name = f"{self.workers} processes"
+        context = multiprocessing.get_context("forkserver")
+        context.set_forkserver_preload(PRELOAD)
         self._executor = ProcessPoolExecutor(
-            max_workers=self.workers,
-            mp_context=multiprocessing.get_context("spawn"),
-            initializer=_worker_start,
+            max_workers=self.workers, mp_context=context, initializer=_worker_start
         )
+        # every worker (and the forkserver, on first use) starts now, on a thread: the
+        # forkserver's import of holoview would otherwise hold this one for a second
+        self._starting = threading.Thread(
+            target=self._start, name="holoview-workers-start", daemon=True
+        )
+        self._starting.start()
+
+    def _start(self) -> None:
+        with _environment(SINGLE_THREADED):
+            for _ in range(self.workers):
+                self._executor.submit(_ready)
 
     def run(self, tasks: Sequence[ChunkTask]) -> Iterator[ChunkResult]:
+        self._starting.join()
         pending: set[Future[ChunkResult]] = {
             self._executor.submit(measure_chunk, task) for task in tasks
         }
@@ -141,6 +187,7 @@ class ProcessRunner(ChunkRunner):
                 future.cancel()
 
     def abort(self) -> None:
+        self._starting.join()
         # Python 3.14 has terminate_workers(); before, the pool's processes are only
         # reachable through its _processes mapping.
         terminate = getattr(self._executor, "terminate_workers", None)
@@ -154,6 +201,7 @@ class ProcessRunner(ChunkRunner):
         self._executor.shutdown(wait=False, cancel_futures=True)
 
     def close(self) -> None:
+        self._starting.join()
         self._executor.shutdown(wait=True, cancel_futures=True)
 
 

@@ -147,6 +147,14 @@ class RunData:
     workers : str
         Where the carrier values were measured (``"1 process"``, ``"4 processes"``,
         ``"Dask at ..."``).
+    maps_seconds : float
+        Of ``demod_seconds``, the time demodulating maps (every frame with ``--maps``,
+        else about 50 and the last), s.
+    worker_seconds, parent_seconds : float
+        A parallel run's time measuring carrier values in the workers (summed), and in
+        the parent demodulating the maps and stitching the series in order (its
+        sequential part, which bounds the frames per second whatever the workers), s;
+        0 for a run in one process.
     """
 
     series: PhaseSeries
@@ -166,6 +174,9 @@ class RunData:
     no_signal: int = 0
     demodulated: int = 0
     workers: str = "1 process"
+    maps_seconds: float = 0.0
+    worker_seconds: float = 0.0
+    parent_seconds: float = 0.0
 
     @property
     def frames(self) -> np.ndarray:
@@ -338,6 +349,7 @@ class MapsPass:
             self._coregistration.add(result, maps)  # type: ignore[arg-type]
         t1 = time.perf_counter()
         data.demod_seconds += t1 - t0
+        data.maps_seconds += t1 - t0
         if maps:
             self._last, data.last_frame = result, index
         if self._sink is not None:

@@ -27,7 +27,7 @@ import numpy as np
 
 from holoview.engine.experiment import Experiment, LabelledPeak
 from holoview.errors import InputError
-from holoview.headless.analysis import Analysis, analyse
+from holoview.headless.analysis import Analysis, analyse, known_joint
 from holoview.headless.chunks import plan_jobs
 from holoview.headless.inputs import (
     InputFile,
@@ -305,6 +305,14 @@ def process_file(
         contextlib.ExitStack() as stack,
     ):
         selected = parse_frame_range(frames, len(source))
+        if runner is None:  # started first: the workers start while this process prepares
+            planned = plan_jobs(jobs, len(selected), source.kind)
+            if scheduler is not None and planned == 1 and source.kind == "video":
+                scheduler = None  # plan_jobs said why: a video is read in one process
+            if planned > 1 or scheduler is not None:
+                runner = stack.enter_context(open_runner(planned, scheduler))
+        elif runner.workers > 1 and plan_jobs(runner.workers, len(selected), source.kind) == 1:
+            runner = None
         base, mode, notes = _base_experiment(choice, source, selected[0])
         from_file = base if mode == "experiment file" else None
         optics = resolve_optics(source.setup, options, from_file)
@@ -348,14 +356,6 @@ def process_file(
             demodulator.radius,
             demodulator.box_shape,
         )
-        if runner is None:
-            planned = plan_jobs(jobs, len(selected), source.kind)
-            if scheduler is not None and planned == 1 and source.kind == "video":
-                scheduler = None  # plan_jobs said why: a video is read in one process
-            if planned > 1 or scheduler is not None:
-                runner = stack.enter_context(open_runner(planned, scheduler))
-        elif runner.workers > 1 and plan_jobs(runner.workers, len(selected), source.kind) == 1:
-            runner = None
         outputs.create()
         results = ResultsFile(
             outputs.path(RESULTS_H5),
@@ -387,6 +387,7 @@ def process_file(
                     sink=sink,
                     read_ahead=settings.read_ahead,
                     progress=step,
+                    joint=known_joint(selection, optics),
                 )
             analysis = analyse(data, selection, optics)
             results.finish(

@@ -8,10 +8,12 @@ same numbers, whatever the number of workers or chunks:
   (:func:`~holoview.headless.chunks.measure_chunk`), which depend on that frame alone;
 - this process adds them to the run's
   :class:`~holoview.engine.series.PhaseSeries` frame after frame, in order, as the
-  serial loop does: the phase steps against the previous finite value, and after the
-  run (:mod:`holoview.headless.analysis`) the unwrapping in time, the joint estimate
-  and its ambiguities, the depths and the rates, are computed once over the whole
-  series, never per chunk, so no chunk boundary can show in them;
+  serial loop does, as soon as the chunks before have come: the phase steps against
+  the previous finite value, and the joint estimate with its ambiguities (a Kalman-like
+  prediction from frame to frame) where the prefactors are known before the run;
+  after the run (:mod:`holoview.headless.analysis`) the unwrapping in time, the depths
+  and the rates (and the joint estimate of an auto run), once over the whole series.
+  Nothing is computed per chunk, so no chunk boundary can show in the results;
 - meanwhile this process demodulates the frames the maps need
   (:class:`~holoview.headless.pipeline.MapsPass`: about 50 frames spread over the run
   for the displacements, and the last ones), in order, with the same core: the maps'
@@ -31,6 +33,7 @@ from collections.abc import Callable, Iterator
 import numpy as np
 
 from holoview.engine.frame_core import FrameCore
+from holoview.headless.analysis import JointSetup
 from holoview.headless.chunks import CHUNK_FLAGS, ChunkResult, make_tasks, split_frames
 from holoview.headless.inputs import InputFile
 from holoview.headless.parallel import ChunkRunner
@@ -51,8 +54,10 @@ class _Gathered:
         starts: list[int],
         n: int,
         progress: Callable[[int], None] | None,
+        in_order: Callable[[ChunkResult], None],
     ) -> None:
         self._results = results
+        self._in_order = in_order
         self._slot = {start: k for k, start in enumerate(starts)}
         self._ends = [*starts[1:], n]
         self.chunks: list[ChunkResult | None] = [None] * len(starts)
@@ -74,6 +79,7 @@ class _Gathered:
             self.chunks[self._slot[result.start]] = result
             self._measured += len(result)
             while self._ready < len(self.chunks) and self.chunks[self._ready] is not None:
+                self._in_order(self.chunks[self._ready])  # type: ignore[arg-type]
                 self.done = self._ends[self._ready]
                 self._ready += 1
             if self._progress is not None:
@@ -97,6 +103,7 @@ def demodulate_chunks(
     sink: MapSink | None = None,
     read_ahead: int = DEFAULT_DEPTH,
     progress: Callable[[int], None] | None = None,
+    joint: JointSetup | None = None,
 ) -> RunData:
     """:func:`~holoview.headless.pipeline.demodulate_frames`, the carriers on ``runner``.
 
@@ -118,6 +125,10 @@ def demodulate_chunks(
         Frames read ahead (by each worker, and here).
     progress : callable, optional
         Called with the number of frames measured, as chunks complete.
+    joint : JointSetup, optional
+        The joint estimate known before the frames
+        (:func:`~holoview.headless.analysis.known_joint`): made here as the chunks come
+        in, in order, while the workers measure the next ones, and kept by the analysis.
 
     Returns
     -------
@@ -145,7 +156,21 @@ def demodulate_chunks(
         read_ahead=read_ahead,
     )
     logger.info("%d frames in %d chunks on %s", n, len(chunks), runner.name)
-    gathered = _Gathered(runner.run(tasks), [c.start for c in chunks], n, progress)
+    series = data.series
+    if joint is not None:
+        series.track_joint(joint.alphas, joint.couplings, joint.wavelength_m, joint.exclude)
+
+    def add(result: ChunkResult) -> None:
+        start = time.perf_counter()
+        for k in range(len(result)):
+            position = result.start + k
+            series.add(float(times[position]), frames[position], result.measured(k))
+        data.read_seconds += result.read_seconds
+        data.demod_seconds += result.measure_seconds
+        data.worker_seconds += result.measure_seconds
+        data.parent_seconds += time.perf_counter() - start
+
+    gathered = _Gathered(runner.run(tasks), [c.start for c in chunks], n, progress, add)
     positions = np.flatnonzero(maps.wanted)
     reader = FrameReader(source.read, [frames[int(p)] for p in positions], depth=read_ahead)
     try:
@@ -153,7 +178,9 @@ def demodulate_chunks(
             for k, (index, frame) in enumerate(reader):
                 position = int(positions[k])
                 gathered.until(position)
+                start = time.perf_counter()
                 maps.feed(position, index, frame, gathered.damaged(position))
+                data.parent_seconds += time.perf_counter() - start
         gathered.until(n - 1)
     except KeyboardInterrupt:
         runner.abort()
@@ -163,15 +190,6 @@ def demodulate_chunks(
         data.interrupted = True
     finally:
         gathered.close()
-    series = data.series
-    for result in gathered.chunks:
-        if result is None or result.start >= gathered.done:
-            break
-        for k in range(len(result)):
-            position = result.start + k
-            series.add(float(times[position]), frames[position], result.measured(k))
-        data.read_seconds += result.read_seconds
-        data.demod_seconds += result.measure_seconds
     maps.finish()
     data.read_seconds += reader.read_seconds
     data.wall_seconds = time.perf_counter() - start_time

@@ -257,7 +257,9 @@ def test_a_scheduler_that_does_not_answer_is_one_line_and_exit_2(
     assert not out.exists()
 
 
-def test_a_worker_that_cannot_see_the_file_is_named(evaporation: Simulated, tmp_path: Path) -> None:
+def test_a_worker_that_cannot_see_the_file_is_named(
+    tmp_path: Path, runners: dict[str, ChunkRunner]
+) -> None:
     """A task on a path the workers do not have: an InputError naming the worker's host."""
     task = make_tasks(
         tmp_path / "elsewhere.h5",
@@ -271,6 +273,8 @@ def test_a_worker_that_cannot_see_the_file_is_named(evaporation: Simulated, tmp_
         measure_chunk(task)
     with open_runner(1) as runner, pytest.raises(InputError, match="cannot read the input"):
         list(runner.run([task]))
+    with pytest.raises(InputError, match="cannot read the input"):
+        list(runners["dask local"].run([task]))
 
 
 def test_a_worker_that_sees_another_file_is_refused(evaporation: Simulated) -> None:
