@@ -9,6 +9,14 @@ notes further stop signals instead of raising them, so that a second Ctrl-C
 cannot leave a half-written file. A signal ignored when the command started
 (``nohup`` ignores SIGHUP) stays ignored.
 
+Python runs a signal handler between two bytecodes of whatever runs then, and an
+exception raised in a finaliser (``__del__``, a weakref callback: the garbage
+collector calls them) is printed as "Exception ignored" and dropped: the command
+would go on as if never stopped (seen: SIGTERM during ``process --maps``, inside
+``WeakValueDictionary``'s callback). A stop signal that lands in a finaliser is
+sent again :data:`RETRY_S` later (from a timer thread: SIGALRM is left to others,
+pytest-timeout among them), to whatever handler is then in place.
+
 :func:`emit` prints a command's result line; a closed pipe or a full disk behind
 standard output becomes an :class:`~holoview.errors.OutputError` (one line, exit
 status 3) instead of a traceback.
@@ -22,12 +30,18 @@ import signal
 import sys
 import threading
 from collections.abc import Iterator
+from pathlib import Path
 from types import FrameType
 
 from holoview.errors import OutputError, os_error_text
 
 #: The signals that stop a command as Ctrl-C does.
 STOP_SIGNALS: tuple[signal.Signals, ...] = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+
+#: Seconds after which a stop signal that landed in a finaliser is sent again.
+RETRY_S = 0.01
+
+_CALLBACK_FILES = frozenset({"weakref.py", "_weakrefset.py"})  # where weakref callbacks run
 
 
 class Stopped(KeyboardInterrupt):
@@ -38,7 +52,22 @@ class Stopped(KeyboardInterrupt):
         self.signal_name = signal.Signals(signum).name
 
 
+def _in_finaliser(frame: FrameType | None) -> bool:
+    """Whether ``frame`` runs a finaliser, where an exception raised would be dropped."""
+    if frame is None:
+        return False
+    code = frame.f_code
+    return code.co_name == "__del__" or Path(code.co_filename).name in _CALLBACK_FILES
+
+
 def _raise_stopped(signum: int, frame: FrameType | None) -> None:
+    if _in_finaliser(frame):
+        again = threading.Timer(RETRY_S, os.kill, (os.getpid(), signum))
+        again.daemon = True
+        again.start()
+        return
+    if signum == signal.SIGINT:
+        raise KeyboardInterrupt
     raise Stopped(signum)
 
 
@@ -51,10 +80,12 @@ def _handled() -> list[signal.Signals]:
 
 @contextlib.contextmanager
 def stop_on_signals() -> Iterator[None]:
-    """Within the block, SIGTERM and SIGHUP raise :class:`Stopped` as Ctrl-C would."""
-    previous = {
-        sig: signal.signal(sig, _raise_stopped) for sig in _handled() if sig != signal.SIGINT
-    }
+    """Within the block, SIGTERM and SIGHUP raise :class:`Stopped` as Ctrl-C would.
+
+    Ctrl-C raises ``KeyboardInterrupt`` as always; any of the three landing in a
+    finaliser is raised a moment later (see the module's notes).
+    """
+    previous = {sig: signal.signal(sig, _raise_stopped) for sig in _handled()}
     try:
         yield
     finally:

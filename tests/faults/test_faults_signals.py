@@ -6,6 +6,7 @@ import json
 import os
 import signal
 import time
+import weakref
 from pathlib import Path
 
 import h5py
@@ -109,7 +110,7 @@ def interrupt_process(long_stack: Path, out: Path, *extra: str):
         *extra,
     )
     wait_for(lambda: out.is_dir() and any(out.glob(".results.*.partial.h5")), what="the run")
-    time.sleep(0.5)
+    time.sleep(1.0)  # frames done (0.5 s was too short once on a loaded machine)
     child.send_signal(signal.SIGTERM)
     return finish(child, timeout=60)
 
@@ -173,4 +174,37 @@ def test_stop_signals_raise_the_interrupt_and_are_deferred_while_closing() -> No
         while len(received) < 2 and time.monotonic() < deadline:
             time.sleep(0.01)
     assert received == [signal.SIGHUP, signal.SIGTERM]
+    assert signal.getsignal(signal.SIGTERM) is signal.SIG_DFL  # handlers put back
+
+
+class _SignalledOnCollection:
+    """Sends ``signum`` to this process from its finaliser."""
+
+    def __init__(self, signum: int) -> None:
+        self.signum = signum
+
+    def __del__(self) -> None:
+        signal.raise_signal(self.signum)
+
+
+def _signal_from_a_weakref_callback(signum: int) -> None:
+    holder = type("Holder", (), {})()
+    weakref.finalize(holder, signal.raise_signal, signum)  # called from weakref.py
+    del holder
+
+
+@pytest.mark.parametrize("where", ["__del__", "weakref callback"])
+@pytest.mark.parametrize("name", ["SIGTERM", "SIGINT"])
+def test_a_stop_signal_landing_in_a_finaliser_still_stops(where: str, name: str) -> None:
+    """Raised in a finaliser, the interrupt would be printed and dropped: it comes again."""
+    signum = signal.Signals[name]
+    with stop_on_signals(), pytest.raises(KeyboardInterrupt) as caught:
+        if where == "__del__":
+            _SignalledOnCollection(signum)  # collected at once: __del__ runs here
+        else:
+            _signal_from_a_weakref_callback(signum)
+        deadline = time.monotonic() + 2
+        while time.monotonic() < deadline:
+            time.sleep(0.005)
+    assert isinstance(caught.value, Stopped) == (name != "SIGINT")
     assert signal.getsignal(signal.SIGTERM) is signal.SIG_DFL  # handlers put back
