@@ -5,6 +5,8 @@ from __future__ import annotations
 from collections.abc import Iterator
 from pathlib import Path
 
+import h5py
+import numpy as np
 import pytest
 from faults_helpers import mounted_tmpfs, reap_children
 
@@ -31,4 +33,14 @@ def sim_recording(tmp_path_factory: pytest.TempPathFactory) -> Path:
     path = tmp_path_factory.mktemp("faults") / "evaporation.h5"
     argv = ["-q", "simulate", str(path), "--scenario", "evaporation", "--size", "128"]
     assert main([*argv, "--frames", "40", "--fps", "20", "--seed", "5"]) == 0
+    return path
+
+
+@pytest.fixture(scope="session")
+def long_stack(tmp_path_factory: pytest.TempPathFactory, sim_recording: Path) -> Path:
+    """3000 frames (the simulation's 40, over and over) as a numpy stack: a run of seconds."""
+    with h5py.File(sim_recording, "r") as f:
+        frames = f["frames"][:]
+    path = tmp_path_factory.mktemp("long") / "long.npy"
+    np.save(path, np.tile(frames, (75, 1, 1)))
     return path

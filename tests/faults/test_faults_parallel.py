@@ -8,20 +8,8 @@ import signal
 import time
 from pathlib import Path
 
-import h5py
-import numpy as np
 import pytest
 from faults_helpers import finish, start_holoview, wait_for
-
-
-@pytest.fixture(scope="module")
-def long_stack(tmp_path_factory: pytest.TempPathFactory, sim_recording: Path) -> Path:
-    """3000 frames (the simulation's 40, over and over) as a numpy stack."""
-    with h5py.File(sim_recording, "r") as f:
-        frames = f["frames"][:]
-    path = tmp_path_factory.mktemp("parallel") / "long.npy"
-    np.save(path, np.tile(frames, (75, 1, 1)))
-    return path
 
 
 def _descendants(pid: int) -> set[int]:

@@ -31,16 +31,6 @@ def replay_source(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return write_recording(tmp_path_factory.mktemp("signals") / "in.h5", frames)
 
 
-@pytest.fixture(scope="module")
-def long_stack(tmp_path_factory: pytest.TempPathFactory, sim_recording: Path) -> Path:
-    """3000 frames (the simulation's 40, over and over) as a numpy stack: a run of seconds."""
-    with h5py.File(sim_recording, "r") as f:
-        frames = f["frames"][:]
-    path = tmp_path_factory.mktemp("signals") / "long.npy"
-    np.save(path, np.tile(frames, (75, 1, 1)))
-    return path
-
-
 def start_recording(source: Path, out: Path):
     child = start_holoview(
         "-q",
