@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import contextlib
 import ctypes
+import itertools
 import logging
 import multiprocessing
 import os
@@ -63,6 +64,15 @@ PRELOAD = ["holoview.headless.chunks"]
 
 #: ``prctl`` option: the signal a process gets when its parent dies (Linux).
 _PR_SET_PDEATHSIG = 1
+
+
+def in_flight(workers: int) -> int:
+    """Chunks given out at once to ``workers``: one each and one waiting each.
+
+    A chunk is given out when a result is taken, so that results (a chunk's maps can be
+    tens of MB) do not pile up faster than the run uses them.
+    """
+    return 2 * max(1, workers)
 
 
 def _worker_start() -> None:
@@ -169,14 +179,19 @@ class ProcessRunner(ChunkRunner):
 
     def run(self, tasks: Sequence[ChunkTask]) -> Iterator[ChunkResult]:
         self._starting.join()
+        queue = iter(tasks)
         pending: set[Future[ChunkResult]] = {
-            self._executor.submit(measure_chunk, task) for task in tasks
+            self._executor.submit(measure_chunk, task)
+            for task in itertools.islice(queue, in_flight(self.workers))
         }
         try:
             while pending:
                 done, pending = wait(pending, return_when=FIRST_COMPLETED)
                 for future in done:
                     yield future.result()
+                    task = next(queue, None)
+                    if task is not None:
+                        pending.add(self._executor.submit(measure_chunk, task))
         except BrokenProcessPool as exc:
             raise HoloviewError(
                 "a worker process ended abruptly (killed, or out of memory?): run again, "
@@ -265,10 +280,18 @@ class DaskRunner(ChunkRunner):
     def run(self, tasks: Sequence[ChunkTask]) -> Iterator[ChunkResult]:
         import distributed
 
-        futures = self._client.map(measure_chunk, list(tasks), pure=False)
+        queue = iter(tasks)
+        futures = self._client.map(
+            measure_chunk, list(itertools.islice(queue, in_flight(self.workers))), pure=False
+        )
         try:
-            for future in distributed.as_completed(futures):
+            completed = distributed.as_completed(futures)
+            for future in completed:
                 yield future.result()
+                task = next(queue, None)
+                if task is not None:
+                    futures.append(self._client.submit(measure_chunk, task, pure=False))
+                    completed.add(futures[-1])
         except distributed.client.FutureCancelledError as exc:
             raise HoloviewError(f"the Dask cluster dropped the work ({exc})") from None
         except distributed.scheduler.KilledWorker as exc:
