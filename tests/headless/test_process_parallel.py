@@ -150,7 +150,7 @@ def _maps(out: Path) -> dict[str, np.ndarray]:
 
 
 def _assert_same_maps(serial: ProcessOutcome, other: ProcessOutcome, what: str) -> None:
-    """The series, rates and flags exactly; the maps to float32 rounding, per frame."""
+    """The series, rates and flags exactly; the maps and their noise to float32 rounding."""
     assert (serial.out / "trends.csv").read_bytes() == (other.out / "trends.csv").read_bytes()
     fits = [(p.rate, p.rate_stderr) for p in serial.analysis.peaks]
     assert fits == [(p.rate, p.rate_stderr) for p in other.analysis.peaks], what
@@ -158,7 +158,8 @@ def _assert_same_maps(serial: ProcessOutcome, other: ProcessOutcome, what: str) 
     assert serial.data.peak_flags == other.data.peak_flags, what
     assert serial.data.demodulated == other.data.demodulated, what
     assert serial.data.last_frame == other.data.last_frame, what
-    np.testing.assert_array_equal(serial.data.noise_rad, other.data.noise_rad)
+    # the workers' FFTW plans may be others (measured): the maps agree to float32 rounding
+    np.testing.assert_allclose(other.data.noise_rad, serial.data.noise_rad, rtol=1e-5)
     a, b = _maps(serial.out), _maps(other.out)
     assert a.keys() == b.keys(), what
     for name, maps in a.items():
@@ -169,7 +170,11 @@ def _assert_same_maps(serial: ProcessOutcome, other: ProcessOutcome, what: str) 
     for m, n in zip(serial.data.last_maps, other.data.last_maps, strict=True):
         np.testing.assert_allclose(n, m, rtol=1e-5, atol=1e-6 * float(np.nanmax(np.abs(m))))
     shifts = np.array([d.shift for d in serial.data.displacements])
-    np.testing.assert_allclose(np.array([d.shift for d in other.data.displacements]), shifts)
+    assert shifts.size, what
+    # maps moved by whole turns in the parent differ by float32 rounding: 1e-5 pixel here
+    np.testing.assert_allclose(
+        np.array([d.shift for d in other.data.displacements]), shifts, atol=1e-4
+    )
 
 
 @pytest.mark.slow
