@@ -12,7 +12,6 @@ import json
 import os
 import signal
 from collections.abc import Iterator
-from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -179,10 +178,20 @@ def _assert_same_maps(serial: ProcessOutcome, other: ProcessOutcome, what: str) 
 
 @pytest.mark.slow
 @pytest.mark.parametrize(
-    "case", ["relative", "absolute", "synthetic", "background", "aliasing", "lost frames"]
+    "case",
+    [
+        "relative",
+        "absolute",
+        "synthetic",
+        "background",
+        "aliasing",
+        "lost frames",
+        "lost, absolute",
+    ],
 )
 def test_maps_from_the_workers_are_those_of_one_process(
     case: str,
+    *,
     evaporation: Simulated,
     injection: Path,
     runners: dict[str, ChunkRunner],
@@ -191,18 +200,18 @@ def test_maps_from_the_workers_are_those_of_one_process(
 ) -> None:
     """--maps with --jobs 1, 2, 7 and Dask: every frame's maps (demodulated in the workers)."""
     monkeypatch.setattr(chunk_maps, "MAPS_CHUNK_FRAMES", 9)  # many chunks, some of one worker
-    path = {"aliasing": injection, "lost frames": tmp_path / "lost.h5"}.get(case, evaporation.path)
-    if case == "lost frames":
-        _lose_frames(evaporation.path, path)
+    lost = case.startswith("lost")
+    path = injection if case == "aliasing" else tmp_path / "lost.h5" if lost else evaporation.path
+    if lost:
+        _lose_frames(evaporation.path, path)  # a chunk starts after a damaged frame
+    reference = {"background": "absolute", "lost frames": "relative", "lost, absolute": "absolute"}
     settings = ProcessSettings(
-        reference={"background": "absolute", "aliasing": "absolute"}.get(case, case),
+        reference=reference.get(case, "absolute" if case == "aliasing" else case),
         maps=True,
         background="3" if case == "background" else None,
     )
-    if case == "lost frames":
-        settings = replace(settings, reference="relative")
     serial = _run(path, tmp_path / "serial", None, settings=settings)
-    assert serial.data.demodulated == len(serial.data.frames) - (2 if case == "lost frames" else 0)
+    assert serial.data.demodulated == len(serial.data.frames) - (2 if lost else 0)
     for name, runner in runners.items():
         other = _run(path, tmp_path / name.replace(" ", "_"), runner, settings=settings)
         assert other.data.workers == runner.name
