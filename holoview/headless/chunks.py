@@ -8,9 +8,12 @@ builds its own probe (its own FFTW plans) and streams the chunk through a
 :class:`~holoview.headless.reader.FrameReader`, so that its memory is a few frames
 and the chunk's carrier values (a few numbers a frame), whatever the run's length.
 Everything that depends on the order of the frames (the phase steps, the unwrapping in
-time, the joint estimate, the maps against the previous frame, the displacements, the
-rates) is computed once, in order, from the gathered values
-(:mod:`holoview.headless.stitch`). No frame is needed twice: the chunks do not overlap.
+time, the joint estimate, the displacements, the rates) is computed once, in order,
+from the gathered values (:mod:`holoview.headless.stitch`). No frame is needed twice:
+the chunks do not overlap. With ``--maps`` the worker demodulates every frame of its
+chunk into maps too (most of such a run's time), from the reference the serial run
+holds there (:mod:`holoview.headless.chunk_maps`: one frame before the chunk is read
+again for it), in shorter chunks, whose maps travel back whole.
 
 :func:`plan_jobs` settles ``--jobs``: the default is every usable core but one (the
 parent reads the maps' frames and stitches), when the run is long enough to gain.

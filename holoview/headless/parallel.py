@@ -2,7 +2,7 @@
 
 A :class:`ChunkRunner` takes :class:`~holoview.headless.chunks.ChunkTask` objects and
 hands back their :class:`~holoview.headless.chunks.ChunkResult` as they complete, in any
-order (the stitching puts them in order):
+order (the stitching puts them in order), giving out :func:`in_flight` chunks at a time:
 
 - :class:`ProcessRunner` (``--jobs N``): a pool of ``N`` processes forked from a
   ``forkserver`` that imported holoview once (nothing of the parent's FFTW plans, HDF5

@@ -390,6 +390,7 @@ class MapsPass:
         self.wanted = np.ones(n, bool) if sink else _maps_wanted(n, self._every, relative)
         self._coregistration = Coregistration()
         self._last: list[np.ndarray] = []
+        self._blank = np.full(data.box_shape, np.nan, np.float32)
 
     def feed(self, position: int, index: int, frame: np.ndarray, damaged: bool) -> None:
         """Demodulate the ``position``-th frame (input ``index``) unless ``damaged``.
@@ -420,9 +421,8 @@ class MapsPass:
         if maps:
             self._last, data.last_frame = maps, index
         if self._sink is not None:
-            blank = np.full(data.box_shape, np.nan, np.float32)
             for j in range(len(data.map_flags)):
-                self._sink.write_map(position, j, maps[j] if maps else blank)
+                self._sink.write_map(position, j, maps[j] if maps else self._blank)
         data.write_seconds += time.perf_counter() - t1
 
     def finish(self) -> None:
