@@ -12,8 +12,10 @@ order (the stitching puts them in order), giving out :func:`in_flight` chunks at
   (:data:`SINGLE_THREADED`): one worker per core, not a BLAS thread pool per worker
   spinning on cores the other workers need.
   The workers ignore Ctrl-C, which the terminal sends to the whole process group: the
-  parent decides, and when it is interrupted or fails it sends its workers SIGTERM; on
-  Linux a worker also gets SIGTERM if the parent dies without a word.
+  parent decides, and when it is interrupted or fails it sends its workers SIGTERM (with
+  ``--maps`` it lets the chunks under way finish instead: a worker stopped while sending
+  a chunk's maps would leave the pool waiting for the rest); on Linux a worker also gets
+  SIGTERM if the parent dies without a word.
 - :class:`DaskRunner` (``--scheduler ADDRESS``, or ``local`` for a
   :class:`distributed.LocalCluster` of ``--jobs`` worker processes): the same tasks as
   Dask futures. The workers open the input by its path (it must be on storage they
@@ -160,6 +162,7 @@ class ProcessRunner(ChunkRunner):
     def __init__(self, jobs: int) -> None:
         self.workers = int(jobs)
         self.name = f"{self.workers} processes"
+        self._maps = False  # the chunks carry maps (see abort)
         context = multiprocessing.get_context("forkserver")
         context.set_forkserver_preload(PRELOAD)
         self._executor = ProcessPoolExecutor(
@@ -179,6 +182,7 @@ class ProcessRunner(ChunkRunner):
 
     def run(self, tasks: Sequence[ChunkTask]) -> Iterator[ChunkResult]:
         self._starting.join()
+        self._maps = any(task.maps is not None for task in tasks)
         queue = iter(tasks)
         pending: set[Future[ChunkResult]] = {
             self._executor.submit(measure_chunk, task)
@@ -203,6 +207,12 @@ class ProcessRunner(ChunkRunner):
 
     def abort(self) -> None:
         self._starting.join()
+        if self._maps:
+            # a worker stopped while it sends a chunk's maps (tens of MB through the pool's
+            # pipe) would leave the pool's reader waiting forever for the rest: the chunks
+            # being demodulated (a second or so) are let finish, the others cancelled
+            self._executor.shutdown(wait=True, cancel_futures=True)
+            return
         # Python 3.14 has terminate_workers(); before, the pool's processes are only
         # reachable through its _processes mapping.
         terminate = getattr(self._executor, "terminate_workers", None)

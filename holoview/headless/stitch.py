@@ -204,6 +204,7 @@ def demodulate_chunks(
             raise
         logger.warning("interrupted after %d of %d frames: results of those", gathered.done, n)
         data.interrupted = True
+        series.truncate(gathered.done)  # a chunk interrupted while added
     finally:
         gathered.close()
     maps.finish()

@@ -219,6 +219,33 @@ def test_maps_from_the_workers_are_those_of_one_process(
 
 
 @pytest.mark.slow
+def test_an_interrupted_maps_run_keeps_the_maps_of_the_chunks_done(
+    evaporation: Simulated,
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Ctrl-C after the first chunks: the frames of the chunks done, their maps those of one."""
+    monkeypatch.setattr(chunk_maps, "MAPS_CHUNK_FRAMES", 9)
+    settings = ProcessSettings(reference="absolute", maps=True)
+    serial = _run(evaporation.path, tmp_path / "serial", None, settings=settings)
+
+    def stop(done: int, total: int) -> None:
+        if done >= 30:
+            raise KeyboardInterrupt
+
+    with ProcessRunner(2) as runner:
+        other = _run(evaporation.path, tmp_path / "cut", runner, settings=settings, progress=stop)
+    n = len(other.data.frames)
+    assert other.data.interrupted and 0 < n < evaporation.frames
+    assert n in {c.stop for c in split_frames(evaporation.frames, 2, maps=True)}
+    a, b = _maps(serial.out), _maps(other.out)
+    for name, maps in b.items():
+        assert maps.shape[0] == n, name
+        tiny = 1e-6 * float(np.nanmax(np.abs(maps)))
+        np.testing.assert_allclose(maps, a[name][:n], rtol=1e-5, atol=tiny, err_msg=name)
+
+
+@pytest.mark.slow
 def test_the_command_line_jobs_option(
     evaporation: Simulated, tmp_path: Path, capsys: pytest.CaptureFixture
 ) -> None:
