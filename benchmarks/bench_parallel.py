@@ -14,7 +14,11 @@ uncompressed 16-bit) in a temporary folder under /tmp, then prints in one run:
    analysis, outputs), ``--jobs 1`` and ``--jobs 2`` in turn, ``--repeat`` times each,
    the file in the page cache for both: the best wall time of each, their ratio
    (target >= 1.7 on two cores), and that their ``trends.csv`` are the same bytes;
-3. a scaling model to 16 and 64 cores: a worker's time per frame ``c`` (carrier probe
+3. the same with ``--maps`` (every frame demodulated into maps, in the workers with
+   ``--jobs 2``, and written to ``results.h5``): the best wall time of each, their ratio,
+   the CPU time both vCPUs spent (from ``/proc/stat``), where the time went, and that
+   the two ``results.h5`` hold the same maps (to float32 rounding);
+4. a scaling model to 16 and 64 cores: a worker's time per frame ``c`` (carrier probe
    and reading from the page cache, from ``--jobs 1``, a process with a core to itself as
    a worker of a large machine has), the parent's sequential time per frame ``p`` (the
    series stitched in order with its joint estimate, from ``--jobs 2``), and the
@@ -40,6 +44,8 @@ import tempfile
 import time
 from pathlib import Path
 
+import h5py
+import numpy as np
 from machine import machine
 
 REPO = Path(__file__).resolve().parents[1]
@@ -51,12 +57,78 @@ NETWORKS = (("1 Gb/s Ethernet", 125e6), ("10 Gb/s Ethernet", 1.25e9))
 MODEL_CORES = (2, 16, 64)
 
 
+def _cpu_seconds() -> float:
+    """CPU time the whole machine has spent busy so far (all cores), s."""
+    with open("/proc/stat") as f:
+        fields = [int(x) for x in f.readline().split()[1:]]
+    idle = fields[3] + fields[4]  # idle, iowait
+    return (sum(fields[:8]) - idle) / os.sysconf("SC_CLK_TCK")
+
+
 def _holoview(*args: str) -> float:
     """Run ``python -m holoview ARGS`` from this checkout; return its wall time, s."""
+    return _timed(*args)[0]
+
+
+def _timed(*args: str) -> tuple[float, float]:
+    """Run ``python -m holoview ARGS``; return its wall time and the machine's CPU time, s."""
     env = {**os.environ, "PYTHONPATH": str(REPO)}
-    start = time.perf_counter()
+    cpu, start = _cpu_seconds(), time.perf_counter()
     subprocess.run([sys.executable, "-m", "holoview", *args], check=True, env=env, cwd=REPO)
-    return time.perf_counter() - start
+    return time.perf_counter() - start, _cpu_seconds() - cpu
+
+
+def same_maps(a: Path, b: Path, block: int = 100) -> bool:
+    """Whether two ``results.h5`` hold the same maps, NaN alike, to float32 rounding."""
+    with h5py.File(a, "r") as fa, h5py.File(b, "r") as fb:
+        if sorted(fa["maps"]) != sorted(fb["maps"]):
+            return False
+        for name in fa["maps"]:
+            x, y = fa["maps"][name], fb["maps"][name]
+            for start in range(0, x.shape[0], block):
+                u, v = x[start : start + block], y[start : start + block]
+                tiny = 1e-6 * float(np.nanmax(np.abs(u), initial=0.0))
+                if not np.allclose(u, v, rtol=1e-5, atol=tiny, equal_nan=True):
+                    return False
+    return True
+
+
+def bench_maps(work: Path, recording: Path, frames: int, repeat: int) -> None:
+    """Print ``--maps`` with ``--jobs 1`` against ``--jobs 2`` (module documentation)."""
+    runs: dict[int, list[tuple[float, float]]] = {1: [], 2: []}
+    for _ in range(repeat):
+        for jobs in (1, 2):
+            out = work / f"maps{jobs}"
+            argv = ["-q", "process", str(recording), "--out", str(out), "--overwrite", "--maps"]
+            runs[jobs].append(_timed(*argv, "--jobs", str(jobs)))
+    (t1, c1), (t2, c2) = min(runs[1]), min(runs[2])
+    same = same_maps(work / "maps1" / "results.h5", work / "maps2" / "results.h5")
+    same_trends = (work / "maps1" / "trends.csv").read_bytes() == (
+        work / "maps2" / "trends.csv"
+    ).read_bytes()
+    print(
+        f"--maps, {frames} frames: --jobs 1 {t1:.1f} s ({frames / t1:.0f} frames/s), "
+        f"--jobs 2 {t2:.1f} s ({frames / t2:.0f} frames/s): {t1 / t2:.2f}x; CPU of both "
+        f"vCPUs {c1:.1f} s and {c2:.1f} s; results.h5 maps equal: {same}, trends.csv "
+        f"identical: {same_trends}"
+    )
+    print(
+        "  all runs, s (CPU s of both vCPUs): "
+        + "; ".join(
+            f"--jobs {j}: {', '.join(f'{w:.1f} ({c:.1f})' for w, c in runs[j])}" for j in runs
+        )
+    )
+    one = json.loads((work / "maps1" / "summary.json").read_text())["timing"]
+    two = json.loads((work / "maps2" / "summary.json").read_text())["timing"]
+    print(
+        f"  --jobs 1: frame loop {one['seconds']:.1f} s (maps {one['maps_seconds']:.1f} s), "
+        f"the rest (start, detection, analysis, fused maps, outputs) {t1 - one['seconds']:.1f} s"
+    )
+    print(
+        f"  --jobs 2: frame loop {two['seconds']:.1f} s (the workers' maps and carriers "
+        f"{two['worker_seconds']:.1f} s, the parent's stitching and writing "
+        f"{two['parent_seconds']:.1f} s), the rest {t2 - two['seconds']:.1f} s"
+    )
 
 
 def read_rates(path: Path) -> tuple[float, float]:
@@ -84,6 +156,7 @@ def main() -> None:
     parser.add_argument("--size", type=int, default=1024)
     parser.add_argument("--repeat", type=int, default=2, help="runs of each --jobs (best kept)")
     parser.add_argument("--keep", type=Path, help="keep the recording here (reused if present)")
+    parser.add_argument("--no-maps", action="store_true", help="skip the runs with --maps")
     args = parser.parse_args()
     print(machine())
     print(f"load average at start: {', '.join(f'{x:.2f}' for x in os.getloadavg())}")
@@ -144,6 +217,8 @@ def main() -> None:
             f"{(two['read_seconds']) / n * 1e3:.2f} ms reading, the parent (stitching in "
             f"order, joint estimate) {parent * 1e3:.2f} ms; three processes on two cores"
         )
+        if not args.no_maps:
+            bench_maps(work, recording, args.frames, args.repeat)
         print(f"load average at end: {', '.join(f'{x:.2f}' for x in os.getloadavg())}")
         _model(n, worker, parent, fixed=fixed, frame_bytes=frame_bytes, disk=cold)
     finally:

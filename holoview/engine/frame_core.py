@@ -321,13 +321,28 @@ class Coregistration:
 
     def add(self, result: DemodResult, maps: Sequence[np.ndarray]) -> None:
         """Add one frame's :func:`trusted_maps` to the estimate."""
-        if len(maps) < 2 or min(result.box_shape) < MIN_MAP_SIDE:
+        labels = tuple(r.peak.label for r in result.peaks)
+        self.add_maps(labels, result.box_shape, maps, reference="reference" in result.flags)
+
+    def add_maps(
+        self,
+        labels: Sequence[str | None],
+        box_shape: tuple[int, int],
+        maps: Sequence[np.ndarray],
+        *,
+        reference: bool = False,
+    ) -> None:
+        """Add one frame's :func:`trusted_maps`, of peaks ``labels``, demodulated elsewhere.
+
+        ``reference``: the frame was a reference frame (its maps are zero: not added).
+        """
+        if len(maps) < 2 or min(box_shape) < MIN_MAP_SIDE:
             return
-        key = (tuple(r.peak.label for r in result.peaks), result.box_shape)
+        key = (tuple(labels), tuple(box_shape))
         if key != self._key or self._estimator is None:
-            self._estimator = DisplacementEstimator(result.box_shape, len(maps))
+            self._estimator = DisplacementEstimator(tuple(box_shape), len(maps))
             self._key = key
-        if "reference" not in result.flags:
+        if not reference:
             self._estimator.add(list(maps))
 
     def displacements(self, result: DemodResult | None = None) -> list[Displacement] | None:

@@ -8,9 +8,12 @@ builds its own probe (its own FFTW plans) and streams the chunk through a
 :class:`~holoview.headless.reader.FrameReader`, so that its memory is a few frames
 and the chunk's carrier values (a few numbers a frame), whatever the run's length.
 Everything that depends on the order of the frames (the phase steps, the unwrapping in
-time, the joint estimate, the maps against the previous frame, the displacements, the
-rates) is computed once, in order, from the gathered values
-(:mod:`holoview.headless.stitch`). No frame is needed twice: the chunks do not overlap.
+time, the joint estimate, the displacements, the rates) is computed once, in order,
+from the gathered values (:mod:`holoview.headless.stitch`). No frame is needed twice:
+the chunks do not overlap. With ``--maps`` the worker demodulates every frame of its
+chunk into maps too (most of such a run's time), from the reference the serial run
+holds there (:mod:`holoview.headless.chunk_maps`: one frame before the chunk is read
+again for it), in shorter chunks, whose maps travel back whole.
 
 :func:`plan_jobs` settles ``--jobs``: the default is every usable core but one (the
 parent reads the maps' frames and stitches), when the run is long enough to gain.
@@ -31,7 +34,9 @@ import numpy as np
 
 from holoview.engine.frame_core import CarrierCore
 from holoview.errors import InputError
+from holoview.headless.chunk_maps import MAPS_CHUNK_FRAMES, MapsSpec, prepare_reference
 from holoview.headless.inputs import InputFile
+from holoview.headless.pipeline import FrameMaps, frame_maps
 from holoview.headless.reader import DEFAULT_DEPTH, FrameReader
 from holoview.processing.carrier_values import CarrierValues
 from holoview.processing.peaks import Peak
@@ -108,11 +113,13 @@ def plan_jobs(jobs: int | None, n_frames: int, kind: str, cores: int | None = No
     return jobs
 
 
-def split_frames(n_frames: int, jobs: int) -> list[range]:
+def split_frames(n_frames: int, jobs: int, *, maps: bool = False) -> list[range]:
     """Contiguous chunks of positions ``0..n_frames-1``, in order, for ``jobs`` workers.
 
     :data:`CHUNKS_PER_JOB` chunks a job (one with one job), none longer than
-    :data:`MAX_CHUNK_FRAMES`, their lengths differing by one at most.
+    :data:`MAX_CHUNK_FRAMES` (:data:`~holoview.headless.chunk_maps.MAPS_CHUNK_FRAMES`
+    when the workers demodulate every frame's ``maps``), their lengths differing by one
+    at most.
 
     Examples
     --------
@@ -124,7 +131,8 @@ def split_frames(n_frames: int, jobs: int) -> list[range]:
     if n_frames < 1:
         return []
     count = 1 if jobs <= 1 else jobs * CHUNKS_PER_JOB
-    count = max(count, -(-n_frames // MAX_CHUNK_FRAMES))
+    most = MAPS_CHUNK_FRAMES if maps else MAX_CHUNK_FRAMES
+    count = max(count, -(-n_frames // most))
     count = min(count, n_frames)
     edges = np.linspace(0, n_frames, count + 1).round().astype(int)
     return [range(int(a), int(b)) for a, b in itertools.pairwise(edges)]
@@ -150,6 +158,11 @@ class ChunkTask:
         Raw value at which the camera saturates (counts).
     read_ahead : int
         Frames the worker's reader reads ahead.
+    maps : MapsSpec or None
+        The run's demodulator, when the worker demodulates every frame's maps too.
+    before : sequence of int
+        With ``maps``: the input indices of the run's frames before the chunk, in order
+        (:func:`~holoview.headless.chunk_maps.prepare_reference`).
     """
 
     path: str
@@ -159,6 +172,8 @@ class ChunkTask:
     frame_shape: tuple[int, int]
     saturation: float | None
     read_ahead: int = DEFAULT_DEPTH
+    maps: MapsSpec | None = None
+    before: Sequence[int] = ()
 
 
 @dataclass(frozen=True)
@@ -181,6 +196,10 @@ class ChunkResult:
         Time reading and measuring, s.
     worker : str
         ``host:pid`` of the process that measured it.
+    maps : tuple of FrameMaps
+        With the task's ``maps``: each frame's maps (empty once the parent used them).
+    maps_seconds : float
+        Time demodulating the maps (the reference frame's included), s.
     """
 
     start: int
@@ -191,6 +210,8 @@ class ChunkResult:
     read_seconds: float
     measure_seconds: float
     worker: str
+    maps: tuple[FrameMaps, ...] = ()
+    maps_seconds: float = 0.0
 
     def __len__(self) -> int:
         return int(self.flags.shape[0])
@@ -217,8 +238,13 @@ def make_tasks(
     frame_shape: tuple[int, int],
     saturation: float | None,
     read_ahead: int = DEFAULT_DEPTH,
+    maps: MapsSpec | None = None,
 ) -> list[ChunkTask]:
-    """One task per chunk of positions into ``frames`` (input indices)."""
+    """One task per chunk of positions into ``frames`` (input indices).
+
+    With ``maps`` the workers demodulate every frame's maps too (give a ``range`` of
+    ``frames``: each task carries the frames before its chunk).
+    """
     where = str(Path(path).resolve())
     return [
         ChunkTask(
@@ -229,6 +255,8 @@ def make_tasks(
             frame_shape=(int(frame_shape[0]), int(frame_shape[1])),
             saturation=saturation,
             read_ahead=read_ahead,
+            maps=maps,
+            before=frames[: chunk.start] if maps is not None else (),
         )
         for chunk in chunks
     ]
@@ -262,7 +290,14 @@ def measure_chunk(task: ChunkTask) -> ChunkResult:
         flags = np.zeros(n, np.uint8)
         carriers = CarrierCore(task.frame_shape, task.saturation)
         carriers.configure(task.peaks)
-        spent = 0.0
+        spent = maps_spent = 0.0
+        core = None
+        maps: list[FrameMaps] = []
+        if task.maps is not None:
+            t0 = time.perf_counter()
+            core = task.maps.core(task.frame_shape, task.saturation)
+            prepare_reference(core, source, task.before)
+            maps_spent += time.perf_counter() - t0
         with FrameReader(source.read, task.indices, depth=task.read_ahead) as reader:
             for k, (_, frame) in enumerate(reader):
                 t0 = time.perf_counter()
@@ -272,7 +307,11 @@ def measure_chunk(task: ChunkTask) -> ChunkResult:
                 noise[k] = measured.noise
                 mean_counts[k] = measured.mean_counts
                 flags[k] = _flag_bits(measured.flags)
-                spent += time.perf_counter() - t0
+                t1 = time.perf_counter()
+                spent += t1 - t0
+                if core is not None:
+                    maps.append(frame_maps(core, frame, "damaged" in measured.flags))
+                    maps_spent += time.perf_counter() - t1
         return ChunkResult(
             start=task.start,
             values=values,
@@ -282,4 +321,6 @@ def measure_chunk(task: ChunkTask) -> ChunkResult:
             read_seconds=reader.read_seconds,
             measure_seconds=spent,
             worker=worker,
+            maps=tuple(maps),
+            maps_seconds=maps_spent,
         )

@@ -2,7 +2,7 @@
 
 A :class:`ChunkRunner` takes :class:`~holoview.headless.chunks.ChunkTask` objects and
 hands back their :class:`~holoview.headless.chunks.ChunkResult` as they complete, in any
-order (the stitching puts them in order):
+order (the stitching puts them in order), giving out :func:`in_flight` chunks at a time:
 
 - :class:`ProcessRunner` (``--jobs N``): a pool of ``N`` processes forked from a
   ``forkserver`` that imported holoview once (nothing of the parent's FFTW plans, HDF5
@@ -12,8 +12,10 @@ order (the stitching puts them in order):
   (:data:`SINGLE_THREADED`): one worker per core, not a BLAS thread pool per worker
   spinning on cores the other workers need.
   The workers ignore Ctrl-C, which the terminal sends to the whole process group: the
-  parent decides, and when it is interrupted or fails it sends its workers SIGTERM; on
-  Linux a worker also gets SIGTERM if the parent dies without a word.
+  parent decides, and when it is interrupted or fails it sends its workers SIGTERM (with
+  ``--maps`` it lets the chunks under way finish instead: a worker stopped while sending
+  a chunk's maps would leave the pool waiting for the rest); on Linux a worker also gets
+  SIGTERM if the parent dies without a word.
 - :class:`DaskRunner` (``--scheduler ADDRESS``, or ``local`` for a
   :class:`distributed.LocalCluster` of ``--jobs`` worker processes): the same tasks as
   Dask futures. The workers open the input by its path (it must be on storage they
@@ -28,6 +30,7 @@ from __future__ import annotations
 
 import contextlib
 import ctypes
+import itertools
 import logging
 import multiprocessing
 import os
@@ -63,6 +66,15 @@ PRELOAD = ["holoview.headless.chunks"]
 
 #: ``prctl`` option: the signal a process gets when its parent dies (Linux).
 _PR_SET_PDEATHSIG = 1
+
+
+def in_flight(workers: int) -> int:
+    """Chunks given out at once to ``workers``: one each and one waiting each.
+
+    A chunk is given out when a result is taken, so that results (a chunk's maps can be
+    tens of MB) do not pile up faster than the run uses them.
+    """
+    return 2 * max(1, workers)
 
 
 def _worker_start() -> None:
@@ -150,6 +162,7 @@ class ProcessRunner(ChunkRunner):
     def __init__(self, jobs: int) -> None:
         self.workers = int(jobs)
         self.name = f"{self.workers} processes"
+        self._maps = False  # the chunks carry maps (see abort)
         context = multiprocessing.get_context("forkserver")
         context.set_forkserver_preload(PRELOAD)
         self._executor = ProcessPoolExecutor(
@@ -169,14 +182,20 @@ class ProcessRunner(ChunkRunner):
 
     def run(self, tasks: Sequence[ChunkTask]) -> Iterator[ChunkResult]:
         self._starting.join()
+        self._maps = any(task.maps is not None for task in tasks)
+        queue = iter(tasks)
         pending: set[Future[ChunkResult]] = {
-            self._executor.submit(measure_chunk, task) for task in tasks
+            self._executor.submit(measure_chunk, task)
+            for task in itertools.islice(queue, in_flight(self.workers))
         }
         try:
             while pending:
                 done, pending = wait(pending, return_when=FIRST_COMPLETED)
                 for future in done:
                     yield future.result()
+                    task = next(queue, None)
+                    if task is not None:
+                        pending.add(self._executor.submit(measure_chunk, task))
         except BrokenProcessPool as exc:
             raise HoloviewError(
                 "a worker process ended abruptly (killed, or out of memory?): run again, "
@@ -188,6 +207,12 @@ class ProcessRunner(ChunkRunner):
 
     def abort(self) -> None:
         self._starting.join()
+        if self._maps:
+            # a worker stopped while it sends a chunk's maps (tens of MB through the pool's
+            # pipe) would leave the pool's reader waiting forever for the rest: the chunks
+            # being demodulated (a second or so) are let finish, the others cancelled
+            self._executor.shutdown(wait=True, cancel_futures=True)
+            return
         # Python 3.14 has terminate_workers(); before, the pool's processes are only
         # reachable through its _processes mapping.
         terminate = getattr(self._executor, "terminate_workers", None)
@@ -265,10 +290,18 @@ class DaskRunner(ChunkRunner):
     def run(self, tasks: Sequence[ChunkTask]) -> Iterator[ChunkResult]:
         import distributed
 
-        futures = self._client.map(measure_chunk, list(tasks), pure=False)
+        queue = iter(tasks)
+        futures = self._client.map(
+            measure_chunk, list(itertools.islice(queue, in_flight(self.workers))), pure=False
+        )
         try:
-            for future in distributed.as_completed(futures):
+            completed = distributed.as_completed(futures)
+            for future in completed:
                 yield future.result()
+                task = next(queue, None)
+                if task is not None:
+                    futures.append(self._client.submit(measure_chunk, task, pure=False))
+                    completed.add(futures[-1])
         except distributed.client.FutureCancelledError as exc:
             raise HoloviewError(f"the Dask cluster dropped the work ({exc})") from None
         except distributed.scheduler.KilledWorker as exc:

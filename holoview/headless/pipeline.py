@@ -45,7 +45,6 @@ from holoview.errors import InputError
 from holoview.headless.inputs import InputFile
 from holoview.headless.reader import DEFAULT_DEPTH, FrameReader
 from holoview.processing.coregister import Displacement
-from holoview.processing.demodulate import DemodResult
 from holoview.processing.peaks import Peak
 
 logger = logging.getLogger(__name__)
@@ -290,6 +289,66 @@ def _maps_wanted(n: int, every: int, relative: bool) -> np.ndarray:
     return wanted
 
 
+@dataclass
+class FrameMaps:
+    """One frame's maps, and what a run counts of them (:func:`frame_maps`).
+
+    Attributes
+    ----------
+    demodulated : bool
+        The frame went through the demodulator (False: damaged in transfer).
+    maps : list of ndarray
+        Each peak's :func:`~holoview.engine.frame_core.trusted_maps` (empty: none, for
+        a frame not demodulated or not finite).
+    noise : tuple of float
+        Each peak's per-pixel phase noise, rad.
+    peak_flags : tuple of frozenset of str
+        Each peak's flags.
+    flags : frozenset of str
+        The frame's flags (``no_signal``, ``reference``, ...).
+    values : tuple of complex
+        Each peak's carrier value as the demodulator measured it, counts.
+    unwrapped : tuple of float
+        Each peak's mean phase unwrapped in time by this demodulator, rad (the target
+        of the maps' 2 pi offset in the absolute and synthetic modes).
+    scales : tuple of float
+        Each map's units per radian (m/rad for delta-h, 1 for a phase).
+    """
+
+    demodulated: bool
+    maps: list[np.ndarray] = field(default_factory=list)
+    noise: tuple[float, ...] = ()
+    peak_flags: tuple[frozenset[str], ...] = ()
+    flags: frozenset[str] = frozenset()
+    values: tuple[complex, ...] = ()
+    unwrapped: tuple[float, ...] = ()
+    scales: tuple[float, ...] = ()
+
+
+def frame_maps(core: FrameCore, frame: np.ndarray, damaged: bool) -> FrameMaps:
+    """Demodulate ``frame`` through ``core`` (advancing its reference) unless ``damaged``."""
+    if damaged:
+        return FrameMaps(demodulated=False)
+    result = core.process(frame)
+    demodulator = core.demodulator
+    assert result is not None and demodulator is not None
+    peaks = result.peaks
+    wavelength = demodulator.wavelength or 0.0
+    return FrameMaps(
+        demodulated=True,
+        maps=trusted_maps(result) if peaks else [],
+        noise=tuple(r.noise for r in peaks),
+        peak_flags=tuple(r.flags for r in peaks),
+        flags=result.flags,
+        values=tuple(r.carrier_value for r in peaks),
+        unwrapped=tuple(r.mean_phase_unwrapped for r in peaks),
+        scales=tuple(
+            1.0 if r.delta_h is None else wavelength / (4 * np.pi * float(r.peak.alpha or 1.0))
+            for r in peaks
+        ),
+    )
+
+
 class MapsPass:
     """The maps of a run, frame after frame in order: the stateful half of the loop.
 
@@ -299,6 +358,8 @@ class MapsPass:
     (:attr:`wanted`), in order, whether it measures the carriers in the same loop
     (:func:`demodulate_frames`) or on other processes
     (:func:`holoview.headless.stitch.demodulate_chunks`): both give the same maps.
+    Frames demodulated elsewhere (:func:`frame_maps` in a worker) are given to
+    :meth:`record` instead, in order.
 
     Parameters
     ----------
@@ -323,11 +384,13 @@ class MapsPass:
         self._core = core
         self._data = data
         self._sink = sink
+        self._labels = tuple(p.label for p in demodulator.peaks)
         self._every = max(1, n // COREGISTER_FRAMES)
         relative = demodulator.reference == "relative"
         self.wanted = np.ones(n, bool) if sink else _maps_wanted(n, self._every, relative)
         self._coregistration = Coregistration()
-        self._last: DemodResult | None = None
+        self._last: list[np.ndarray] = []
+        self._blank = np.full(data.box_shape, np.nan, np.float32)
 
     def feed(self, position: int, index: int, frame: np.ndarray, damaged: bool) -> None:
         """Demodulate the ``position``-th frame (input ``index``) unless ``damaged``.
@@ -337,31 +400,35 @@ class MapsPass:
         """
         if not self.wanted[position]:
             return
+        t0 = time.perf_counter()
+        maps = frame_maps(self._core, frame, damaged)
+        self.record(position, index, maps, time.perf_counter() - t0)
+
+    def record(self, position: int, index: int, frame: FrameMaps, seconds: float = 0.0) -> None:
+        """Count the ``position``-th frame's maps (input ``index``), which took ``seconds``."""
         data = self._data
         t0 = time.perf_counter()
-        result = None
-        if not damaged:
-            result = self._core.process(frame)
-            assert result is not None
-            _count(data, position, result)
-        maps = trusted_maps(result) if result is not None and result.peaks else []
+        if frame.demodulated:
+            _count(data, position, frame)
+        maps = frame.maps
         if maps and position % self._every == 0:
-            self._coregistration.add(result, maps)  # type: ignore[arg-type]
+            self._coregistration.add_maps(
+                self._labels, data.box_shape, maps, reference="reference" in frame.flags
+            )
         t1 = time.perf_counter()
-        data.demod_seconds += t1 - t0
-        data.maps_seconds += t1 - t0
+        data.demod_seconds += seconds + t1 - t0
+        data.maps_seconds += seconds + t1 - t0
         if maps:
-            self._last, data.last_frame = result, index
+            self._last, data.last_frame = maps, index
         if self._sink is not None:
-            blank = np.full(data.box_shape, np.nan, np.float32)
             for j in range(len(data.map_flags)):
-                self._sink.write_map(position, j, maps[j] if maps else blank)
+                self._sink.write_map(position, j, maps[j] if maps else self._blank)
         data.write_seconds += time.perf_counter() - t1
 
     def finish(self) -> None:
         """Keep the last maps and the displacements in the run's record."""
-        if self._last is not None:
-            self._data.last_maps = list(trusted_maps(self._last))
+        if self._last:
+            self._data.last_maps = list(self._last)
         self._data.displacements = self._coregistration.displacements() or []
 
 
@@ -461,13 +528,13 @@ def demodulate_frames(
     return check_run(data)
 
 
-def _count(data: RunData, position: int, result: DemodResult) -> None:
+def _count(data: RunData, position: int, frame: FrameMaps) -> None:
     """Keep a demodulated frame's map noise and count its map flags."""
     data.demodulated += 1
-    if "no_signal" in result.flags:
+    if "no_signal" in frame.flags:
         data.no_signal += 1
-    for j, r in enumerate(result.peaks):
-        data.map_noise_rad[position, j] = r.noise
-        for flag in r.flags:
+    for j, (noise, flags) in enumerate(zip(frame.noise, frame.peak_flags, strict=True)):
+        data.map_noise_rad[position, j] = noise
+        for flag in flags:
             if flag in data.map_flags[j]:
                 data.map_flags[j][flag] += 1

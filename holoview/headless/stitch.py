@@ -20,8 +20,12 @@ same numbers, whatever the number of workers or chunks:
   reference (previous or first frame) and the displacements see the same frames. A
   frame is demodulated once the chunk holding it is measured, so that it is known
   whether the frame was damaged, and so that an interrupted run keeps a prefix of
-  frames that both halves have done. With ``--maps`` every frame is demodulated here:
-  then only the carrier values gain from the workers.
+  frames that both halves have done;
+- with ``--maps`` (every frame's maps, most of the run's time) the workers demodulate
+  them too, in short chunks (:mod:`holoview.headless.chunk_maps`: each worker starts
+  from the serial run's reference, and this process moves the maps by the whole turns
+  of mean phase a worker could not know), and this process counts them, measures the
+  displacements over them and writes them, in order.
 """
 
 from __future__ import annotations
@@ -29,11 +33,13 @@ from __future__ import annotations
 import logging
 import time
 from collections.abc import Callable, Iterator
+from dataclasses import replace
 
 import numpy as np
 
 from holoview.engine.frame_core import FrameCore
 from holoview.headless.analysis import JointSetup
+from holoview.headless.chunk_maps import MapsSpec, TurnFix
 from holoview.headless.chunks import CHUNK_FLAGS, ChunkResult, make_tasks, split_frames
 from holoview.headless.inputs import InputFile
 from holoview.headless.parallel import ChunkRunner
@@ -79,7 +85,10 @@ class _Gathered:
             self.chunks[self._slot[result.start]] = result
             self._measured += len(result)
             while self._ready < len(self.chunks) and self.chunks[self._ready] is not None:
-                self._in_order(self.chunks[self._ready])  # type: ignore[arg-type]
+                chunk = self.chunks[self._ready]
+                assert chunk is not None
+                self._in_order(chunk)
+                self.chunks[self._ready] = replace(chunk, maps=())  # their memory back
                 self.done = self._ends[self._ready]
                 self._ready += 1
             if self._progress is not None:
@@ -120,7 +129,7 @@ def demodulate_chunks(
     runner : ChunkRunner
         Where the chunks are measured.
     sink : MapSink, optional
-        Receives every frame's maps (every frame is then demodulated here).
+        Receives every frame's maps (every frame is then demodulated, in the workers).
     read_ahead : int
         Frames read ahead (by each worker, and here).
     progress : callable, optional
@@ -145,7 +154,7 @@ def demodulate_chunks(
     demodulator = core.build()
     assert demodulator is not None
     maps = MapsPass(core, data, n, sink)
-    chunks = split_frames(n, runner.workers)
+    chunks = split_frames(n, runner.workers, maps=sink is not None)
     tasks = make_tasks(
         source.path,
         frames,
@@ -154,24 +163,31 @@ def demodulate_chunks(
         frame_shape=core.frame_shape,
         saturation=core.saturation,
         read_ahead=read_ahead,
+        maps=MapsSpec.of(core) if sink is not None else None,
     )
     logger.info("%d frames in %d chunks on %s", n, len(chunks), runner.name)
     series = data.series
     if joint is not None:
         series.track_joint(joint.alphas, joint.couplings, joint.wavelength_m, joint.exclude)
 
+    turns = TurnFix(demodulator.reference, len(demodulator.peaks))
+
     def add(result: ChunkResult) -> None:
         start = time.perf_counter()
         for k in range(len(result)):
             position = result.start + k
             series.add(float(times[position]), frames[position], result.measured(k))
+        for k, frame_maps in enumerate(result.maps):
+            turns.apply(frame_maps)
+            maps.record(result.start + k, frames[result.start + k], frame_maps)
         data.read_seconds += result.read_seconds
-        data.demod_seconds += result.measure_seconds
-        data.worker_seconds += result.measure_seconds
+        data.demod_seconds += result.measure_seconds + result.maps_seconds
+        data.maps_seconds += result.maps_seconds
+        data.worker_seconds += result.measure_seconds + result.maps_seconds
         data.parent_seconds += time.perf_counter() - start
 
     gathered = _Gathered(runner.run(tasks), [c.start for c in chunks], n, progress, add)
-    positions = np.flatnonzero(maps.wanted)
+    positions = np.flatnonzero(maps.wanted) if sink is None else np.zeros(0, int)
     reader = FrameReader(source.read, [frames[int(p)] for p in positions], depth=read_ahead)
     try:
         with reader:
@@ -188,6 +204,7 @@ def demodulate_chunks(
             raise
         logger.warning("interrupted after %d of %d frames: results of those", gathered.done, n)
         data.interrupted = True
+        series.truncate(gathered.done)  # a chunk interrupted while added
     finally:
         gathered.close()
     maps.finish()

@@ -23,6 +23,7 @@ from headless_sim import Simulated, run_cli
 from holoview.acquire.recording import RecordingWriter
 from holoview.cli import main
 from holoview.errors import InputError
+from holoview.headless import chunk_maps
 from holoview.headless.batch import INDEX_CSV
 from holoview.headless.chunks import (
     ChunkTask,
@@ -83,13 +84,14 @@ def _run(
     out: Path,
     runner: ChunkRunner | None,
     reference: str | None = None,
+    settings: ProcessSettings | None = None,
     **kwargs: object,
 ) -> ProcessOutcome:
     return process_file(
         path,
         out,
         choice=PeakChoice(),
-        settings=ProcessSettings(reference=reference),
+        settings=settings or ProcessSettings(reference=reference),
         report=False,
         runner=runner,
         **kwargs,  # type: ignore[arg-type]
@@ -138,6 +140,109 @@ def test_jobs_and_dask_give_the_results_of_one_process(
         other = _run(path, tmp_path / name.replace(" ", "_"), runner, reference)
         assert other.data.workers == runner.name
         _assert_same(serial, other, f"{case}: {name}")
+
+
+def _maps(out: Path) -> dict[str, np.ndarray]:
+    """Every map dataset of a run's results.h5 (the fused one included)."""
+    with h5py.File(out / "results.h5", "r") as f:
+        return {name: f["maps"][name][:] for name in f["maps"]}
+
+
+def _assert_same_maps(serial: ProcessOutcome, other: ProcessOutcome, what: str) -> None:
+    """The series, rates and flags exactly; the maps and their noise to float32 rounding."""
+    assert (serial.out / "trends.csv").read_bytes() == (other.out / "trends.csv").read_bytes()
+    fits = [(p.rate, p.rate_stderr) for p in serial.analysis.peaks]
+    assert fits == [(p.rate, p.rate_stderr) for p in other.analysis.peaks], what
+    assert serial.data.frame_flags == other.data.frame_flags, what
+    assert serial.data.peak_flags == other.data.peak_flags, what
+    assert serial.data.demodulated == other.data.demodulated, what
+    assert serial.data.last_frame == other.data.last_frame, what
+    # the workers' FFTW plans may be others (measured): the maps agree to float32 rounding
+    np.testing.assert_allclose(other.data.noise_rad, serial.data.noise_rad, rtol=1e-5)
+    a, b = _maps(serial.out), _maps(other.out)
+    assert a.keys() == b.keys(), what
+    for name, maps in a.items():
+        assert np.isfinite(maps).any(), f"{what}: {name}"
+        tiny = 1e-6 * float(np.nanmax(np.abs(maps)))
+        np.testing.assert_array_equal(np.isnan(maps), np.isnan(b[name]), f"{what}: {name}")
+        np.testing.assert_allclose(b[name], maps, rtol=1e-5, atol=tiny, err_msg=f"{what}: {name}")
+    for m, n in zip(serial.data.last_maps, other.data.last_maps, strict=True):
+        np.testing.assert_allclose(n, m, rtol=1e-5, atol=1e-6 * float(np.nanmax(np.abs(m))))
+    shifts = np.array([d.shift for d in serial.data.displacements])
+    assert shifts.size, what
+    # maps moved by whole turns in the parent differ by float32 rounding: 1e-5 pixel here
+    np.testing.assert_allclose(
+        np.array([d.shift for d in other.data.displacements]), shifts, atol=1e-4
+    )
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    "case",
+    [
+        "relative",
+        "absolute",
+        "synthetic",
+        "background",
+        "aliasing",
+        "lost frames",
+        "lost, absolute",
+    ],
+)
+def test_maps_from_the_workers_are_those_of_one_process(
+    case: str,
+    *,
+    evaporation: Simulated,
+    injection: Path,
+    runners: dict[str, ChunkRunner],
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """--maps with --jobs 1, 2, 7 and Dask: every frame's maps (demodulated in the workers)."""
+    monkeypatch.setattr(chunk_maps, "MAPS_CHUNK_FRAMES", 9)  # many chunks, some of one worker
+    lost = case.startswith("lost")
+    path = injection if case == "aliasing" else tmp_path / "lost.h5" if lost else evaporation.path
+    if lost:
+        _lose_frames(evaporation.path, path)  # a chunk starts after a damaged frame
+    reference = {"background": "absolute", "lost frames": "relative", "lost, absolute": "absolute"}
+    settings = ProcessSettings(
+        reference=reference.get(case, "absolute" if case == "aliasing" else case),
+        maps=True,
+        background="3" if case == "background" else None,
+    )
+    serial = _run(path, tmp_path / "serial", None, settings=settings)
+    assert serial.data.demodulated == len(serial.data.frames) - (2 if lost else 0)
+    for name, runner in runners.items():
+        other = _run(path, tmp_path / name.replace(" ", "_"), runner, settings=settings)
+        assert other.data.workers == runner.name
+        _assert_same_maps(serial, other, f"{case}: {name}")
+
+
+@pytest.mark.slow
+def test_an_interrupted_maps_run_keeps_the_maps_of_the_chunks_done(
+    evaporation: Simulated,
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Ctrl-C after the first chunks: the frames of the chunks done, their maps those of one."""
+    monkeypatch.setattr(chunk_maps, "MAPS_CHUNK_FRAMES", 9)
+    settings = ProcessSettings(reference="absolute", maps=True)
+    serial = _run(evaporation.path, tmp_path / "serial", None, settings=settings)
+
+    def stop(done: int, total: int) -> None:
+        if done >= 30:
+            raise KeyboardInterrupt
+
+    with ProcessRunner(2) as runner:
+        other = _run(evaporation.path, tmp_path / "cut", runner, settings=settings, progress=stop)
+    n = len(other.data.frames)
+    assert other.data.interrupted and 0 < n < evaporation.frames
+    assert n in {c.stop for c in split_frames(evaporation.frames, 2, maps=True)}
+    a, b = _maps(serial.out), _maps(other.out)
+    for name, maps in b.items():
+        assert maps.shape[0] == n, name
+        tiny = 1e-6 * float(np.nanmax(np.abs(maps)))
+        np.testing.assert_allclose(maps, a[name][:n], rtol=1e-5, atol=tiny, err_msg=name)
 
 
 @pytest.mark.slow
