@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 
@@ -97,3 +98,25 @@ def test_every_command_spells_the_optics_the_same_way() -> None:
         assert {"--wavelength-nm", "--pixel-pitch-um", "--n1", "--n2", "--fluid"} <= options, name
         assert {"-q", "-v"} <= options, name
         assert "--wavelength" not in options and "--pixel-pitch" not in options, name
+
+
+@pytest.mark.parametrize("given", [None, "2"])
+def test_the_commands_run_blas_on_one_thread_unless_told(given: str | None) -> None:
+    """OpenBLAS's pool only spun beside the small products (bench_process: +29 % a frame)."""
+    code = (
+        "import os, sys\n"
+        "from holoview.cli import main\n"
+        "main(['--version'])\n"
+        "assert 'numpy' in sys.modules\n"
+        "print(os.environ['OPENBLAS_NUM_THREADS'], len(os.listdir('/proc/self/task')))\n"
+    )
+    env = {k: v for k, v in os.environ.items() if k != "OPENBLAS_NUM_THREADS"}
+    if given is not None:
+        env["OPENBLAS_NUM_THREADS"] = given
+    done = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, env=env, check=True
+    )
+    setting, threads = done.stdout.split()[-2:]
+    assert setting == (given or "1")
+    if given is None:
+        assert threads == "1"  # no BLAS thread beside the main one
