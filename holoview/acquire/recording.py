@@ -596,8 +596,15 @@ class RecordingReader:
 
     @property
     def fps(self) -> float:
-        """Mean frame rate from the host timestamps, frames per second (NaN if unknown)."""
-        t = self.t_host
+        """Mean frame rate, frames per second (NaN if unknown).
+
+        From the camera's clock where every frame has a time on it, else from the host's
+        (the host's times hold when frames arrived or were written: a simulation written
+        at 19 frames/s of a 60 frames/s camera reads 60 here).
+        """
+        t = self.t_device
+        if not np.isfinite(t).all():
+            t = self.t_host
         if len(t) < 2 or not t[-1] > t[0]:
             return math.nan
         return float((len(t) - 1) / (t[-1] - t[0]))

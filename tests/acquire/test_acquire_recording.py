@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import signal
 import subprocess
 import sys
@@ -39,6 +40,14 @@ def write(path: Path, data: np.ndarray, **kwargs: object) -> None:
             writer.append(frame, 10 + 2 * i, 0.5 * i, 1000.0 + i)
 
 
+def test_the_frame_rate_is_the_cameras_where_it_timed_every_frame(tmp_path: Path) -> None:
+    with RecordingWriter(tmp_path / "r.h5", (30, 40), np.uint16, setup=SETUP, source="t") as w:
+        for i, frame in enumerate(frames(5)):
+            w.append(frame, i, math.nan if i == 2 else 0.25 * i, 100.0 + 0.5 * i)
+    with RecordingReader(tmp_path / "r.h5") as reader:
+        assert reader.fps == pytest.approx(2.0)  # one frame without the camera's time: host's
+
+
 def test_round_trip_keeps_frames_ids_timestamps_and_raw_values(tmp_path: Path) -> None:
     data = frames(7)
     before = data.copy()
@@ -57,7 +66,7 @@ def test_round_trip_keeps_frames_ids_timestamps_and_raw_values(tmp_path: Path) -
         np.testing.assert_array_equal(reader.frame_ids, 10 + 2 * np.arange(7))
         np.testing.assert_allclose(reader.t_device, 0.5 * np.arange(7))
         np.testing.assert_allclose(reader.t_host, 1000.0 + np.arange(7))
-        assert reader.fps == pytest.approx(1.0)
+        assert reader.fps == pytest.approx(2.0)  # the camera's clock (the host's says 1)
         assert reader.pixel_format == "Mono12"
         assert reader.significant_bits == 12
         with pytest.raises(IndexError):
