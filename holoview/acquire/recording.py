@@ -595,16 +595,25 @@ class RecordingReader:
         return self._t_host[: self._n]
 
     @property
-    def fps(self) -> float:
-        """Mean frame rate, frames per second (NaN if unknown).
+    def times(self) -> np.ndarray:
+        """The frames' times, seconds, on the best clock the recording has.
 
-        From the camera's clock where every frame has a time on it, else from the host's
-        (the host's times hold when frames arrived or were written: a simulation written
-        at 19 frames/s of a 60 frames/s camera reads 60 here).
+        The camera's where it timed every frame and runs forward, else the host's
+        arrival times (which hold when frames arrived or were written, not when the
+        camera took them).
         """
-        t = self.t_device
-        if not np.isfinite(t).all():
-            t = self.t_host
+        t_device = self.t_device
+        if np.isfinite(t_device).all() and (np.diff(t_device) > 0).all():
+            return t_device
+        return self.t_host
+
+    @property
+    def fps(self) -> float:
+        """Mean frame rate over :attr:`times`, frames per second (NaN if unknown).
+
+        A simulation written at 19 frames/s of a 60 frames/s camera reads 60.
+        """
+        t = self.times
         if len(t) < 2 or not t[-1] > t[0]:
             return math.nan
         return float((len(t) - 1) / (t[-1] - t[0]))

@@ -176,12 +176,9 @@ class HDF5File(FrameFile):
 
     def _load_index(self) -> None:
         self._ids = self._reader.frame_ids
-        t_device = self._reader.t_device
-        t_host = self._reader.t_host
-        usable = np.isfinite(t_device).all() and (np.diff(t_device) > 0).all()
-        self._times = t_device if usable else t_host
+        self._times = self._reader.times
         self.rate_hz = self._reader.fps if math.isfinite(self._reader.fps) else None
-        self._t_device = t_device
+        self._t_device = self._reader.t_device
 
     def __len__(self) -> int:
         return len(self._reader)
