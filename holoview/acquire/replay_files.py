@@ -140,8 +140,9 @@ class FrameFile(ABC):
         """Release the file."""
 
 
-def _natural_key(path: Path) -> list[object]:
-    return [int(part) if part.isdigit() else part.lower() for part in re.split(r"(\d+)", path.name)]
+def natural_key(text: str) -> list[object]:
+    """Sort key of natural order: ``run2`` before ``run10``, letters regardless of case."""
+    return [int(part) if part.isdigit() else part.lower() for part in re.split(r"(\d+)", text)]
 
 
 def _grey(image: np.ndarray, where: str) -> np.ndarray:
@@ -335,7 +336,7 @@ class ImageFolder(FrameFile):
         names = [p for p in path.iterdir() if p.is_file()]
         files = sorted(
             (p for p in names if p.suffix.lower() in IMAGE_SUFFIXES and not p.name.startswith(".")),
-            key=_natural_key,
+            key=lambda p: natural_key(p.name),
         )
         hidden = [p.name for p in names if p.name.startswith(".")]
         if hidden:

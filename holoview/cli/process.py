@@ -153,16 +153,16 @@ def _rate_text(rate: float | None, stderr: float | None) -> str:
 def run(args: argparse.Namespace) -> int:
     """Process, show progress, print one line of what came out."""
     from holoview.headless.batch import find_recordings
-    from holoview.headless.chunks import usable_cores
     from holoview.headless.pipeline import ProcessSettings
     from holoview.headless.run import PeakChoice, process_file
     from holoview.headless.selection import parse_assignment
+    from holoview.processing.fftplans import usable_cpus
 
     if args.jobs is not None and args.jobs < 1:
         raise InputError(f"--jobs must be at least 1, got {args.jobs}")
     if args.threads < 1:
         raise InputError(f"--threads must be at least 1, got {args.threads}")
-    cores = usable_cores()
+    cores = usable_cpus()
     if args.threads > cores:
         logger.warning(
             "--threads %d: this machine has %d cores; using %d", args.threads, cores, cores

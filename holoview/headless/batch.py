@@ -31,7 +31,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from holoview.acquire.replay_files import HDF5_SUFFIXES, NUMPY_SUFFIXES, VIDEO_SUFFIXES
+from holoview.acquire.replay_files import (
+    HDF5_SUFFIXES,
+    NUMPY_SUFFIXES,
+    VIDEO_SUFFIXES,
+    natural_key,
+)
 from holoview.atomic import atomic_path
 from holoview.errors import HoloviewError, InputError, OutputError, os_error_text
 from holoview.headless.chunks import plan_jobs
@@ -53,12 +58,9 @@ _GLOB = re.compile(r"[*?\[]")
 _LONG = 1 << 40
 
 
-def _natural(path: Path) -> tuple[list[Any], str]:
-    """Sort key: ``run2`` before ``run10``, ``run`` before ``run2``."""
-    parts = [
-        (int(t), "") if t.isdigit() else (-1, t.lower()) for t in re.split(r"(\d+)", path.stem)
-    ]
-    return parts, path.suffix.lower()
+def _natural(path: Path) -> tuple[list[object], str]:
+    """Sort key: ``run2`` before ``run10``, ``run`` before ``run2`` (the stem, then the suffix)."""
+    return natural_key(path.stem), path.suffix.lower()
 
 
 def find_recordings(spec: str | Path) -> list[Path] | None:

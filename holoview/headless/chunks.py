@@ -39,6 +39,7 @@ from holoview.headless.inputs import InputFile
 from holoview.headless.pipeline import FrameMaps, frame_maps
 from holoview.headless.reader import DEFAULT_DEPTH, FrameReader
 from holoview.processing.carrier_values import CarrierValues
+from holoview.processing.fftplans import usable_cpus
 from holoview.processing.peaks import Peak
 
 logger = logging.getLogger(__name__)
@@ -61,14 +62,6 @@ SEEKABLE_KINDS = ("hdf5", "tiff", "folder", "numpy")
 CHUNK_FLAGS = ("nonfinite", "saturated", "damaged")
 
 
-def usable_cores() -> int:
-    """CPU cores this process may run on."""
-    try:
-        return len(os.sched_getaffinity(0))
-    except (AttributeError, OSError):
-        return os.cpu_count() or 1
-
-
 def plan_jobs(jobs: int | None, n_frames: int, kind: str, cores: int | None = None) -> int:
     """The processes a run of ``n_frames`` frames uses for ``--jobs JOBS``.
 
@@ -82,7 +75,7 @@ def plan_jobs(jobs: int | None, n_frames: int, kind: str, cores: int | None = No
     kind : str
         The input's kind (:attr:`InputFile.kind`): a video runs in one process.
     cores : int, optional
-        Usable cores (default: :func:`usable_cores`).
+        Usable cores (default: :func:`~holoview.processing.fftplans.usable_cpus`).
 
     Returns
     -------
@@ -105,7 +98,7 @@ def plan_jobs(jobs: int | None, n_frames: int, kind: str, cores: int | None = No
             )
         return 1
     if jobs is None:
-        cores = usable_cores() if cores is None else cores
+        cores = usable_cpus() if cores is None else cores
         return max(1, min(cores - 1, n_frames // MIN_FRAMES_PER_JOB))
     if jobs > n_frames:
         logger.warning("--jobs %d: the run has %d frames; using %d", jobs, n_frames, n_frames)
