@@ -45,6 +45,7 @@ from holoview.errors import InputError
 from holoview.headless.inputs import InputFile
 from holoview.headless.reader import DEFAULT_DEPTH, FrameReader
 from holoview.processing.coregister import Displacement
+from holoview.processing.heights import phase_to_height
 from holoview.processing.peaks import Peak
 
 logger = logging.getLogger(__name__)
@@ -332,8 +333,7 @@ def frame_maps(core: FrameCore, frame: np.ndarray, damaged: bool) -> FrameMaps:
     result = core.process(frame)
     demodulator = core.demodulator
     assert result is not None and demodulator is not None
-    peaks = result.peaks
-    wavelength = demodulator.wavelength or 0.0
+    peaks, wavelength = result.peaks, demodulator.wavelength
     return FrameMaps(
         demodulated=True,
         maps=trusted_maps(result) if peaks else [],
@@ -342,8 +342,8 @@ def frame_maps(core: FrameCore, frame: np.ndarray, damaged: bool) -> FrameMaps:
         flags=result.flags,
         values=tuple(r.carrier_value for r in peaks),
         unwrapped=tuple(r.mean_phase_unwrapped for r in peaks),
-        scales=tuple(
-            1.0 if r.delta_h is None else wavelength / (4 * np.pi * float(r.peak.alpha or 1.0))
+        scales=tuple(  # a map in metres has its peak's alpha and the wavelength
+            1.0 if r.delta_h is None else float(phase_to_height(1.0, r.peak.alpha, wavelength))
             for r in peaks
         ),
     )
