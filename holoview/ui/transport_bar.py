@@ -27,7 +27,7 @@ from PyQt6.QtWidgets import (
 )
 
 from holoview.errors import HoloviewError
-from holoview.live.replay_control import SPEED_STEPS, ReplayControl, speed_text
+from holoview.live.replay_control import SPEED_STEPS, ReplayControl, ReplayState, speed_text
 
 #: Frames a Shift+arrow step moves.
 BIG_STEP = 10
@@ -52,6 +52,7 @@ class TransportBar(QToolBar):
         self.setObjectName("transport")
         self.setMovable(False)
         self.control: ReplayControl | None = None
+        self._drawn: ReplayState | None = None  # what the widgets show
         self._updating = False
         style = self.style()
         assert style is not None
@@ -131,6 +132,7 @@ class TransportBar(QToolBar):
     def attach(self, control: ReplayControl | None) -> None:
         """Steer ``control`` (shown, shortcuts on), or nothing (hidden, shortcuts off)."""
         self.control = control
+        self._drawn = None
         for act in self.shortcuts:
             act.setEnabled(control is not None)
         self.setVisible(control is not None)
@@ -146,6 +148,9 @@ class TransportBar(QToolBar):
         except HoloviewError as exc:  # the source closed under us
             self.message.emit(str(exc))
             return
+        if state == self._drawn:
+            return  # the redraw timer calls at 30 Hz: nothing moved
+        self._drawn = state
         self._updating = True
         try:
             self.slider.setRange(0, max(0, state.n_frames - 1))
@@ -155,7 +160,7 @@ class TransportBar(QToolBar):
             icon = (
                 QStyle.StandardPixmap.SP_MediaPlay
                 if state.paused
-                else (QStyle.StandardPixmap.SP_MediaPause)
+                else QStyle.StandardPixmap.SP_MediaPause
             )
             self.play_button.setIcon(self.style().standardIcon(icon))  # type: ignore[union-attr]
             self.play_button.setToolTip(("play" if state.paused else "pause") + " (Space)")
