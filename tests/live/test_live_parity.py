@@ -24,13 +24,9 @@ from holoview.live.session import LiveSession
 
 
 @pytest.fixture(scope="module")
-def recording(tmp_path_factory: pytest.TempPathFactory) -> Path:
+def recording(simulate_evaporation) -> Path:
     """Evaporation at 60 um/min, 128 x 128, 60 frames at 20 frames/s, with its experiment."""
-    path = tmp_path_factory.mktemp("parity") / "evaporation.h5"
-    argv = ["-q", "simulate", str(path), "--scenario", "evaporation", "--size", "128"]
-    argv += ["--frames", "60", "--fps", "20", "--seed", "5", "--evaporation-um-per-min", "60"]
-    assert main(argv) == 0
-    return path
+    return simulate_evaporation(60)
 
 
 def _live_run(path: Path, experiment, monkeypatch: pytest.MonkeyPatch) -> LiveSession:

@@ -17,7 +17,6 @@ import pytest
 
 from holoview.acquire.recording import RecordingReader
 from holoview.acquire.source import FrameMeta
-from holoview.cli import main
 from holoview.engine.experiment import Experiment
 from holoview.errors import InputError
 from holoview.live import trends as live_trends
@@ -28,13 +27,9 @@ from holoview.live.session import LiveSession
 
 
 @pytest.fixture(scope="module")
-def recording(tmp_path_factory: pytest.TempPathFactory) -> Path:
+def recording(simulate_evaporation) -> Path:
     """Evaporation at 60 um/min, 128 x 128, 40 frames at 20 frames/s, with its experiment."""
-    path = tmp_path_factory.mktemp("replay") / "evaporation.h5"
-    argv = ["-q", "simulate", str(path), "--scenario", "evaporation", "--size", "128"]
-    argv += ["--frames", "40", "--fps", "20", "--seed", "5", "--evaporation-um-per-min", "60"]
-    assert main(argv) == 0
-    return path
+    return simulate_evaporation(40)
 
 
 def _stored(path: Path, reference: str) -> Experiment:
