@@ -240,9 +240,15 @@ class PhaseSeries:
             Laser wavelength, m.
         exclude : sequence of bool, optional
             Peaks left out of the joint estimate.
+
+        Nothing is done when every frame held was estimated, from the first, with the
+        same arguments (a run that knew its prefactors before its frames came).
         """
         skip = list(exclude) if exclude is not None else [False] * len(self.labels)
-        self._joint_key = _joint_key(alphas, couplings, wavelength_m, skip)
+        key = _joint_key(alphas, couplings, wavelength_m, skip)
+        if key == self._joint_key:
+            return
+        self._joint_key = key
         columns = [
             j
             for j, (a, c) in enumerate(zip(alphas, couplings, strict=True))
@@ -262,21 +268,6 @@ class PhaseSeries:
         )
         for i in range(self._n):
             self._joint_update(i)
-
-    def tracks_joint(
-        self,
-        alphas: Sequence[float | None],
-        couplings: Sequence[int | None],
-        wavelength_m: float,
-        exclude: Sequence[bool] | None = None,
-    ) -> bool:
-        """Whether :meth:`track_joint` with these arguments would change nothing.
-
-        True when the series has estimated every frame it holds, from its first, with
-        the same arguments (a run that knew its prefactors before its frames came).
-        """
-        skip = list(exclude) if exclude is not None else [False] * len(self.labels)
-        return self._joint_key == _joint_key(alphas, couplings, wavelength_m, skip)
 
     def _joint_update(self, i: int) -> None:
         assert self._joint is not None

@@ -238,11 +238,15 @@ def known_joint(selection: Selection, optics: Optics) -> JointSetup | None:
     """
     if selection.mode == "auto" or optics.wavelength_m is None:
         return None
-    naming = _given_names(selection)
+    return _joint_setup(_given_names(selection), optics, optics.wavelength_m)
+
+
+def _joint_setup(naming: _Naming, optics: Optics, wavelength_m: float) -> JointSetup:
+    """The joint estimate of peaks named ``naming``: the fusable ones, their couplings."""
     return JointSetup(
         alphas=naming.signed,
         couplings=[coupling_of(label, optics.n1, optics.n2) for label in naming.labels],
-        wavelength_m=optics.wavelength_m,
+        wavelength_m=wavelength_m,
         exclude=[not f for f in naming.fusable],
     )
 
@@ -313,15 +317,13 @@ def analyse(data: RunData, selection: Selection, optics: Optics) -> Analysis:
         naming = _pca_names(_identify(raw_phases, data, selection, optics), flags)
     else:
         naming = _given_names(selection)
-    labels, signed, fusable = naming.labels, naming.signed, naming.fusable
+    labels, signed = naming.labels, naming.signed
     # a peak with a negative prefactor is stored on its other twin (DESIGN.md)
     signs = [-1.0 if (a is not None and a < 0) else 1.0 for a in signed]
     alphas = [abs(a) if a is not None else None for a in signed]
-    exclude = [not f for f in fusable]
-    couplings = [coupling_of(label, optics.n1, optics.n2) for label in labels]
-    if not data.series.tracks_joint(signed, couplings, wavelength, exclude=exclude):
-        data.series.track_joint(signed, couplings, wavelength, exclude=exclude)
-    summary = summarise(data.series, signed, wavelength, exclude=exclude)
+    joint = _joint_setup(naming, optics, wavelength)
+    data.series.track_joint(signed, joint.couplings, wavelength, exclude=joint.exclude)
+    summary = summarise(data.series, signed, wavelength, exclude=joint.exclude)
     notes = list(selection.notes)
     if summary.note is not None:
         notes.append(summary.note)
