@@ -295,6 +295,6 @@ class LivePipeline:
             shifts_px=shifts,
             grid_of=grid_of,
             notes=resolution.notes,
-            frame_index=meta.index,
+            frame_index=meta.file_index,
             segment=meta.segment,
         )

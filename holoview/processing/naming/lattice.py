@@ -279,7 +279,7 @@ def identify_lattice(
         chosen, hints = from_labels(anchors, fitter, n1, n2)
         notes += [f"{h} is probably labelled on the wrong twin" for h in hints]
         source, sign_from, margin = "labels", "labels", math.inf
-        extra = {"anchors": {a.label: a.peak for a in anchors}, "flip_hint": hints}
+        anchors_by_label = {a.label: a.peak for a in anchors}
     else:
         candidates = auto_candidates(fitter, n1, n2)
         if not candidates or candidates[0].score < 2:
@@ -290,7 +290,7 @@ def identify_lattice(
         chosen, margin = choose(candidates, evidence, n_peaks, notes)
         source = "auto"
         chosen, sign_from = orient(chosen, sign_reference)
-        extra = {}
+        anchors_by_label, hints = {}, ()
     check = None if evidence is None else evidence.check(chosen.matches, n_peaks)
     ident = _assemble(
         chosen,
@@ -304,7 +304,7 @@ def identify_lattice(
         max_order=max_order,
         notes=notes,
     )
-    return replace(ident, **extra)
+    return replace(ident, anchors=anchors_by_label, flip_hint=hints)
 
 
 _AMBIGUOUS_GHOST = (
@@ -412,7 +412,11 @@ def _assemble(
         and max(p.point[0], 1) <= max_order
         and p.point not in named
     )
-    residuals = [p.residual_bins for p in peaks if p.kind is LatticeKind.FIRST_ORDER]
+    residuals = [
+        p.residual_bins
+        for p in peaks
+        if p.kind is LatticeKind.FIRST_ORDER and p.residual_bins is not None
+    ]
     precision = float(np.sqrt(np.mean(np.square(residuals)))) if residuals else math.nan
     logger.info(
         "lattice (%s, sign by %s): %s; missing %s",

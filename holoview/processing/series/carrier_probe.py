@@ -339,8 +339,9 @@ class CarrierProbe:
         if taper is None:
             tapers = (auto_taper(rows, self.spacing), auto_taper(cols, self.spacing))
         else:
-            pair = (taper, taper) if np.ndim(taper) == 0 else tuple(taper)  # type: ignore[arg-type]
-            if len(pair) != 2 or not all(0 <= float(t) <= 1 for t in pair):
+            pair = np.ravel(np.asarray(taper, dtype=float))
+            pair = np.repeat(pair, 2) if pair.size == 1 else pair
+            if pair.size != 2 or not np.all((pair >= 0) & (pair <= 1)):
                 raise InputError(f"taper must be in [0, 1] (or a pair of such), got {taper!r}")
             tapers = (float(pair[0]), float(pair[1]))
         self.taper: tuple[float, float] = tapers

@@ -298,6 +298,8 @@ class JointEstimator:
             guess[~present] = FIRST_SIGMA * 10
             self._sigma2 = guess**2
         now = self._sigma2 if sigma is None else self._check_sigma(sigma) ** 2
+        if now is None:  # nothing measured yet: every peak at the fallback noise
+            now = np.full(self.alphas.size, (FIRST_SIGMA * 10) ** 2)
         seen = present & np.isfinite(self._phase)
         turns = np.zeros(self.alphas.size, dtype=np.int64)
         margin, vibration_margin, flagged = math.inf, math.inf, False
