@@ -24,7 +24,7 @@ import numpy as np
 
 from holoview.acquire.pixel_formats import PIXEL_FORMATS
 from holoview.acquire.recording import RecordingWriteError, RecordingWriter
-from holoview.acquire.ring import CLOSED, FrameRing, RingStatus
+from holoview.acquire.ring import FrameRing, RingStatus
 from holoview.acquire.source import Source
 from holoview.errors import InputError
 
@@ -204,11 +204,11 @@ class Recorder:
         try:
             while not self._stop.is_set() or self._consumer.position < self._stop_at:
                 item = self._consumer.get(timeout=min(0.2, writer.flush_interval_s), out=buffer)
-                if item is CLOSED:
-                    break
                 if item is None:
                     writer.flush_if_due()
                     continue
+                if not isinstance(item, tuple):  # CLOSED
+                    break
                 pixels, meta = item
                 while not self._experiments.empty():
                     writer.note_experiment(self._experiments.get())
