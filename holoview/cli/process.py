@@ -22,6 +22,7 @@ from holoview.cli.options import (
     parse_labels,
 )
 from holoview.cli.signals import emit
+from holoview.cli.waves import add_wave_options, summary_line, wave_options
 from holoview.errors import InputError
 
 logger = logging.getLogger(__name__)
@@ -126,8 +127,15 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
         "local Dask cluster",
     )
     parser.add_argument("--maps", action="store_true", help="also write the delta-h maps")
+    parser.add_argument(
+        "--waves",
+        action="store_true",
+        help="with --maps: then run holoview waves on the fused maps into DIR (its options "
+        "below; --fluid and --threads serve both)",
+    )
     parser.add_argument("--frames", metavar="START:STOP", help="process these frames only")
     parser.add_argument("--area", type=float, metavar="M2", help="basin area, m^2 (volume rates)")
+    add_wave_options(parser)
     return parser
 
 
@@ -158,6 +166,11 @@ def run(args: argparse.Namespace) -> int:
     from holoview.headless.selection import parse_assignment
     from holoview.processing.fourier.fftplans import usable_cpus
 
+    waves = None
+    if args.waves:
+        if not args.maps:
+            raise InputError("--waves analyses the maps: give --maps too")
+        waves = wave_options(args)
     if args.jobs is not None and args.jobs < 1:
         raise InputError(f"--jobs must be at least 1, got {args.jobs}")
     if args.threads < 1:
@@ -192,6 +205,8 @@ def run(args: argparse.Namespace) -> int:
     }
     recordings = find_recordings(args.input)
     if recordings is not None:
+        if waves is not None:
+            raise InputError("--waves runs on one recording; run holoview waves on each results.h5")
         return _run_batch(args, recordings, options)
     bar, update = _progress_bar(args.quiet)
     with bar:
@@ -227,6 +242,13 @@ def run(args: argparse.Namespace) -> int:
             f"({', '.join(used) or 'none'}): "
             f"{_rate_text(fit.rate if fit else None, fit.stderr if fit else None)}"
         )
+    if waves is not None:
+        from holoview.headless.run import RESULTS_H5
+        from holoview.headless.wave_outputs import run_waves
+
+        analysed = run_waves(outcome.out / RESULTS_H5, outcome.out, waves, overwrite=args.overwrite)
+        if not args.quiet:
+            emit(summary_line(outcome.out, analysed.summary))
     return 0
 
 

@@ -28,7 +28,19 @@ attributes
 ``reference_path_m``, ``reference_phase_rad`` (n,) float64
     Reference air-path jitter, m, and the phase it adds to RF and RB_j, rad.
 ``height_m`` (n, rows, cols) float32, gzip
-    The height maps, m (``waves`` only; uniform scenarios have none).
+    The height maps, m (every scenario but the uniform ones; not with
+    ``--no-truth-maps``).
+``waves/`` group (``travelling``, ``partial-waves``, ``ringdown``)
+    Attributes: ``kind``, the fluid (``depth_m``, ``sigma_n_per_m``, ``rho_kg_per_m3``,
+    ``g_m_per_s2``), ``convention``, and per kind ``flow_m_per_s`` (Ux, Uy);
+    ``centre_m`` (x, y on the object plane, 0 at the frame centre), ``centre_frame_px``
+    (x, y in frame pixels), ``core_radius_m``; ``m``, ``frequency_hz``,
+    ``decay_per_s``, ``amplitude_m`` (real, imaginary), ``wavenumber_rad_per_m``;
+    ``start_s`` and ``rise_s`` when the waves start after the first frame.
+    Datasets: travelling ``wavevector_rad_per_m`` (n, 2), ``amplitude_m``,
+    ``phase_rad``, ``omega_rad_per_s``; partial waves ``m``, ``frequency_hz``,
+    ``wavenumber_rad_per_m``, ``incoming_m`` and ``outgoing_m`` (n, 2: real,
+    imaginary parts of the coefficients of H_m^(2) and H_m^(1)). Each with a ``unit``.
 ``families/`` group, one row per predicted family (``max_order`` 4), datasets
     ``label`` and ``kind`` (str), ``carrier_cpp`` (k, 2) cycles/pixel (fx, fy; stored
     twin, unfolded), ``observed_carrier_cpp`` (k, 2) (folded into [-0.5, 0.5)),
@@ -52,11 +64,13 @@ from holoview.errors import InputError, OutputError, os_error_text
 if TYPE_CHECKING:
     from collections.abc import Callable
 
+    import h5py
     import numpy as np
 
     from holoview.optics.families import Family
     from holoview.optics.scenarios import FrameTruth, ScenarioConfig
     from holoview.optics.setup import Setup
+    from holoview.optics.wave_fields import WaveConfig
 
 logger = logging.getLogger(__name__)
 
@@ -147,6 +161,55 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
     physics.add_argument("--basin-area-cm2", type=float, help="basin area for injection, cm^2")
     physics.add_argument("--wave-rms-nm", type=float, help="rms height of the waves, nm")
     physics.add_argument("--vibration-rms-nm", type=float, help="rms reference air-path jitter, nm")
+    physics.add_argument("--sigma", type=float, metavar="N_PER_M", help="surface tension, N/m")
+    physics.add_argument("--density", type=float, metavar="KG_PER_M3", help="fluid density")
+    waves = parser.add_argument_group(
+        "wave scenarios (travelling, partial-waves, ringdown; defaults: WaveConfig's)"
+    )
+    waves.add_argument(
+        "--flow-mm-per-s", type=float, nargs=2, metavar=("UX", "UY"), help="uniform mean flow"
+    )
+    waves.add_argument(
+        "--wave-k", type=float, nargs=2, metavar=("K1", "K2"), help="wavenumbers, rad/m"
+    )
+    waves.add_argument("--wave-components", type=int, metavar="N", help="plane waves summed")
+    waves.add_argument(
+        "--partial-wave",
+        action="append",
+        default=[],
+        nargs=4,
+        metavar=("M", "F_HZ", "IN_NM", "OUT_NM"),
+        help="a partial wave: azimuthal number, frequency, incoming and outgoing amplitudes "
+        "(complex allowed: 8+6j) (repeatable)",
+    )
+    waves.add_argument(
+        "--centre-mm",
+        type=float,
+        nargs=2,
+        metavar=("X", "Y"),
+        help="centre of the partial waves or mode, mm from the frame centre",
+    )
+    waves.add_argument("--core-mm", type=float, metavar="R", help="partial waves' core radius")
+    waves.add_argument(
+        "--mode",
+        nargs=4,
+        metavar=("M", "F_HZ", "DECAY_PER_S", "AMP_NM"),
+        help="the damped mode of the ringdown scenario",
+    )
+    waves.add_argument(
+        "--wave-start-s",
+        type=float,
+        metavar="T",
+        help="the waves start at T s (the surface is at rest before; a mode is excited then)",
+    )
+    waves.add_argument(
+        "--wave-rise-s", type=float, metavar="T", help="and reach full height T s later"
+    )
+    parser.add_argument(
+        "--no-truth-maps",
+        action="store_true",
+        help="leave the height maps out of /truth (the wave scenarios' parameters define them)",
+    )
     return parser
 
 
@@ -220,11 +283,86 @@ def build_config(args: argparse.Namespace) -> ScenarioConfig:
         ("basin_area_cm2", "basin_area", 1e-4),
         ("wave_rms_nm", "wave_rms", 1e-9),
         ("vibration_rms_nm", "vibration_rms", 1e-9),
+        ("sigma", "sigma", 1.0),
+        ("density", "rho", 1.0),
     ):
         value = _number(option.replace("_", "-"), getattr(args, option), scale)
         if value is not None:
             changes[name] = value
     return ScenarioConfig(**changes)
+
+
+def build_waves(args: argparse.Namespace) -> WaveConfig:
+    """Return the wave scenarios' parameters the options describe (SI units inside)."""
+    from holoview.optics.wave_fields import PartialWave, WaveConfig
+
+    changes: dict[str, object] = {}
+    if args.flow_mm_per_s is not None:
+        changes["flow"] = tuple(_number("flow-mm-per-s", v, 1e-3) for v in args.flow_mm_per_s)
+    if args.wave_k is not None:
+        changes["k_range"] = tuple(_number("wave-k", v) for v in args.wave_k)
+    if args.wave_components is not None:
+        changes["components"] = args.wave_components
+    if args.centre_mm is not None:
+        changes["centre"] = tuple(_number("centre-mm", v, 1e-3) for v in args.centre_mm)
+    if args.core_mm is not None:
+        changes["core_radius"] = _number("core-mm", args.core_mm, 1e-3)
+    for option, name in (("wave_start_s", "start"), ("wave_rise_s", "rise")):
+        value = _number(option.replace("_", "-"), getattr(args, option))
+        if value is not None:
+            changes[name] = value
+    partial = []
+    for m, f, incoming, outgoing in args.partial_wave:
+        try:
+            partial.append(
+                PartialWave(int(m), float(f), complex(incoming) * 1e-9, complex(outgoing) * 1e-9)
+            )
+        except ValueError as exc:
+            raise InputError(f"--partial-wave {m} {f} {incoming} {outgoing}: {exc}") from exc
+    if partial:
+        changes["partial_waves"] = tuple(partial)
+    if args.mode is not None:
+        m, f, decay, amplitude = args.mode
+        try:
+            changes.update(
+                mode_m=int(m),
+                mode_frequency=float(f),
+                mode_decay=float(decay),
+                mode_amplitude=float(amplitude) * 1e-9,
+            )
+        except ValueError as exc:
+            raise InputError(f"--mode {m} {f} {decay} {amplitude}: {exc}") from exc
+    return WaveConfig(**changes)  # type: ignore[arg-type]
+
+
+def write_wave_truth(group: h5py.Group, surface: object, setup: Setup) -> None:
+    """Add ``waves/`` (attributes and datasets of the surface's ``truth()``) to ``group``.
+
+    Complex amplitudes are stored as (n, 2) arrays of their real and imaginary parts; a
+    centre also in frame pixels (``centre_frame_px``, x then y).
+    """
+    import numpy as np
+
+    attrs, data = surface.truth()  # type: ignore[attr-defined]
+    waves = group.create_group("waves")
+    for name, value in attrs.items():
+        waves.attrs[name] = value
+    if "centre_m" in attrs:
+        rows, cols = setup.shape
+        x0, y0 = attrs["centre_m"]
+        waves.attrs["centre_frame_px"] = [
+            (cols - 1) / 2 + x0 / setup.pixel_pitch,
+            (rows - 1) / 2 + y0 / setup.pixel_pitch,
+        ]
+    for name, (values, unit) in data.items():
+        array = np.asarray(values)
+        if np.iscomplexobj(array):
+            array = np.stack([array.real, array.imag], axis=-1)
+            waves[name] = array
+            waves[name].attrs["complex"] = "last axis: real part, imaginary part"
+        else:
+            waves[name] = array
+        waves[name].attrs["unit"] = unit
 
 
 def write_truth(
@@ -267,7 +405,9 @@ def write_truth(
             ("reference_phase_rad", "rad"),
         ):
             group[name].attrs["unit"] = unit
-        if not getattr(surface, "is_uniform", False):
+        if hasattr(surface, "truth"):
+            write_wave_truth(group, surface, setup)
+        if not (getattr(surface, "is_uniform", False) or args.no_truth_maps):
             rows, cols = setup.shape
             x, y = pixel_coordinates(setup)
             maps = group.create_dataset(
@@ -419,7 +559,9 @@ def run(args: argparse.Namespace) -> int:
     settings = {"frame_rate_hz": float(args.fps), "noise": args.noise}
     truths = []
     figure_frame = None
-    surface = make_surface(setup, args.scenario, config, np.random.default_rng(args.seed))
+    surface = make_surface(
+        setup, args.scenario, config, np.random.default_rng(args.seed), build_waves(args)
+    )
     sequence = simulate(
         setup,
         args.scenario,

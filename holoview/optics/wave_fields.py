@@ -17,6 +17,8 @@ azimuth is ``theta = atan2(y - y0, x - x0)``.
   ``1.5 core_radius`` (a drain's core, which a measurement masks).
 - :class:`DampedMode`: ``Re(A exp(-gamma t) J_m(k r) exp(i (m theta - omega t)))``
   from ``t = 0``, a mode ringing down at frequency ``omega / 2 pi`` and rate ``gamma``.
+- :class:`SwitchedOn`: any of them at rest until a start time, then rising (a
+  wavemaker switched on, a mode excited, after the recording began).
 
 Evaluation on the synthesiser's separable grid (``x`` of shape (1, cols), ``y`` of
 shape (rows, 1)) costs one matrix product per frame for the travelling waves, and one
@@ -45,6 +47,7 @@ __all__ = [
     "DampedMode",
     "PartialWave",
     "PartialWaves",
+    "SwitchedOn",
     "TravellingWaves",
     "WaveConfig",
     "random_travelling_waves",
@@ -415,6 +418,55 @@ class DampedMode:
 
 
 @dataclass(frozen=True)
+class SwitchedOn:
+    """A surface at rest until ``start`` (s), rising to full height over ``rise`` (s).
+
+    ``h(t) = envelope(t) surface(t)``, the envelope 0 before ``start``, a sine-squared
+    rise, 1 after ``start + rise``: a wavemaker switched on after the recording began
+    (so the first frame shows the bare carriers), or a mode excited at ``start``
+    (``rise`` 0; then ``surface`` is evaluated at ``t - start``).
+    """
+
+    surface: Any
+    start: float = 0.0
+    rise: float = 0.0
+
+    is_uniform = False
+
+    def __post_init__(self) -> None:
+        for name in ("start", "rise"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value >= 0):
+                raise InputError(f"the waves' {name} must be >= 0, got {value!r} s")
+
+    def envelope(self, t: float) -> float:
+        """Return the envelope at ``t`` (s), 0 to 1."""
+        if t < self.start:
+            return 0.0
+        if self.rise <= 0 or t >= self.start + self.rise:
+            return 1.0
+        return math.sin(0.5 * math.pi * (t - self.start) / self.rise) ** 2
+
+    def __call__(self, t: float, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        """Return the height, m, at time ``t`` (s) and positions ``x``, ``y`` (m)."""
+        level = self.envelope(t)
+        shape = np.broadcast_shapes(np.shape(x), np.shape(y))
+        if level == 0.0:
+            return np.zeros(shape)
+        delay = self.start if isinstance(self.surface, DampedMode) else 0.0
+        return level * np.broadcast_to(self.surface(t - delay, x, y), shape)
+
+    def mean_level(self, t: float) -> float:
+        """Return the surface's mean level times the envelope, m."""
+        return self.envelope(t) * float(self.surface.mean_level(t))
+
+    def truth(self) -> Truth:
+        """The surface's truth with ``start_s`` and ``rise_s``."""
+        attrs, data = self.surface.truth()
+        return {**attrs, "start_s": self.start, "rise_s": self.rise}, data
+
+
+@dataclass(frozen=True)
 class WaveConfig:
     """What the wave scenarios of :func:`holoview.optics.scenarios.make_surface` draw.
 
@@ -434,6 +486,9 @@ class WaveConfig:
         Masked core of the partial waves, m.
     mode_m, mode_frequency, mode_decay, mode_amplitude
         The damped mode (``ringdown``): azimuthal number, Hz, 1/s, m.
+    start, rise : float
+        The waves start at ``start`` (s) and reach full height ``rise`` (s) later
+        (:class:`SwitchedOn`); a damped mode starts at full height at ``start``.
     """
 
     flow: tuple[float, float] = (0.02, 0.01)
@@ -450,6 +505,8 @@ class WaveConfig:
     mode_frequency: float = 12.0
     mode_decay: float = 0.8
     mode_amplitude: float = 60e-9
+    start: float = 0.0
+    rise: float = 0.0
 
     def __post_init__(self) -> None:
         if not all(math.isfinite(u) for u in (*self.flow, *self.centre)):

@@ -4,10 +4,11 @@ Map coordinates: ``x = col dx``, ``y = row dy`` (m, from the centre of the first
 pixel), ``theta = atan2(y - y0, x - x0)`` (with rows growing downwards, ``theta``
 grows clockwise on the screen). A :class:`PolarGrid` samples a map on rings of radius
 ``r_min .. r_max`` one pixel apart, with enough angles that neighbouring samples of
-the outer ring are at most a pixel apart (a power of two), by bilinear interpolation
-(one sparse matrix product per map); the FFT over the angle gives ``h_m(r)`` for
-``|m| <= m_max``. A ring touching an untrusted (NaN) pixel in a frame is NaN in that
-frame. The rings must lie inside the map.
+the outer ring are at most a pixel apart (a power of two), by Keys' cubic convolution
+(third-order accurate: a wave of ``k dx = 1`` loses far less of its amplitude than
+under bilinear interpolation; one sparse matrix product per map); the FFT over the
+angle gives ``h_m(r)`` for ``|m| <= m_max``. A ring touching an untrusted (NaN) pixel
+in a frame is NaN in that frame. The rings must lie inside the map.
 
 :class:`AzimuthalAccumulator` takes maps one at a time and gives
 
@@ -56,6 +57,15 @@ __all__ = [
 ]
 
 
+def _keys(t: np.ndarray) -> np.ndarray:
+    """Keys' cubic convolution weights (a = -0.5) of the samples at -1, 0, 1, 2 from ``t``."""
+    t = t[:, np.newaxis]
+    d = np.abs(np.array([-1.0, 0.0, 1.0, 2.0]) - t)
+    near = 1.5 * d**3 - 2.5 * d**2 + 1.0
+    far = -0.5 * d**3 + 2.5 * d**2 - 4.0 * d + 2.0
+    return np.where(d <= 1.0, near, np.where(d < 2.0, far, 0.0))
+
+
 @dataclass(frozen=True)
 class PolarGrid:
     """Rings around a centre and the sparse matrix that samples a map on them.
@@ -73,7 +83,7 @@ class PolarGrid:
     shape : (int, int)
         The map's shape.
     matrix : scipy.sparse.csr_matrix, shape (R n_theta, rows cols)
-        Bilinear interpolation weights.
+        Interpolation weights (16 per sample).
     """
 
     centre: tuple[float, float]
@@ -119,8 +129,8 @@ def polar_grid(
     centre : (float, float)
         ``(x0, y0)``, m, map coordinates.
     r_min, r_max : float, optional
-        Ring radii, m (defaults: two pixels; the distance to the nearest edge less a
-        pixel).
+        Ring radii, m (defaults: two pixels; the distance to the nearest edge less two
+        pixels).
     m_max : int
         Largest ``|m|`` kept.
 
@@ -140,7 +150,7 @@ def polar_grid(
             f"(0 to {width * 1e3:.3g} mm along x, 0 to {height * 1e3:.3g} mm along y)"
         )
     step = min(dx, dy)
-    room = min(x0, width - x0, y0, height - y0) - step
+    room = min(x0, width - x0, y0, height - y0) - 2.0 * step
     low = 2.0 * step if r_min is None else float(r_min)
     high = room if r_max is None else float(r_max)
     if high > room + 1e-9 * step:
@@ -158,19 +168,16 @@ def polar_grid(
     radii = np.arange(low, high + 1e-9 * step, step)
     n_theta = max(8, 2 * m_max + 2, 1 << math.ceil(math.log2(2 * math.pi * high / step)))
     theta = 2.0 * np.pi * np.arange(n_theta) / n_theta
-    col = (x0 + radii[:, np.newaxis] * np.cos(theta)) / dx
-    row = (y0 + radii[:, np.newaxis] * np.sin(theta)) / dy
-    c0 = np.clip(np.floor(col).astype(np.int64), 0, cols - 2)
-    r0 = np.clip(np.floor(row).astype(np.int64), 0, rows - 2)
-    fc, fr = col - c0, row - r0
-    sample = np.arange(col.size).repeat(4)
-    pixels = np.stack(
-        [r0 * cols + c0, r0 * cols + c0 + 1, (r0 + 1) * cols + c0, (r0 + 1) * cols + c0 + 1],
-        axis=-1,
-    ).reshape(-1)
-    weights = np.stack(
-        [(1 - fr) * (1 - fc), (1 - fr) * fc, fr * (1 - fc), fr * fc], axis=-1
-    ).reshape(-1)
+    col = ((x0 + radii[:, np.newaxis] * np.cos(theta)) / dx).ravel()
+    row = ((y0 + radii[:, np.newaxis] * np.sin(theta)) / dy).ravel()
+    c0, r0 = np.floor(col).astype(np.int64), np.floor(row).astype(np.int64)
+    wc, wr = _keys(col - c0), _keys(row - r0)  # (S, 4) weights of offsets -1, 0, 1, 2
+    offsets = np.arange(-1, 3)
+    rows_of = np.clip(r0[:, None] + offsets, 0, rows - 1)  # (S, 4)
+    cols_of = np.clip(c0[:, None] + offsets, 0, cols - 1)
+    pixels = (rows_of[:, :, None] * cols + cols_of[:, None, :]).reshape(-1)
+    weights = (wr[:, :, None] * wc[:, None, :]).reshape(-1)
+    sample = np.arange(col.size).repeat(16)
     matrix = sparse.csr_matrix((weights, (sample, pixels)), shape=(col.size, rows * cols))
     return PolarGrid((x0, y0), radii, int(n_theta), int(m_max), (rows, cols), matrix)
 
@@ -363,8 +370,9 @@ class AzimuthalAccumulator:
 
     def profiles(self) -> NDArray[np.complex128]:
         """Return ``A_m(r, f)`` (m), shape (F, R, M): NaN on rings with no data."""
-        weight = np.where(self._lock_weight > 0, self._lock_weight, np.nan)
-        return 2.0 * self._lock / weight[np.newaxis, :, np.newaxis]
+        has = self._lock_weight > 0
+        weight = np.where(has, self._lock_weight, 1.0)[np.newaxis, :, np.newaxis]
+        return np.where(has[np.newaxis, :, np.newaxis], 2.0 * self._lock / weight, np.nan)
 
     def series(self) -> tuple[NDArray[np.float64], NDArray[np.complex128]]:
         """Return the times (N,) (s) and ``h_m(r, t)`` (N, R, len(series_m)) kept (m)."""
@@ -430,7 +438,7 @@ def find_centre(
     if total <= 0:
         raise InputError("no centre can be found: the amplitude map is zero")
     start = np.array([np.sum(weight * xx) * dx / total, np.sum(weight * yy) * dy / total])
-    margin = radius + min(dx, dy)
+    margin = radius + 2.0 * min(dx, dy)
     low = np.array([margin, margin])
     high = np.array([(cols - 1) * dx - margin, (rows - 1) * dy - margin])
     if np.any(high < low):
@@ -450,7 +458,7 @@ def find_centre(
         return _entropy(grid, clean)
 
     step = 2.0 * min(dx, dy)
-    simplex = np.array([start, [*start, step, 0.0], [*start, 0.0, step]])
+    simplex = np.array([start, start + np.array([step, 0.0]), start + np.array([0.0, step])])
     result = minimize(
         score,
         start,

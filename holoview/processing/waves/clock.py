@@ -18,7 +18,6 @@ median step); the largest departure from it is reported (:attr:`FrameClock.jitte
 from __future__ import annotations
 
 import itertools
-from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -26,7 +25,7 @@ from numpy.typing import ArrayLike
 
 from holoview.errors import InputError
 
-__all__ = ["GAP_TOLERANCE", "FrameClock", "frame_clock", "segment_starts"]
+__all__ = ["GAP_TOLERANCE", "FrameClock", "frame_clock"]
 
 #: A step longer than ``1 + GAP_TOLERANCE`` nominal intervals is a gap (lost frames).
 GAP_TOLERANCE = 0.5
@@ -112,7 +111,8 @@ def frame_clock(times: ArrayLike) -> FrameClock:
     if back.size:
         i = int(back[0]) + 1
         raise InputError(
-            f"frame times must increase: frame {i} at {t[i]!r} s follows {t[i - 1]!r} s"
+            f"frame times must increase: frame {i} at {float(t[i])!r} s follows "
+            f"{float(t[i - 1])!r} s"
         )
     interval = float(np.median(steps))
     gap = steps > (1.0 + GAP_TOLERANCE) * interval
@@ -123,30 +123,3 @@ def frame_clock(times: ArrayLike) -> FrameClock:
     inside = steps[~gap]
     jitter = float(np.max(np.abs(inside - interval))) if inside.size else 0.0
     return FrameClock(t, interval, runs, lost, jitter)
-
-
-def segment_starts(runs: Sequence[tuple[int, int]], length: int, hop: int) -> list[int]:
-    """Return the first frame of every segment of ``length`` frames inside a run.
-
-    Segments start every ``hop`` frames from the start of each run and never span a gap.
-
-    Parameters
-    ----------
-    runs : sequence of (int, int)
-        ``[start, stop)`` of the gap-free runs (:attr:`FrameClock.runs`).
-    length : int
-        Frames per segment (>= 1).
-    hop : int
-        Frames between the starts of consecutive segments (>= 1).
-
-    Examples
-    --------
-    >>> segment_starts([(0, 10), (10, 14)], 4, 2)
-    [0, 2, 4, 6, 10]
-    """
-    if length < 1 or hop < 1:
-        raise InputError(f"segment length ({length}) and hop ({hop}) must be at least 1")
-    starts: list[int] = []
-    for start, stop in runs:
-        starts.extend(range(start, stop - length + 1, hop))
-    return starts

@@ -369,6 +369,8 @@ def _fit_once(
         )
         return np.asarray(ridge.omega - model)
 
+    if not free:
+        return values, np.zeros((0, 0)), free, residuals(np.zeros(0))
     x0 = np.array(
         [math.log(values[n]) if n in ("sigma", "depth") else values[n] for n in free], float
     )
@@ -402,6 +404,24 @@ def _fit_once(
     except np.linalg.LinAlgError:
         covariance = np.full((p, p), np.nan)
     return unpack(result.x), covariance, free, result.fun
+
+
+def _depth_bounded(
+    ridge: Ridge,
+    values: dict[str, float],
+    held: tuple[str, ...],
+    fluid: Fluid,
+    residual: np.ndarray,
+) -> bool:
+    """True when ten times the fitted depth fits worse by more than four in chi^2."""
+    deeper = dict(values, depth=min(10.0 * values["depth"], DEPTH_BOUNDS[1] * 0.99))
+    try:
+        _, _, _, other = _fit_once(ridge, deeper, (*held, "depth"), fluid)
+    except InputError:
+        return True
+    rss, n = float(np.sum(residual**2)), residual.size
+    variance = rss / max(n - 4, 1) * CELL_CORRELATION
+    return float(np.sum(other**2)) - rss > 4.0 * variance
 
 
 def fit_dispersion(
@@ -499,6 +519,23 @@ def fit_dispersion(
             f"({', '.join(free)}) are not all determined by these waves; hold some"
         )
     stderr = dict(zip(free, errors, strict=True))
+    if "depth" in stderr and not _depth_bounded(ridge, values, held, fluid, residual):
+        raise InputError(
+            "the dispersion fit did not converge: the depth is not determined by these waves "
+            "(k d > 3: they do not feel the bottom; ten times deeper fits as well); hold it "
+            "at a known depth"
+        )
+    for name in ("sigma", "depth"):
+        if stderr.get(name, 0.0) > 1.0:  # errors of logarithms: relative errors
+            hint = (
+                "the waves do not feel the bottom (k d > 3): hold it with a known depth"
+                if name == "depth"
+                else "hold it"
+            )
+            raise InputError(
+                f"the dispersion fit did not converge: the {name} is not determined by these "
+                f"waves (its error exceeds its value); {hint}"
+            )
     sigma_err = values["sigma"] * stderr.get("sigma", 0.0)
     depth_err = values["depth"] * stderr.get("depth", 0.0)
     outer = np.outer(errors, errors)

@@ -37,7 +37,9 @@ __all__ = ["Band", "band_filter"]
 class FrameStack(Protocol):
     """Maps indexable by frame slices: ``stack[a:b]`` -> array (b - a, rows, cols)."""
 
-    shape: tuple[int, ...]
+    @property
+    def shape(self) -> tuple[int, ...]:
+        """``(frames, rows, cols)``."""
 
     def __getitem__(self, key: Any) -> Any: ...
 

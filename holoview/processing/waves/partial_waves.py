@@ -9,6 +9,13 @@ pixels); ``k`` is given (the dispersion relation at ``f``) or refined by minimis
 the residual around it. Standard errors come from the residual scatter: the rings
 are a pixel apart, and the maps carry no structure finer than ``pi / k_cut``, so the
 covariance is multiplied by ``max(1, pi / (k_cut dr))``.
+
+A lock-in at a frequency ``f`` a little off a tone's ``f0`` returns the tone's amplitude
+times the response ``W(f - f0) = sum w exp(2 pi i (f - f0) t) / sum w`` of the weights
+on the frame times. :func:`refine_tone` takes lock-ins at a comb of frequencies around
+a tone (every ring at once) and fits ``f0`` and the profile ``A(r)``, so that the
+amplitude is not lost to the comb's spacing nor to a frequency known only to a
+fraction of a spectral bin.
 """
 
 from __future__ import annotations
@@ -24,7 +31,7 @@ from scipy.optimize import minimize_scalar
 
 from holoview.errors import InputError
 
-__all__ = ["PartialWaveFit", "fit_partial_wave"]
+__all__ = ["PartialWaveFit", "fit_partial_wave", "lock_in_response", "refine_tone"]
 
 
 @dataclass(frozen=True)
@@ -205,3 +212,62 @@ def fit_partial_wave(
         model=model,
         rms_residual=float(np.sqrt(np.mean(np.abs(a - model) ** 2))),
     )
+
+
+def lock_in_response(
+    times: ArrayLike, weights: ArrayLike, offsets: ArrayLike
+) -> NDArray[np.complex128]:
+    """Return ``W(offsets) = sum w exp(2 pi i offset t) / sum w`` (offsets in Hz)."""
+    t = np.asarray(times, dtype=np.float64)
+    w = np.asarray(weights, dtype=np.float64)
+    d = np.asarray(offsets, dtype=np.float64)
+    return np.exp(2j * np.pi * np.outer(d, t)) @ w / np.sum(w)
+
+
+def refine_tone(
+    comb: ArrayLike,
+    lock_ins: ArrayLike,
+    times: ArrayLike,
+    weights: ArrayLike,
+) -> tuple[float, NDArray[np.complex128]]:
+    """Fit one tone's frequency and profile to lock-ins at a comb of frequencies.
+
+    Parameters
+    ----------
+    comb : array_like of float, shape (C,)
+        The lock-in frequencies, Hz, around the tone.
+    lock_ins : array_like of complex, shape (C, R)
+        The lock-in amplitudes of every ring (m; NaN rings left out).
+    times, weights : array_like of float, shape (N,)
+        The frame times (s) and their lock-in weights.
+
+    Returns
+    -------
+    frequency : float
+        The tone's frequency, Hz (within the comb).
+    profile : ndarray of complex, shape (R,)
+        Its amplitude on every ring at that frequency (NaN where the ring had none).
+    """
+    f = np.asarray(comb, dtype=np.float64)
+    a = np.asarray(lock_ins, dtype=np.complex128)
+    rings = np.all(np.isfinite(a), axis=0)
+    if f.size < 3 or not np.any(rings):
+        raise InputError("a tone needs lock-ins at three frequencies or more, on finite rings")
+    data = a[:, rings]
+
+    def fit(f0: float) -> tuple[float, np.ndarray]:
+        response = lock_in_response(times, weights, f - f0)  # (C,)
+        norm = float(np.sum(np.abs(response) ** 2))
+        profile = response.conj() @ data / norm
+        residual = data - np.outer(response, profile)
+        return float(np.sum(np.abs(residual) ** 2)), profile
+
+    best = int(np.argmax(np.sum(np.abs(data) ** 2, axis=1)))
+    low, high = f[max(best - 1, 0)], f[min(best + 1, f.size - 1)]
+    result = minimize_scalar(
+        lambda f0: fit(f0)[0], bounds=(low, high), method="bounded", options={"xatol": 1e-9}
+    )
+    frequency = float(result.x)
+    profile = np.full(a.shape[1], np.nan + 0j)
+    profile[rings] = fit(frequency)[1]
+    return frequency, profile

@@ -1,0 +1,282 @@
+"""The figures of ``holoview waves``, drawn with matplotlib (Agg, no pyplot state).
+
+Each function draws one PNG from :class:`~holoview.headless.waves.WaveResults`, axes in
+physical units (k in rad/m, f in Hz, r in mm, heights in nm), for a talk:
+
+- ``omega_k.png``: the power against f and |k| (all directions), and along the flow
+  (signed: negative k travels against it), the fitted dispersion relation over both,
+  the window's cut-off marked;
+- ``energy.png``: E(k) and E(f);
+- ``m_f.png``: the (m, f) spectrum, the fitted partial waves marked;
+- ``partial_waves.png``: |A_m(r)| of each fitted partial wave with its Hankel fit and
+  its incoming and outgoing parts;
+- ``ringdown.png``: the band's series and the damped-mode fit;
+- ``lockin.png``: amplitude and phase at the drive frequency, amplitudes of its harmonics.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.colors import LogNorm
+from matplotlib.figure import Figure
+from scipy import special
+
+from holoview.headless.waves import WaveResults
+
+__all__ = ["FIGURES", "draw_figures"]
+
+#: Resolution of the figures, dots per inch.
+DPI = 130
+
+#: Figure file names, in the order they are drawn.
+FIGURES = (
+    "omega_k.png",
+    "energy.png",
+    "m_f.png",
+    "partial_waves.png",
+    "ringdown.png",
+    "lockin.png",
+)
+
+
+def _save(figure: Figure, path: Path) -> None:
+    FigureCanvasAgg(figure)
+    figure.savefig(path, dpi=DPI, format="png")
+
+
+def _log_norm(values: np.ndarray) -> LogNorm:
+    positive = values[np.isfinite(values) & (values > 0)]
+    if positive.size == 0:
+        return LogNorm(1e-30, 1.0)
+    top = float(np.percentile(positive, 99.9))
+    return LogNorm(vmin=top * 1e-5, vmax=top)
+
+
+def _fit_text(results: WaveResults) -> str:
+    fit = results.dispersion
+    if fit is None:
+        return "no dispersion fit"
+    held = set(fit.held)
+
+    def value(name: str, v: float, e: float, scale: float, unit: str) -> str:
+        if name in held:
+            return f"{v * scale:.4g} {unit} (held)"
+        return f"{v * scale:.4g} ± {e * scale:.2g} {unit}"
+
+    return (
+        f"σ = {value('sigma', fit.surface_tension, fit.surface_tension_stderr, 1e3, 'mN/m')}, "
+        f"d = {value('depth', fit.depth, fit.depth_stderr, 1e3, 'mm')}, U = ("
+        f"{fit.flow[0] * 1e3:.3g} ± {fit.flow_stderr[0] * 1e3:.2g}, "
+        f"{fit.flow[1] * 1e3:.3g} ± {fit.flow_stderr[1] * 1e3:.2g}) mm/s"
+    )
+
+
+def omega_k_figure(results: WaveResults, path: Path) -> None:
+    """``omega_k.png`` (module docstring)."""
+    spectrum = results.spectrum
+    fit = results.dispersion
+    k, radial = spectrum.radial()
+    figure = Figure(figsize=(12, 5))
+    left, right = figure.subplots(1, 2)
+    image = left.pcolormesh(
+        k, spectrum.frequency, radial, norm=_log_norm(radial), shading="nearest", cmap="magma"
+    )
+    left.set_xlabel("wavenumber |k| (rad/m)")
+    left.set_ylabel("frequency f (Hz)")
+    left.set_title("power, all directions")
+    angle = 0.0
+    if fit is not None:
+        speed = math.hypot(*fit.flow)
+        angle = math.atan2(fit.flow[1], fit.flow[0]) if speed > 0 else 0.0
+        curve_k = np.linspace(0.0, spectrum.k_cut, 400)
+        for sign, style in ((1.0, "-"), (-1.0, "--")):
+            omega = fit.omega(sign * curve_k * math.cos(angle), sign * curve_k * math.sin(angle))
+            left.plot(curve_k, omega / (2 * math.pi), style, color="cyan", lw=1.0)
+    q, along = spectrum.along(angle)
+    right.pcolormesh(
+        q, spectrum.frequency, along, norm=_log_norm(along), shading="nearest", cmap="magma"
+    )
+    right.set_xlabel(f"wavenumber along {math.degrees(angle):.0f}° (rad/m; < 0: against)")
+    right.set_title("power along the flow" if fit and any(fit.flow) else "power along x")
+    if fit is not None:
+        curve = np.linspace(-spectrum.k_cut, spectrum.k_cut, 800)
+        omega = fit.omega(curve * math.cos(angle), curve * math.sin(angle))
+        right.plot(curve, omega / (2 * math.pi), color="cyan", lw=1.0, label="fitted dispersion")
+        right.legend(loc="upper left", fontsize=8)
+    for axes in (left, right):
+        axes.axvline(spectrum.k_cut, color="white", lw=0.8, ls=":")
+        axes.set_ylim(0, spectrum.frequency[-1])
+    left.set_xlim(0, spectrum.k_cut * 1.02)
+    right.set_xlim(-spectrum.k_cut * 1.02, spectrum.k_cut * 1.02)
+    right.axvline(-spectrum.k_cut, color="white", lw=0.8, ls=":")
+    colourbar = figure.colorbar(image, ax=[left, right], fraction=0.03)
+    colourbar.set_label("power density (m² Hz⁻¹ (rad/m)⁻²)")
+    figure.suptitle(
+        f"{results.maps.label}: {spectrum.segments} segments of "
+        f"{spectrum.frequency.size * 2 - 2} frames; dotted: window cut-off; "
+        f"{_fit_text(results)}",
+        fontsize=9,
+    )
+    _save(figure, path)
+
+
+def energy_figure(results: WaveResults, path: Path) -> None:
+    """``energy.png`` (module docstring)."""
+    spectrum = results.spectrum
+    k, e_k = spectrum.energy_k()
+    omega, e_omega = spectrum.energy_omega()
+    figure = Figure(figsize=(11, 4.5))
+    left, right = figure.subplots(1, 2)
+    keep = (k > 0) & (e_k > 0)
+    left.loglog(k[keep], e_k[keep], color="C0")
+    left.axvline(spectrum.k_cut, color="grey", ls=":", label="window cut-off")
+    left.set_xlabel("wavenumber k (rad/m)")
+    left.set_ylabel("E(k) (m² per rad/m)")
+    left.legend(fontsize=8)
+    f = omega / (2 * math.pi)
+    keep = (f > 0) & (e_omega > 0)
+    right.loglog(f[keep], e_omega[keep] * 2 * math.pi, color="C1")
+    right.set_xlabel("frequency f (Hz)")
+    right.set_ylabel("E(f) (m² per Hz)")
+    for axes in (left, right):
+        axes.grid(True, which="both", alpha=0.3)
+    figure.suptitle(
+        f"{results.maps.label}: energy spectra, mean square height "
+        f"{np.trapezoid(e_k, k) * 1e18:.3g} nm² (up to the cut-off)",
+        fontsize=10,
+    )
+    figure.tight_layout()
+    _save(figure, path)
+
+
+def mf_figure(results: WaveResults, path: Path) -> None:
+    """``m_f.png`` (module docstring)."""
+    mf = results.mf
+    assert mf is not None
+    figure = Figure(figsize=(8, 5))
+    axes = figure.subplots()
+    image = axes.pcolormesh(
+        mf.m, mf.frequency, mf.power.T, norm=_log_norm(mf.power), shading="nearest", cmap="viridis"
+    )
+    for fit in results.partial_waves:
+        axes.plot(fit.m, fit.frequency, "o", mfc="none", mec="red", ms=12)
+    axes.set_xlabel("azimuthal number m (exp(i(mθ - ωt)))")
+    axes.set_ylabel("frequency f (Hz)")
+    figure.colorbar(image, ax=axes).set_label("power density (m²/Hz)")
+    x0, y0 = results.centre or (0.0, 0.0)
+    axes.set_title(
+        f"(m, f) spectrum around ({x0 * 1e3:.2f}, {y0 * 1e3:.2f}) mm, "
+        f"r {mf.radii[0] * 1e3:.3g}-{mf.radii[-1] * 1e3:.3g} mm; circles: fitted",
+        fontsize=9,
+    )
+    figure.tight_layout()
+    _save(figure, path)
+
+
+def partial_waves_figure(results: WaveResults, path: Path) -> None:
+    """``partial_waves.png`` (module docstring)."""
+    fits = results.partial_waves
+    count = max(len(fits), 1)
+    figure = Figure(figsize=(4.2 * min(count, 4), 4.0 * math.ceil(count / 4)))
+    axes_list = np.atleast_1d(figure.subplots(math.ceil(count / 4), min(count, 4))).ravel()
+    for axes, fit in zip(axes_list, fits, strict=False):
+        r = fit.radii * 1e3
+        kr = fit.wavenumber * fit.radii
+        outgoing = np.abs(fit.outgoing * special.hankel1(fit.m, kr)) * 1e9
+        incoming = np.abs(fit.incoming * special.hankel2(fit.m, kr)) * 1e9
+        axes.plot(r, np.abs(fit.profile) * 1e9, ".", ms=3, color="k", label="measured |A|")
+        axes.plot(r, np.abs(fit.model) * 1e9, color="C3", lw=1.2, label="fit")
+        axes.plot(r, outgoing, "--", color="C0", lw=1.0, label="outgoing")
+        axes.plot(r, incoming, ":", color="C2", lw=1.2, label="incoming")
+        axes.set_xlabel("radius r (mm)")
+        axes.set_ylabel("amplitude (nm)")
+        axes.set_title(
+            f"m={fit.m}, f={fit.frequency:.4g} Hz: in/out {fit.ratio:.3f} ± {fit.ratio_stderr:.2g}",
+            fontsize=9,
+        )
+        axes.legend(fontsize=7)
+    for axes in axes_list[len(fits) :]:
+        axes.set_axis_off()
+    figure.tight_layout()
+    _save(figure, path)
+
+
+def ringdown_figure(results: WaveResults, path: Path) -> None:
+    """``ringdown.png`` (module docstring)."""
+    fit = results.ringdown
+    assert fit is not None
+    figure = Figure(figsize=(11, 4.5))
+    left, right = figure.subplots(1, 2)
+    left.semilogy(fit.times, np.abs(fit.series) * 1e9, ".", ms=2, color="k", label="band |z|")
+    left.semilogy(fit.times, np.abs(fit.model) * 1e9, color="C3", label="fit")
+    left.set_xlabel("time t (s)")
+    left.set_ylabel("amplitude (nm, combined rings)")
+    left.legend(fontsize=8)
+    right.plot(fit.times, fit.series.real * 1e9, ".", ms=2, color="k", label="Re z")
+    right.plot(fit.times, fit.model.real * 1e9, color="C3", lw=0.8, label="fit")
+    right.set_xlabel("time t (s)")
+    right.set_ylabel("Re z (nm)")
+    right.set_xlim(
+        fit.times[0], fit.times[0] + min(fit.times[-1] - fit.times[0], 8 / fit.frequency)
+    )
+    right.legend(fontsize=8)
+    figure.suptitle(
+        f"ringdown m={fit.m}, band {fit.band[0]:g}-{fit.band[1]:g} Hz: "
+        f"f = {fit.frequency:.5g} ± {fit.frequency_stderr:.2g} Hz, "
+        f"γ = {fit.decay:.4g} ± {fit.decay_stderr:.2g} 1/s, Q = {fit.quality:.3g}",
+        fontsize=10,
+    )
+    figure.tight_layout()
+    _save(figure, path)
+
+
+def lockin_figure(results: WaveResults, path: Path) -> None:
+    """``lockin.png`` (module docstring)."""
+    lockin = results.lockin
+    assert lockin is not None
+    dy, dx = results.maps.pixel_size
+    rows, cols = results.maps.shape
+    extent = (0.0, (cols - 1) * dx * 1e3, (rows - 1) * dy * 1e3, 0.0)
+    panels = 2 + len(lockin.harmonics) - 1
+    figure = Figure(figsize=(4.2 * panels, 4.0))
+    axes_list = np.atleast_1d(figure.subplots(1, panels))
+    amplitude = lockin.magnitude * 1e9
+    image = axes_list[0].imshow(amplitude[0], extent=extent, cmap="viridis")
+    figure.colorbar(image, ax=axes_list[0]).set_label("amplitude (nm)")
+    axes_list[0].set_title(f"|A| at {lockin.frequency:.4g} Hz", fontsize=9)
+    image = axes_list[1].imshow(
+        lockin.phase[0], extent=extent, cmap="twilight", vmin=-np.pi, vmax=np.pi
+    )
+    figure.colorbar(image, ax=axes_list[1]).set_label("phase (rad)")
+    axes_list[1].set_title("phase (h = |A| cos(ωt - phase))", fontsize=9)
+    for axes, n, values in zip(axes_list[2:], lockin.harmonics[1:], amplitude[1:], strict=False):
+        image = axes.imshow(values, extent=extent, cmap="viridis")
+        figure.colorbar(image, ax=axes).set_label("amplitude (nm)")
+        axes.set_title(f"|A| at harmonic {n} ({n * lockin.frequency:.4g} Hz)", fontsize=9)
+    for axes in axes_list:
+        axes.set_xlabel("x (mm)")
+        axes.set_ylabel("y (mm)")
+    figure.tight_layout()
+    _save(figure, path)
+
+
+def draw_figures(results: WaveResults, paths: dict[str, Path]) -> list[str]:
+    """Draw the figures the results hold into ``paths[name]``; return the names drawn."""
+    drawn = []
+    plan = [
+        ("omega_k.png", omega_k_figure, True),
+        ("energy.png", energy_figure, True),
+        ("m_f.png", mf_figure, results.mf is not None),
+        ("partial_waves.png", partial_waves_figure, bool(results.partial_waves)),
+        ("ringdown.png", ringdown_figure, results.ringdown is not None),
+        ("lockin.png", lockin_figure, results.lockin is not None),
+    ]
+    for name, draw, wanted in plan:
+        if wanted:
+            draw(results, paths[name])
+            drawn.append(name)
+    return drawn
