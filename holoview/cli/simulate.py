@@ -499,6 +499,29 @@ def spectrum_figure(
     return np.hstack([image, np.full((height, 8, 3), 255, np.uint8), spec])
 
 
+def _warn_aliasing(surface: object, fps: float) -> None:
+    """Warn when the waves' highest frequency is past the Nyquist frequency of ``fps``."""
+    import numpy as np
+
+    inner = getattr(surface, "surface", surface)  # a SwitchedOn wrapper
+    omegas = getattr(inner, "omegas", None)
+    if omegas is None:
+        frequencies = [w.frequency for w in getattr(inner, "waves", ())]
+        if hasattr(inner, "frequency"):
+            frequencies.append(inner.frequency)
+        top = max(frequencies, default=0.0)
+    else:
+        top = float(np.max(omegas)) / (2 * math.pi)
+    if top > fps / 2:
+        logger.warning(
+            "the waves reach %.4g Hz, past the Nyquist frequency %.4g Hz of %g frames/s: "
+            "they alias in time (raise --fps or lower --wave-k)",
+            top,
+            fps / 2,
+            fps,
+        )
+
+
 def check_outputs(args: argparse.Namespace) -> None:
     """Refuse, before simulating, outputs that exist or cannot be written (InputError)."""
     import cv2
@@ -562,6 +585,7 @@ def run(args: argparse.Namespace) -> int:
     surface = make_surface(
         setup, args.scenario, config, np.random.default_rng(args.seed), build_waves(args)
     )
+    _warn_aliasing(surface, args.fps)
     sequence = simulate(
         setup,
         args.scenario,

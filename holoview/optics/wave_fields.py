@@ -492,7 +492,7 @@ class WaveConfig:
     """
 
     flow: tuple[float, float] = (0.02, 0.01)
-    k_range: tuple[float, float] = (300.0, 2500.0)
+    k_range: tuple[float, float] = (300.0, 1800.0)
     components: int = 300
     partial_waves: tuple[PartialWave, ...] = (
         PartialWave(0, 14.0, 20e-9, 12e-9),

@@ -11,10 +11,12 @@ of :mod:`~holoview.processing.waves.omega_k`: power at ``(f, +k)`` travels along
 the power), where it stands ``min_contrast`` times above the cell's median power.
 :func:`fit_dispersion` fits ``sigma``, ``d`` and ``U`` (each can be held) to those
 ridge frequencies by least squares, three times: first on the brightest frequency of
-each cell, then within 15 % and 8 % of the model, dropping cells more than four robust
-standard deviations off. The standard errors come from the residual scatter; the
-spatial Hann taper spreads each wave over about 1.5 cells per axis, so neighbouring
-cells are not independent and the covariance is multiplied by :data:`CELL_CORRELATION`.
+each cell (with a soft-L1 loss, as cells of noise or of waves aliased past the Nyquist
+frequency put their peaks anywhere), then within 15 % and 8 % of the model, dropping
+cells more than four robust standard deviations off. The standard errors come from the
+residual scatter; the spatial Hann taper spreads each wave over about 1.5 cells per
+axis, so neighbouring cells are not independent and the covariance is multiplied by
+:data:`CELL_CORRELATION`.
 """
 
 from __future__ import annotations
@@ -342,8 +344,12 @@ def _fit_once(
     start: dict[str, float],
     held: tuple[str, ...],
     fluid: Fluid,
+    robust: float = 0.0,
 ) -> tuple[dict[str, float], np.ndarray, tuple[str, ...], np.ndarray]:
-    """One least-squares fit; return the values, covariance (free), free names, residuals."""
+    """One least-squares fit; return the values, covariance (free), free names, residuals.
+
+    ``robust`` > 0: a soft-L1 loss of that scale (rad/s), for a first fit among outliers.
+    """
     free = tuple(
         n
         for n in ("sigma", "depth", "flow_x", "flow_y")
@@ -383,7 +389,14 @@ def _fit_once(
         for n in free
     ]
     x0 = np.clip(x0, np.array(bounds_low) + 1e-9, np.array(bounds_high) - 1e-9)
-    result = least_squares(residuals, x0, bounds=(bounds_low, bounds_high), x_scale="jac")
+    result = least_squares(
+        residuals,
+        x0,
+        bounds=(bounds_low, bounds_high),
+        x_scale="jac",
+        loss="soft_l1" if robust > 0 else "linear",
+        f_scale=robust if robust > 0 else 1.0,
+    )
     if not result.success:
         raise InputError(f"the dispersion fit did not converge ({result.message})")
     for name, v, lo, hi in zip(free, result.x, bounds_low, bounds_high, strict=True):
@@ -480,6 +493,7 @@ def fit_dispersion(
         "flow_y": float(flow[1]),
     }
     kyy, kxx = np.meshgrid(spectrum.ky, spectrum.kx, indexing="ij")
+    step = 2.0 * np.pi * spectrum.df
     model = None
     n_free = 4 - ("sigma" in held) - ("depth" in held) - 2 * ("flow" in held)
     for search in (None, 0.15, 0.08):
@@ -506,7 +520,8 @@ def fit_dispersion(
                 f"{low:.4g} and {high:.4g} rad/m ({min_contrast:g} times over the median "
                 "power); too few: the maps show no waves there"
             )
-        values, covariance, free, residual = _fit_once(ridge, values, held, fluid)
+        robust = 2.0 * step if search is None else 0.0
+        values, covariance, free, residual = _fit_once(ridge, values, held, fluid, robust)
         spread = 1.4826 * float(np.median(np.abs(residual - np.median(residual))))
         outliers = np.abs(residual) > 4.0 * max(spread, 1e-12)
         if np.any(outliers) and np.count_nonzero(~outliers) >= max(3 * n_free, 8):
