@@ -20,6 +20,7 @@ import math
 from pathlib import Path
 
 import numpy as np
+from matplotlib import colormaps
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.colors import LogNorm
 from matplotlib.figure import Figure
@@ -75,15 +76,24 @@ def _fit_text(results: WaveResults) -> str:
     )
 
 
+def _extent(k: np.ndarray, energy: np.ndarray, k_cut: float) -> float:
+    """1.2 times the largest k (rad/m) where E(k) tops 1e-3 of its peak (at most k_cut)."""
+    above = np.flatnonzero(energy >= 1e-3 * np.max(energy))
+    if above.size == 0:
+        return k_cut
+    return float(min(k_cut, 1.2 * k[above[-1]]))
+
+
 def omega_k_figure(results: WaveResults, path: Path) -> None:
     """``omega_k.png`` (module docstring)."""
     spectrum = results.spectrum
     fit = results.dispersion
     k, radial = spectrum.radial()
+    cmap = colormaps["magma"].with_extremes(bad="black")
     figure = Figure(figsize=(12, 5))
     left, right = figure.subplots(1, 2)
     image = left.pcolormesh(
-        k, spectrum.frequency, radial, norm=_log_norm(radial), shading="nearest", cmap="magma"
+        k, spectrum.frequency, radial, norm=_log_norm(radial), shading="nearest", cmap=cmap
     )
     left.set_xlabel("wavenumber |k| (rad/m)")
     left.set_ylabel("frequency f (Hz)")
@@ -93,31 +103,43 @@ def omega_k_figure(results: WaveResults, path: Path) -> None:
         speed = math.hypot(*fit.flow)
         angle = math.atan2(fit.flow[1], fit.flow[0]) if speed > 0 else 0.0
         curve_k = np.linspace(0.0, spectrum.k_cut, 400)
-        for sign, style in ((1.0, "-"), (-1.0, "--")):
+        for sign, style, name in ((1.0, "-", "with the flow"), (-1.0, "--", "against it")):
             omega = fit.omega(sign * curve_k * math.cos(angle), sign * curve_k * math.sin(angle))
-            left.plot(curve_k, omega / (2 * math.pi), style, color="cyan", lw=1.0)
+            left.plot(curve_k, omega / (2 * math.pi), style, color="cyan", lw=1.0, label=name)
+        left.legend(loc="upper right", fontsize=8, title="fitted dispersion", title_fontsize=8)
+    left.axvline(spectrum.k_cut, color="white", lw=1.0, ls=":")
+    left.text(
+        spectrum.k_cut,
+        0.5 * spectrum.frequency[-1],
+        "window cut-off ",
+        color="white",
+        rotation=90,
+        ha="right",
+        va="center",
+        fontsize=8,
+    )
+    left.set_xlim(0, spectrum.k_cut * 1.02)
     q, along = spectrum.along(angle)
     right.pcolormesh(
-        q, spectrum.frequency, along, norm=_log_norm(along), shading="nearest", cmap="magma"
+        q, spectrum.frequency, along, norm=_log_norm(along), shading="nearest", cmap=cmap
     )
+    flowing = fit is not None and any(fit.flow)
     right.set_xlabel(f"wavenumber along {math.degrees(angle):.0f}° (rad/m; < 0: against)")
-    right.set_title("power along the flow" if fit and any(fit.flow) else "power along x")
+    right.set_title("power along the flow (zoom)" if flowing else "power along x (zoom)")
+    reach = _extent(*spectrum.energy_k(), spectrum.k_cut)
     if fit is not None:
-        curve = np.linspace(-spectrum.k_cut, spectrum.k_cut, 800)
+        curve = np.linspace(-reach, reach, 800)
         omega = fit.omega(curve * math.cos(angle), curve * math.sin(angle))
         right.plot(curve, omega / (2 * math.pi), color="cyan", lw=1.0, label="fitted dispersion")
         right.legend(loc="upper left", fontsize=8)
+    right.set_xlim(-reach, reach)
     for axes in (left, right):
-        axes.axvline(spectrum.k_cut, color="white", lw=0.8, ls=":")
         axes.set_ylim(0, spectrum.frequency[-1])
-    left.set_xlim(0, spectrum.k_cut * 1.02)
-    right.set_xlim(-spectrum.k_cut * 1.02, spectrum.k_cut * 1.02)
-    right.axvline(-spectrum.k_cut, color="white", lw=0.8, ls=":")
     colourbar = figure.colorbar(image, ax=[left, right], fraction=0.03)
     colourbar.set_label("power density (m² Hz⁻¹ (rad/m)⁻²)")
     figure.suptitle(
         f"{results.maps.label}: {spectrum.segments} segments of "
-        f"{spectrum.frequency.size * 2 - 2} frames; dotted: window cut-off; "
+        f"{spectrum.frequency.size * 2 - 2} frames; "
         f"{_fit_text(results)}",
         fontsize=9,
     )
@@ -160,7 +182,12 @@ def mf_figure(results: WaveResults, path: Path) -> None:
     figure = Figure(figsize=(8, 5))
     axes = figure.subplots()
     image = axes.pcolormesh(
-        mf.m, mf.frequency, mf.power.T, norm=_log_norm(mf.power), shading="nearest", cmap="viridis"
+        mf.m,
+        mf.frequency,
+        mf.power.T,
+        norm=_log_norm(mf.power),
+        shading="nearest",
+        cmap=colormaps["viridis"].with_extremes(bad="black"),
     )
     for fit in results.partial_waves:
         axes.plot(fit.m, fit.frequency, "o", mfc="none", mec="red", ms=12)

@@ -97,7 +97,12 @@ def _attrs(target: h5py.Group, values: dict[str, Any]) -> None:
     for key, value in values.items():
         if value is None:
             continue
-        target.attrs[key] = np.asarray(value) if isinstance(value, list) else value
+        if isinstance(value, list) and all(isinstance(v, str) for v in value):
+            target.attrs[key] = ",".join(value)  # lists of names: comma-separated
+        elif isinstance(value, list):
+            target.attrs[key] = np.asarray(value, dtype=np.float64)
+        else:
+            target.attrs[key] = value
 
 
 def _write_h5(path: Path, results: WaveResults, maps: WaveMaps, options: WaveOptions) -> None:
