@@ -32,7 +32,10 @@ from scipy.optimize import least_squares
 from holoview.errors import InputError
 from holoview.processing.waves.clock import frame_clock
 
-__all__ = ["Ringdown", "band_pass_taps", "fit_ringdown"]
+__all__ = ["MIN_SIGNIFICANCE", "Ringdown", "band_pass_taps", "fit_ringdown"]
+
+#: Least ratio of the mode's fitted amplitude to its standard error.
+MIN_SIGNIFICANCE = 10.0
 
 
 @dataclass(frozen=True)
@@ -226,6 +229,14 @@ def fit_ringdown(
     if not (result.success and np.all(np.isfinite(errors))):
         raise InputError(f"ringdown m={m} in {band[0]:g}:{band[1]:g} Hz: the fit did not converge")
     frequency = omega / (2.0 * np.pi)
+    significance = abs(complex(result.x[0], result.x[1])) / max(
+        math.hypot(errors[0], errors[1]), 1e-300
+    )
+    if significance < MIN_SIGNIFICANCE:
+        raise InputError(
+            f"ringdown m={m} in {band[0]:g}:{band[1]:g} Hz: no damped mode stands out of the "
+            f"noise (amplitude {significance:.1f} standard errors, need {MIN_SIGNIFICANCE:g})"
+        )
     if not band[0] <= frequency <= band[1]:
         raise InputError(
             f"ringdown m={m}: the fitted frequency {frequency:.4g} Hz lies outside the band "
