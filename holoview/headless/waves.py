@@ -368,6 +368,15 @@ def analyse_waves(maps: WaveMaps, options: WaveOptions) -> WaveResults:
     _check_frames(maps, options.segment)
     if options.ringdown is not None and options.centre is None:
         raise InputError("a ringdown fit needs a centre: give --centre X,Y or --centre auto")
+    if isinstance(options.centre, tuple):  # a centre off the maps is refused before any pass
+        polar_grid(
+            maps.shape,
+            maps.pixel_size,
+            options.centre,
+            r_min=options.r_range[0],
+            r_max=options.r_range[1],
+            m_max=options.m_max,
+        )
     started = time.perf_counter()
     results = WaveResults(maps=maps, options=options, spectrum=None)  # type: ignore[arg-type]
     _pass_spectrum(maps, options, results)
