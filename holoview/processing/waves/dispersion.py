@@ -11,7 +11,8 @@ of :mod:`~holoview.processing.waves.omega_k`: power at ``(f, +k)`` travels along
 the power), where it stands ``min_contrast`` times above the cell's median power.
 :func:`fit_dispersion` fits ``sigma``, ``d`` and ``U`` (each can be held) to those
 ridge frequencies by least squares, three times: first on the brightest frequency of
-each cell (with a soft-L1 loss, as cells of noise or of waves aliased past the Nyquist
+each cell whose contrast is within a hundredth of the brightest cells' (a soft-L1 loss,
+as cells of noise, of a strong line's leakage or of waves aliased past the Nyquist
 frequency put their peaks anywhere), then within 15 % and 8 % of the model, dropping
 cells more than four robust standard deviations off. The standard errors come from the
 residual scatter; the spatial Hann taper spreads each wave over about 1.5 cells per
@@ -55,6 +56,10 @@ __all__ = [
 
 #: Cells per independent estimate under a Hann taper in both directions (1.5 x 1.5).
 CELL_CORRELATION = 2.25
+
+#: The first fit takes the cells whose contrast is at least this share of the 90th
+#: percentile of the contrasts (but ``min_contrast``).
+FIRST_CONTRAST = 0.01
 
 #: The parameters that can be held: surface tension, depth, flow (both components).
 PARAMETERS = ("sigma", "depth", "flow")
@@ -514,6 +519,11 @@ def fit_dispersion(
             search=search or 0.0,
             min_contrast=min_contrast,
         )
+        if search is None and ridge.omega.size:
+            # first fit on the clear waves: leakage of strong lines shows as weak peaks
+            bright = max(min_contrast, FIRST_CONTRAST * float(np.percentile(ridge.contrast, 90)))
+            if np.count_nonzero(ridge.contrast >= bright) >= max(3 * n_free, 8):
+                ridge = ridge.select(ridge.contrast >= bright)
         if ridge.omega.size < max(3 * n_free, 8):
             raise InputError(
                 f"the dispersion fit has {ridge.omega.size} cells with a clear wave between "
@@ -528,17 +538,19 @@ def fit_dispersion(
             ridge = ridge.select(~outliers)
             values, covariance, free, residual = _fit_once(ridge, values, held, fluid)
     errors = np.sqrt(np.diag(covariance))
-    if not np.all(np.isfinite(errors)):
-        raise InputError(
-            "the dispersion fit did not converge: the parameters "
-            f"({', '.join(free)}) are not all determined by these waves; hold some"
-        )
     stderr = dict(zip(free, errors, strict=True))
-    if "depth" in stderr and not _depth_bounded(ridge, values, held, fluid, residual):
+    if "depth" in stderr and not (
+        math.isfinite(stderr["depth"]) and _depth_bounded(ridge, values, held, fluid, residual)
+    ):
         raise InputError(
             "the dispersion fit did not converge: the depth is not determined by these waves "
             "(k d > 3: they do not feel the bottom; ten times deeper fits as well); hold it "
             "at a known depth"
+        )
+    if not np.all(np.isfinite(errors)):
+        raise InputError(
+            "the dispersion fit did not converge: the parameters "
+            f"({', '.join(free)}) are not all determined by these waves; hold some"
         )
     for name in ("sigma", "depth"):
         if stderr.get(name, 0.0) > 1.0:  # errors of logarithms: relative errors

@@ -23,8 +23,9 @@ Units and normalisation
 -----------------------
 ``S`` is a one-sided density in ``m^2 / (Hz (rad/m)^2)``: summed over every cell
 times ``df dkx dky`` it gives the mean square height of the (detrended) field.
-Masked pixels (NaN in any frame of a segment) are left out of that segment and the
-normalisation uses the taper over the pixels kept; a segment with less than
+Masked pixels (NaN in any frame of a segment) are left out of that segment, the taper
+rising smoothly from them over :data:`HOLE_RAMP` pixels (a sharp hole would spread
+every strong wave over all wavenumbers), and the normalisation uses the taper kept; a segment with less than
 ``min_valid`` of its pixels kept is skipped. Waves beyond the demodulation window's
 cut-off ``k_cut`` are not in the maps: it is passed in, kept, and marked on figures.
 """
@@ -37,6 +38,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.fft
+from scipy import ndimage
 from numpy.typing import ArrayLike, NDArray
 
 from holoview.errors import InputError
@@ -223,6 +225,22 @@ class OmegaKSpectrum:
         return (np.arange(n_bins) - n_half) * width, out / np.where(counts > 0, counts, 1.0)
 
 
+#: Pixels over which the taper rises from an untrusted pixel to its full value.
+HOLE_RAMP = 4.0
+
+
+def _hole_taper(finite: NDArray[np.bool_]) -> NDArray[np.float64]:
+    """1 far from untrusted pixels, 0 on them, a sine-squared rise over :data:`HOLE_RAMP`.
+
+    A hole cut sharply into the taper would spread every strong wave over all
+    wavenumbers at its frequency; a smooth edge keeps the leakage down.
+    """
+    if np.all(finite):
+        return np.ones(finite.shape)
+    distance = ndimage.distance_transform_edt(finite)
+    return np.sin(0.5 * np.pi * np.clip(distance / HOLE_RAMP, 0.0, 1.0)) ** 2
+
+
 class OmegaKAccumulator:
     """Welch averaging of the omega-k power of maps pushed one at a time.
 
@@ -356,7 +374,7 @@ class OmegaKAccumulator:
         slope = np.tensordot(ramp, data, axes=(0, 0)) / np.float32(np.sum(ramp**2))
         data -= mean
         data -= ramp[:, np.newaxis, np.newaxis] * slope
-        space = (self._space_taper * finite).astype(np.float32)
+        space = (self._space_taper * _hole_taper(finite)).astype(np.float32)
         data *= (self._time_taper.astype(np.float32))[:, np.newaxis, np.newaxis]
         data *= space
         spectrum = scipy.fft.rfftn(data, axes=(1, 2, 0), workers=self.workers)
