@@ -7,9 +7,9 @@ Run from the repository root::
 
 Writes a ``results.h5`` as ``holoview process --maps`` lays it out (float32 maps of
 256 x 256, one chunk per frame, ``/trends/time_s``) with travelling capillary-gravity
-waves on a flow (30 nm rms) plus weaker partial waves and a damped mode around a centre (the simulator's
-surfaces sampled on the map grid, noise added, a masked core), then runs in a child
-process, with the machine and its load printed:
+waves on a flow (30 nm rms) plus weaker partial waves and a damped mode around a centre
+(the simulator's surfaces sampled on the map grid, noise added, a masked core), then
+runs in a child process, with the machine and its load printed:
 
 1. the default analysis: omega-k, E(k), E(omega), the fit of sigma, d and U;
 2. the whole analysis: that, the centre found (``--centre auto``), the (m, f) spectrum,

@@ -25,9 +25,10 @@ Units and normalisation
 times ``df dkx dky`` it gives the mean square height of the (detrended) field.
 Masked pixels (NaN in any frame of a segment) are left out of that segment, the taper
 rising smoothly from them over :data:`HOLE_RAMP` pixels (a sharp hole would spread
-every strong wave over all wavenumbers), and the normalisation uses the taper kept; a segment with less than
-``min_valid`` of its pixels kept is skipped. Waves beyond the demodulation window's
-cut-off ``k_cut`` are not in the maps: it is passed in, kept, and marked on figures.
+every strong wave over all wavenumbers), and the normalisation uses the taper kept; a
+segment with less than ``min_valid`` of its pixels kept is skipped. Waves beyond the
+demodulation window's cut-off ``k_cut`` are not in the maps: it is passed in, kept, and
+marked on figures.
 """
 
 from __future__ import annotations
@@ -38,8 +39,8 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.fft
-from scipy import ndimage
 from numpy.typing import ArrayLike, NDArray
+from scipy import ndimage
 
 from holoview.errors import InputError
 from holoview.processing.waves.clock import GAP_TOLERANCE
