@@ -65,7 +65,7 @@ def write_results(path: Path, frames: int) -> None:
         core_radius=3e-3,
         depth=3e-3,
     )
-    mode = DampedMode(1, 31.0, 0.5, 25e-9, centre=centre, depth=3e-3)
+    mode = DampedMode(1, 31.0, 0.5, 150e-9, centre=centre, depth=3e-3)
     x = (np.arange(SIZE) * PIXEL)[np.newaxis, :]
     y = (np.arange(SIZE) * PIXEL)[:, np.newaxis]
     core = np.hypot(x - centre[0], y - centre[1]) < 4e-3

@@ -31,7 +31,7 @@ from holoview.headless.waves import WaveResults
 __all__ = ["FIGURES", "draw_figures"]
 
 #: Resolution of the figures, dots per inch.
-DPI = 130
+DPI = 110
 
 #: Figure file names, in the order they are drawn.
 FIGURES = (
@@ -171,7 +171,7 @@ def energy_figure(results: WaveResults, path: Path) -> None:
         f"{np.trapezoid(e_k, k) * 1e18:.3g} nm² (up to the cut-off)",
         fontsize=10,
     )
-    figure.tight_layout()
+    figure.subplots_adjust(left=0.08, right=0.98, bottom=0.12, top=0.88, wspace=0.25)
     _save(figure, path)
 
 
@@ -200,7 +200,7 @@ def mf_figure(results: WaveResults, path: Path) -> None:
         f"r {mf.radii[0] * 1e3:.3g}-{mf.radii[-1] * 1e3:.3g} mm; circles: fitted",
         fontsize=9,
     )
-    figure.tight_layout()
+    figure.subplots_adjust(left=0.09, right=0.97, bottom=0.11, top=0.92)
     _save(figure, path)
 
 
@@ -228,7 +228,7 @@ def partial_waves_figure(results: WaveResults, path: Path) -> None:
         axes.legend(fontsize=7)
     for axes in axes_list[len(fits) :]:
         axes.set_axis_off()
-    figure.tight_layout()
+    figure.subplots_adjust(left=0.06, right=0.98, bottom=0.12, top=0.9, wspace=0.3, hspace=0.35)
     _save(figure, path)
 
 
@@ -238,15 +238,15 @@ def ringdown_figure(results: WaveResults, path: Path) -> None:
     assert fit is not None
     figure = Figure(figsize=(11, 4.5))
     left, right = figure.subplots(1, 2)
-    left.semilogy(fit.times, np.abs(fit.series) * 1e9, ".", ms=2, color="k", label="band |z|")
-    left.semilogy(fit.times, np.abs(fit.model) * 1e9, color="C3", label="fit")
+    left.semilogy(fit.times, np.abs(fit.series), ".", ms=2, color="k", label="band |z|")
+    left.semilogy(fit.times, np.abs(fit.model), color="C3", label="fit")
     left.set_xlabel("time t (s)")
-    left.set_ylabel("amplitude (nm, combined rings)")
+    left.set_ylabel("|z|, the rings combined (arbitrary scale)")
     left.legend(fontsize=8)
-    right.plot(fit.times, fit.series.real * 1e9, ".", ms=2, color="k", label="Re z")
-    right.plot(fit.times, fit.model.real * 1e9, color="C3", lw=0.8, label="fit")
+    right.plot(fit.times, fit.series.real, ".", ms=2, color="k", label="Re z")
+    right.plot(fit.times, fit.model.real, color="C3", lw=0.8, label="fit")
     right.set_xlabel("time t (s)")
-    right.set_ylabel("Re z (nm)")
+    right.set_ylabel("Re z (arbitrary scale)")
     right.set_xlim(
         fit.times[0], fit.times[0] + min(fit.times[-1] - fit.times[0], 8 / fit.frequency)
     )
@@ -257,7 +257,7 @@ def ringdown_figure(results: WaveResults, path: Path) -> None:
         f"γ = {fit.decay:.4g} ± {fit.decay_stderr:.2g} 1/s, Q = {fit.quality:.3g}",
         fontsize=10,
     )
-    figure.tight_layout()
+    figure.subplots_adjust(left=0.08, right=0.98, bottom=0.12, top=0.88, wspace=0.25)
     _save(figure, path)
 
 
@@ -287,7 +287,7 @@ def lockin_figure(results: WaveResults, path: Path) -> None:
     for axes in axes_list:
         axes.set_xlabel("x (mm)")
         axes.set_ylabel("y (mm)")
-    figure.tight_layout()
+    figure.subplots_adjust(left=0.05, right=0.97, bottom=0.14, top=0.9, wspace=0.45)
     _save(figure, path)
 
 

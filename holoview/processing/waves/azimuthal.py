@@ -23,8 +23,9 @@ in a frame is NaN in that frame. The rings must lie inside the map.
 
 :func:`find_centre` finds a centre from a complex amplitude map (a lock-in at the
 strongest frequency): the point around which that map's power is spread over the
-fewest azimuthal numbers (the least entropy of its ``|A_m|^2`` over ``m``), searched
-by Nelder-Mead from the power-weighted centroid. A field of partial waves around one
+fewest azimuthal numbers (the least entropy of its ``|A_m|^2`` over ``m``, on rings two
+pixels apart sampled bilinearly), searched by Nelder-Mead from the power-weighted
+centroid. A field of partial waves around one
 centre puts its power in a few ``m``; seen from another point, each spreads over
 ``m +- n`` with weights ``J_n(k delta)^2`` (Graf's addition theorem).
 """
@@ -37,9 +38,8 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.fft
 from numpy.typing import ArrayLike, NDArray
-from scipy import sparse
+from scipy import ndimage, sparse
 from scipy.optimize import minimize
 
 from holoview.errors import InputError
@@ -83,7 +83,9 @@ class PolarGrid:
     shape : (int, int)
         The map's shape.
     matrix : scipy.sparse.csr_matrix, shape (R n_theta, rows cols)
-        Interpolation weights (16 per sample).
+        Interpolation weights (16 per sample), float32.
+    dft : ndarray of float32, shape (n_theta, 2 (m_max + 1))
+        ``cos(m theta) / n_theta`` then ``-sin(m theta) / n_theta``, ``m = 0 .. m_max``.
     """
 
     centre: tuple[float, float]
@@ -92,6 +94,7 @@ class PolarGrid:
     m_max: int
     shape: tuple[int, int]
     matrix: sparse.csr_matrix
+    dft: NDArray[np.float32]
 
     @property
     def m(self) -> NDArray[np.int64]:
@@ -99,13 +102,22 @@ class PolarGrid:
         return np.arange(-self.m_max, self.m_max + 1)
 
     def modes(self, frames: ArrayLike) -> NDArray[np.complex128]:
-        """Return ``h_m(r)`` (m) of maps (rows, cols) or (N, rows, cols): (R, M) or (N, R, M)."""
-        block = np.asarray(frames, dtype=np.float64)
+        """Return ``h_m(r)`` (m) of maps (rows, cols) or (N, rows, cols): (R, M) or (N, R, M).
+
+        The samples on the rings (one sparse product) times the cosines and sines of
+        ``m = 0 .. m_max`` (one matrix product); ``h_-m`` is the conjugate of ``h_m``
+        (the maps are real).
+        """
+        block = np.asarray(frames, dtype=np.float32)
         single = block.ndim == 2
         block = block.reshape(-1, self.shape[0] * self.shape[1])
-        samples = (self.matrix @ block.T).T.reshape(-1, self.radii.size, self.n_theta)
-        spectrum = scipy.fft.fft(samples, axis=2) / self.n_theta
-        out = spectrum[:, :, self.m % self.n_theta]
+        n = block.shape[0]
+        samples = np.asarray(self.matrix @ block.T).reshape(self.radii.size, self.n_theta, n)
+        parts = np.matmul(self.dft.T, samples)  # (R, 2 (m_max + 1), N): real, imaginary
+        half = self.m_max + 1
+        positive = (parts[:, :half] + 1j * parts[:, half:]).transpose(2, 0, 1)  # (N, R, M+)
+        out = np.concatenate([positive[:, :, :0:-1].conj(), positive], axis=2)
+        out = out.astype(np.complex128)
         return out[0] if single else out
 
 
@@ -178,8 +190,12 @@ def polar_grid(
     pixels = (rows_of[:, :, None] * cols + cols_of[:, None, :]).reshape(-1)
     weights = (wr[:, :, None] * wc[:, None, :]).reshape(-1)
     sample = np.arange(col.size).repeat(16)
-    matrix = sparse.csr_matrix((weights, (sample, pixels)), shape=(col.size, rows * cols))
-    return PolarGrid((x0, y0), radii, int(n_theta), int(m_max), (rows, cols), matrix)
+    matrix = sparse.csr_matrix(
+        (weights.astype(np.float32), (sample, pixels)), shape=(col.size, rows * cols)
+    )
+    turns = np.outer(theta, np.arange(m_max + 1))
+    dft = (np.concatenate([np.cos(turns), -np.sin(turns)], axis=1) / n_theta).astype(np.float32)
+    return PolarGrid((x0, y0), radii, int(n_theta), int(m_max), (rows, cols), matrix, dft)
 
 
 @dataclass(frozen=True)
@@ -311,11 +327,12 @@ class AzimuthalAccumulator:
             phase = (times - start) / max(stop - start, 1e-300)
             weights = np.where((phase >= 0) & (phase <= 1), np.sin(np.pi * phase) ** 2, 0.0)
         finite = np.all(np.isfinite(modes), axis=2)  # (N, R)
-        clean = np.where(finite[:, :, np.newaxis], modes, 0.0)
         w = weights[:, np.newaxis] * finite  # (N, R)
+        weighted = np.where(finite[:, :, np.newaxis], modes, 0.0) * w[:, :, np.newaxis]
         self._lock_weight += w.sum(axis=0)
         turns = np.exp(2j * np.pi * np.outer(self.frequencies, times))  # (F, N)
-        self._lock += np.einsum("fn,nr,nrm->frm", turns, w, clean)
+        n = times.size
+        self._lock += (turns @ weighted.reshape(n, -1)).reshape(self._lock.shape)
 
     def _push_modes(self, modes: np.ndarray, t: float) -> None:
         if self._last_time is not None:
@@ -382,13 +399,24 @@ class AzimuthalAccumulator:
         return np.asarray(self._times), np.concatenate(self._series)
 
 
-def _entropy(grid: PolarGrid, amplitude: np.ndarray) -> float:
-    """Entropy over ``m`` of the ring-summed ``|A_m|^2`` (NaN rings left out)."""
-    complex_modes = grid.modes(amplitude.real) + 1j * grid.modes(amplitude.imag)
-    rings = np.all(np.isfinite(complex_modes), axis=1)
+def _entropy(
+    field: np.ndarray, centre: np.ndarray, radii: np.ndarray, n_theta: int, m_max: int
+) -> float:
+    """Entropy over ``m`` of the ring-summed ``|A_m|^2`` around ``centre`` (pixels).
+
+    ``field`` is (2, rows, cols): the real and imaginary parts; the rings (radii in
+    pixels) are sampled bilinearly, and rings touching a NaN are left out.
+    """
+    theta = 2.0 * np.pi * np.arange(n_theta) / n_theta
+    rows = centre[1] + radii[:, np.newaxis] * np.sin(theta)
+    cols = centre[0] + radii[:, np.newaxis] * np.cos(theta)
+    parts = [ndimage.map_coordinates(part, [rows, cols], order=1, mode="nearest") for part in field]
+    spectrum = np.fft.fft(parts[0] + 1j * parts[1], axis=1) / n_theta
+    modes = spectrum[:, np.arange(-m_max, m_max + 1) % n_theta]
+    rings = np.all(np.isfinite(modes), axis=1)
     if np.count_nonzero(rings) < 4:
         return math.inf
-    power = np.sum(np.abs(complex_modes[rings]) ** 2 * grid.radii[rings, None], axis=0)
+    power = np.sum(np.abs(modes[rings]) ** 2 * radii[rings, None], axis=0)
     total = float(power.sum())
     if total <= 0:
         return math.inf
@@ -447,15 +475,17 @@ def find_centre(
             f"{(cols - 1) * dx * 1e3:.3g} x {(rows - 1) * dy * 1e3:.3g} mm"
         )
     start = np.clip(start, low, high)
-    clean = np.where(finite, field, np.nan)
+    parts = np.stack([np.where(finite, field.real, np.nan), np.where(finite, field.imag, np.nan)])
+    ring_step = 2.0 * min(dx, dy)  # m
+    inner = 2.0 * ring_step if r_min is None else float(r_min)
+    radii_px = np.arange(inner, radius + 1e-12, ring_step) / min(dx, dy)
+    n_theta = max(16, 1 << math.ceil(math.log2(2 * math.pi * radii_px[-1])))
+    scale = np.array([dx, dy])
 
     def score(point: np.ndarray) -> float:
         if np.any(point < low) or np.any(point > high):
             return math.inf
-        grid = polar_grid(
-            (rows, cols), (dy, dx), (point[0], point[1]), r_min=r_min, r_max=radius, m_max=m_max
-        )
-        return _entropy(grid, clean)
+        return _entropy(parts, point / scale, radii_px, n_theta, m_max)
 
     step = 2.0 * min(dx, dy)
     simplex = np.array([start, start + np.array([step, 0.0]), start + np.array([0.0, step])])

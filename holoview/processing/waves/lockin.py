@@ -122,29 +122,42 @@ class LockIn:
         return np.where((phase >= 0) & (phase <= 1), np.sin(np.pi * phase) ** 2, 0.0)
 
     def push_block(self, frames: ArrayLike, times: ArrayLike) -> None:
-        """Add maps ``(N, rows, cols)`` (m, NaN where untrusted) at ``times`` (s)."""
-        block = np.asarray(frames, dtype=np.float64)
+        """Add maps ``(N, rows, cols)`` (m, NaN where untrusted) at ``times`` (s).
+
+        Every sum over the frames of a block is one matrix product (float32) with the
+        weights and the weighted cosines and sines, added to float64 totals.
+        """
+        block = np.asarray(frames, dtype=np.float32)
         stamps = np.asarray(times, dtype=np.float64).ravel()
         if block.ndim != 3 or block.shape[1:] != self.shape or block.shape[0] != stamps.size:
             raise InputError(
                 f"lock-in: maps of shape {block.shape} and {stamps.size} times do not match "
                 f"maps of {self.shape}"
             )
-        finite = np.isfinite(block)
-        clean = np.where(finite, block, 0.0)
+        rows, cols = self.shape
+        flat = block.reshape(stamps.size, rows * cols)
+        finite = np.isfinite(flat)
+        all_finite = bool(np.all(finite))
+        clean = flat if all_finite else np.where(finite, flat, np.float32(0.0))
         w = self._weights(stamps)
-        present = finite.astype(np.float64)
-        self._count += finite.sum(axis=0)
-        self._h += clean.sum(axis=0)
-        self._h2 += np.einsum("nyx,nyx->yx", clean, clean)
-        self._w += np.tensordot(w, present, axes=(0, 0))
-        self._w2 += np.tensordot(w**2, present, axes=(0, 0))
-        self._wh += np.tensordot(w, clean, axes=(0, 0))
-        omega = 2.0 * np.pi * self.frequency
-        for i, n in enumerate(self.harmonics):
-            turn = np.exp(1j * n * omega * stamps)
-            self._weighted[i] += np.tensordot(w * turn, clean, axes=(0, 0))
-            self._turn[i] += np.tensordot(w * turn, present, axes=(0, 0))
+        phases = 2.0 * np.pi * self.frequency * np.outer(stamps, self.harmonics)  # (N, H)
+        basis = np.column_stack([w, w[:, None] * np.cos(phases), w[:, None] * np.sin(phases)])
+        sums = (basis.astype(np.float32).T @ clean).astype(np.float64)  # (1 + 2H, P)
+        n_h = len(self.harmonics)
+        self._wh += sums[0].reshape(rows, cols)
+        self._weighted += (sums[1 : 1 + n_h] + 1j * sums[1 + n_h :]).reshape(n_h, rows, cols)
+        self._h += clean.sum(axis=0, dtype=np.float64).reshape(rows, cols)
+        self._h2 += np.einsum("np,np->p", clean, clean).reshape(rows, cols)
+        counts = np.column_stack([basis, w**2, np.ones_like(w)])  # (N, 3 + 2H)
+        if all_finite:
+            present = np.broadcast_to(counts.sum(axis=0)[:, None], (counts.shape[1], rows * cols))
+        else:
+            present = counts.astype(np.float32).T @ finite.astype(np.float32)
+        present = np.asarray(present, dtype=np.float64).reshape(-1, rows, cols)
+        self._w += present[0]
+        self._turn += present[1 : 1 + n_h] + 1j * present[1 + n_h : 1 + 2 * n_h]
+        self._w2 += present[1 + 2 * n_h]
+        self._count += np.rint(present[2 + 2 * n_h]).astype(np.int64)
 
     def result(self) -> LockInMaps:
         """Return the maps (InputError when no pixel had a weighted finite frame)."""

@@ -362,43 +362,53 @@ class OmegaKAccumulator:
         """The last ``segment`` frames in time order (a copy)."""
         return np.concatenate([self._ring[self._next :], self._ring[: self._next]])
 
-    def _segment_power(self, block: NDArray[np.float32]) -> tuple[np.ndarray | None, float]:
-        """One segment's one-sided density, f >= 0, numpy's sign, unshifted; kept share."""
-        finite = np.all(np.isfinite(block), axis=0)
+    def _segment_power(self, block: NDArray[np.float32], into: np.ndarray) -> float | None:
+        """Add one segment's two-sided density at f >= 0 (numpy's sign, unshifted) to ``into``.
+
+        ``block`` is a fresh array (it is worked on in place, a frame at a time so that
+        each step stays in the cache); the one-sided factor 2 is applied to the average
+        (:meth:`_result`). Returns the share of pixels kept, or None (nothing added) when
+        it is under ``min_valid``.
+        """
+        finite = np.ones(self.shape, bool)
+        for frame in block:
+            finite &= np.isfinite(frame)
         share = float(finite.mean())
         if share < self.min_valid:
-            return None, share
+            return None
         n = block.shape[0]
-        data = np.where(finite, block, np.float32(0.0))
+        if share < 1.0:
+            for frame in block:
+                frame[~finite] = 0.0
         ramp = np.linspace(-1.0, 1.0, n, dtype=np.float32)
-        mean = data.mean(axis=0)
-        slope = np.tensordot(ramp, data, axes=(0, 0)) / np.float32(np.sum(ramp**2))
-        data -= mean
-        data -= ramp[:, np.newaxis, np.newaxis] * slope
-        space = (self._space_taper * _hole_taper(finite)).astype(np.float32)
-        data *= (self._time_taper.astype(np.float32))[:, np.newaxis, np.newaxis]
-        data *= space
-        spectrum = scipy.fft.rfftn(data, axes=(1, 2, 0), workers=self.workers)
-        power = spectrum.real.astype(np.float64) ** 2 + spectrum.imag.astype(np.float64) ** 2
+        mean = block.mean(axis=0)
+        slope = np.tensordot(ramp, block, axes=(0, 0)) / np.float32(np.sum(ramp**2))
+        space = self._space_taper * _hole_taper(finite)
         dy, dx = self.pixel_size
         norm = (
             (1.0 / self.interval)
             * (2.0 * np.pi / dy)
             * (2.0 * np.pi / dx)
             * float(np.sum(self._time_taper**2))
-            * float(np.sum(space.astype(np.float64) ** 2))
+            * float(np.sum(space**2))
         )
-        power /= norm
-        power[1 : (n + 1) // 2] *= 2.0  # one-sided: every f but 0 and Nyquist twice
-        return power, share
+        space32 = (space / math.sqrt(norm)).astype(np.float32)  # the normalisation folded in
+        for i, frame in enumerate(block):
+            frame -= mean
+            frame -= ramp[i] * slope
+            frame *= np.float32(self._time_taper[i]) * space32
+        spectrum = scipy.fft.rfftn(block, axes=(1, 2, 0), workers=self.workers)
+        for plane, total in zip(spectrum, into, strict=True):
+            total += np.square(plane.real)
+            total += np.square(plane.imag)
+        return share
 
     def _add_segment(self) -> None:
-        power, share = self._segment_power(self._ordered())
-        if power is None:
+        share = self._segment_power(self._ordered(), self._sum)
+        if share is None:
             self.skipped += 1
-            logger.debug("segment skipped: %.0f %% of the pixels kept", 100 * share)
+            logger.debug("segment skipped: under %.0f %% of the pixels kept", 100 * self.min_valid)
             return
-        self._sum += power
         self._valid_sum += share
         self.segments += 1
         first = self.frames_pushed - self.segment
@@ -408,6 +418,8 @@ class OmegaKAccumulator:
     def _result(
         self, total: np.ndarray, segments: int, share: float, frames: int
     ) -> OmegaKSpectrum:
+        total = total.astype(np.float64)
+        total[1 : (self.segment + 1) // 2] *= 2.0  # one-sided: every f but 0 and Nyquist twice
         rows, cols = self.shape
         # (+f, k) -> (-f, k) = (+f, -k): flip both space axes, then centre zero.
         flipped = total[:, (-np.arange(rows)) % rows][:, :, (-np.arange(cols)) % cols]
@@ -462,10 +474,11 @@ class OmegaKAccumulator:
                 f"the last {self._run} frames since a gap or the start are fewer than a "
                 f"segment ({self.segment})"
             )
-        power, share = self._segment_power(self._ordered())
-        if power is None:
+        power = np.zeros_like(self._sum)
+        share = self._segment_power(self._ordered(), power)
+        if share is None:
             raise InputError(
-                f"the last {self.segment} frames keep {100 * share:.0f} % of the pixels "
-                f"(under {100 * self.min_valid:.0f} %)"
+                f"the last {self.segment} frames keep under {100 * self.min_valid:.0f} % of "
+                "the pixels"
             )
         return self._result(power, 1, share, self.segment)
