@@ -393,14 +393,14 @@ class OmegaKAccumulator:
             * float(np.sum(space**2))
         )
         space32 = (space / math.sqrt(norm)).astype(np.float32)  # the normalisation folded in
-        for i, frame in enumerate(block):
-            frame -= mean
-            frame -= ramp[i] * slope
-            frame *= np.float32(self._time_taper[i]) * space32
+        for i in range(n):
+            block[i] -= mean
+            block[i] -= ramp[i] * slope
+            block[i] *= np.float32(self._time_taper[i]) * space32
         spectrum = scipy.fft.rfftn(block, axes=(1, 2, 0), workers=self.workers)
-        for plane, total in zip(spectrum, into, strict=True):
-            total += np.square(plane.real)
-            total += np.square(plane.imag)
+        for i, plane in enumerate(spectrum):
+            into[i] += np.square(plane.real)
+            into[i] += np.square(plane.imag)
         return share
 
     def _add_segment(self) -> None:
