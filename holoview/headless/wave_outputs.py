@@ -175,7 +175,14 @@ def _write_azimuthal(group: h5py.Group, results: WaveResults) -> None:
     scales = (_scale(group, "m", mf.m, "1"), _scale(group, "frequency", mf.frequency, "Hz"))
     _data(group, "power", mf.power, "m^2/Hz", scales)
     _scale(group, "radius", grid.radii, "m")
-    _attrs(group, {"centre_m": list(results.centre or ()), "centre_method": results.centre_method})
+    _attrs(
+        group,
+        {
+            "centre_m": list(results.centre or ()),
+            "centre_stderr_m": list(results.centre_stderr),
+            "centre_method": results.centre_method,
+        },
+    )
     if results.tones:
         tone = _scale(group, "tone", np.arange(len(results.tones)), "1")
         radius = group["radius"]
@@ -192,6 +199,7 @@ def _write_partial_waves(group: h5py.Group, results: WaveResults) -> None:
     columns: list[tuple[str, Any, str]] = [
         ("m", [p.m for p in fits], "1"),
         ("frequency_hz", [p.frequency for p in fits], "Hz"),
+        ("frequency_stderr_hz", [p.frequency_stderr for p in fits], "Hz"),
         ("wavenumber_rad_per_m", [p.wavenumber for p in fits], "rad/m"),
         ("wavenumber_stderr_rad_per_m", [p.wavenumber_stderr for p in fits], "rad/m"),
         ("incoming_m", _pairs(np.array([p.incoming for p in fits])), "m"),

@@ -139,6 +139,7 @@ class WaveResults:
     dispersion: DispersionFit | None = None
     lockin: LockInMaps | None = None
     centre: tuple[float, float] | None = None
+    centre_stderr: tuple[float, float] = (0.0, 0.0)
     centre_method: str = ""
     grid: PolarGrid | None = None
     mf: MFSpectrum | None = None
@@ -246,22 +247,36 @@ def _auto_centre(maps: WaveMaps, options: WaveOptions, results: WaveResults) -> 
         if not peaks:
             raise InputError("no centre can be found: E(omega) has no peak")
         frequency = peaks[0]
-    lockin = LockIn(maps.shape, frequency, (1,), span=_span(maps))
+    start, stop = _span(maps)
+    middle = 0.5 * (start + stop)
+    lockins = [
+        LockIn(maps.shape, frequency, (1,), span=span)
+        for span in ((start, stop), (start, middle), (middle, stop))
+    ]
     for times, block in maps.blocks(options.block):
-        lockin.push_block(block, times)
+        for lockin in lockins:
+            lockin.push_block(block, times)
     dy, dx = maps.pixel_size
     rows, cols = maps.shape
     radius = options.r_range[1] or 0.35 * min((rows - 1) * dy, (cols - 1) * dx)
-    results.centre = find_centre(
-        lockin.result().amplitude[0],
-        maps.pixel_size,
-        radius=radius,
-        r_min=options.r_range[0],
-        m_max=options.m_max,
+    centres = [
+        find_centre(
+            lockin.result().amplitude[0],
+            maps.pixel_size,
+            radius=radius,
+            r_min=options.r_range[0],
+            m_max=options.m_max,
+        )
+        for lockin in lockins
+    ]
+    results.centre = centres[0]
+    results.centre_stderr = (
+        0.5 * abs(centres[1][0] - centres[2][0]),
+        0.5 * abs(centres[1][1] - centres[2][1]),
     )
     results.centre_method = (
         f"auto: least entropy over m of the lock-in map at {frequency:.4g} Hz, "
-        f"rings to {radius * 1e3:.3g} mm"
+        f"rings to {radius * 1e3:.3g} mm; error: half the difference of the two halves' centres"
     )
 
 
@@ -330,7 +345,9 @@ def _pass_azimuthal(maps: WaveMaps, options: WaveOptions, results: WaveResults) 
             )
             continue
         block = profiles[nearest * COMB_POINTS : (nearest + 1) * COMB_POINTS, :, m + grid.m_max]
-        frequency, profile = refine_tone(combs[nearest], block, maps.clock.times, weights)
+        frequency, frequency_err, profile = refine_tone(
+            combs[nearest], block, maps.clock.times, weights
+        )
         results.tones.append((m, frequency, profile))
         try:
             results.partial_waves.append(
@@ -341,6 +358,7 @@ def _pass_azimuthal(maps: WaveMaps, options: WaveOptions, results: WaveResults) 
                     frequency,
                     results.wavenumber(frequency),
                     k_cut=maps.k_cut,
+                    frequency_stderr=frequency_err,
                 )
             )
         except InputError as exc:
@@ -400,6 +418,7 @@ def summary_values(results: WaveResults) -> dict[str, Any]:
         },
         "dispersion": None if results.dispersion is None else results.dispersion.as_dict(),
         "centre_m": None if results.centre is None else list(results.centre),
+        "centre_stderr_m": None if results.centre is None else list(results.centre_stderr),
         "centre_method": results.centre_method or None,
         "partial_waves": [fit.as_dict() for fit in results.partial_waves],
         "ringdown": None if results.ringdown is None else results.ringdown.as_dict(),

@@ -221,6 +221,7 @@ def test_partial_waves_and_ringdown_through_the_command(
     summary = json.loads((out / "waves.json").read_text())
     found = summary["centre_m"]
     assert np.hypot(found[0] - centre[0], found[1] - centre[1]) < 0.2 * pixel
+    assert all(0 <= e < 0.2 * pixel for e in summary["centre_stderr_m"])
     fits = {p["m"]: p for p in summary["partial_waves"]}
     assert set(fits) == {0, 2}
     for wave in waves:

@@ -41,8 +41,8 @@ class PartialWaveFit:
     Attributes
     ----------
     m : int
-    frequency : float
-        Hz.
+    frequency, frequency_stderr : float
+        Hz (the error as given to :func:`fit_partial_wave`).
     wavenumber, wavenumber_stderr : float
         rad/m (the error is 0 when ``k`` was given, not fitted).
     incoming, outgoing : complex
@@ -61,6 +61,7 @@ class PartialWaveFit:
 
     m: int
     frequency: float
+    frequency_stderr: float
     wavenumber: float
     wavenumber_stderr: float
     incoming: complex
@@ -79,6 +80,7 @@ class PartialWaveFit:
         return {
             "m": self.m,
             "frequency_hz": self.frequency,
+            "frequency_stderr_hz": self.frequency_stderr,
             "wavenumber_rad_per_m": self.wavenumber,
             "wavenumber_stderr_rad_per_m": self.wavenumber_stderr,
             "incoming_amplitude_m": abs(self.incoming),
@@ -115,6 +117,7 @@ def fit_partial_wave(
     *,
     fit_wavenumber: bool = True,
     k_cut: float | None = None,
+    frequency_stderr: float = 0.0,
 ) -> PartialWaveFit:
     """Fit incoming and outgoing Hankel components to a radial profile.
 
@@ -134,6 +137,8 @@ def fit_partial_wave(
         Refine ``k`` by minimising the residual.
     k_cut : float, optional
         The maps' cut-off wavenumber, rad/m (the correlation of neighbouring rings).
+    frequency_stderr : float
+        The frequency's standard error, Hz (recorded).
 
     Raises
     ------
@@ -199,6 +204,7 @@ def fit_partial_wave(
     return PartialWaveFit(
         m=int(m),
         frequency=float(frequency),
+        frequency_stderr=float(frequency_stderr),
         wavenumber=k,
         wavenumber_stderr=k_err,
         incoming=incoming,
@@ -229,7 +235,7 @@ def refine_tone(
     lock_ins: ArrayLike,
     times: ArrayLike,
     weights: ArrayLike,
-) -> tuple[float, NDArray[np.complex128]]:
+) -> tuple[float, float, NDArray[np.complex128]]:
     """Fit one tone's frequency and profile to lock-ins at a comb of frequencies.
 
     Parameters
@@ -245,6 +251,8 @@ def refine_tone(
     -------
     frequency : float
         The tone's frequency, Hz (within the comb).
+    frequency_stderr : float
+        Its standard error, Hz, from the curvature of the residual (inf when flat).
     profile : ndarray of complex, shape (R,)
         Its amplitude on every ring at that frequency (NaN where the ring had none).
     """
@@ -268,6 +276,11 @@ def refine_tone(
         lambda f0: fit(f0)[0], bounds=(low, high), method="bounded", options={"xatol": 1e-9}
     )
     frequency = float(result.x)
+    step = 1e-3 * float(np.median(np.diff(f)))
+    rss = [fit(frequency + d)[0] for d in (-step, 0.0, step)]
+    curvature = (rss[0] - 2.0 * rss[1] + rss[2]) / step**2
+    dof = max(2 * data.size - 2 * data.shape[1] - 1, 1)
+    stderr = math.sqrt(2.0 * rss[1] / dof / curvature) if curvature > 0 else math.inf
     profile = np.full(a.shape[1], np.nan + 0j)
     profile[rings] = fit(frequency)[1]
-    return frequency, profile
+    return frequency, stderr, profile

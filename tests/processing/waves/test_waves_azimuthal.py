@@ -80,8 +80,9 @@ def test_the_mf_spectrum_peaks_at_the_true_modes_and_amplitudes_come_back(field)
     for i, wave in enumerate(WAVES):
         comb = combs[i]
         block = profiles[i * 9 : (i + 1) * 9, :, wave.m + 4]
-        frequency, profile = refine_tone(comb, block, times, weights)
+        frequency, frequency_err, profile = refine_tone(comb, block, times, weights)
         assert frequency == pytest.approx(wave.frequency, abs=1e-3)
+        assert 0 < frequency_err < 1e-3
         k = dispersion_k(
             2 * math.pi * frequency, surface.depth, sigma=surface.sigma, rho=surface.rho
         )
