@@ -17,6 +17,8 @@ physical units (k in rad/m, f in Hz, r in mm, heights in nm), for a talk:
 from __future__ import annotations
 
 import math
+import multiprocessing
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -32,6 +34,9 @@ __all__ = ["FIGURES", "draw_figures"]
 
 #: Resolution of the figures, dots per inch.
 DPI = 110
+
+#: A figure's drawing function.
+Drawer = Callable[[WaveResults, Path], None]
 
 #: Figure file names, in the order they are drawn.
 FIGURES = (
@@ -291,19 +296,42 @@ def lockin_figure(results: WaveResults, path: Path) -> None:
     _save(figure, path)
 
 
-def draw_figures(results: WaveResults, paths: dict[str, Path]) -> list[str]:
-    """Draw the figures the results hold into ``paths[name]``; return the names drawn."""
-    drawn = []
-    plan = [
-        ("omega_k.png", omega_k_figure, True),
-        ("energy.png", energy_figure, True),
-        ("m_f.png", mf_figure, results.mf is not None),
-        ("partial_waves.png", partial_waves_figure, bool(results.partial_waves)),
-        ("ringdown.png", ringdown_figure, results.ringdown is not None),
-        ("lockin.png", lockin_figure, results.lockin is not None),
+def _draw(results: WaveResults, plan: list[tuple[str, Drawer]], paths: dict[str, Path]) -> None:
+    for name, draw in plan:
+        draw(results, paths[name])
+
+
+def draw_figures(results: WaveResults, paths: dict[str, Path], *, processes: int = 1) -> list[str]:
+    """Draw the figures the results hold into ``paths[name]``; return the names drawn.
+
+    With ``processes`` 2 or more (and ``fork``), every other figure is drawn in a forked
+    child at the same time (matplotlib draws on one core); a child that fails has its
+    figures drawn again here, so that its error is raised here.
+    """
+    plan: list[tuple[str, Drawer]] = [
+        (name, draw)
+        for name, draw, wanted in (
+            ("omega_k.png", omega_k_figure, True),
+            ("energy.png", energy_figure, True),
+            ("m_f.png", mf_figure, results.mf is not None),
+            ("partial_waves.png", partial_waves_figure, bool(results.partial_waves)),
+            ("ringdown.png", ringdown_figure, results.ringdown is not None),
+            ("lockin.png", lockin_figure, results.lockin is not None),
+        )
+        if wanted
     ]
-    for name, draw, wanted in plan:
-        if wanted:
-            draw(results, paths[name])
-            drawn.append(name)
-    return drawn
+    if processes < 2 or len(plan) < 2 or "fork" not in multiprocessing.get_all_start_methods():
+        _draw(results, plan, paths)
+        return [name for name, _ in plan]
+    theirs, ours = plan[1::2], plan[::2]
+    child = multiprocessing.get_context("fork").Process(
+        target=_draw, args=(results, theirs, paths), name="holoview-figures"
+    )
+    child.start()
+    try:
+        _draw(results, ours, paths)
+    finally:
+        child.join()
+    if child.exitcode != 0:
+        _draw(results, theirs, paths)
+    return [name for name, _ in plan]

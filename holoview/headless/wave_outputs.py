@@ -314,7 +314,11 @@ def run_waves(
             try:
                 written = time.perf_counter()
                 _write_h5(outputs.path(WAVES_H5), results, maps, options)
-                drawn = draw_figures(results, {name: outputs.path(name) for name in FIGURES})
+                drawn = draw_figures(
+                    results,
+                    {name: outputs.path(name) for name in FIGURES},
+                    processes=options.workers,
+                )
                 results.timing["writing_s"] = time.perf_counter() - written
             except OSError as exc:
                 raise OutputError(f"cannot write into {folder}: {os_error_text(exc)}") from exc

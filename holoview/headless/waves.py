@@ -6,13 +6,13 @@ segment's whatever the number of frames:
 
 1. every frame into the omega-k accumulator (and, with a drive frequency, the lock-in
    maps); then E(k), E(omega) and the fit of sigma, d and U to the ridge;
-2. with a centre (given, or ``auto``: found on the lock-in map at the drive frequency
-   or at the strongest peak of E(omega), one more pass): every frame into the azimuthal
-   accumulator, which gives the (m, f) spectrum, lock-ins of every ``m`` at a comb of
-   frequencies around each candidate tone (the strongest peaks of E(omega), the drive's
-   harmonics, or the modes asked for) and the series of the ringdown's ``m``; then per
-   chosen (m, f) the tone's frequency and radial profile (:func:`refine_tone`) and its
-   Hankel fit, and the ringdown fit.
+2. with a centre (given, or ``auto``: found on the lock-in map at the drive frequency,
+   made in pass 1, or else at the strongest peak of E(omega), one more pass): every
+   frame into the azimuthal accumulator, which gives the (m, f) spectrum, lock-ins of
+   every ``m`` at a comb of frequencies around each candidate tone (the strongest peaks
+   of E(omega), the drive's harmonics, or the modes asked for) and the series of the
+   ringdown's ``m``; then per chosen (m, f) the tone's frequency and radial profile
+   (:func:`refine_tone`) and its Hankel fit, and the ringdown fit.
 
 Times are from the first frame analysed (phases of complex amplitudes refer to it).
 Every fit that fails raises :class:`~holoview.errors.InputError` with the reason.
@@ -138,6 +138,7 @@ class WaveResults:
     spectrum: OmegaKSpectrum
     dispersion: DispersionFit | None = None
     lockin: LockInMaps | None = None
+    centre_lockins: list[LockInMaps] = field(default_factory=list)
     centre: tuple[float, float] | None = None
     centre_stderr: tuple[float, float] = (0.0, 0.0)
     centre_method: str = ""
@@ -205,25 +206,32 @@ def _pass_spectrum(maps: WaveMaps, options: WaveOptions, results: WaveResults) -
         k_cut=maps.k_cut,
         workers=options.workers,
     )
-    lockin = None
+    lockins: list[LockIn] = []
     if options.drive is not None:
-        lockin = LockIn(
-            maps.shape,
-            options.drive,
-            tuple(range(1, options.harmonics + 1)),
-            span=_span(maps),
+        lockins.append(
+            LockIn(
+                maps.shape,
+                options.drive,
+                tuple(range(1, options.harmonics + 1)),
+                span=_span(maps),
+            )
         )
+        if options.centre == "auto":  # the centre is found at the drive: its halves too
+            lockins.extend(
+                LockIn(maps.shape, options.drive, (1,), span=span) for span in _halves(maps)
+            )
     finite = 0
     for times, block in maps.blocks(options.block):
         finite += int(np.count_nonzero(np.isfinite(block)))
         omega_k.extend(block, times)
-        if lockin is not None:
+        for lockin in lockins:
             lockin.push_block(block, times)
     if finite == 0:
         raise InputError(f"{maps.path}: maps/{maps.label} are all NaN (no trusted pixel)")
     results.spectrum = omega_k.spectrum()
-    if lockin is not None:
-        results.lockin = lockin.result()
+    if lockins:
+        results.lockin = lockins[0].result()
+        results.centre_lockins = [lockin.result() for lockin in lockins[1:]]
     results.timing["spectrum_s"] = time.perf_counter() - started
     if options.fit:
         started = time.perf_counter()
@@ -239,36 +247,47 @@ def _pass_spectrum(maps: WaveMaps, options: WaveOptions, results: WaveResults) -
         results.timing["fit_s"] = time.perf_counter() - started
 
 
+def _halves(maps: WaveMaps) -> tuple[tuple[float, float], tuple[float, float]]:
+    start, stop = _span(maps)
+    middle = 0.5 * (start + stop)
+    return (start, middle), (middle, stop)
+
+
 def _auto_centre(maps: WaveMaps, options: WaveOptions, results: WaveResults) -> None:
-    omega, energy = results.spectrum.energy_omega()
+    """The centre on the lock-in map at the drive (from pass 1) or at E(omega)'s peak."""
     frequency = options.drive
-    if frequency is None:
+    if frequency is not None and results.lockin is not None:
+        amplitudes = [results.lockin.amplitude[0]] + [
+            lockin.amplitude[0] for lockin in results.centre_lockins
+        ]
+    else:
+        omega, energy = results.spectrum.energy_omega()
         peaks = _peaks_of(omega, energy, 1, 2)
         if not peaks:
             raise InputError("no centre can be found: E(omega) has no peak")
         frequency = peaks[0]
-    start, stop = _span(maps)
-    middle = 0.5 * (start + stop)
-    lockins = [
-        LockIn(maps.shape, frequency, (1,), span=span)
-        for span in ((start, stop), (start, middle), (middle, stop))
-    ]
-    for times, block in maps.blocks(options.block):
-        for lockin in lockins:
-            lockin.push_block(block, times)
+        lockins = [
+            LockIn(maps.shape, frequency, (1,), span=span) for span in (_span(maps), *_halves(maps))
+        ]
+        for times, block in maps.blocks(options.block):
+            for lockin in lockins:
+                lockin.push_block(block, times)
+        amplitudes = [lockin.result().amplitude[0] for lockin in lockins]
     dy, dx = maps.pixel_size
     rows, cols = maps.shape
     radius = options.r_range[1] or 0.35 * min((rows - 1) * dy, (cols - 1) * dx)
-    centres = [
-        find_centre(
-            lockin.result().amplitude[0],
-            maps.pixel_size,
-            radius=radius,
-            r_min=options.r_range[0],
-            m_max=options.m_max,
+    centres: list[tuple[float, float]] = []
+    for amplitude in amplitudes:  # the whole record first, then its halves from there
+        centres.append(
+            find_centre(
+                amplitude,
+                maps.pixel_size,
+                radius=radius,
+                r_min=options.r_range[0],
+                m_max=options.m_max,
+                start=centres[0] if centres else None,
+            )
         )
-        for lockin in lockins
-    ]
     results.centre = centres[0]
     results.centre_stderr = (
         0.5 * abs(centres[1][0] - centres[2][0]),

@@ -57,6 +57,10 @@ __all__ = [
 ]
 
 
+#: Frames whose ring samples are made at once (a few MB: reused, not mapped afresh).
+MODES_CHUNK = 16
+
+
 def _keys(t: np.ndarray) -> np.ndarray:
     """Keys' cubic convolution weights (a = -0.5) of the samples at -1, 0, 1, 2 from ``t``."""
     t = t[:, np.newaxis]
@@ -112,8 +116,12 @@ class PolarGrid:
         single = block.ndim == 2
         block = block.reshape(-1, self.shape[0] * self.shape[1])
         n = block.shape[0]
-        samples = np.asarray(self.matrix @ block.T).reshape(self.radii.size, self.n_theta, n)
-        parts = np.matmul(self.dft.T, samples)  # (R, 2 (m_max + 1), N): real, imaginary
+        parts = np.empty((self.radii.size, self.dft.shape[1], n), np.float32)
+        for a in range(0, n, MODES_CHUNK):  # the samples of a few frames at a time
+            b = min(a + MODES_CHUNK, n)
+            samples = np.asarray(self.matrix @ block[a:b].T)
+            samples = samples.reshape(self.radii.size, self.n_theta, b - a)
+            parts[:, :, a:b] = np.matmul(self.dft.T, samples)  # (R, 2 (m_max + 1), n)
         half = self.m_max + 1
         positive = (parts[:, :half] + 1j * parts[:, half:]).transpose(2, 0, 1)  # (N, R, M+)
         out = np.concatenate([positive[:, :, :0:-1].conj(), positive], axis=2)
@@ -432,6 +440,7 @@ def find_centre(
     radius: float,
     r_min: float | None = None,
     m_max: int = 8,
+    start: tuple[float, float] | None = None,
 ) -> tuple[float, float]:
     """Return the centre ``(x0, y0)`` (m) of a field of partial waves (module docstring).
 
@@ -447,6 +456,8 @@ def find_centre(
         Inner radius, m (default two pixels).
     m_max : int
         Largest ``|m|`` scored.
+    start : (float, float), optional
+        Where the search starts, m (default: the power-weighted centroid).
 
     Raises
     ------
@@ -465,7 +476,11 @@ def find_centre(
     total = float(weight.sum())
     if total <= 0:
         raise InputError("no centre can be found: the amplitude map is zero")
-    start = np.array([np.sum(weight * xx) * dx / total, np.sum(weight * yy) * dy / total])
+    first = (
+        np.array([np.sum(weight * xx) * dx / total, np.sum(weight * yy) * dy / total])
+        if start is None
+        else np.asarray(start, dtype=np.float64)
+    )
     margin = radius + 2.0 * min(dx, dy)
     low = np.array([margin, margin])
     high = np.array([(cols - 1) * dx - margin, (rows - 1) * dy - margin])
@@ -474,7 +489,7 @@ def find_centre(
             f"rings of {radius * 1e3:.3g} mm do not fit in maps of "
             f"{(cols - 1) * dx * 1e3:.3g} x {(rows - 1) * dy * 1e3:.3g} mm"
         )
-    start = np.clip(start, low, high)
+    first = np.clip(first, low, high)
     parts = np.stack([np.where(finite, field.real, np.nan), np.where(finite, field.imag, np.nan)])
     ring_step = 2.0 * min(dx, dy)  # m
     inner = 2.0 * ring_step if r_min is None else float(r_min)
@@ -488,10 +503,10 @@ def find_centre(
         return _entropy(parts, point / scale, radii_px, n_theta, m_max)
 
     step = 2.0 * min(dx, dy)
-    simplex = np.array([start, start + np.array([step, 0.0]), start + np.array([0.0, step])])
+    simplex = np.array([first, first + np.array([step, 0.0]), first + np.array([0.0, step])])
     result = minimize(
         score,
-        start,
+        first,
         method="Nelder-Mead",
         options={"initial_simplex": simplex, "xatol": 0.02 * min(dx, dy), "fatol": 1e-9},
     )

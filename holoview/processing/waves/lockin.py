@@ -151,6 +151,8 @@ class LockIn:
         counts = np.column_stack([basis, w**2, np.ones_like(w)])  # (N, 3 + 2H)
         if all_finite:
             present = np.broadcast_to(counts.sum(axis=0)[:, None], (counts.shape[1], rows * cols))
+        elif np.array_equal(finite.min(axis=0), finite.max(axis=0)):  # one mask for the block
+            present = np.outer(counts.sum(axis=0), finite[0])
         else:
             present = counts.astype(np.float32).T @ finite.astype(np.float32)
         present = np.asarray(present, dtype=np.float64).reshape(-1, rows, cols)

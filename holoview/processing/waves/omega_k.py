@@ -309,6 +309,7 @@ class OmegaKAccumulator:
         self.min_valid = float(min_valid)
         self.workers = workers or 1
         self._ring = np.empty((self.segment, rows, cols), np.float32)
+        self._work = np.empty_like(self._ring)
         self._next = 0  # ring slot of the next frame
         self._run = 0  # frames pushed since the last gap
         self._last_time: float | None = None
@@ -359,13 +360,20 @@ class OmegaKAccumulator:
             self.push(frame, float(t))
 
     def _ordered(self) -> NDArray[np.float32]:
-        """The last ``segment`` frames in time order (a copy)."""
-        return np.concatenate([self._ring[self._next :], self._ring[: self._next]])
+        """The last ``segment`` frames in time order, copied into the work buffer.
+
+        One buffer kept for every segment: a fresh array this size each time would be
+        mapped from the system and faulted in page by page.
+        """
+        head = self.segment - self._next
+        self._work[:head] = self._ring[self._next :]
+        self._work[head:] = self._ring[: self._next]
+        return self._work
 
     def _segment_power(self, block: NDArray[np.float32], into: np.ndarray) -> float | None:
         """Add one segment's two-sided density at f >= 0 (numpy's sign, unshifted) to ``into``.
 
-        ``block`` is a fresh array (it is worked on in place, a frame at a time so that
+        ``block`` is a work buffer (it is worked on in place, a frame at a time so that
         each step stays in the cache); the one-sided factor 2 is applied to the average
         (:meth:`_result`). Returns the share of pixels kept, or None (nothing added) when
         it is under ``min_valid``.
