@@ -502,13 +502,13 @@ def find_centre(
             return math.inf
         return _entropy(parts, point / scale, radii_px, n_theta, m_max)
 
-    step = 2.0 * min(dx, dy)
+    step = (2.0 if start is None else 0.5) * min(dx, dy)  # a given start is close already
     simplex = np.array([first, first + np.array([step, 0.0]), first + np.array([0.0, step])])
     result = minimize(
         score,
         first,
         method="Nelder-Mead",
-        options={"initial_simplex": simplex, "xatol": 0.02 * min(dx, dy), "fatol": 1e-9},
+        options={"initial_simplex": simplex, "xatol": 0.05 * min(dx, dy), "fatol": 1e-7},
     )
     if not np.isfinite(result.fun):
         raise InputError("no centre can be found: the rings meet untrusted pixels everywhere")
