@@ -13,16 +13,17 @@ coordinates attached as HDF5 dimension scales (xarray reads each group with
 - ``/energy``: ``E_k`` (m^2 per rad/m) on ``k`` (rad/m), ``E_omega`` (m^2 s/rad) on
   ``omega`` (rad/s).
 - ``/dispersion`` (with a fit): attributes of :meth:`DispersionFit.as_dict`; the ridge
-  ``ridge_kx``, ``ridge_ky`` (rad/m), ``ridge_omega`` (rad/s).
+  ``ridge_kx``, ``ridge_ky`` (rad/m), ``ridge_omega`` (rad/s) on ``cell``.
 - ``/azimuthal`` (with a centre): ``power`` (m, f) m^2/Hz on ``m`` and ``frequency``;
   ``radius`` (m); attributes ``centre_m``, ``centre_method``; ``tone_frequency`` (Hz),
   ``tone_m`` and ``profile_real``, ``profile_imag`` (tone, radius; m): the measured
   ``A_m(r)``.
-- ``/partial_waves``: one row per fit: ``m``, ``frequency_hz``, ``wavenumber_rad_per_m``
-  (and stderr), ``incoming_m`` and ``outgoing_m`` (n, 2: real, imaginary), their
-  stderr, ``incoming_over_outgoing`` and its stderr.
-- ``/ringdown``: attributes of :meth:`Ringdown.as_dict`; ``time`` (s), ``series`` and
-  ``model`` (n, 2: real, imaginary; m).
+- ``/partial_waves``: one row per fit: ``m``, ``frequency_hz`` (and stderr),
+  ``wavenumber_rad_per_m`` (and stderr), ``incoming_real_m``, ``incoming_imag_m``,
+  ``outgoing_real_m``, ``outgoing_imag_m``, their stderr, ``incoming_over_outgoing``
+  and its stderr.
+- ``/ringdown``: attributes of :meth:`Ringdown.as_dict`; ``time`` (s), ``series_real``,
+  ``series_imag``, ``model_real``, ``model_imag`` (the combined rings, arbitrary scale).
 - ``/lockin``: ``amplitude``, ``amplitude_stderr`` (harmonic, y, x; m), ``phase``,
   ``phase_stderr`` (rad) on ``harmonic``, ``y``, ``x`` (m); attribute ``frequency_hz``.
 - ``/filtered`` (with a band): ``height`` (time, y, x) float32 m on ``time`` (s), ``y``,
@@ -88,11 +89,6 @@ def _data(
     return dataset
 
 
-def _pairs(values: np.ndarray) -> np.ndarray:
-    array = np.asarray(values, dtype=np.complex128)
-    return np.stack([array.real, array.imag], axis=-1)
-
-
 def _attrs(target: h5py.Group, values: dict[str, Any]) -> None:
     for key, value in values.items():
         if value is None:
@@ -149,9 +145,10 @@ def _write_h5(path: Path, results: WaveResults, maps: WaveMaps, options: WaveOpt
             group = f.create_group("dispersion")
             _attrs(group, {k: v for k, v in fit.as_dict().items() if k != "correlation"})
             group.attrs["correlation"] = fit.correlation
-            _data(group, "ridge_kx", fit.ridge.kx, "rad/m")
-            _data(group, "ridge_ky", fit.ridge.ky, "rad/m")
-            _data(group, "ridge_omega", fit.ridge.omega, "rad/s")
+            cell = _scale(group, "cell", np.arange(fit.ridge.omega.size), "1")
+            _data(group, "ridge_kx", fit.ridge.kx, "rad/m", (cell,))
+            _data(group, "ridge_ky", fit.ridge.ky, "rad/m", (cell,))
+            _data(group, "ridge_omega", fit.ridge.omega, "rad/s", (cell,))
         if results.mf is not None and results.grid is not None:
             _write_azimuthal(f.create_group("azimuthal"), results)
         if results.partial_waves:
@@ -161,8 +158,9 @@ def _write_h5(path: Path, results: WaveResults, maps: WaveMaps, options: WaveOpt
             group = f.create_group("ringdown")
             _attrs(group, fit_r.as_dict())
             time_scale = _scale(group, "time", fit_r.times, "s")
-            _data(group, "series", _pairs(fit_r.series), "m", (time_scale,))
-            _data(group, "model", _pairs(fit_r.model), "m", (time_scale,))
+            for name, values in (("series", fit_r.series), ("model", fit_r.model)):
+                _data(group, f"{name}_real", values.real, "1", (time_scale,))
+                _data(group, f"{name}_imag", values.imag, "1", (time_scale,))
         if results.lockin is not None:
             _write_lockin(f.create_group("lockin"), results, maps)
         if options.band is not None:
@@ -202,9 +200,11 @@ def _write_partial_waves(group: h5py.Group, results: WaveResults) -> None:
         ("frequency_stderr_hz", [p.frequency_stderr for p in fits], "Hz"),
         ("wavenumber_rad_per_m", [p.wavenumber for p in fits], "rad/m"),
         ("wavenumber_stderr_rad_per_m", [p.wavenumber_stderr for p in fits], "rad/m"),
-        ("incoming_m", _pairs(np.array([p.incoming for p in fits])), "m"),
+        ("incoming_real_m", [p.incoming.real for p in fits], "m"),
+        ("incoming_imag_m", [p.incoming.imag for p in fits], "m"),
         ("incoming_stderr_m", [p.incoming_stderr for p in fits], "m"),
-        ("outgoing_m", _pairs(np.array([p.outgoing for p in fits])), "m"),
+        ("outgoing_real_m", [p.outgoing.real for p in fits], "m"),
+        ("outgoing_imag_m", [p.outgoing.imag for p in fits], "m"),
         ("outgoing_stderr_m", [p.outgoing_stderr for p in fits], "m"),
         ("incoming_over_outgoing", [p.ratio for p in fits], "1"),
         ("incoming_over_outgoing_stderr", [p.ratio_stderr for p in fits], "1"),
@@ -213,7 +213,7 @@ def _write_partial_waves(group: h5py.Group, results: WaveResults) -> None:
         _data(group, name, np.asarray(values), unit, (rows,))
     group.attrs["convention"] = (
         "A_m(r) = outgoing H_m^(1)(k r) + incoming H_m^(2)(k r), "
-        "h = Re(A_m(r) exp(i (m theta - omega t))); complex values as (real, imaginary)"
+        "h = Re(A_m(r) exp(i (m theta - omega t)))"
     )
 
 

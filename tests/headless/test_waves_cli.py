@@ -10,6 +10,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
+import xarray
 from headless_sim import run_cli
 
 from holoview.optics.wave_fields import DampedMode, PartialWave, PartialWaves
@@ -118,6 +119,9 @@ def test_waves_writes_spectra_fits_and_figures_close_to_the_truth(
             fit["surface_tension_n_per_m"]
         )
     assert not list(out.glob(".*partial*"))
+    for group in ("omega_k", "energy", "dispersion"):  # netCDF-readable: coordinates attached
+        with xarray.open_dataset(out / "waves.h5", group=group, engine="h5netcdf") as ds:
+            assert all(not name.startswith("phony") for name in ds.sizes)
 
 
 @pytest.mark.slow
@@ -238,7 +242,7 @@ def test_partial_waves_and_ringdown_through_the_command(
         assert (out / name).is_file(), name
     with h5py.File(out / "waves.h5", "r") as f:
         assert f["lockin/amplitude"].shape == (3, size, size)
-        assert f["partial_waves/incoming_m"].attrs["unit"] == "m"
+        assert f["partial_waves/incoming_real_m"].attrs["unit"] == "m"
 
 
 @pytest.mark.parametrize(
