@@ -17,7 +17,7 @@ import logging
 import os
 import queue
 import threading
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from typing import NamedTuple
 
 import numpy as np
@@ -78,10 +78,21 @@ class Recorder:
         An open writer whose frame shape and dtype are the ring's.
     max_frames : int, optional
         Stop after writing this many frames (None: until stopped or the ring closes).
+    carried : callable, optional
+        ``carried(index)``: the experiment (JSON text, or None) a replayed file carries
+        for its frame ``index`` (:meth:`Source.carried_experiment`). Each frame's is
+        looked up by the frame's index in the file, and stored from that frame of the
+        recording whenever it differs from the one stored last: a copy keeps the
+        experiment and its changes, at frame numbers of the copy.
     """
 
     def __init__(
-        self, ring: FrameRing, writer: RecordingWriter, *, max_frames: int | None = None
+        self,
+        ring: FrameRing,
+        writer: RecordingWriter,
+        *,
+        max_frames: int | None = None,
+        carried: Callable[[int], str | None] | None = None,
     ) -> None:
         if max_frames is not None and max_frames < 1:
             writer.close()
@@ -102,6 +113,8 @@ class Recorder:
         self._stop = threading.Event()
         self._stop_at = 0  # with drain, the ring position to record up to before stopping
         self._experiments: queue.SimpleQueue[str] = queue.SimpleQueue()
+        self._carried = carried
+        self._carried_last: str | None = None
         self._thread = threading.Thread(target=self._run, name="holoview-recorder", daemon=True)
 
     @classmethod
@@ -121,7 +134,9 @@ class Recorder:
         its unit (a value HDF5 cannot hold as an attribute is left out, with a
         warning), the source's pixel format, the setup: the source's own
         (:attr:`Source.setup`) updated with ``setup``, and the ``experiment`` in force
-        (JSON text). ``max_frames`` as for :class:`Recorder`.
+        (JSON text). Without ``experiment``, the experiments a replayed source carries
+        are copied, with their changes (``carried`` of :class:`Recorder`); an
+        ``experiment`` replaces them. ``max_frames`` as for :class:`Recorder`.
         """
         infos = source.describe_settings()
         settings = {}
@@ -142,7 +157,9 @@ class Recorder:
             significant_bits=_significant_bits(pixel_format),
             experiment=experiment,
         )
-        return cls(ring, writer, max_frames=max_frames)
+        if experiment is not None:
+            return cls(ring, writer, max_frames=max_frames)
+        return cls(ring, writer, max_frames=max_frames, carried=source.carried_experiment)
 
     @property
     def written(self) -> int:
@@ -212,6 +229,11 @@ class Recorder:
                 pixels, meta = item
                 while not self._experiments.empty():
                     writer.note_experiment(self._experiments.get())
+                if self._carried is not None and meta.index >= 0:
+                    text = self._carried(meta.index)
+                    if text is not None and text != self._carried_last:
+                        writer.note_experiment(text)
+                        self._carried_last = text
                 writer.append(pixels, meta.frame_id, meta.t_device, meta.t_host)
                 if self.max_frames is not None and len(writer) >= self.max_frames:
                     break
