@@ -308,7 +308,7 @@ def _attempt(row: BatchRow, runner: ChunkRunner | None, **kwargs: Any) -> bool:
     except HoloviewError as exc:
         row.status, row.message = "failed", str(exc)
         row.output_failed = isinstance(exc, OutputError)
-        logger.error("%s: %s", row.input, exc)
+        logger.warning("%s: %s", row.input, exc)  # the command prints it again at the end
         return False
     except KeyboardInterrupt:
         row.status, row.message = "interrupted", "stopped before its results were written"
