@@ -152,6 +152,13 @@ class FolderLock:
                     f"{self.what} {self.folder} is in use by another holoview run ({holder}); "
                     "wait for it to end, or choose another folder"
                 ) from None
+            except OSError as exc:  # a file system without locks (some network drives)
+                logger.warning(
+                    "%s: cannot lock the folder (%s); another run could write there at the "
+                    "same time (the final renames still replace nothing unasked)",
+                    self.folder,
+                    os_error_text(exc),
+                )
             # a run that ended meanwhile removed the file this one locked: lock the new one
             try:
                 current = os.stat(self.path, follow_symlinks=False)
