@@ -265,8 +265,8 @@ class Recorder:
                     break
                 while not self._experiments.empty():
                     writer.note_experiment(self._experiments.get())
-                if self._carried is not None and meta.index >= 0:
-                    text = self._carried(meta.index)
+                if self._carried is not None and meta.file_index >= 0:
+                    text = self._carried(meta.file_index)
                     if text is not None and text != self._carried_last:
                         writer.note_experiment(text)
                         self._carried_last = text
