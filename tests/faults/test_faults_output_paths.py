@@ -114,7 +114,7 @@ def test_batch_outputs_stay_inside_out(sim_recording: Path, tmp_path: Path, caps
 
 
 def test_index_cells_are_never_spreadsheet_formulas(
-    sim_recording: Path, tmp_path: Path, capsys
+    sim_recording: Path, tmp_path: Path, capsys, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     runs = tmp_path / "runs"
     runs.mkdir()
@@ -122,15 +122,17 @@ def test_index_cells_are_never_spreadsheet_formulas(
     for name in names:
         shutil.copy(sim_recording, runs / name)
     out = tmp_path / "out"
-    done = run_main(["-q", "process", str(runs), "--out", str(out), "--frames", ":10"], capsys)
+    monkeypatch.chdir(runs)  # a glob of relative names: the input cells are the bare names
+    done = run_main(["-q", "process", "*.h5", "--out", str(out), "--frames", ":10"], capsys)
     assert done.status == 0, done.err
     rows = read_index(out)
-    assert sorted(Path(r["input"]).name for r in rows) == sorted(names)  # the path, whole
+    assert sorted(r["input"] for r in rows) == sorted(f"'{name}" for name in names)
     for row in rows:
-        for column in ("input", "out", "status", "message", "results_utc"):
+        for column in ("input", "out", "status", "message"):
             assert not row[column].startswith(("=", "+", "-", "@", "\t", "\r")), row
         assert float(row["fused_rate_m_per_s"]) < 0  # numbers as they are
-    assert text_cell("-4.h5") == "'-4.h5"
+    assert text_cell("-4.h5") == "'-4.h5" and text_cell("\tx") == "'\tx"
+    assert text_cell("run.h5") == "run.h5"
 
 
 def test_a_full_disk_during_a_batch_exits_3(
@@ -175,14 +177,15 @@ def test_an_interrupted_batch_rerun_leaves_an_index_that_describes_the_folders(
     assert outcome.interrupted
     rows = {Path(r["input"]).name: r for r in read_index(out)}
     assert [rows[n]["status"] for n in ("a.h5", "b.h5", "c.h5")] == ["ok", "interrupted", "not run"]
-    for name in ("a", "b", "c"):
-        summary = json.loads((out / name / "summary.json").read_text())
+    summaries = {n: json.loads((out / n / "summary.json").read_text()) for n in "abc"}
+    for name, summary in summaries.items():
         row = rows[f"{name}.h5"]
-        assert int(row["frames"]) == summary["frames"]["processed"]
-        assert row["results_utc"] == summary["created_utc"]
+        assert int(row["frames"]) == summary["frames"]["processed"], name
         assert float(row["fused_rate_m_per_s"]) == pytest.approx(
             summary["fused"]["rate_m_per_s"], rel=1e-9
         )
+    for name, summary in summaries.items():
+        assert rows[f"{name}.h5"]["results_utc"] == summary["created_utc"]
     assert rows["a.h5"]["frames"] == "40"  # this batch's
     assert rows["b.h5"]["frames"] == rows["c.h5"]["frames"] == "20"  # the earlier batch's
     assert "kept" in rows["b.h5"]["message"]
