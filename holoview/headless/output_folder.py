@@ -136,9 +136,13 @@ class FolderLock:
             Another process holds it (the message names its pid), or the lock file
             cannot be created.
         """
-        while True:
+        for _ in range(5):  # a lock file or a new folder removed meanwhile: try again
             try:
                 fd = os.open(self.path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o644)
+            except FileNotFoundError:  # a run refused here removed the folder it found new
+                with contextlib.suppress(OSError):
+                    self.folder.mkdir(parents=True, exist_ok=True)
+                continue
             except OSError as exc:
                 raise InputError(
                     f"{self.what} {self.folder}: cannot write there ({os_error_text(exc)})"
@@ -170,6 +174,8 @@ class FolderLock:
                 os.close(fd)
                 continue
             break
+        else:
+            raise InputError(f"{self.what} {self.folder}: its lock file keeps disappearing")
         self._fd = fd
         try:
             os.ftruncate(fd, 0)
