@@ -103,7 +103,7 @@ def atomic_path(target: str | os.PathLike[str]) -> Iterator[Path]:
     Examples
     --------
     >>> with atomic_path(folder / "figure.png") as path:  # doctest: +SKIP
-    ...     cv2.imwrite(str(path), image)
+    ...     figure.savefig(path)
     """
     final = Path(target)
     temporary = temporary_path(final)
