@@ -1,6 +1,6 @@
 """``holoview process``: headless processing of a recording into results files and a figure.
 
-The offline replay and test mode of DESIGN.md: the same processing as the GUI, no
+The offline replay and test mode of docs/design.md: the same processing as the GUI, no
 display (:mod:`holoview.headless`). Output files and their layout are documented in
 :mod:`holoview.headless.outputs` and the README. ``--jobs`` and ``--scheduler`` spread
 the frames over processes or a Dask cluster (:mod:`holoview.headless.parallel`); a

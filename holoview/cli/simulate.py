@@ -94,7 +94,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
 
     parser = subparsers.add_parser(
         "simulate",
-        help="write a simulated recording with its truth (and a PNG figure)",
+        help="write a simulated recording with its truth (and a figure)",
         description="Simulate a multiplexed off-axis hologram sequence of a fluid surface "
         "(paper's forward model) into a new holoview recording, with a /truth group.",
     )
@@ -115,7 +115,12 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
     parser.add_argument(
         "--noise", choices=NOISE_MODELS, default="poisson", help="shot noise (default poisson)"
     )
-    parser.add_argument("--png", type=Path, metavar="PATH", help="save a frame and its spectrum")
+    parser.add_argument(
+        "--png",
+        type=Path,
+        metavar="PATH",
+        help="save a frame and its spectrum as a figure (.png, .pdf or .svg)",
+    )
     parser.add_argument("--png-frame", type=int, default=0, metavar="I", help="frame for --png")
     setup = parser.add_argument_group("setup (defaults: holoview.optics.setup.Setup)")
     setup.add_argument("--fluid", choices=sorted(FLUIDS), help="sets n2 from a preset")

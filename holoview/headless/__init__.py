@@ -1,4 +1,4 @@
-"""Headless processing of a recording: the offline replay and test mode of DESIGN.md.
+"""Headless processing of a recording: the offline replay and test mode of docs/design.md.
 
 The same processing as the GUI (:mod:`holoview.processing`), with no display, in a
 plain loop over the frames of a file, usable from scripts and on a server.
