@@ -40,8 +40,8 @@ from holoview.headless.analysis import Analysis
 from holoview.headless.figures import new_figure, save_figure
 from holoview.headless.inputs import Optics
 from holoview.headless.pipeline import ProcessSettings, RunData, fuse_frame
-from holoview.processing.peaks import Peak
-from holoview.processing.trends import format_rate
+from holoview.processing.peaks.detection import Peak
+from holoview.processing.series.rate_fits import format_rate
 
 #: Figure width, inches (1366 pixels in a PNG).
 WIDTH_IN = 13.66
@@ -354,7 +354,7 @@ def write_report(
         The file to write, ``.png``, ``.pdf`` or ``.svg``.
     spectrum : ndarray, shape (rows, cols)
         Centred log-magnitude spectrum of the first frame
-        (:func:`holoview.processing.spectrum.display_spectrum`).
+        (:func:`holoview.processing.fourier.spectrum.display_spectrum`).
     detected : sequence of Peak
         The peaks detected in the first frame.
     data, analysis : RunData, Analysis

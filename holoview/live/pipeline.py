@@ -33,13 +33,13 @@ from holoview.engine.frame_core import (
 from holoview.engine.resolve import Resolution, resolve_peaks
 from holoview.errors import InputError
 from holoview.live.continuity import Continuity
-from holoview.processing.demodulate import Demodulator
-from holoview.processing.peaks import Peak, find_peaks
-from holoview.processing.spectrum import display_spectrum
+from holoview.processing.fourier.spectrum import display_spectrum
+from holoview.processing.maps.demodulate import Demodulator
+from holoview.processing.peaks.detection import Peak, find_peaks
 
 logger = logging.getLogger(__name__)
 
-__all__ = ["FFT_THREADS", "LivePipeline", "LiveResult", "block_max"]
+__all__ = ["LivePipeline", "LiveResult", "block_max"]
 
 #: Highest rate of the display spectrum, Hz.
 SPECTRUM_HZ = 10.0

@@ -36,7 +36,7 @@ from holoview.live.worker import DemodWorker, SeriesWorker
 
 logger = logging.getLogger(__name__)
 
-__all__ = ["LiveResult", "LiveSession", "RecordRequest", "RecordingProgress", "discover_sources"]
+__all__ = ["LiveSession", "RecordRequest", "RecordingProgress", "discover_sources"]
 
 #: Memory the frame ring may take, bytes (it holds at least 8 frames).
 RING_BYTES = 256 * 2**20

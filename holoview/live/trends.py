@@ -31,7 +31,7 @@ from holoview.engine.frame_core import CarrierCore
 from holoview.engine.series import LIVE_LENGTH, PhaseSeries, coupling_of, frame_time
 from holoview.errors import HoloviewError, InputError
 from holoview.live.continuity import Continuity
-from holoview.processing.peaks import Peak
+from holoview.processing.peaks.detection import Peak
 
 logger = logging.getLogger(__name__)
 

@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 from headless_sim import Simulated, run_cli
 
-from holoview.processing.trends import format_rate
+from holoview.processing.series.rate_fits import format_rate
 
 SVG = "{http://www.w3.org/2000/svg}"
 
