@@ -12,9 +12,10 @@ pixels wide as a PNG, in three parts:
    (um past 5 um), with the fitted line of the fused depth; the legend gives each
    peak's alpha and rate (um/min, with its standard error) and why a peak was left
    out of the fusion;
-3. the delta-h map of every peak and the fused map of the last frame, in nm on one
-   colour scale (set by the fused map), axes in mm on the object side (camera pixels
-   without a pixel pitch), grey where not trusted, titled with the reference mode.
+3. the delta-h map of every peak and the fused map of the last frame, in nm (each
+   with its colour bar, from its 1st to 99th percentile), axes in mm on the object side
+   (camera pixels without a pixel pitch), grey where not trusted, titled with the
+   reference mode.
 
 Under them, in red, the run's notes (``summary.json``'s ``notes``): the caveats a
 reader must not miss, such as an automatic identification whose global sign is
@@ -51,7 +52,7 @@ HEADER_IN = 0.95
 PANEL_IN = 4.1
 #: Side of one map, inches, and the maps in a row.
 MAP_IN = 2.05
-MAPS_PER_ROW = 5
+MAPS_PER_ROW = 4
 #: Height of one line of notes, inches.
 NOTE_IN = 0.24
 #: Characters in a line of notes before it wraps.
@@ -302,37 +303,31 @@ def _map_panels(
     extent = (0.0, cols * scale, rows * scale, 0.0)
     side = max(rows, cols)
     width, height = MAP_IN * cols / side, MAP_IN * rows / side
-    nm = [p.values for p in panels if p.unit == "nm"]
-    fused = [p.values for p in panels if p.unit == "nm" and p.title.startswith("fused")]
-    norm = Normalize(*_limits(fused or nm))
-    step = (WIDTH_IN - 1.9) / MAPS_PER_ROW
-    image = None
+    step = (WIDTH_IN - 0.75) / MAPS_PER_ROW
     for k, panel in enumerate(panels):
         left = 0.75 + (k % MAPS_PER_ROW) * step
         y = top + (k // MAPS_PER_ROW) * (MAP_IN + 0.75)
         axes = layout.axes(left, y, width, height)
-        cmap = colormaps["viridis" if panel.unit == "nm" else "twilight"].with_extremes(bad="0.6")
+        if panel.unit == "nm":
+            cmap, norm, label = "viridis", Normalize(*_limits([panel.values])), "\u0394h (nm)"
+        else:
+            cmap, norm, label = "twilight", Normalize(-np.pi, np.pi), "phase (rad)"
         shown = axes.imshow(
             np.ma.masked_invalid(panel.values),
-            cmap=cmap,
-            norm=norm if panel.unit == "nm" else Normalize(-np.pi, np.pi),
+            cmap=colormaps[cmap].with_extremes(bad="0.6"),
+            norm=norm,
             extent=extent,
             interpolation="nearest",
         )
-        if panel.unit == "nm":
-            image = shown
-        else:
-            layout.figure.colorbar(shown, ax=axes, fraction=0.05, pad=0.03, label="rad")
+        bar = layout.axes(left + width + 0.08, y, 0.1, height)
+        layout.figure.colorbar(shown, cax=bar, extend="both" if panel.unit == "nm" else "neither")
+        bar.tick_params(labelsize=8)
+        bar.set_ylabel(label, fontsize=9)
         axes.set_title(panel.title, fontsize=10)
         axes.set_xlabel(f"x ({unit})", fontsize=9)
         if k % MAPS_PER_ROW == 0:
             axes.set_ylabel(f"y ({unit})", fontsize=9)
         axes.tick_params(labelsize=8)
-    if image is not None:
-        map_rows = -(-len(panels) // MAPS_PER_ROW)
-        right = 0.75 + min(len(panels), MAPS_PER_ROW) * step - 0.1
-        bar = layout.axes(right, top, 0.14, (map_rows - 1) * (MAP_IN + 0.75) + height)
-        layout.figure.colorbar(image, cax=bar, label="\u0394h (nm)", extend="both")
 
 
 def write_report(
