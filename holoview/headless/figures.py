@@ -26,10 +26,6 @@ if TYPE_CHECKING:
 #: The formats figures are written in, named by the file's suffix.
 FORMATS = ("png", "pdf", "svg")
 
-#: Text stays text in vector files (editable, searchable; TrueType fonts in PDF, as
-#: journals ask), not outlines.
-TEXT_AS_TEXT = {"svg.fonttype": "none", "pdf.fonttype": 42}
-
 #: Dots per inch of a PNG: a figure 13.66 inches wide is 1366 pixels.
 DPI = 100
 
@@ -106,7 +102,9 @@ def save_figure(figure: Figure, path: Path, *, name: str) -> None:
     from matplotlib import rc_context
 
     try:
-        with rc_context(TEXT_AS_TEXT):
+        # text stays text in vector files (editable, searchable; TrueType fonts in a
+        # PDF, as journals ask), not outlines
+        with rc_context({"svg.fonttype": "none", "pdf.fonttype": 42}):
             figure.savefig(path, format=kind, dpi=DPI, metadata=metadata, facecolor="white")
     except OSError as exc:
         raise OutputError(f"cannot write {name}: {os_error_text(exc)}") from exc
