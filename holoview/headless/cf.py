@@ -17,15 +17,18 @@ Units (:data:`UNITS`) are CF/UDUNITS spellings: ``m``, ``s``, ``rad``, ``m3``,
 
 Examples
 --------
->>> import h5py, numpy as np
->>> with h5py.File(folder / "cf_example.h5", "w") as f:  # doctest: +SKIP
-...     group = f.create_group("series")
-...     time = dimension(group, "time", np.arange(3) * 0.5, units="s", long_name="time")
-...     _ = variable(group, "height", np.zeros(3), ("time",), units="m", long_name="height")
->>> import xarray as xr
->>> xr.open_dataset(folder / "cf_example.h5", group="series", engine="h5netcdf")
-... # doctest: +SKIP
-<xarray.Dataset> ...
+>>> import tempfile
+>>> from pathlib import Path
+>>> import h5py, numpy as np, xarray as xr
+>>> path = Path(tempfile.mkdtemp()) / "series.h5"
+>>> with h5py.File(path, "w") as f:
+...     series = f.create_group("series")
+...     time = dimension(series, "time", [0.0, 0.5, 1.0], units="s", long_name="time")
+...     height = variable(series, "height", [0.0, 1e-9, 2e-9], ("time",), units="m",
+...                       long_name="height change")
+>>> with xr.open_dataset(path, group="series", engine="h5netcdf") as ds:
+...     print(ds.height.dims, ds.height.attrs["units"], ds.time.values)
+('time',) m [0.  0.5 1. ]
 """
 
 from __future__ import annotations

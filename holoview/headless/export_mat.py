@@ -81,7 +81,7 @@ def field_name(label: str, taken: set[str]) -> str:
     name = re.sub(r"\W", "_", label)
     if not name[:1].isalpha():
         name = "m_" + name
-    if name in _MAP_FIELDS or name in taken:
+    if name in taken:
         name += "_map"
     base, k = name, 2
     while name in taken:
