@@ -271,7 +271,7 @@ def test_peaks_file_and_auto_maps_agree(
     ):
         # the model adds the other families to two labels, as the live window does
         assert set(a["maps"]) >= FIRST_ORDER | {"fused"}
-        assert set(b["maps"]) == {"RB1", "RF", "fused"}
+        assert set(b["maps"]) == {"RB1", "RF", "fused", "time", "frame", "y", "x"}
         np.testing.assert_array_equal(a["trends/frame"][:], np.arange(10, 50))
         step = evaporation.rate / evaporation.fps
         heights = a["trends/mean_height_m"][:]
