@@ -386,7 +386,7 @@ class ReplaySource(Source):
             t_device=file.t_device(index) + t_offset,
             t_host=time.time(),
             pixel_format=file.pixel_format,
-            index=index,
+            file_index=index,
             segment=segment,
         )
         return Frame(data, meta)
