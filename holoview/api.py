@@ -407,8 +407,9 @@ class Recording:
         """
         n, rows, cols = self.frames.shape
         pitch = self.setup.get("pixel_pitch_m")
-        scale = float(pitch) if pitch is not None and math.isfinite(float(pitch)) else 1.0
-        axis_units = "m" if pitch is not None else "1"
+        known = pitch is not None and math.isfinite(float(pitch)) and float(pitch) > 0
+        scale = float(pitch) if known else 1.0
+        axis_units = "m" if known else "1"
         coords: dict[str, Any] = {
             "frame": ("time", np.arange(n), {"units": "1"}),
             "y": ("y", np.arange(rows) * scale, {"units": axis_units}),

@@ -18,10 +18,12 @@ import h5py
 import netCDF4
 import numpy as np
 import pytest
+import tifffile
 import xarray as xr
 from headless_sim import Simulated, run_cli
 
 from holoview.errors import InputError
+from holoview.headless.exports import export_results
 from holoview.headless.results_data import map_labels, open_results, results_version
 
 V1_FILE = Path(__file__).parent / "data" / "results_v1.h5"
@@ -173,6 +175,9 @@ def test_maps_without_a_pixel_pitch_are_in_frame_pixels(
         step = 128 / maps.sizes["y"]
         np.testing.assert_allclose(maps.y, np.arange(maps.sizes["y"]) * step)
         np.testing.assert_allclose(maps.time, np.arange(6) / 20)
+    export_results(out, "tiff", tmp_path / "stacks", maps=["RB1"])
+    with tifffile.TiffFile(tmp_path / "stacks" / "RB1.tif") as tif:
+        assert tif.imagej_metadata["unit"] == "pixel"
 
 
 def test_results_errors_are_one_line(evaporation: Simulated, tmp_path: Path) -> None:
