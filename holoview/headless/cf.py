@@ -12,8 +12,8 @@ A writer here calls :func:`dimension` once per axis of a group and :func:`variab
 Dimensions are per group: xarray opens one group at a time and does not look for
 coordinates in the groups above.
 
-Units (:data:`UNITS`) are CF/UDUNITS spellings: ``m``, ``s``, ``rad``, ``m3``,
-``m s-1``, ``count``, and ``1`` for a dimensionless number. Strings carry no unit.
+Units are CF/UDUNITS spellings: ``m``, ``s``, ``rad``, ``m3``, ``m s-1``, ``count``
+(camera counts), and ``1`` for a plain number. Strings carry no unit.
 
 Examples
 --------
@@ -42,17 +42,6 @@ import numpy as np
 #: The conventions the files follow (the ``Conventions`` root attribute).
 CONVENTIONS = "CF-1.11"
 
-#: CF/UDUNITS spellings of the units holoview writes, by quantity.
-UNITS = {
-    "length": "m",
-    "time": "s",
-    "phase": "rad",
-    "volume": "m3",
-    "velocity": "m s-1",
-    "counts": "count",
-    "dimensionless": "1",
-}
-
 
 def describe(dataset: h5py.Dataset, *, units: str | None, long_name: str, **more: Any) -> None:
     """Give ``dataset`` its CF attributes: ``units`` (None for strings), ``long_name``, more.
@@ -62,7 +51,7 @@ def describe(dataset: h5py.Dataset, *, units: str | None, long_name: str, **more
     dataset : h5py.Dataset
         The variable or dimension.
     units : str or None
-        A UDUNITS spelling (:data:`UNITS`); None for a variable of strings.
+        A UDUNITS spelling (module docstring); None for a variable of strings.
     long_name : str
         What the values are, in words.
     **more
