@@ -517,7 +517,7 @@ def open_results(
     >>> with open_results(out, "trends") as trends:
     ...     print(trends.mean_height_m.dims, trends.time.attrs["units"], trends.sizes["time"])
     ('time', 'label') s 8
-    >>> open_results(out, "maps")
+    >>> open_results(out, "maps")  # doctest: +ELLIPSIS
     Traceback (most recent call last):
     ...
     holoview.errors.InputError: ... holds no maps: run holoview process with --maps
