@@ -62,18 +62,21 @@ READABLE_VERSIONS = (1, 2)
 #: Labels offered when an operator names a peak (any other usable name is allowed).
 PEAK_LABELS: tuple[str, ...] = ("RB1", "FB1", "RF", "RB2", "FB2")
 
-#: A label usable as a CSV value and an HDF5 name (``fused`` is reserved).
+#: A label usable as a CSV value and an HDF5 name.
 LABEL_PATTERN = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.+~-]{0,31}")
+
+#: Names a label cannot take: the fused map's, and the dimensions of ``results.h5``'s maps.
+RESERVED_LABELS = ("fused", "time", "frame", "y", "x")
 
 Carrier = tuple[float, float]
 
 
 def check_label(label: object, where: str) -> str:
     """Return ``label`` if it can name a series, a CSV row and an HDF5 dataset."""
-    if not isinstance(label, str) or not LABEL_PATTERN.fullmatch(label) or label == "fused":
+    if not isinstance(label, str) or not LABEL_PATTERN.fullmatch(label) or label in RESERVED_LABELS:
         raise InputError(
             f"{where}: label {label!r} is not usable (a letter or digit, then letters, "
-            "digits and _.+~-, at most 32 characters, not 'fused')"
+            f"digits and _.+~-, at most 32 characters, not {', '.join(RESERVED_LABELS)})"
         )
     return label
 

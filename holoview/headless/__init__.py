@@ -22,6 +22,11 @@ the pieces:
   and measures a chunk's carrier values in a worker, :mod:`~holoview.headless.parallel`
   runs the chunks (local processes or Dask), :mod:`~holoview.headless.stitch` joins
   them in order with the maps and the series of the run;
+- :mod:`~holoview.headless.results_layout` lays ``results.h5`` out as netCDF-4/CF
+  (with the dimension-scale helpers of :mod:`~holoview.headless.cf`);
+  :mod:`~holoview.headless.results_data` opens ``results.h5`` (formats 2.0 and 1.0) as
+  xarray Datasets, and :mod:`~holoview.headless.exports` writes them as NetCDF, Zarr,
+  MATLAB (:mod:`~holoview.headless.export_mat`) or TIFF stacks (``holoview export``);
 - :mod:`~holoview.headless.batch` processes a folder or a glob of recordings into a
   folder each, with ``index.csv`` of their rates.
 

@@ -235,7 +235,7 @@ def process_file(
     optics_options: OpticsOptions | None = None,
     settings: ProcessSettings | None = None,
     frames: str | None = None,
-    report: str | None = "png",
+    report: str | bool | None = "png",
     progress: Callable[[int, int], None] | None = None,
     overwrite: bool = False,
     jobs: int | None = 1,
@@ -260,9 +260,9 @@ def process_file(
         basin area.
     frames : str, optional
         ``START:STOP`` of the input's frames (all by default).
-    report : str or None
+    report : str or bool or None
         The report's format: ``"png"``, ``"pdf"`` or ``"svg"`` (``report.png`` ...);
-        None: no report.
+        True is ``"png"``; None or False: no report.
     progress : callable, optional
         ``progress(done, total)`` after each frame.
     overwrite : bool
@@ -294,6 +294,8 @@ def process_file(
         An output could not be written (the folder keeps what it held).
     """
     settings = settings or ProcessSettings()
+    if report is True:
+        report = "png"
     if report:
         figure_format(f"report.{report}", "--report-format")
     if settings.background is not None:

@@ -108,13 +108,17 @@ def _distances(points: np.ndarray, others: np.ndarray) -> np.ndarray:
     return np.hypot(delta[..., 0], delta[..., 1])
 
 
-def _points(carriers: Sequence[tuple[float, float]] | np.ndarray) -> np.ndarray:
+#: Carriers ``(fx, fy)`` in cycles/pixel: a sequence of pairs or an array of shape (N, 2).
+Carriers = Sequence[tuple[float, float]] | np.ndarray
+
+
+def _points(carriers: Carriers) -> np.ndarray:
     return np.asarray(carriers, dtype=np.float64).reshape(-1, 2)
 
 
 def spacing(
-    carriers: Sequence[tuple[float, float]],
-    neighbours: Sequence[tuple[float, float]] = (),
+    carriers: Carriers,
+    neighbours: Carriers = (),
 ) -> np.ndarray:
     """Return, per carrier, its distance to the nearest other carrier or twin (cycles/pixel).
 
@@ -145,9 +149,9 @@ def spacing(
 
 
 def auto_radii(
-    carriers: Sequence[tuple[float, float]],
+    carriers: Carriers,
     *,
-    neighbours: Sequence[tuple[float, float]] = (),
+    neighbours: Carriers = (),
     min_radius: float = 0.0,
     max_radius: float = MAX_AUTO_RADIUS,
 ) -> np.ndarray:
@@ -190,9 +194,9 @@ def auto_radii(
 
 
 def auto_radius(
-    carriers: Sequence[tuple[float, float]],
+    carriers: Carriers,
     *,
-    neighbours: Sequence[tuple[float, float]] = (),
+    neighbours: Carriers = (),
     min_radius: float = 0.0,
     max_radius: float = MAX_AUTO_RADIUS,
 ) -> float:

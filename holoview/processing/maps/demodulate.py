@@ -530,13 +530,15 @@ class Demodulator:
             mean_phase = 0.0
         else:
             ref_conj = self._ref_conj[i]
+            ref_value = self._ref_value[i]
+            assert ref_conj is not None and ref_value is not None  # set together above
             np.multiply(field, ref_conj, out=product)
             self._unwrapped_mean[i] += step
             if self.reference == "relative":
                 np.conjugate(field, out=ref_conj)
                 mean_phase = step
             else:
-                mean_phase = cmath.phase(value * self._ref_value[i].conjugate())
+                mean_phase = cmath.phase(value * ref_value.conjugate())
                 if prev is None:  # the first against a background, or after a break
                     self._unwrapped_mean[i] = mean_phase
         if product is None:
