@@ -49,7 +49,7 @@ def _option_line(action: argparse.Action) -> str:
     if action.help:
         line += f": {_escape(action.help)}"
     default = action.default
-    said = "default" in (action.help or "")
+    said = "default" in (action.help or "").lower()
     empty = default is None or default is False or default in ([], argparse.SUPPRESS)
     if not (said or empty or action.nargs == 0):
         line += f" (default: `{default}`)"
