@@ -48,7 +48,7 @@ from pathlib import Path
 from types import TracebackType
 from typing import Self
 
-from holoview.atomic import OutputSet
+from holoview.atomic import OutputSet, TargetExistsError
 from holoview.errors import InputError, os_error_text
 from holoview.paths import check_apart
 
@@ -311,6 +311,16 @@ class OutputFolder(OutputSet):
             logger.info("interrupted: the results in %s are kept", self.folder)
             self.discard()
             return []
+        appeared = [name for name in present if name not in self.earlier]
+        if appeared and not self.overwrite:  # also names this run does not write: no mix
+            self.discard()
+            raise TargetExistsError(
+                f"{', '.join(appeared)} appeared while this run was writing into "
+                f"{self.folder} (another program wrote it); not replaced, and this run's "
+                "files are removed",
+                self.folder / appeared[0],
+                None,
+            )
         written = self.commit(replace=self.overwrite)
         if self.overwrite:
             for name in set(self.earlier) | set(present):
