@@ -71,7 +71,7 @@ import uuid as _uuid
 from collections.abc import Iterator, Mapping
 from pathlib import Path
 from types import TracebackType
-from typing import Self
+from typing import Any, Self
 
 import h5py
 import numpy as np
@@ -84,6 +84,7 @@ from holoview.acquire.durability import (
     open_hdf5_for_reading,
 )
 from holoview.acquire.hdf5_attributes import plain_value, read_attributes, write_attributes
+from holoview.acquire.hdf5_members import open_member
 from holoview.errors import InputError, OutputError, os_error_text
 
 logger = logging.getLogger(__name__)
@@ -510,16 +511,17 @@ class RecordingReader:
             raise InputError(
                 f"{self.path}: recording format version {self.format_version!r} is not supported"
             )
-        frames = f.get("frames")
-        if not isinstance(frames, h5py.Dataset) or frames.ndim != 3:
+        frames = open_member(f, "frames", h5py.Dataset, self.path)
+        if frames is None or frames.ndim != 3:
             raise InputError(f"{self.path}: holds no frames dataset (/frames, 3-D)")
+        columns = []
         for name in ("frame_id", "t_device_s", "t_host_s"):
-            if not isinstance(f.get(name), h5py.Dataset):
+            column = open_member(f, name, h5py.Dataset, self.path)
+            if column is None:
                 raise InputError(f"{self.path}: /{name} is missing")
+            columns.append(column)
         self._frames = frames
-        self._ids = f["frame_id"]
-        self._t_device = f["t_device_s"]
-        self._t_host = f["t_host_s"]
+        self._ids, self._t_device, self._t_host = columns
         self.uuid = str(plain_value(f.attrs.get("uuid", "")))
         self.created_utc = str(plain_value(f.attrs.get("created_utc", "")))
         self.source = str(plain_value(f.attrs.get("source", "")))
@@ -527,9 +529,15 @@ class RecordingReader:
         self.significant_bits = int(
             plain_value(frames.attrs.get("significant_bits", frames.dtype.itemsize * 8))
         )
-        self.setup, self.setup_units = read_attributes(f.get("setup"))
-        self.settings, self.settings_units = read_attributes(f.get("settings"))
+        self.setup, self.setup_units = self._attributes("setup")
+        self.settings, self.settings_units = self._attributes("settings")
         self._n = self._complete_count()
+
+    def _attributes(self, name: str) -> tuple[dict[str, Any], dict[str, str]]:
+        """The values and units of the group ``name`` (``/setup``, ``/settings``)."""
+        group = open_member(self._file, name, h5py.Group, self.path)
+        units = None if group is None else open_member(group, "units", h5py.Group, self.path)
+        return read_attributes(group, units)
 
     def experiments(self) -> list[tuple[int, str]]:
         """Every experiment the recording carries: ``(from_frame, JSON text)``, in order.
@@ -537,16 +545,43 @@ class RecordingReader:
         Empty for recordings written without one (format 1.0 included). A text that
         cannot be decoded is returned as it decodes with replacement characters; the
         experiment parser then says what is wrong.
+
+        Raises
+        ------
+        InputError
+            ``/experiment`` is not laid out as the format says (``json`` not 1-D
+            ``uint8``, ``changes`` not ``(n, 3)`` integers, a text outside ``json``) or
+            lies outside the file (:func:`~holoview.acquire.hdf5_members.open_member`).
         """
-        group = self._file.get("experiment")
-        if not isinstance(group, h5py.Group) or "json" not in group or "changes" not in group:
+        group = open_member(self._file, "experiment", h5py.Group, self.path)
+        if group is None:
             return []
-        blob, changes = group["json"], group["changes"]
+        blob = open_member(group, "json", h5py.Dataset, self.path)
+        changes = open_member(group, "changes", h5py.Dataset, self.path)
+        if blob is None or changes is None:
+            return []
+        where = f"{self.path}: the stored experiment"
+        if blob.ndim != 1 or blob.dtype != np.uint8:
+            raise InputError(
+                f"{where} is damaged: /experiment/json is {blob.dtype} of shape {blob.shape}, "
+                "not the 1-D uint8 texts of the format"
+            )
+        if changes.ndim != 2 or changes.shape[1] != 3 or changes.dtype.kind not in "iu":
+            raise InputError(
+                f"{where} is damaged: /experiment/changes is {changes.dtype} of shape "
+                f"{changes.shape}, not (n, 3) integers"
+            )
+        changes.refresh()  # first: the texts a change names are written before it
         blob.refresh()
-        changes.refresh()
+        rows = np.asarray(changes[()], dtype=np.int64)
         raw = blob[()].tobytes()
         out = []
-        for start, offset, length in np.asarray(changes[()], dtype=np.int64).reshape(-1, 3):
+        for start, offset, length in rows:
+            if start < 0 or offset < 0 or length < 0 or offset + length > len(raw):
+                raise InputError(
+                    f"{where} is damaged: a change from frame {start} names bytes "
+                    f"{offset} to {offset + length} of the {len(raw)} stored"
+                )
             text = raw[offset : offset + length]
             out.append((int(start), text.decode("utf-8", errors="replace")))
         return out

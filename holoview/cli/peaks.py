@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import logging
 from pathlib import Path
 from typing import Any
 
@@ -24,6 +25,8 @@ from holoview.cli.options import (
 )
 from holoview.cli.signals import emit
 from holoview.errors import InputError
+
+logger = logging.getLogger(__name__)
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
@@ -99,7 +102,10 @@ def run(args: argparse.Namespace) -> int:
     with InputFile(args.input) as source:
         if not 0 <= args.frame < len(source):
             raise InputError(f"--frame must be in 0..{len(source) - 1}, got {args.frame}")
-        stored, _ = source.experiment_at(args.frame)
+        stored, notes = source.experiment_at(args.frame)
+        if not labels and given is None:
+            for note in notes:
+                logger.warning("%s", note)
         optics = resolve_optics(source.setup, optics_options(args), given)
         frame = source.read(args.frame)
         shape = source.frame_shape

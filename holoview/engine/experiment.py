@@ -31,6 +31,7 @@ import json
 import math
 import os
 import re
+import stat
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -49,6 +50,7 @@ __all__ = [
     "LabelledPeak",
     "check_carrier",
     "check_label",
+    "check_regular_file",
     "config_dir",
     "default_experiment_path",
     "is_model_label",
@@ -82,7 +84,7 @@ def check_carrier(carrier: object, where: str) -> Carrier:
     """Return a carrier ``(fx, fy)`` in cycles/pixel, or raise naming what is wrong."""
     try:
         fx, fy = (float(v) for v in carrier)  # type: ignore[union-attr]
-    except (TypeError, ValueError) as exc:
+    except (TypeError, ValueError, OverflowError) as exc:
         raise InputError(
             f"{where}: carrier must be [fx, fy] in cycles/pixel, got {carrier!r}"
         ) from exc
@@ -132,8 +134,9 @@ class LabelledPeak:
         if self.alpha is not None:
             if isinstance(self.alpha, bool) or not isinstance(self.alpha, int | float):
                 raise InputError(f"{where}: alpha must be a number, got {self.alpha!r}")
-            if not (math.isfinite(self.alpha) and self.alpha != 0):
-                raise InputError(f"{where}: alpha must be finite and nonzero, got {self.alpha}")
+            object.__setattr__(self, "alpha", finite_number(f"{where}: alpha", self.alpha))
+            if self.alpha == 0:
+                raise InputError(f"{where}: alpha must be nonzero, got {self.alpha}")
 
     @property
     def fx(self) -> float:
@@ -321,9 +324,13 @@ class Experiment:
     def from_json(cls, text: str, where: str = "experiment") -> Experiment:
         """Parse JSON text written by :meth:`to_json`; InputError naming what is wrong."""
         try:
-            data = json.loads(text)
+            data = json.loads(text, parse_int=_json_int)
         except json.JSONDecodeError as exc:
             raise InputError(f"{where}: not valid JSON ({exc.msg}, line {exc.lineno})") from exc
+        except RecursionError:
+            raise InputError(
+                f"{where}: not an experiment (its JSON is nested too deeply to read)"
+            ) from None
         return cls.from_dict(data, where)
 
     def save(self, path: Path) -> None:
@@ -341,12 +348,7 @@ class Experiment:
     def load(cls, path: str | os.PathLike[str]) -> Experiment:
         """Read an experiment file; InputError when it is missing, unreadable or malformed."""
         p = Path(path)
-        try:
-            raw = p.read_bytes()
-        except OSError as exc:
-            raise InputError(
-                f"experiment file {p}: cannot be read ({exc.strerror or exc})"
-            ) from exc
+        raw = _read_regular_file(p, f"experiment file {p}")
         # PowerShell's ">" writes UTF-16 with a byte-order mark; read it as what it is
         encoding = "utf-16" if raw[:2] in (b"\xff\xfe", b"\xfe\xff") else "utf-8-sig"
         try:
@@ -356,6 +358,16 @@ class Experiment:
                 f"experiment file {p}: not text (a binary file? save it as UTF-8 JSON)"
             ) from None
         return cls.from_json(text, f"experiment file {p}")
+
+
+#: Digits beyond which a JSON integer is read as a float (inf past 1e308): Python refuses
+#: to convert integers of more than 4300 digits, and no experiment value needs 20.
+_INT_DIGITS = 20
+
+
+def _json_int(text: str) -> int | float:
+    """A JSON integer: an int, or a float where it is too long to be a sensible one."""
+    return int(text) if len(text) <= _INT_DIGITS else float(text)
 
 
 def _peak_from_dict(item: object, version: int, where: str) -> LabelledPeak:
@@ -372,6 +384,54 @@ def _peak_from_dict(item: object, version: int, where: str) -> LabelledPeak:
         return LabelledPeak(item["label"], carrier, item.get("alpha"))
     except InputError as exc:
         raise InputError(f"{where}: {exc}") from exc
+
+
+def check_regular_file(path: Path, what: str) -> None:
+    """Refuse ``path`` when something other than a regular file is there (None missing).
+
+    A FIFO would block its reader until a writer comes; a device or a folder is no file
+    to read either.
+
+    Raises
+    ------
+    InputError
+        ``path`` is a FIFO, a socket, a device or a folder (``what`` names it).
+    """
+    try:
+        mode = path.stat().st_mode
+    except OSError:
+        return
+    if not stat.S_ISREG(mode):
+        raise InputError(f"{what}: {_file_kind(mode)}, not a regular file")
+
+
+def _file_kind(mode: int) -> str:
+    kinds = (
+        (stat.S_ISFIFO, "a FIFO (named pipe)"),
+        (stat.S_ISDIR, "a folder"),
+        (stat.S_ISSOCK, "a socket"),
+        (stat.S_ISCHR, "a character device"),
+        (stat.S_ISBLK, "a block device"),
+    )
+    return next((name for test, name in kinds if test(mode)), "a special file")
+
+
+def _read_regular_file(path: Path, what: str) -> bytes:
+    """The bytes of the regular file ``path``, opened without blocking on a FIFO."""
+    try:
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)
+    except OSError as exc:
+        raise InputError(f"{what}: cannot be read ({exc.strerror or exc})") from exc
+    try:
+        mode = os.fstat(fd).st_mode
+        if not stat.S_ISREG(mode):
+            raise InputError(f"{what}: {_file_kind(mode)}, not a regular file")
+        with os.fdopen(fd, "rb", closefd=False) as f:
+            return f.read()
+    except OSError as exc:
+        raise InputError(f"{what}: cannot be read ({exc.strerror or exc})") from exc
+    finally:
+        os.close(fd)
 
 
 def config_dir() -> Path:

@@ -380,13 +380,17 @@ class InputFile:
             raise InputError(f"{self.path}: no such file or folder")
         self.setup: dict[str, Any] = {}
         self.experiments: list[tuple[int, str]] = []
+        self._experiment_problem: str | None = None
         self._host_times: np.ndarray | None = None
         self.info: dict[str, Any] = {"path": str(self.path)}
         bits: int | None = None
         if self.path.is_file() and self.path.suffix.lower() in (".h5", ".hdf5"):
             with RecordingReader(self.path) as reader:
                 self.setup = dict(reader.setup)
-                self.experiments = reader.experiments()
+                try:
+                    self.experiments = reader.experiments()
+                except InputError as exc:
+                    self._experiment_problem = str(exc)
                 self._host_times = np.asarray(reader.t_host, dtype=np.float64)
                 bits = reader.significant_bits
                 self.info.update(
@@ -419,10 +423,13 @@ class InputFile:
         """The experiment the recording carries for ``frame``, and notes about it.
 
         Returns the last one stored from ``frame`` or before (None when there is none,
-        or it cannot be read: a note says why). A change stored after ``frame`` gets a
-        note naming the frame it holds from: one run uses one experiment.
+        or it cannot be read, its layout in the file included: a note says why). A change
+        stored after ``frame`` gets a note naming the frame it holds from: one run uses
+        one experiment.
         """
         notes: list[str] = []
+        if self._experiment_problem is not None:
+            return None, [f"{self._experiment_problem}; ignored"]
         in_force = [(start, text) for start, text in self.experiments if start <= frame]
         later = [start for start, _ in self.experiments if start > frame]
         if later:
