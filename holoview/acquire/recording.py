@@ -83,6 +83,7 @@ from holoview.acquire.durability import (
     free_bytes,
     open_hdf5_for_reading,
 )
+from holoview.acquire.frame_times import FrameClock, choose_clock
 from holoview.acquire.hdf5_attributes import plain_value, read_attributes, write_attributes
 from holoview.acquire.hdf5_members import open_member
 from holoview.errors import InputError, OutputError, os_error_text
@@ -100,6 +101,14 @@ LIBVER = ("v110", "latest")
 
 #: Pixel format assumed for a dtype when the writer is given none.
 _DEFAULT_PIXEL_FORMAT = {np.dtype(np.uint8): ("Mono8", 8), np.dtype(np.uint16): ("Mono16", 16)}
+
+
+def _is_number(dataset: h5py.Dataset) -> bool:
+    return dataset.dtype.kind in "iuf"
+
+
+def _layout(dataset: h5py.Dataset) -> str:
+    return f"{dataset.name} is {dataset.dtype} of shape {dataset.shape}"
 
 
 class RecordingWriteError(OutputError):
@@ -522,6 +531,8 @@ class RecordingReader:
             columns.append(column)
         self._frames = frames
         self._ids, self._t_device, self._t_host = columns
+        if self._ids.ndim != 1 or self._ids.dtype.kind not in "iu":
+            raise InputError(f"{self.path}: {_layout(self._ids)}, not one integer per frame")
         self.uuid = str(plain_value(f.attrs.get("uuid", "")))
         self.created_utc = str(plain_value(f.attrs.get("created_utc", "")))
         self.source = str(plain_value(f.attrs.get("source", "")))
@@ -587,15 +598,36 @@ class RecordingReader:
         return out
 
     def _complete_count(self) -> int:
-        """Frames whose frame data, id and both timestamps are all present."""
-        return int(
-            min(
-                self._frames.shape[0],
-                self._ids.shape[0],
-                self._t_device.shape[0],
-                self._t_host.shape[0],
-            )
+        """Frames whose frame data, id and both timestamps are all present.
+
+        A time column of the wrong layout (:meth:`clock` says so) does not count.
+        """
+        columns = [self._frames, self._ids, self._t_device, self._t_host]
+        return int(min(c.shape[0] for c in columns if c.ndim >= 1 and _is_number(c)))
+
+    @property
+    def stored_frames(self) -> int:
+        """Frames ``/frames`` holds, complete or not (see :meth:`incomplete`)."""
+        return int(self._frames.shape[0])
+
+    def incomplete(self) -> str | None:
+        """Why frames stored are left out (a column shorter than ``/frames``), or None."""
+        if self._n >= self.stored_frames:
+            return None
+        short = [
+            f"{c.name} holds {c.shape[0]}"
+            for c in (self._ids, self._t_device, self._t_host)
+            if c.ndim == 1 and c.shape[0] < self.stored_frames
+        ]
+        return (
+            f"{self.path}: only the first {self._n} of the {self.stored_frames} frames stored "
+            f"are complete ({', '.join(short)} rows); frames {self._n} and later are left out"
         )
+
+    @property
+    def being_written(self) -> bool:
+        """True when a writer had the file open when it was opened (or was killed)."""
+        return bool(self._file.swmr_mode)
 
     def refresh(self) -> int:
         """See frames a live writer has flushed since the last call; return the new count."""
@@ -619,28 +651,46 @@ class RecordingReader:
         """The camera frame counter of every frame, int64."""
         return self._ids[: self._n]
 
+    def _time_column(self, dataset: h5py.Dataset) -> tuple[np.ndarray, str | None]:
+        """A time column's values, float64 (NaN where unusable), and why it is unusable."""
+        if dataset.ndim != 1 or not _is_number(dataset):
+            return np.full(self._n, math.nan), f"{_layout(dataset)}, not one number per frame"
+        return np.asarray(dataset[: self._n], dtype=np.float64), None
+
     @property
     def t_device(self) -> np.ndarray:
         """Device timestamps, seconds on the camera's clock (NaN where unknown)."""
-        return self._t_device[: self._n]
+        return self._time_column(self._t_device)[0]
 
     @property
     def t_host(self) -> np.ndarray:
-        """Host arrival times, seconds since the UNIX epoch."""
-        return self._t_host[: self._n]
+        """Host arrival times, seconds since the UNIX epoch (NaN where unknown)."""
+        return self._time_column(self._t_host)[0]
+
+    def clock(self, frames: range | None = None) -> FrameClock:
+        """The clock that times ``frames`` (default all), by the one rule, and why.
+
+        The camera's where it times every frame, runs forward and jumps nowhere; else
+        the host's arrival times (which hold when frames arrived or were written, not
+        when the camera took them); else none (:mod:`holoview.acquire.frame_times`).
+        """
+        chosen = range(self._n) if frames is None else frames
+        index = np.asarray(chosen, dtype=np.int64)
+        device, device_problem = self._time_column(self._t_device)
+        host, host_problem = self._time_column(self._t_host)
+        unusable = {"camera": device_problem, "host": host_problem}
+        return choose_clock(
+            device[index],
+            host[index],
+            chosen,
+            np.asarray(self._ids[: self._n], dtype=np.int64)[index],
+            unusable={k: v for k, v in unusable.items() if v is not None},
+        )
 
     @property
     def times(self) -> np.ndarray:
-        """The frames' times, seconds, on the best clock the recording has.
-
-        The camera's where it timed every frame and runs forward, else the host's
-        arrival times (which hold when frames arrived or were written, not when the
-        camera took them).
-        """
-        t_device = self.t_device
-        if np.isfinite(t_device).all() and (np.diff(t_device) > 0).all():
-            return t_device
-        return self.t_host
+        """The frames' times, seconds, by the one rule of :meth:`clock` (NaN: no clock)."""
+        return self.clock().times
 
     @property
     def fps(self) -> float:

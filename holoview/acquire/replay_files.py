@@ -31,6 +31,7 @@ from typing import IO, Any
 
 import numpy as np
 
+from holoview.acquire.frame_times import FrameClock, choose_clock
 from holoview.acquire.recording import RecordingReader
 from holoview.acquire.source import CameraNotFoundError
 from holoview.errors import InputError
@@ -105,9 +106,23 @@ class FrameFile(ABC):
         """Time of frame ``index`` since frame 0, seconds (NaN where the file has none)."""
         return self.t_device(index) - self.t_device(0)
 
+    def clock(self, frames: range) -> FrameClock:
+        """The clock that times ``frames`` (the rule of :mod:`~holoview.acquire.frame_times`)."""
+        times = np.array([self.t_device(i) for i in frames], dtype=np.float64)
+        return choose_clock(times, None, frames, camera_name=self.clock_name)
+
+    @property
+    def clock_name(self) -> str:
+        """What the file's own times are called in notes."""
+        return "the file's own times"
+
     def refresh(self) -> int:
         """See frames appended since opening (live recordings); return the frame count."""
         return len(self)
+
+    def notes(self) -> list[str]:
+        """What a reader of results should know about the file's frames (none by default)."""
+        return []
 
     def check(self, index: int) -> None:
         """Check that the file is still whole before frame ``index`` is read.
@@ -199,6 +214,22 @@ class HDF5File(FrameFile):
     def time_s(self, index: int) -> float:
         dt = float(self._times[index] - self._times[0])
         return dt if math.isfinite(dt) else math.nan
+
+    def clock(self, frames: range) -> FrameClock:
+        return self._reader.clock(frames)
+
+    def notes(self) -> list[str]:
+        notes = []
+        incomplete = self._reader.incomplete()
+        if incomplete is not None:
+            notes.append(incomplete)
+        if self._reader.being_written:
+            notes.append(
+                f"{self.path} was open for writing when it was read (a recording under way, "
+                f"or one whose writer was killed): the {len(self)} frames flushed by then are "
+                "read, as a snapshot"
+            )
+        return notes
 
     def interval_s(self, index: int) -> float | None:
         """Recorded time between frame ``index - 1`` and ``index``, seconds, where known."""
@@ -579,6 +610,10 @@ class VideoFile(FrameFile):
 
     def t_device(self, index: int) -> float:
         return index / self.rate_hz if self.rate_hz else math.nan
+
+    @property
+    def clock_name(self) -> str:
+        return f"the video's frame rate ({self.rate_hz or math.nan:g} frames/s)"
 
     def close(self) -> None:
         self._capture.release()

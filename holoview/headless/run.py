@@ -318,7 +318,8 @@ def process_file(
         optics = resolve_optics(source.setup, options, from_file)
         optics.require("wavelength_m")
         experiment, settings = _settle(base, settings, optics)
-        times = source.times(selected, options.fps_hz)
+        frame_times = source.times(selected, options.fps_hz)
+        times = frame_times.times
         check_run_settings(
             area_m2=settings.area_m2, radius=settings.radius, frame_shape=source.frame_shape
         )
@@ -333,9 +334,12 @@ def process_file(
             shape=source.frame_shape,
             optics=optics,
         )
-        selection = replace(selection, notes=(*notes, *selection.notes))
-        for note in notes:
+        for note in (*notes, *source.notes):
             logger.warning("%s", note)
+        level = logging.WARNING if frame_times.warning else logging.INFO
+        logger.log(level, "%s: %s", source.path, frame_times.note)
+        notes += [*source.notes, frame_times.note]
+        selection = replace(selection, notes=(*notes, *selection.notes))
         core = make_core(
             source.frame_shape,
             experiment,
