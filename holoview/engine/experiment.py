@@ -31,12 +31,12 @@ import json
 import math
 import os
 import re
-import stat
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
 from holoview.errors import InputError, finite_number
+from holoview.file_kinds import read_regular_file
 from holoview.optics.families import alpha_of
 from holoview.optics.setup import check_optics
 from holoview.processing.demodulate import REFERENCE_MODES, UNWRAP_MODES
@@ -50,7 +50,6 @@ __all__ = [
     "LabelledPeak",
     "check_carrier",
     "check_label",
-    "check_regular_file",
     "config_dir",
     "default_experiment_path",
     "is_model_label",
@@ -348,7 +347,7 @@ class Experiment:
     def load(cls, path: str | os.PathLike[str]) -> Experiment:
         """Read an experiment file; InputError when it is missing, unreadable or malformed."""
         p = Path(path)
-        raw = _read_regular_file(p, f"experiment file {p}")
+        raw = read_regular_file(p, f"experiment file {p}")
         # PowerShell's ">" writes UTF-16 with a byte-order mark; read it as what it is
         encoding = "utf-16" if raw[:2] in (b"\xff\xfe", b"\xfe\xff") else "utf-8-sig"
         try:
@@ -384,54 +383,6 @@ def _peak_from_dict(item: object, version: int, where: str) -> LabelledPeak:
         return LabelledPeak(item["label"], carrier, item.get("alpha"))
     except InputError as exc:
         raise InputError(f"{where}: {exc}") from exc
-
-
-def check_regular_file(path: Path, what: str) -> None:
-    """Refuse ``path`` when something other than a regular file is there (None missing).
-
-    A FIFO would block its reader until a writer comes; a device or a folder is no file
-    to read either.
-
-    Raises
-    ------
-    InputError
-        ``path`` is a FIFO, a socket, a device or a folder (``what`` names it).
-    """
-    try:
-        mode = path.stat().st_mode
-    except OSError:
-        return
-    if not stat.S_ISREG(mode):
-        raise InputError(f"{what}: {_file_kind(mode)}, not a regular file")
-
-
-def _file_kind(mode: int) -> str:
-    kinds = (
-        (stat.S_ISFIFO, "a FIFO (named pipe)"),
-        (stat.S_ISDIR, "a folder"),
-        (stat.S_ISSOCK, "a socket"),
-        (stat.S_ISCHR, "a character device"),
-        (stat.S_ISBLK, "a block device"),
-    )
-    return next((name for test, name in kinds if test(mode)), "a special file")
-
-
-def _read_regular_file(path: Path, what: str) -> bytes:
-    """The bytes of the regular file ``path``, opened without blocking on a FIFO."""
-    try:
-        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)
-    except OSError as exc:
-        raise InputError(f"{what}: cannot be read ({exc.strerror or exc})") from exc
-    try:
-        mode = os.fstat(fd).st_mode
-        if not stat.S_ISREG(mode):
-            raise InputError(f"{what}: {_file_kind(mode)}, not a regular file")
-        with os.fdopen(fd, "rb", closefd=False) as f:
-            return f.read()
-    except OSError as exc:
-        raise InputError(f"{what}: cannot be read ({exc.strerror or exc})") from exc
-    finally:
-        os.close(fd)
 
 
 def config_dir() -> Path:

@@ -33,6 +33,7 @@ from holoview.acquire.recording import RecordingReader
 from holoview.acquire.replay_files import FrameFile, open_frame_file
 from holoview.engine.experiment import Experiment
 from holoview.errors import InputError
+from holoview.file_kinds import special_file
 from holoview.optics.setup import FLUIDS, check_optics
 from holoview.processing.frames import check_frame, check_frame_content, frame_damage
 
@@ -397,6 +398,9 @@ class InputFile:
 
     def __init__(self, path: str | Path) -> None:
         self.path = Path(path)
+        special = special_file(self.path)
+        if special is not None:  # never opened: a FIFO would wait for a writer
+            raise InputError(f"{self.path}: {special}, not a file or folder of frames")
         if not self.path.exists():
             raise InputError(f"{self.path}: no such file or folder")
         self.setup: dict[str, Any] = {}
