@@ -44,14 +44,15 @@ sys.path.insert(0, str(REPO))
 from holoview.optics.families import coherent_displacement, predict_families  # noqa: E402
 from holoview.optics.setup import Setup  # noqa: E402
 from holoview.optics.synthesis import HologramSynthesizer  # noqa: E402
-from holoview.processing.coregister import DisplacementEstimator, fuse_coregistered  # noqa: E402
-from holoview.processing.demodulate import REFERENCE_MODES, Demodulator  # noqa: E402
-from holoview.processing.fftplans import rfft2_plan, usable_cpus  # noqa: E402
-from holoview.processing.heights import fuse  # noqa: E402
-from holoview.processing.peaks import Peak  # noqa: E402
-from holoview.processing.resample import box_positions  # noqa: E402
-from holoview.processing.spectrum import display_spectrum  # noqa: E402
-from holoview.processing.windows import DEFAULT_WINDOW, radial_window  # noqa: E402
+from holoview.processing.fourier.fftplans import rfft2_plan, usable_cpus  # noqa: E402
+from holoview.processing.fourier.resample import box_positions  # noqa: E402
+from holoview.processing.fourier.spectrum import display_spectrum  # noqa: E402
+from holoview.processing.fourier.windows import DEFAULT_WINDOW, radial_window  # noqa: E402
+from holoview.processing.maps.coregister import DisplacementEstimator, fuse_coregistered  # noqa: E402
+from holoview.processing.maps.demod_results import REFERENCE_MODES  # noqa: E402
+from holoview.processing.maps.demodulate import Demodulator  # noqa: E402
+from holoview.processing.maps.heights import fuse  # noqa: E402
+from holoview.processing.peaks.detection import Peak  # noqa: E402
 
 WAVELENGTH = 532e-9
 PHOTONS = 800.0

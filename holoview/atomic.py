@@ -102,8 +102,12 @@ def atomic_path(target: str | os.PathLike[str]) -> Iterator[Path]:
 
     Examples
     --------
-    >>> with atomic_path(folder / "figure.png") as path:  # doctest: +SKIP
-    ...     cv2.imwrite(str(path), image)
+    >>> import tempfile
+    >>> folder = Path(tempfile.mkdtemp())
+    >>> with atomic_path(folder / "notes.txt") as path:
+    ...     _ = path.write_text("done")
+    >>> sorted(p.name for p in folder.iterdir())  # the temporary is gone
+    ['notes.txt']
     """
     final = Path(target)
     temporary = temporary_path(final)

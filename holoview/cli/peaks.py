@@ -1,6 +1,6 @@
 """``holoview peaks``: the carrier peaks of one frame, and their labels.
 
-Detection is :func:`holoview.processing.peaks.find_peaks`. The labels come from
+Detection is :func:`holoview.processing.peaks.detection.find_peaks`. The labels come from
 ``--label``, an ``--experiment`` file or the experiment the recording carries, snapped
 to the detected peaks by the engine's rule (:func:`holoview.engine.resolve.resolve_peaks`);
 with two of the model's families the model names the others and says which twin each
@@ -92,8 +92,8 @@ def run(args: argparse.Namespace) -> int:
         resolve_optics,
     )
     from holoview.headless.selection import describe_peaks
-    from holoview.processing.lattice import identify_lattice
-    from holoview.processing.peaks import find_peaks
+    from holoview.processing.naming.lattice import identify_lattice
+    from holoview.processing.peaks.detection import find_peaks
 
     labels = parse_labels(args.label)
     if labels and args.experiment is not None:

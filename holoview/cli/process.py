@@ -145,7 +145,7 @@ def _progress_bar(quiet: bool):
 
 
 def _rate_text(rate: float | None, stderr: float | None) -> str:
-    from holoview.processing.trends import format_rate
+    from holoview.processing.series.rate_fits import format_rate
 
     return "no rate" if rate is None else format_rate(rate, stderr, ascii=True)
 
@@ -156,7 +156,7 @@ def run(args: argparse.Namespace) -> int:
     from holoview.headless.pipeline import ProcessSettings
     from holoview.headless.run import PeakChoice, process_file
     from holoview.headless.selection import parse_assignment
-    from holoview.processing.fftplans import usable_cpus
+    from holoview.processing.fourier.fftplans import usable_cpus
 
     if args.jobs is not None and args.jobs < 1:
         raise InputError(f"--jobs must be at least 1, got {args.jobs}")

@@ -39,8 +39,8 @@ from holoview.errors import InputError, finite_number
 from holoview.file_kinds import read_regular_file
 from holoview.optics.families import alpha_of
 from holoview.optics.setup import check_optics
-from holoview.processing.demodulate import REFERENCE_MODES, UNWRAP_MODES
-from holoview.processing.windows import DEFAULT_WINDOW, WINDOW_KINDS
+from holoview.processing.fourier.windows import DEFAULT_WINDOW, WINDOW_KINDS
+from holoview.processing.maps.demod_results import REFERENCE_MODES, UNWRAP_MODES
 
 __all__ = [
     "EXPERIMENT_FORMAT",
@@ -177,7 +177,8 @@ class Experiment:
     n1, n2 : float or None
         Refractive indices above the surface (air) and of the fluid.
     window : str
-        Spectral window around each peak (:data:`~holoview.processing.windows.WINDOW_KINDS`).
+        Spectral window around each peak
+        (:data:`~holoview.processing.fourier.windows.WINDOW_KINDS`).
     radius : float or None
         Window radius, cycles/pixel; None: automatic from the carriers.
     reference : {"relative", "absolute", "synthetic"}

@@ -3,13 +3,13 @@
 One rule, used by the live window (a click, a label following a drifting peak) and by
 ``holoview process`` (a carrier from an experiment file, ``--label``, a recording's
 experiment): a carrier names the detected peak nearest it on either twin, within
-:data:`~holoview.processing.snapping.SNAP_BINS` FFT bins on the periodic spectrum
-(:func:`holoview.processing.snapping.snap`). The detected peak is taken on the twin the
+:data:`~holoview.processing.peaks.snapping.SNAP_BINS` FFT bins on the periodic spectrum
+(:func:`holoview.processing.peaks.snapping.snap`). The detected peak is taken on the twin the
 carrier points at, so a label keeps the twin it was given (DESIGN.md: the twin where
 the phase grows with the height).
 
 With two or more labels of the model's families (RB1 and FB1, say), the model
-(:func:`holoview.processing.labelling.label_peaks`) places every first-order family up
+(:func:`holoview.processing.naming.labelling.label_peaks`) places every first-order family up
 to :data:`MAX_ORDER`, and the detected peaks it lands on are demodulated too, with the
 model's alpha (:func:`resolve_peaks`).
 """
@@ -25,11 +25,11 @@ import numpy as np
 
 from holoview.engine.experiment import Experiment
 from holoview.errors import InputError
-from holoview.processing.labelling import ModelLabelling, label_peaks
-from holoview.processing.lattice import LatticePeak
-from holoview.processing.peaks import Peak
-from holoview.processing.snapping import SNAP_BINS, bin_distance, snap
-from holoview.processing.windows import wrap_frequency
+from holoview.processing.fourier.windows import wrap_frequency
+from holoview.processing.naming.labelling import ModelLabelling, label_peaks
+from holoview.processing.naming.lattice_geometry import LatticePeak
+from holoview.processing.peaks.detection import Peak
+from holoview.processing.peaks.snapping import SNAP_BINS, bin_distance, snap
 
 __all__ = ["MAX_ORDER", "Resolution", "resolve_peaks", "snap_peak"]
 
@@ -119,7 +119,7 @@ def resolve_peaks(
     experiment : Experiment
         Labelled peaks and the indices n1, n2 (for the model and the alphas).
     detected : sequence of Peak
-        Peaks :func:`~holoview.processing.peaks.find_peaks` detected.
+        Peaks :func:`~holoview.processing.peaks.detection.find_peaks` detected.
     shape : tuple of int
         Frame shape ``(rows, cols)``, pixels.
     previous : mapping of str to Peak, optional

@@ -11,7 +11,7 @@ the pieces:
 - :mod:`~holoview.headless.selection` chooses the peaks to demodulate: from a JSON
   file, from two labels and the model, or the N strongest identified by PCA;
 - :mod:`~holoview.headless.pipeline` streams the frames through one
-  :class:`~holoview.processing.demodulate.Demodulator`, read ahead by
+  :class:`~holoview.processing.maps.demodulate.Demodulator`, read ahead by
   :mod:`~holoview.headless.reader` (memory bounded by a few frames);
 - :mod:`~holoview.headless.analysis` names the peaks (PCA), converts to depths, fuses
   them and fits the rates;

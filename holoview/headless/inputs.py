@@ -35,7 +35,7 @@ from holoview.engine.experiment import Experiment
 from holoview.errors import InputError
 from holoview.file_kinds import special_file
 from holoview.optics.setup import FLUIDS, check_optics
-from holoview.processing.frames import check_frame, check_frame_content, frame_damage
+from holoview.processing.fourier.frames import check_frame, check_frame_content, frame_damage
 
 logger = logging.getLogger(__name__)
 

@@ -42,8 +42,8 @@ from holoview.headless.plotting import (
     padded_limits,
     text,
 )
-from holoview.processing.peaks import Peak
-from holoview.processing.trends import format_rate
+from holoview.processing.peaks.detection import Peak
+from holoview.processing.series.rate_fits import format_rate
 
 #: Canvas width, pixels.
 WIDTH = 1700
@@ -258,7 +258,7 @@ def write_report(
         The PNG to write.
     spectrum : ndarray, shape (rows, cols)
         Centred log-magnitude spectrum of the first frame
-        (:func:`holoview.processing.spectrum.display_spectrum`).
+        (:func:`holoview.processing.fourier.spectrum.display_spectrum`).
     detected : sequence of Peak
         The peaks detected in the first frame.
     data, analysis : RunData, Analysis

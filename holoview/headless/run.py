@@ -56,8 +56,8 @@ from holoview.headless.selection import (
     select_from_experiment,
 )
 from holoview.headless.stitch import demodulate_chunks
-from holoview.processing.peaks import Peak, find_peaks
-from holoview.processing.spectrum import display_spectrum
+from holoview.processing.fourier.spectrum import display_spectrum
+from holoview.processing.peaks.detection import Peak, find_peaks
 
 logger = logging.getLogger(__name__)
 

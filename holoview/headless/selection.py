@@ -11,7 +11,7 @@ Two ways, as the operator would at the bench (DESIGN.md, paper section 4):
   amplitude until the temporal PCA names them (:mod:`holoview.headless.analysis`),
   with the brightest as RB1 unless an anchor names another peak. The PCA fixes
   every sign from the reference peak's twin: without an anchor, that is the twin
-  :func:`~holoview.processing.peaks.find_peaks` keeps (``fx > 0``), so every height
+  :func:`~holoview.processing.peaks.detection.find_peaks` keeps (``fx > 0``), so every height
   may come out with the opposite sign; an anchor on the right twin settles it.
 
 Carriers are in cycles/pixel, ``(fx, fy)``, on the stored twin (phase grows with height).
@@ -26,10 +26,11 @@ from typing import Any
 
 from holoview.engine.experiment import Experiment, check_carrier, check_label, is_model_label
 from holoview.errors import InputError
-from holoview.processing.labelling import ModelLabelling
-from holoview.processing.lattice import LatticeIdentification, LatticePeak
-from holoview.processing.peaks import Peak
-from holoview.processing.snapping import SNAP_BINS, snap
+from holoview.processing.naming.labelling import ModelLabelling
+from holoview.processing.naming.lattice import LatticeIdentification
+from holoview.processing.naming.lattice_geometry import LatticePeak
+from holoview.processing.peaks.detection import Peak
+from holoview.processing.peaks.snapping import SNAP_BINS, snap
 
 logger = logging.getLogger(__name__)
 

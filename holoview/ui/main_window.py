@@ -32,8 +32,9 @@ from PyQt6.QtWidgets import (
 from holoview import __version__
 from holoview.engine.experiment import Experiment, default_experiment_path
 from holoview.errors import HoloviewError
+from holoview.live.pipeline import LiveResult
 from holoview.live.rates import RateMeter
-from holoview.live.session import LiveResult, LiveSession, RecordRequest, discover_sources
+from holoview.live.session import LiveSession, RecordRequest, discover_sources
 from holoview.ui.background import BackgroundCall
 from holoview.ui.exports import export_maps, export_window_png
 from holoview.ui.hologram_view import HologramView

@@ -9,8 +9,8 @@ from holoview.errors import InputError
 from holoview.optics.families import predict_families
 from holoview.optics.setup import Ghost, Setup
 from holoview.optics.synthesis import HologramSynthesizer
-from holoview.processing.labelling import label_peaks
-from holoview.processing.peaks import find_peaks
+from holoview.processing.naming.labelling import label_peaks
+from holoview.processing.peaks.detection import find_peaks
 
 SETUP = Setup(shape=(256, 256))
 
