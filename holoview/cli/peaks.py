@@ -127,8 +127,15 @@ def run(args: argparse.Namespace) -> int:
     if experiment.peaks and not detected:
         raise InputError(f"no significant peak in frame {args.frame}: nothing to label")
     resolution = resolve_peaks(experiment, detected, shape)
-    if labels or given is not None:
-        resolution.strict()
+    try:
+        resolution.strict(unmatched=bool(labels) or given is not None)
+    except InputError as exc:
+        if labels or given is not None:
+            raise
+        raise InputError(
+            f"the experiment the recording carries: {exc}; name the peaks with --label or "
+            "--experiment"
+        ) from exc
     named = tuple(LabelledPeak(p.label, p.carrier) for p in resolution.peaks if p.label)
     document = replace(experiment, peaks=named).to_dict()
     labelling = resolution.labelling
