@@ -2,8 +2,9 @@
 
 Three speeds (the ``speed`` setting):
 
-- ``"recorded"``: a holoview recording at the pace of its timestamps (device
-  clock where every frame has one, else host arrival times); other files at
+- ``"recorded"``: a holoview recording at the pace of its timestamps (the clock
+  rule of :mod:`holoview.acquire.frame_times`: the camera's clock where it is finite,
+  forward and free of jumps, else host arrival times); other files at
   ``rate_hz`` (default: the video's own rate, or 30 frames/s for images); the
   ``speed_factor`` setting plays faster or slower than that (0.25 to 8 times);
 - ``"fast"``: as fast as frames can be read;
