@@ -7,6 +7,8 @@ import importlib
 import platform
 import sys
 
+from holoview.cli.signals import emit
+
 
 def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     """Register ``info``."""
@@ -38,7 +40,11 @@ def aravis_status() -> tuple[bool, str]:
     try:
         import gi
     except ImportError as exc:
-        return False, f"PyGObject is not installed ({exc}); run scripts/setup.sh"
+        return False, (
+            f"PyGObject is not installed ({exc}); GenICam cameras need Aravis 0.8 and "
+            "GObject introspection from the system, then pip install 'holoview[genicam]' "
+            "(on Debian 12 as root: scripts/setup.sh)"
+        )
     try:
         gi.require_version("Aravis", "0.8")
         from gi.repository import Aravis
@@ -65,7 +71,7 @@ def _loaded_aravis_version() -> str:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Print one ``name: version`` line per component."""
+    """Print one ``name: version`` line per component (OutputError when stdout fails)."""
     from holoview import __version__
 
     qt, pyqt = qt_versions()
@@ -83,9 +89,9 @@ def run(args: argparse.Namespace) -> int:
         ("OpenCV", cv2_version),
         ("scikit-image", _module_version("skimage")),
         ("tifffile", _module_version("tifffile")),
+        ("matplotlib", _module_version("matplotlib")),
         ("GenICam (Aravis)", ("yes: " if usable else "no: ") + aravis),
     ]
     width = max(len(name) for name, _ in rows)
-    for name, value in rows:
-        print(f"{name:<{width}}  {value}")
+    emit("\n".join(f"{name:<{width}}  {value}" for name, value in rows))
     return 0

@@ -1,6 +1,6 @@
 """``holoview process``: headless processing of a recording into results files and a figure.
 
-The offline replay and test mode of DESIGN.md: the same processing as the GUI, no
+The offline replay and test mode of docs/design.md: the same processing as the GUI, no
 display (:mod:`holoview.headless`). Output files and their layout are documented in
 :mod:`holoview.headless.outputs` and the README. ``--jobs`` and ``--scheduler`` spread
 the frames over processes or a Dask cluster (:mod:`holoview.headless.parallel`); a
@@ -24,6 +24,7 @@ from holoview.cli.options import (
 from holoview.cli.signals import emit
 from holoview.cli.waves import add_wave_options, summary_line, wave_options
 from holoview.errors import InputError
+from holoview.headless.figures import FORMATS
 
 logger = logging.getLogger(__name__)
 
@@ -42,9 +43,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
         help="process a recording headless: trends, rates, maps, report",
         description="Demodulate every frame of INPUT (a holoview recording, a multi-page "
         "TIFF, a folder of images or a video) at the chosen peaks and write trends.csv, "
-        "summary.json, results.h5 and report.png into DIR. INPUT may also be a folder of "
-        "recordings or a quoted glob ('runs/*.h5'): then DIR/NAME per recording and "
-        "DIR/index.csv of every run's rates.",
+        "summary.json, results.h5 and report.png (or --report-format) into DIR. INPUT may "
+        "also be a folder of recordings or a quoted glob ('runs/*.h5'): then DIR/NAME per "
+        "recording and DIR/index.csv of every run's rates.",
     )
     parser.add_argument(
         "input",
@@ -128,6 +129,12 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
     )
     parser.add_argument("--maps", action="store_true", help="also write the delta-h maps")
     parser.add_argument(
+        "--report-format",
+        choices=FORMATS,
+        default="png",
+        help="the report's format: report.png (default), report.pdf or report.svg",
+    )
+    parser.add_argument(
         "--waves",
         action="store_true",
         help="with --maps: then run holoview waves on the fused maps into DIR (its options "
@@ -202,6 +209,7 @@ def run(args: argparse.Namespace) -> int:
         "optics_options": optics_options(args, args.fps),
         "settings": settings,
         "frames": args.frames,
+        "report": args.report_format,
     }
     recordings = find_recordings(args.input)
     if recordings is not None:
@@ -253,7 +261,11 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _run_batch(args: argparse.Namespace, recordings: list[Path], options: dict) -> int:
-    """Process a folder or glob of recordings; one line per failure, and the totals."""
+    """Process a folder or glob of recordings; one line per failure, and the totals.
+
+    Exit status 3 when an output of any recording could not be written, else 2 when
+    one failed, else 0 (130 when stopped).
+    """
     from holoview.headless.batch import process_batch
 
     bar, update = _progress_bar(args.quiet)
@@ -282,4 +294,6 @@ def _run_batch(args: argparse.Namespace, recordings: list[Path], options: dict) 
             f"{outcome.index}: {done} of {len(outcome.rows)} recordings processed"
             + (f", {len(outcome.failed)} failed" if outcome.failed else "")
         )
+    if any(row.output_failed for row in outcome.failed):
+        return 3  # an output could not be written (a full disk), as for one recording
     return 2 if outcome.failed else 0

@@ -3,6 +3,11 @@
 The camera thread fills a frame ring; the recorder thread writes every frame to
 the file (format in :mod:`holoview.acquire.recording`); this command shows a
 progress bar and ends with one line of what was acquired, recorded and lost.
+
+The recording stores the experiment ``--experiment`` names; without it, a replayed
+holoview recording's own experiment is copied with its changes, each from the frame
+of the copy where the source's frame it held from went (``replay:`` keeps the
+labelled peaks, so processing the copy measures what processing the source did).
 """
 
 from __future__ import annotations
@@ -65,7 +70,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
     add_experiment_option(
         parser,
         "the experiment in force (labelled peaks, optics, window, reference; as the GUI "
-        "saves it): stored in the recording, so `holoview process` needs no peak options",
+        "saves it): stored in the recording, so `holoview process` needs no peak options. "
+        "Without it, a replayed recording's own experiment and its changes are copied; "
+        "with it, they are replaced by FILE's",
     )
     add_optics_options(parser, "setup stored in the recording (over the experiment's)")
     return parser
@@ -195,25 +202,30 @@ def run(args: argparse.Namespace) -> int:
         setup = optics
         if experiment is not None:
             setup = {k: getattr(experiment, k) for k in OPTICS if getattr(experiment, k)}
+        if experiment is not None and source.carried_experiment(0) is not None:
+            logger.info("the source's experiment is replaced by %s", args.experiment)
+        problem = getattr(source, "experiment_problem", None)
+        if experiment is None and problem is not None:
+            logger.warning("%s: the copy carries no experiment", problem)
         recorder = Recorder.for_source(
             ring,
             out,
             source,
             setup=setup,
+            max_seconds=args.seconds,
             experiment=None if experiment is None else experiment.to_json(),
         )
         camera = CameraThread(source, ring, max_frames=args.frames)
         recorder.start()
-        t0 = time.monotonic()
         interrupted = False
         try:
             camera.start()
-            _follow(camera, recorder, args, t0)
+            _follow(camera, recorder, args)
         except KeyboardInterrupt:
             interrupted = True
         finally:
             _finish(camera, ring, recorder, out)
-        elapsed = time.monotonic() - t0
+        elapsed = recorder.elapsed_s
     count = recorder.accounting()
     mb = count.recorded * frame_bytes / 1e6
     lost = f", lost {count.lost_to_disk} to the disk" if count.lost_to_disk else ""
@@ -253,8 +265,8 @@ def _finish(camera: CameraThread, ring: FrameRing, recorder: Recorder, out: Path
                 recorder.stop(timeout=0.0, drain=False)
 
 
-def _follow(camera: CameraThread, recorder: Recorder, args: argparse.Namespace, t0: float) -> None:
-    """Show progress until the camera ends, the recorder stops or the time is up (5 Hz)."""
+def _follow(camera: CameraThread, recorder: Recorder, args: argparse.Namespace) -> None:
+    """Show progress until the camera ends or the recorder stops (5 Hz)."""
     from tqdm import tqdm
 
     with tqdm(
@@ -270,8 +282,6 @@ def _follow(camera: CameraThread, recorder: Recorder, args: argparse.Namespace, 
             bar.update(recorder.written - bar.n)
             status = recorder.status()
             bar.set_postfix(dropped=status.dropped, lost=status.transport_lost, refresh=False)
-            if not recorder.running:  # a full disk or a write error: stop the camera now
-                break
-            if args.seconds is not None and time.monotonic() - t0 >= args.seconds:
+            if not recorder.running:  # the time is up, or a write error: stop the camera now
                 break
         bar.update(recorder.written - bar.n)

@@ -238,6 +238,8 @@ def test_a_paused_replay_reads_as_no_frames_per_second(
             time.sleep(0.01)
         assert camera.rate_hz() > 0
         source.pause()
-        time.sleep(0.4)
+        deadline = time.monotonic() + 10
+        while camera.rate_hz() != 0.0 and time.monotonic() < deadline:
+            time.sleep(0.02)
         assert camera.rate_hz() == 0.0
         camera.stop()

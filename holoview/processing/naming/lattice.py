@@ -246,11 +246,15 @@ def identify_lattice(
 
     Examples
     --------
-    >>> from holoview.processing.peaks.detection import find_peaks
-    >>> peaks = find_peaks(frame)  # doctest: +SKIP
-    >>> carriers = [p.carrier for p in peaks]  # doctest: +SKIP
-    >>> ident = identify_lattice(carriers, frame.shape, 1.0, 1.333)  # doctest: +SKIP
-    >>> [(p.label, p.alpha, p.twin) for p in ident.peaks]  # doctest: +SKIP
+    Five peaks of a 512 x 512 frame (as :func:`~holoview.processing.peaks.detection.find_peaks`
+    would give them, brightest first), two of them labelled:
+
+    >>> carriers = [(-0.2005, 0.0601), (0.1504, 0.0903), (-0.0501, 0.1504),
+    ...             (-0.2506, 0.2105), (-0.1002, 0.3008)]
+    >>> labels = {"RB1": (-0.2005, 0.0601), "FB1": (-0.0501, 0.1504)}
+    >>> ident = identify_lattice(carriers, (512, 512), 1.0, 1.333, labels=labels)
+    >>> [(p.label, round(p.alpha, 3)) for p in ident.peaks]
+    [('RB1', 0.333), ('RF', 1.0), ('FB1', 1.333), ('RB2', 1.666), ('FB2', 2.666)]
     """
     check_indices(n1, n2)
     points_c, frame = _check_inputs(carriers, shape, tolerance, snap)
