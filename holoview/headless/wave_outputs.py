@@ -305,12 +305,11 @@ def run_waves(
     started = time.perf_counter()
     folder = Path(out)
     names = (WAVES_H5, WAVES_JSON, *FIGURES)
-    with OutputFolder(folder, names, overwrite=overwrite) as outputs:
+    with OutputFolder(folder, names, overwrite=overwrite, inputs=[Path(input_path)]) as outputs:
         with open_wave_maps(
             input_path, label, time_range=time_range, pixel_size=pixel_size, fps=fps
         ) as maps:
             results = analyse_waves(maps, options)
-            outputs.create()
             try:
                 written = time.perf_counter()
                 _write_h5(outputs.path(WAVES_H5), results, maps, options)
