@@ -1,6 +1,6 @@
 """Incoming and outgoing parts of one partial wave: a Hankel fit to its radial profile.
 
-With ``h = Re(A_m(r) exp(i (m theta - omega t)))`` (DESIGN.md's ``exp(-i omega t)``),
+With ``h = Re(A_m(r) exp(i (m theta - omega t)))`` (the ``exp(-i omega t)`` convention),
 a free wave of wavenumber ``k`` has ``A_m(r) = out H_m^(1)(k r) + in H_m^(2)(k r)``:
 ``H^(1) ~ exp(+i k r)`` travels outwards, ``H^(2)`` inwards. :func:`fit_partial_wave`
 fits the complex ``in`` and ``out`` (m) to a profile by linear least squares,
