@@ -169,22 +169,28 @@ def band_filter(
     if block < 8 or block % 2:
         raise InputError(f"the filter's block must be even and at least 8 frames, got {block}")
     hop = block // 2
-    window = _sine_window(block)[:, np.newaxis, np.newaxis]
-    mask = band.mask(np.fft.fftfreq(block, clock.interval), ky, kx)
+    window = _sine_window(block).astype(np.float32)[:, np.newaxis, np.newaxis]
+    # the mask is symmetric under (f, k) -> (-f, -k): its half f >= 0 for a real transform
+    mask = band.mask(np.fft.rfftfreq(block, clock.interval), ky, kx).astype(np.float32)
     for start, stop in clock.runs:
-        pending = np.zeros((block, rows, cols))  # output of frames [cursor, cursor + block)
+        pending = np.zeros((block, rows, cols), np.float32)  # frames [cursor, cursor + block)
         cursor = start - hop  # the first block starts half a block before the run
         while cursor < stop:
             lo, hi = max(cursor, start), min(cursor + block, stop)
-            data = np.zeros((block, rows, cols))
-            chunk = np.asarray(maps[lo:hi], dtype=np.float64)
+            data = np.zeros((block, rows, cols), np.float32)
+            chunk = np.asarray(maps[lo:hi], dtype=np.float32)
             data[lo - cursor : hi - cursor] = np.where(np.isfinite(chunk), chunk, 0.0)
-            spectrum = scipy.fft.fftn(data * window, workers=workers)
-            pending += scipy.fft.ifftn(spectrum * mask, workers=workers).real
+            data *= window
+            spectrum = scipy.fft.rfftn(data, axes=(1, 2, 0), workers=workers)
+            spectrum *= mask
+            pending += scipy.fft.irfftn(
+                spectrum, s=(rows, cols, block), axes=(1, 2, 0), workers=workers
+            )
             done_lo, done_hi = max(cursor, start), min(cursor + hop, stop)
             if done_hi > done_lo:
                 finished = pending[done_lo - cursor : done_hi - cursor]
-                source = np.asarray(maps[done_lo:done_hi], dtype=np.float64)
+                source = np.asarray(maps[done_lo:done_hi], dtype=np.float32)
                 out[done_lo:done_hi] = np.where(np.isfinite(source), finished, np.nan)
-            pending = np.concatenate([pending[hop:], np.zeros((hop, rows, cols))])
+            pending[:hop] = pending[hop:]
+            pending[hop:] = 0.0
             cursor += hop
