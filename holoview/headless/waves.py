@@ -216,10 +216,8 @@ def _pass_spectrum(maps: WaveMaps, options: WaveOptions, results: WaveResults) -
                 span=_span(maps),
             )
         )
-        if options.centre == "auto":  # the centre is found at the drive: its halves too
-            lockins.extend(
-                LockIn(maps.shape, options.drive, (1,), span=span) for span in _halves(maps)
-            )
+        if options.centre == "auto":  # the centre is found at the drive
+            lockins.extend(_centre_lockins(maps, options.drive))
     finite = 0
     for times, block in maps.blocks(options.block):
         finite += int(np.count_nonzero(np.isfinite(block)))
@@ -253,22 +251,30 @@ def _halves(maps: WaveMaps) -> tuple[tuple[float, float], tuple[float, float]]:
     return (start, middle), (middle, stop)
 
 
+def _centre_lockins(maps: WaveMaps, frequency: float) -> list[LockIn]:
+    """Lock-ins for the centre: the whole record and its halves, equal weights.
+
+    Equal weights, not Hann's: a ringdown fades, and Hann's weight on the middle of the
+    record would favour the noise.
+    """
+    return [
+        LockIn(maps.shape, frequency, (1,), span=span, window="flat")
+        for span in (_span(maps), *_halves(maps))
+    ]
+
+
 def _auto_centre(maps: WaveMaps, options: WaveOptions, results: WaveResults) -> None:
     """The centre on the lock-in map at the drive (from pass 1) or at E(omega)'s peak."""
     frequency = options.drive
-    if frequency is not None and results.lockin is not None:
-        amplitudes = [results.lockin.amplitude[0]] + [
-            lockin.amplitude[0] for lockin in results.centre_lockins
-        ]
+    if frequency is not None and results.centre_lockins:
+        amplitudes = [lockin.amplitude[0] for lockin in results.centre_lockins]
     else:
         omega, energy = results.spectrum.energy_omega()
         peaks = _peaks_of(omega, energy, 1, 2)
         if not peaks:
             raise InputError("no centre can be found: E(omega) has no peak")
         frequency = peaks[0]
-        lockins = [
-            LockIn(maps.shape, frequency, (1,), span=span) for span in (_span(maps), *_halves(maps))
-        ]
+        lockins = _centre_lockins(maps, frequency)
         for times, block in maps.blocks(options.block):
             for lockin in lockins:
                 lockin.push_block(block, times)
@@ -294,7 +300,8 @@ def _auto_centre(maps: WaveMaps, options: WaveOptions, results: WaveResults) -> 
         0.5 * abs(centres[1][1] - centres[2][1]),
     )
     results.centre_method = (
-        f"auto: least entropy over m of the lock-in map at {frequency:.4g} Hz, "
+        f"auto: least entropy over m of the lock-in map (equal weights) at "
+        f"{frequency:.4g} Hz, "
         f"rings to {radius * 1e3:.3g} mm; error: half the difference of the two halves' centres"
     )
 

@@ -24,10 +24,12 @@ in a frame is NaN in that frame. The rings must lie inside the map.
 :func:`find_centre` finds a centre from a complex amplitude map (a lock-in at the
 strongest frequency): the point around which that map's power is spread over the
 fewest azimuthal numbers (the least entropy of its ``|A_m|^2`` over ``m``, on rings two
-pixels apart sampled bilinearly), searched by Nelder-Mead from the power-weighted
-centroid. A field of partial waves around one
-centre puts its power in a few ``m``; seen from another point, each spreads over
-``m +- n`` with weights ``J_n(k delta)^2`` (Graf's addition theorem).
+pixels apart sampled bilinearly), searched by Nelder-Mead from the best of the
+power-weighted centroid and a coarse grid over the maps (the entropy has local minima).
+A field of partial waves around one centre puts its power in a few ``m``; seen from
+another point, each spreads over ``m +- n`` with weights ``J_n(k delta)^2`` (Graf's
+addition theorem). The map's mean is removed first: a uniform part (the reference arm's
+vibration in the RF and RB maps) is ``m = 0`` around every point.
 """
 
 from __future__ import annotations
@@ -56,6 +58,9 @@ __all__ = [
     "polar_grid",
 ]
 
+
+#: Points per side of the coarse grid a centre search starts from.
+CENTRE_GRID = 7
 
 #: Frames whose ring samples are made at once (a few MB: reused, not mapped afresh).
 MODES_CHUNK = 16
@@ -467,10 +472,11 @@ def find_centre(
     field = np.asarray(amplitude, dtype=np.complex128)
     rows, cols = field.shape
     dy, dx = pixel_pair(pixel_size)
-    power = np.abs(field) ** 2
-    finite = np.isfinite(power)
+    finite = np.isfinite(field)
     if not np.any(finite):
         raise InputError("no centre can be found: the amplitude map is all NaN")
+    field = field - field[finite].mean()  # a uniform part is m = 0 around any point
+    power = np.abs(field) ** 2
     yy, xx = np.mgrid[0:rows, 0:cols]
     weight = np.where(finite, power, 0.0)
     total = float(weight.sum())
@@ -502,7 +508,14 @@ def find_centre(
             return math.inf
         return _entropy(parts, point / scale, radii_px, n_theta, m_max)
 
-    step = (2.0 if start is None else 0.5) * min(dx, dy)  # a given start is close already
+    step = 0.5 * min(dx, dy)  # a given start is close already
+    if start is None:  # the entropy has local minima: start from the best of a coarse grid
+        xs = np.linspace(low[0], high[0], CENTRE_GRID)
+        ys = np.linspace(low[1], high[1], CENTRE_GRID)
+        candidates = [first] + [np.array([x, y]) for y in ys for x in xs]
+        scores = [score(point) for point in candidates]
+        first = candidates[int(np.argmin(scores))]
+        step = max(0.5 * float(min(xs[1] - xs[0], ys[1] - ys[0])), min(dx, dy))
     simplex = np.array([first, first + np.array([step, 0.0]), first + np.array([0.0, step])])
     result = minimize(
         score,

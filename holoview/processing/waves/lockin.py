@@ -82,6 +82,10 @@ class LockIn:
     span : (float, float), optional
         First and last time of the record, s (Hann weights over it; default: equal
         weights).
+    window : str
+        ``"hann"`` (default) or ``"flat"``: equal weights within ``span`` (for a signal
+        that fades, such as a ringdown, where Hann's weight on the middle of the record
+        would favour the noise).
     """
 
     def __init__(
@@ -91,7 +95,10 @@ class LockIn:
         harmonics: Sequence[int] = (1, 2, 3),
         *,
         span: tuple[float, float] | None = None,
+        window: str = "hann",
     ) -> None:
+        if window not in ("hann", "flat"):
+            raise InputError(f"the lock-in window must be hann or flat, got {window!r}")
         if not (math.isfinite(frequency) and frequency > 0):
             raise InputError(f"the drive frequency must be positive, got {frequency!r} Hz")
         orders = tuple(int(n) for n in harmonics)
@@ -103,6 +110,7 @@ class LockIn:
         self.frequency = float(frequency)
         self.harmonics = orders
         self.span = span
+        self.window = window
         rows, cols = self.shape
         n_h = len(orders)
         self._weighted = np.zeros((n_h, rows, cols), np.complex128)  # sum w h e^{+i n w t}
@@ -119,7 +127,10 @@ class LockIn:
             return np.ones_like(times)
         start, stop = self.span
         phase = (times - start) / (stop - start)
-        return np.where((phase >= 0) & (phase <= 1), np.sin(np.pi * phase) ** 2, 0.0)
+        inside = (phase >= 0) & (phase <= 1)
+        if self.window == "flat":
+            return inside.astype(np.float64)
+        return np.where(inside, np.sin(np.pi * phase) ** 2, 0.0)
 
     def push_block(self, frames: ArrayLike, times: ArrayLike) -> None:
         """Add maps ``(N, rows, cols)`` (m, NaN where untrusted) at ``times`` (s).
