@@ -3,10 +3,11 @@
 A :class:`WaveHistory` keeps the newest maps of one label (a peak's height map or the
 fused map, metres, NaN where untrusted) with their true frame times, at most
 ``length`` of them (bounded memory: each map is kept by reference, never copied). A
-frame lost on the way (the ring overwrote it, a replay jumped) is a gap: the times say
-so and no segment spans it (:mod:`holoview.processing.waves.clock`). Maps of the
-relative reference (height steps between frames) are summed into heights within each
-run of frames, as ``holoview waves`` does for a file.
+frame lost on the way (the ring overwrote it) is a gap: the times say so and no
+segment spans it (:mod:`holoview.processing.waves.clock`); a replay's jump starts the
+history again (:meth:`WaveHistory.clear`). Maps of the relative reference (height
+steps between frames) are summed into heights within each run of frames, as
+``holoview waves`` does for a file.
 
 :func:`analyse_window` takes a :meth:`WaveHistory.snapshot` and runs the analyses of
 :mod:`holoview.processing.waves` on it, the same functions ``holoview waves`` runs:
@@ -180,10 +181,6 @@ class WaveHistory:
         self._maps = collections.deque(self._maps, maxlen=self.length)
         self._times = collections.deque(self._times, maxlen=self.length)
         self._ids = collections.deque(self._ids, maxlen=self.length)
-
-    def restart_run(self) -> None:
-        """The next map does not follow the last one (a replay jumped): a gap, sums restart."""
-        self._sum = None
 
     def push(
         self, height_m: np.ndarray, time_s: float, frame_id: int, *, relative: bool = False

@@ -5,13 +5,15 @@ irregularly spaced and, on a slow machine, at a fraction of the camera's rate; a
 spectrum needs them evenly spaced. The waves worker (``holoview-waves``) therefore takes
 *every* frame from the ring itself and demodulates the one map the panel shows (a
 labelled peak's, or the fused map of every peak with a height) with the engine's
-per-frame core (:class:`~holoview.engine.frame_core.FrameCore`, the window the maps
-worker uses), into a :class:`~holoview.live.wave_window.WaveHistory`:
+per-frame core (:class:`~holoview.engine.frame_core.FrameCore`; its window's radius
+held, :meth:`WavesWorker._window_radius`), into a
+:class:`~holoview.live.wave_window.WaveHistory`:
 
-- every frame while it keeps up (``stride`` 1); when its backlog in the ring passes
-  :data:`BACKLOG` frames it keeps every second frame (then every fourth, ...): the maps
-  stay evenly spaced at ``camera rate / stride`` and the panel says that the frequency
-  axis ends at half that rate. When it has long had time to spare the stride halves.
+- every frame while a map takes less than :data:`TARGET_BUSY` of the camera's frame
+  interval (``stride`` 1); else every second frame (``frame_id`` even), every fourth,
+  ...: the maps stay evenly spaced at ``camera rate / stride`` and the panel says that
+  the frequency axis ends at half that rate. Once a smaller stride has sufficed for
+  :data:`RELAX_S` seconds the stride halves.
 - a replay played as fast as it reads waits for it (:meth:`WavesWorker.wait_for_room`),
   so a replay at full speed fills the panel from every frame;
 - frames lost before it read them are gaps in the history (by the frame times),
@@ -53,22 +55,23 @@ from holoview.live.wave_window import (
 from holoview.live.worker import YIELDING_NICENESS, DemodWorker, RingWorker, yield_to_others
 from holoview.processing.maps.demod_results import DemodResult
 from holoview.processing.peaks.detection import Peak
+from holoview.processing.peaks.radii import peak_radii
 
 logger = logging.getLogger(__name__)
 
-__all__ = ["BACKLOG", "FIT_SHARE", "MAX_STRIDE", "WAVES_HZ", "WavesWorker"]
+__all__ = ["BACKLOG", "FIT_SHARE", "MAX_STRIDE", "TARGET_BUSY", "WAVES_HZ", "WavesWorker"]
 
 #: Highest rate of the analyses, Hz.
 WAVES_HZ = 1.0
 #: Most of the time the analyses may take (they run less often when slower).
 FIT_SHARE = 0.25
-#: Frames waiting in the ring beyond which the worker keeps fewer frames (doubles its stride).
+#: Frames waiting in the ring beyond which a replay played as fast as it reads waits.
 BACKLOG = 24
 #: Largest stride (camera frames per map).
 MAX_STRIDE = 16
-#: Share of the time between two kept frames under which, held for :data:`RELAX_S`
-#: seconds, the stride halves again.
-RELAX_BUSY = 0.3
+#: Most of the time between two kept frames a map may take (median of the last 16).
+TARGET_BUSY = 0.8
+#: Seconds a smaller stride must have sufficed before the stride halves.
 RELAX_S = 5.0
 #: Seconds between two coregistrations of the fused map's peaks.
 COREGISTER_S = 0.5
@@ -134,8 +137,9 @@ class WavesWorker(RingWorker):
         self._coregistration = Coregistration()
         self._coregistered_at = -math.inf
         self._continuity = Continuity()
-        self._cost = 0.0  # seconds per map kept (moving average)
+        self._costs: collections.deque[float] = collections.deque(maxlen=16)  # s per map
         self._relaxed_since: float | None = None
+        self._paced_at = -math.inf
         self._camera_times: collections.deque[float] = collections.deque(maxlen=65)
         self._problem: str | None = None
         self._room = threading.Condition()
@@ -181,11 +185,13 @@ class WavesWorker(RingWorker):
         """Frames waiting in the ring for this worker."""
         return self._consumer.status().unread
 
-    def wait_for_room(self, stop: threading.Event, limit: int = BACKLOG // 2) -> None:
+    def wait_for_room(self, stop: threading.Event, limit: int = BACKLOG) -> None:
         """Wait until fewer than ``limit`` frames wait for this worker (or it or ``stop`` ends).
 
-        A replay played as fast as it reads calls it before each frame.
+        A replay played as fast as it reads calls it before each frame; meanwhile the
+        worker keeps every frame.
         """
+        self._paced_at = time.monotonic()
         with self._room:
             while not stop.is_set() and self.running and self.backlog() >= limit:
                 self._room.wait(0.1)
@@ -225,46 +231,61 @@ class WavesWorker(RingWorker):
         if peak_set is None:
             return
         tick = time.perf_counter()
+        demodulator = None if self._core is None else self._core.demodulator
         try:
             height, pixel_size, k_cut = self._map(pixels, *peak_set)
         except HoloviewError as exc:  # said in the panel, not the banner
             self._problem = str(exc)
             return
         self._problem = None
+        built = self._core is None or self._core.demodulator is not demodulator
         with self._lock:
             history = self.history
-            if jumped:
-                history.restart_run()
+            if jumped:  # a replay's seek, step back or loop: a new record
+                history.clear()
             if pixel_size != history.pixel_size or k_cut != history.k_cut:
                 history.clear()
                 history.pixel_size, history.k_cut = pixel_size, k_cut
             history.push(height, t, meta.frame_id, relative=self._core_reference() == "relative")
-        cost = time.perf_counter() - tick
-        self._cost = cost if self._cost == 0 else 0.9 * self._cost + 0.1 * cost
+        if not built:  # a new demodulator's first frame plans its FFTs: not a map's cost
+            self._costs.append(time.perf_counter() - tick)
         self._publish(None)
 
     def _core_reference(self) -> str:
         core = self._core
         return "absolute" if core is None else core.experiment.reference
 
+    def _needed_stride(self) -> int:
+        """The smallest power-of-two stride at which a map takes :data:`TARGET_BUSY` of the time
+        between two kept frames (1 while a replay waits for this worker)."""
+        if time.monotonic() - self._paced_at < 1.0:
+            return 1
+        rate = self.camera_rate()
+        if len(self._costs) < 4 or rate <= 0:
+            return self.stride
+        per_map = float(np.median(self._costs))
+        needed = 1
+        while needed < MAX_STRIDE and per_map * rate / needed > TARGET_BUSY:
+            needed *= 2
+        if self.backlog() > self.ring.capacity // 2:  # far behind whatever the costs say
+            needed = max(needed, min(2 * self.stride, MAX_STRIDE))
+        return needed
+
     def _adapt_stride(self) -> None:
-        """Keep fewer frames when behind; more again once there is long time to spare."""
-        stride = self.stride
-        if self.history.pushed and self.backlog() > BACKLOG and stride < MAX_STRIDE:
-            stride *= 2
+        """Keep fewer frames when a map takes too long; more once there is time to spare."""
+        stride, needed = self.stride, self._needed_stride()
+        now = time.monotonic()
+        if needed > stride:
+            stride = needed
             self._relaxed_since = None
-        else:
-            rate = self.camera_rate()
-            busy = self._cost * rate / stride if rate > 0 else 1.0
-            now = time.monotonic()
-            if stride > 1 and busy < RELAX_BUSY:
-                if self._relaxed_since is None:
-                    self._relaxed_since = now
-                elif now - self._relaxed_since >= RELAX_S:
-                    stride //= 2
-                    self._relaxed_since = None
-            else:
+        elif needed < stride:
+            if self._relaxed_since is None:
+                self._relaxed_since = now
+            elif now - self._relaxed_since >= RELAX_S:
+                stride //= 2
                 self._relaxed_since = None
+        else:
+            self._relaxed_since = None
         if stride != self.stride:
             logger.info("waves: every %d camera frame(s) kept (was %d)", stride, self.stride)
             self.stride = stride
@@ -280,7 +301,7 @@ class WavesWorker(RingWorker):
         """The chosen map of one frame (m), its pixel size (m) and cut-off (rad/m)."""
         label = self.settings.label
         chosen = _chosen(peaks, label)
-        experiment = replace(experiment, radius=self._window_radius(chosen, experiment))
+        experiment = replace(experiment, radius=self._window_radius(chosen, peaks, experiment))
         if self._core is None:
             self._core = FrameCore(self.frame_shape, experiment, chosen, saturation=self.saturation)
         self._core.configure(experiment, chosen)
@@ -297,24 +318,30 @@ class WavesWorker(RingWorker):
         k_cut = math.inf if pitch is None else 2.0 * math.pi * radius / pitch
         return height, pixel_size, k_cut
 
-    def _window_radius(self, chosen: list[Peak], experiment: Experiment) -> float:
+    def _window_radius(
+        self, chosen: list[Peak], peaks: tuple[Peak, ...], experiment: Experiment
+    ) -> float:
         """The window radius of the maps, cycles/pixel, held while the map and labels stay.
 
-        The experiment's radius where it sets one; else the maps worker's automatic
-        radius for the chosen peaks (the smallest of them for the fused map), taken once:
-        peak detection re-runs every second, and on a wavy surface it may find the
-        waves' sidebands and move the automatic radius, which would restart the history
-        each time.
+        The experiment's radius where it sets one; else the widest that reaches no other
+        demodulated carrier (labelled or placed by the model), their twins or zero
+        frequency (:func:`~holoview.processing.peaks.radii.peak_radii` without the
+        detected neighbours; the smallest of the chosen peaks' for the fused map). The
+        detected peaks are left out: on a wavy surface detection finds the waves'
+        sidebands around every carrier, which are surface content to pass, and the
+        maps worker's automatic radius shrinks to their spacing.
         """
         if experiment.radius is not None:
             return experiment.radius
-        key = (self.settings.label, tuple(p.label for p in chosen))
+        key = (self.settings.label, tuple(p.label for p in peaks))
         if self._radius is None or self._radius[0] != key:
-            latest = self.maps.latest()
-            radii = [] if latest is None else [latest.radii.get(p.label or "") for p in chosen]
-            if not radii or any(r is None for r in radii):
-                raise InputError("waiting for the maps worker's first window of these peaks")
-            self._radius = (key, min(r for r in radii if r is not None))
+            carriers = np.array([p.carrier for p in peaks], dtype=np.float64)
+            radii = peak_radii(self.frame_shape, carriers, None, np.zeros((0, 2)))
+            wanted = {p.label for p in chosen}
+            self._radius = (
+                key,
+                min(r for p, r in zip(peaks, radii, strict=True) if p.label in wanted),
+            )
         return self._radius[1]
 
     def _height(self, demod: DemodResult, label: str) -> np.ndarray:

@@ -54,6 +54,7 @@ from holoview.ui.window_layout import (
     initial_size,
     layout_for,
 )
+from holoview.ui.window_waves import WavesActions
 
 logger = logging.getLogger(__name__)
 
@@ -63,7 +64,7 @@ REDRAW_HZ = 30.0
 BANNER_S = 8.0
 
 
-class MainWindow(ExperimentActions, QMainWindow):
+class MainWindow(WavesActions, ExperimentActions, QMainWindow):
     """holoview's live window.
 
     Parameters
@@ -151,6 +152,7 @@ class MainWindow(ExperimentActions, QMainWindow):
         self.resize(initial_size(available))
         self.dock_layout = layout_for(available)
         arrange_docks(self, self.docks, self.dock_layout)
+        self.docks["Waves"] = self._add_waves_dock()  # hidden until asked for (View menu)
         self._default_state = self.saveState()
         self._make_actions()
         self._connect()
@@ -315,6 +317,7 @@ class MainWindow(ExperimentActions, QMainWindow):
         )
         self.source_panel.set_streaming(True, self.session.description)
         self.transport.attach(self.session.replay)
+        self._waves_session()
         self.timer.start()
 
     def _adopt_source_setup(self, setup: dict) -> None:
@@ -478,6 +481,7 @@ class MainWindow(ExperimentActions, QMainWindow):
             self._draw_camera(newest[1])
             self.display_rate.tick()
         self.draw_maps()
+        self.draw_waves()
         trend = session.trend()
         if trend is not None and trend.seq != self._trend_seq:
             self._trend_seq = trend.seq
