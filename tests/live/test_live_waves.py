@@ -109,7 +109,9 @@ def test_a_full_speed_replay_gives_every_frame_and_the_truth(travelling: Path, l
     try:
         session.open_waves(WaveSettings(label=label, length=512, segment=128))
         session.start()
-        wait_for(lambda: (w := session.waves()) is not None and w.frames == 300 and w.fit)
+        wait_for(
+            lambda: (w := session.waves()) is not None and w.frames == 300 and w.fit is not None
+        )
         waves = session.waves()
         assert session.waves_worker is not None
         status = session.waves_worker.status()
