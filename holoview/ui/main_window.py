@@ -152,7 +152,7 @@ class MainWindow(WavesActions, ExperimentActions, QMainWindow):
         self.resize(initial_size(available))
         self.dock_layout = layout_for(available)
         arrange_docks(self, self.docks, self.dock_layout)
-        self.docks["Waves"] = self._add_waves_dock()  # hidden until asked for (View menu)
+        self.docks["Waves"] = self._add_waves_dock()  # a tab beside Trends once shown
         self._default_state = self.saveState()
         self._make_actions()
         self._connect()
@@ -581,6 +581,7 @@ class MainWindow(WavesActions, ExperimentActions, QMainWindow):
     def reset_layout(self) -> None:
         """Put the docks back where they start."""
         self.restoreState(self._default_state)
+        self._place_waves()
         self.transport.attach(self.transport.control)
 
     def closeEvent(self, event: QCloseEvent) -> None:

@@ -152,20 +152,19 @@ class WavesView(QWidget):
         self.hold = {name: QCheckBox(f"hold {text}") for name, text in HOLDS}
         self.clear_centre = QPushButton("Clear centre")
         self.clear_centre.setToolTip("click the field view to set the centre of the (m, f) view")
-        top = QHBoxLayout()
-        for text, widget in (
-            ("map", self.map_box),
-            ("window", self.length_box),
-            ("cut", self.direction),
-            ("fluid", self.fluid_box),
-            ("d", self.depth_box),
+        top, second = QHBoxLayout(), QHBoxLayout()
+        for row, items in (
+            (top, (("map", self.map_box), ("window", self.length_box), ("cut", self.direction))),
+            (second, (("fluid", self.fluid_box), ("d", self.depth_box))),
         ):
-            top.addWidget(QLabel(text))
-            top.addWidget(widget)
-        for box in self.hold.values():
-            top.addWidget(box)
+            for text, widget in items:
+                row.addWidget(QLabel(text))
+                row.addWidget(widget)
         top.addWidget(self.clear_centre)
-        top.addStretch(1)
+        for box in self.hold.values():
+            second.addWidget(box)
+        for row in (top, second):
+            row.addStretch(1)
         self.fit_label = QLabel("σ, d, U: no fit yet")
         self.fit_label.setStyleSheet("font-weight: bold;")
         self.fit_label.setWordWrap(True)
@@ -179,6 +178,7 @@ class WavesView(QWidget):
         layout = QVBoxLayout(self)
         layout.setContentsMargins(2, 2, 2, 2)
         layout.addLayout(top)
+        layout.addLayout(second)
         layout.addWidget(self.fit_label)
         layout.addWidget(self.rate_label)
         layout.addWidget(self.message_label)

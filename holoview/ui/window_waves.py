@@ -1,18 +1,20 @@
-"""The main window's Waves panel: a dock shown on demand, its worker running only while shown.
+"""The main window's Waves panel: a tab beside Trends, its worker running only while shown.
 
-A mixin of :class:`~holoview.ui.main_window.MainWindow`. The Waves dock starts hidden
-(View menu): while it is shown the session runs the waves worker
+A mixin of :class:`~holoview.ui.main_window.MainWindow`. The Waves dock is a tab of the
+Trends dock (placed once the window is shown). While it is shown (its tab raised, or
+the dock moved out) the session runs the waves worker
 (:meth:`~holoview.live.session.LiveSession.open_waves`), which demodulates the chosen map
-from every camera frame; hidden, the worker stops and costs nothing. Opened for the first
-time, the dock joins the Trends dock as a tab. The redraw timer draws a new analysis when
-one comes (about once a second) and offers the labelled peaks' maps.
+from every camera frame; behind another tab or closed, the worker stops and costs
+nothing. The redraw timer draws a new analysis when one comes (about once a second)
+and offers the labelled peaks' maps.
 """
 
 from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from PyQt6.QtCore import Qt
+from PyQt6.QtCore import Qt, QTimer
+from PyQt6.QtGui import QShowEvent
 from PyQt6.QtWidgets import QDockWidget
 
 from holoview.live.wave_window import WaveSettings
@@ -32,36 +34,57 @@ class WavesActions:
     waves: WavesView
     _waves_drawn: object
     _waves_placed: bool
+    _waves_shown: bool
 
     def _add_waves_dock(self) -> QDockWidget:
         """Make the Waves view and its dock, hidden; return the dock."""
         self.waves = WavesView()
         self._waves_drawn = None
         self._waves_placed = False
+        self._waves_shown = False
         dock = QDockWidget("Waves", self)  # type: ignore[call-overload]
         dock.setObjectName("dock-waves")
         dock.setWidget(self.waves)
         self.addDockWidget(Qt.DockWidgetArea.RightDockWidgetArea, dock)  # type: ignore[attr-defined]
-        dock.hide()
+        dock.hide()  # placed once the window is shown (:meth:`showEvent`)
         dock.visibilityChanged.connect(self._waves_visibility)
-        dock.toggleViewAction().triggered.connect(self._place_waves)
         self.waves.settingsChanged.connect(self._waves_settings)
         return dock
 
     def show_waves(self) -> None:
-        """Show the Waves dock (beside Trends) and start its worker."""
-        dock = self.docks["Waves"]
+        """Raise the Waves tab (its worker starts)."""
         self._place_waves()
-        dock.show()
-        dock.raise_()
+        QTimer.singleShot(0, self.docks["Waves"].raise_)  # after the placing's own raise
+
+    def showEvent(self, event: QShowEvent | None) -> None:
+        """Once shown, put the Waves dock in the Trends dock's tabs (not raised)."""
+        super().showEvent(event)  # type: ignore[misc]
+        if not self._waves_placed:
+            self._waves_placed = True
+            QTimer.singleShot(0, self._place_waves)  # after the window's first layout
 
     def _place_waves(self) -> None:
-        if self._waves_placed or "Trends" not in self.docks:
+        """Make the Waves dock a tab beside Trends, unless it is one already.
+
+        Done once the window is shown: a second group of tabs made before that is drawn
+        twice by Qt (:func:`~holoview.ui.window_layout.arrange_docks`).
+        """
+        waves, trends = self.docks["Waves"], self.docks["Trends"]
+        if waves in self.tabifiedDockWidgets(trends):  # type: ignore[attr-defined]
             return
-        self._waves_placed = True
-        self.tabifyDockWidget(self.docks["Trends"], self.docks["Waves"])  # type: ignore[attr-defined]
+        group = [trends, *self.tabifiedDockWidgets(trends)]  # type: ignore[attr-defined]
+        shown = [d for d in (waves, *group) if not d.visibleRegion().isEmpty()]
+        self.tabifyDockWidget(trends, waves)  # type: ignore[attr-defined]
+        waves.show()
+        QTimer.singleShot(0, (shown[0] if shown else trends).raise_)  # it stays shown
+
+    @property
+    def waves_shown(self) -> bool:
+        """True while the Waves panel is on screen (its tab raised, or the dock alone)."""
+        return self._waves_shown
 
     def _waves_visibility(self, visible: bool) -> None:
+        self._waves_shown = visible
         self._waves_session()
 
     def _waves_session(self) -> None:
@@ -69,19 +92,19 @@ class WavesActions:
         session = self.session
         if session is None:
             return
-        if self.docks["Waves"].isVisible():
+        if self._waves_shown:
             session.open_waves(self.waves.settings())
         else:
             session.close_waves()
 
     def _waves_settings(self, settings: WaveSettings) -> None:
-        if self.session is not None and self.docks["Waves"].isVisible():
+        if self.session is not None and self._waves_shown:
             self.session.open_waves(settings)
 
     def draw_waves(self) -> None:
         """Offer the labelled maps and draw the newest analysis (from the redraw timer)."""
         session = self.session
-        if session is None or not self.docks["Waves"].isVisible():
+        if session is None or not self._waves_shown:
             return
         result = self._last_result
         if result is not None:

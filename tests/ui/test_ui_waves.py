@@ -100,13 +100,16 @@ def test_a_full_speed_replay_fills_the_panel_and_fits_the_truth(
     qtbot, open_windows, tmp_path, travelling
 ) -> None:
     window = _window(qtbot, open_windows, tmp_path, travelling)
-    assert not window.docks["Waves"].isVisible()  # hidden until asked for: no worker
+    qtbot.waitUntil(lambda: window.session is not None, timeout=20000)
+    assert not window.waves_shown  # a tab behind Trends: no worker
     assert window.session is not None and window.session.waves_worker is None
     window.show_waves()
     qtbot.waitUntil(lambda: window.session.waves_worker is not None, timeout=5000)
+    assert window.waves_shown
     view = window.waves
     view.length_box.setCurrentIndex(view.length_box.findData(512))
     qtbot.waitUntil(lambda: window.session.replay.state().held, timeout=60000)
+    qtbot.waitUntil(lambda: view.map_box.findText("RB1") >= 0, timeout=5000)  # offered
     view.choose_map("RB1")
     window.session.replay.play()  # from the first frame again: a new record, every frame
 
