@@ -11,7 +11,9 @@ and the PNGs go to ``OUT/WIDTHxHEIGHT/``. States saved, one PNG each: ``1-start`
 ``2-labelled`` (the suggested labels used: predicted carriers, windows, maps,
 profile), ``3-phase`` (the same maps as phase with the cyclic colour map),
 ``4-recording`` (a recording running, its indicator), ``5-trends`` (the depth series
-and rate). ``--label`` names peaks instead of the source's suggestions.
+and rate), ``6-waves`` (the Waves panel on the first labelled peak's map, centred on
+the field; a replay of ``holoview simulate --scenario travelling`` shows waves).
+``--label`` names peaks instead of the source's suggestions.
 """
 
 from __future__ import annotations
@@ -108,6 +110,19 @@ def main() -> int:
         window.trends.pca_box.setChecked(True)
         wait(app, args.settle * 2)
         save("5-trends")
+        window.show_waves()
+        wait(app, 1.0)
+        labels = [window.waves.map_box.itemText(i) for i in range(window.waves.map_box.count())]
+        window.waves.choose_map(labels[0])
+        wait(app, args.settle * 3)
+        waves = window.session.waves()
+        if waves is not None and waves.latest is not None and waves.pixel_size is not None:
+            rows, cols = waves.latest.shape
+            window.waves.set_centre(
+                (cols // 2 * waves.pixel_size[1], rows // 2 * waves.pixel_size[0])
+            )
+            wait(app, args.settle)
+        save("6-waves")
         window.close()
     return 0
 
