@@ -26,6 +26,7 @@ from matplotlib import colormaps
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.colors import LogNorm
 from matplotlib.figure import Figure
+from matplotlib.ticker import FuncFormatter
 from scipy import special
 
 from holoview.headless.waves import WaveResults
@@ -243,26 +244,34 @@ def ringdown_figure(results: WaveResults, path: Path) -> None:
     assert fit is not None
     figure = Figure(figsize=(11, 4.5))
     left, right = figure.subplots(1, 2)
-    left.semilogy(fit.times, np.abs(fit.series), ".", ms=2, color="k", label="band |z|")
-    left.semilogy(fit.times, np.abs(fit.model), color="C3", label="fit")
+    series, model = fit.series * 1e9, fit.model * 1e9  # nm
+    left.semilogy(fit.times, np.abs(series), ".", ms=2, color="k", label="band-passed |z|")
+    left.semilogy(fit.times, np.abs(model), color="C3", label="fit: |C| exp(-γ t)")
     left.set_xlabel("time t (s)")
-    left.set_ylabel("|z|, the rings combined (arbitrary scale)")
+    left.set_ylabel("|z|, the rings combined (nm)")
+    left.set_title("envelope", fontsize=9)
+    plain = FuncFormatter(lambda value, _: f"{value:g}")
+    left.yaxis.set_major_formatter(plain)
+    left.yaxis.set_minor_formatter(plain)
     left.legend(fontsize=8)
-    right.plot(fit.times, fit.series.real, ".", ms=2, color="k", label="Re z")
-    right.plot(fit.times, fit.model.real, color="C3", lw=0.8, label="fit")
+    right.plot(fit.times, series.real, ".", ms=3, color="k", label="Re z")
+    right.plot(fit.times, model.real, color="C3", lw=0.8, label="fit")
+    right.plot(fit.times, np.abs(model), color="0.6", lw=0.8, ls="--", label="± envelope")
+    right.plot(fit.times, -np.abs(model), color="0.6", lw=0.8, ls="--")
     right.set_xlabel("time t (s)")
-    right.set_ylabel("Re z (arbitrary scale)")
+    right.set_ylabel("Re z (nm)")
+    right.set_title("the first periods", fontsize=9)
     right.set_xlim(
         fit.times[0], fit.times[0] + min(fit.times[-1] - fit.times[0], 8 / fit.frequency)
     )
-    right.legend(fontsize=8)
+    right.legend(fontsize=8, loc="upper right")
     figure.suptitle(
         f"ringdown m={fit.m}, band {fit.band[0]:g}-{fit.band[1]:g} Hz: "
         f"f = {fit.frequency:.5g} ± {fit.frequency_stderr:.2g} Hz, "
         f"γ = {fit.decay:.4g} ± {fit.decay_stderr:.2g} 1/s, Q = {fit.quality:.3g}",
         fontsize=10,
     )
-    figure.subplots_adjust(left=0.08, right=0.98, bottom=0.12, top=0.88, wspace=0.25)
+    figure.subplots_adjust(left=0.08, right=0.98, bottom=0.12, top=0.86, wspace=0.25)
     _save(figure, path)
 
 
