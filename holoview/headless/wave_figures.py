@@ -11,7 +11,8 @@ physical units (k in rad/m, f in Hz, r in mm, heights in nm), for a talk:
 - ``partial_waves.png``: |A_m(r)| of each fitted partial wave with its Hankel fit and
   its incoming and outgoing parts;
 - ``ringdown.png``: the band's series and the damped-mode fit;
-- ``lockin.png``: amplitude and phase at the drive frequency, amplitudes of its harmonics.
+- ``lockin.png``: amplitude and phase at the drive frequency, amplitudes of its harmonics,
+  the centre marked.
 """
 
 from __future__ import annotations
@@ -214,7 +215,8 @@ def partial_waves_figure(results: WaveResults, path: Path) -> None:
     """``partial_waves.png`` (module docstring)."""
     fits = results.partial_waves
     count = max(len(fits), 1)
-    figure = Figure(figsize=(4.2 * min(count, 4), 4.0 * math.ceil(count / 4)))
+    width, height = 4.2 * min(count, 4), 4.0 * math.ceil(count / 4)
+    figure = Figure(figsize=(width, height))
     axes_list = np.atleast_1d(figure.subplots(math.ceil(count / 4), min(count, 4))).ravel()
     for axes, fit in zip(axes_list, fits, strict=False):
         r = fit.radii * 1e3
@@ -234,7 +236,14 @@ def partial_waves_figure(results: WaveResults, path: Path) -> None:
         axes.legend(fontsize=7)
     for axes in axes_list[len(fits) :]:
         axes.set_axis_off()
-    figure.subplots_adjust(left=0.06, right=0.98, bottom=0.12, top=0.9, wspace=0.3, hspace=0.35)
+    figure.subplots_adjust(  # margins in inches, whatever the number of panels
+        left=0.7 / width,
+        right=1 - 0.15 / width,
+        bottom=0.5 / height,
+        top=1 - 0.4 / height,
+        wspace=0.3,
+        hspace=0.35,
+    )
     _save(figure, path)
 
 
@@ -283,7 +292,8 @@ def lockin_figure(results: WaveResults, path: Path) -> None:
     rows, cols = results.maps.shape
     extent = (0.0, (cols - 1) * dx * 1e3, (rows - 1) * dy * 1e3, 0.0)
     panels = 2 + len(lockin.harmonics) - 1
-    figure = Figure(figsize=(4.2 * panels, 4.0))
+    width = 4.2 * panels
+    figure = Figure(figsize=(width, 4.0))
     axes_list = np.atleast_1d(figure.subplots(1, panels))
     amplitude = lockin.magnitude * 1e9
     image = axes_list[0].imshow(amplitude[0], extent=extent, cmap="viridis")
@@ -301,7 +311,14 @@ def lockin_figure(results: WaveResults, path: Path) -> None:
     for axes in axes_list:
         axes.set_xlabel("x (mm)")
         axes.set_ylabel("y (mm)")
-    figure.subplots_adjust(left=0.05, right=0.97, bottom=0.14, top=0.9, wspace=0.45)
+        if results.centre is not None:
+            x0, y0 = results.centre
+            axes.plot(x0 * 1e3, y0 * 1e3, "+", color="red", ms=10, mew=1.5, label="centre")
+    if results.centre is not None:
+        axes_list[0].legend(fontsize=7, loc="upper right")
+    figure.subplots_adjust(
+        left=0.6 / width, right=1 - 0.3 / width, bottom=0.14, top=0.9, wspace=0.45
+    )
     _save(figure, path)
 
 
