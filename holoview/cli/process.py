@@ -153,9 +153,9 @@ def _rate_text(rate: float | None, stderr: float | None) -> str:
 def run(args: argparse.Namespace) -> int:
     """Process, show progress, print one line of what came out."""
     from holoview.headless.batch import find_recordings
-    from holoview.headless.pipeline import ProcessSettings
     from holoview.headless.run import PeakChoice, process_file
     from holoview.headless.selection import parse_assignment
+    from holoview.headless.settings import ProcessSettings
     from holoview.processing.fourier.fftplans import usable_cpus
 
     if args.jobs is not None and args.jobs < 1:

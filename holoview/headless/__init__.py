@@ -10,18 +10,21 @@ the pieces:
   from the file and the user's options;
 - :mod:`~holoview.headless.selection` chooses the peaks to demodulate: from a JSON
   file, from two labels and the model, or the N strongest identified by PCA;
-- :mod:`~holoview.headless.pipeline` streams the frames through one
-  :class:`~holoview.processing.maps.demodulate.Demodulator`, read ahead by
-  :mod:`~holoview.headless.reader` (memory bounded by a few frames);
+- :mod:`~holoview.headless.run_passes` says which passes a run makes over its frames:
+  :mod:`~holoview.headless.frame_passes` streams them through the engine (the carrier
+  probe for the series, the maps step for the displacements and the maps), read ahead
+  by :mod:`~holoview.headless.reader` (memory bounded by a few frames), into a
+  :mod:`~holoview.headless.run_data` record;
 - :mod:`~holoview.headless.analysis` names the peaks (PCA), converts to depths, fuses
   them and fits the rates;
 - :mod:`~holoview.headless.outputs` writes ``trends.csv``, ``summary.json`` and
   ``results.h5``, and :mod:`~holoview.headless.report` draws ``report.png`` with the
   OpenCV helpers of :mod:`~holoview.headless.plotting`;
 - on many cores or a Dask cluster: :mod:`~holoview.headless.chunks` splits the frames
-  and measures a chunk's carrier values in a worker, :mod:`~holoview.headless.parallel`
+  and measures a chunk's carrier values in a worker (and with
+  :mod:`~holoview.headless.chunk_maps` its maps), :mod:`~holoview.headless.parallel`
   runs the chunks (local processes or Dask), :mod:`~holoview.headless.stitch` joins
-  them in order with the maps and the series of the run;
+  them in order into the series and the maps of the run;
 - :mod:`~holoview.headless.batch` processes a folder or a glob of recordings into a
   folder each, with ``index.csv`` of their rates.
 

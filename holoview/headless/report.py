@@ -28,7 +28,6 @@ import numpy as np
 from holoview.errors import OutputError, os_error_text
 from holoview.headless.analysis import Analysis
 from holoview.headless.inputs import Optics
-from holoview.headless.pipeline import ProcessSettings, RunData, fuse_frame
 from holoview.headless.plotting import (
     BLACK,
     GREY,
@@ -42,6 +41,8 @@ from holoview.headless.plotting import (
     padded_limits,
     text,
 )
+from holoview.headless.run_data import RunData
+from holoview.headless.settings import ProcessSettings
 from holoview.processing.peaks.detection import Peak
 from holoview.processing.series.rate_fits import format_rate
 
@@ -181,29 +182,20 @@ def _fit(analysis: Analysis) -> tuple[float | None, float | None]:
 
 
 def _last_maps(data: RunData, analysis: Analysis) -> list[tuple[str, np.ndarray, str]]:
-    """``(title, values, unit)`` of each peak's last map, converted to nm, and the fused one."""
+    """``(title, values, unit)`` of each peak's last map, in nm (or rad), and the fused one."""
     panels = []
-    heights: list[np.ndarray | None] = []
-    for peak, values in zip(analysis.peaks, data.last_maps, strict=True):
-        metres = None
-        if values is not None and data.maps_in_metres:
-            metres = values
-        elif values is not None and peak.map_scale is not None:
-            metres = values * np.float32(peak.map_scale)
-        heights.append(metres)
-        if metres is not None:
-            title = peak.label if peak.used_in_fused else f"{peak.label} (not fused)"
-            panels.append((title, metres * 1e9, "nm"))
-        elif values is not None:
+    for peak, values, unit in zip(analysis.peaks, data.last_maps, data.map_units, strict=True):
+        if values is None:
+            continue
+        if unit == "m":
+            title = peak.label if peak.label in data.fused_labels else f"{peak.label} (not fused)"
+            panels.append((title, values * 1e9, "nm"))
+        else:
             panels.append((f"{peak.label} phase", values, "rad"))
-    found = np.flatnonzero(data.frames == data.last_frame)
-    fused = None
-    if found.size:
-        fused = fuse_frame(data, int(found[0]), heights, analysis.map_fusion_scales())
-    if fused is not None:
+    if data.last_fused is not None:
         moved = any(d.measured and d.shift != (0.0, 0.0) for d in data.displacements)
         title = f"fused (on {analysis.peaks[0].label}'s grid)" if moved else "fused"
-        panels.append((title, fused * 1e9, "nm"))
+        panels.append((title, data.last_fused * 1e9, "nm"))
     return panels
 
 

@@ -2,9 +2,9 @@
 
 Steps: open the input and settle the optics and frame times
 (:mod:`~holoview.headless.inputs`); detect the peaks of the first processed frame and
-choose those to demodulate (:mod:`~holoview.headless.selection`); stream every frame
-through the demodulator, maps to ``results.h5`` as they come
-(:mod:`~holoview.headless.pipeline`); name the peaks, fuse and fit
+choose those to demodulate (:mod:`~holoview.headless.selection`); pass over the frames:
+the series, the displacements, and the maps to ``results.h5`` as they come
+(:mod:`~holoview.headless.run_passes`); name the peaks, fuse and fit
 (:mod:`~holoview.headless.analysis`); write ``trends.csv``, ``summary.json``,
 ``results.h5`` (:mod:`~holoview.headless.outputs`) and ``report.png``
 (:mod:`~holoview.headless.report`). Every user mistake is an
@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import contextlib
 import logging
+import time
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -27,8 +28,9 @@ import numpy as np
 
 from holoview.engine.experiment import Experiment, LabelledPeak
 from holoview.errors import InputError
-from holoview.headless.analysis import Analysis, analyse, known_joint
+from holoview.headless.analysis import Analysis, analyse
 from holoview.headless.chunks import plan_jobs
+from holoview.headless.frame_passes import MapsSpec
 from holoview.headless.inputs import (
     InputFile,
     Optics,
@@ -46,14 +48,15 @@ from holoview.headless.outputs import (
     write_trends_csv,
 )
 from holoview.headless.parallel import ChunkRunner, open_runner
-from holoview.headless.pipeline import ProcessSettings, RunData, demodulate_frames, make_core
+from holoview.headless.run_data import RunData
+from holoview.headless.run_passes import RunFrames, run_passes
 from holoview.headless.selection import (
     Carrier,
     Selection,
     select_auto,
     select_from_experiment,
 )
-from holoview.headless.stitch import demodulate_chunks
+from holoview.headless.settings import ProcessSettings
 from holoview.processing.fourier.spectrum import display_spectrum
 from holoview.processing.peaks.detection import Peak, find_peaks
 
@@ -336,16 +339,14 @@ def process_file(
         selection = replace(selection, notes=(*notes, *selection.notes))
         for note in notes:
             logger.warning("%s", note)
-        core = make_core(
-            source.frame_shape,
-            experiment,
-            selection.peaks,
-            settings,
-            source.saturation,
-            detected=detected,
+        spec = MapsSpec(
+            experiment=experiment,
+            peaks=tuple(selection.peaks),
+            neighbours=tuple(p.carrier for p in detected),
+            threads=settings.threads,
             background=background,
         )
-        demodulator = core.demodulator
+        demodulator = spec.core(source.frame_shape, source.saturation).demodulator
         assert demodulator is not None
         logger.info(
             "%s: %d frames, peaks %s (from the %s), window radius %.4f cycles/pixel, maps %s",
@@ -365,31 +366,16 @@ def process_file(
             maps=settings.maps,
         )
         try:
-            sink = results if settings.maps else None
-            step = None if progress is None else lambda k: progress(k, len(selected))
-            if runner is None:
-                data = demodulate_frames(
-                    source,
-                    selected,
-                    times,
-                    core,
-                    sink=sink,
-                    read_ahead=settings.read_ahead,
-                    progress=step,
-                )
-            else:
-                data = demodulate_chunks(
-                    source,
-                    selected,
-                    times,
-                    core,
-                    runner,
-                    sink=sink,
-                    read_ahead=settings.read_ahead,
-                    progress=step,
-                    joint=known_joint(selection, optics),
-                )
-            analysis = analyse(data, selection, optics)
+            run = RunFrames(source, selected, times, selection, spec, experiment, optics, settings)
+            started = time.perf_counter()
+            data, naming = run_passes(
+                run,
+                runner=runner,
+                sink=results if settings.maps else None,
+                progress=progress,
+            )
+            data.wall_seconds = time.perf_counter() - started
+            analysis = analyse(data, selection, optics, naming)
             results.finish(
                 data=data,
                 analysis=analysis,
@@ -397,7 +383,6 @@ def process_file(
                 settings=settings,
                 input_path=str(source.path),
                 frame_shape=source.frame_shape,
-                converted=data.maps_in_metres,
             )
         finally:
             results.close()

@@ -1,54 +1,53 @@
-"""A run on many processes: chunks measured elsewhere, stitched in order here.
+"""A run's passes on many processes: chunks measured elsewhere, stitched in order here.
 
-:func:`demodulate_chunks` gives the :class:`~holoview.headless.pipeline.RunData` that
-:func:`~holoview.headless.pipeline.demodulate_frames` gives on the same frames, the
+The passes of :mod:`holoview.headless.frame_passes`, their per-frame work on a
+:class:`~holoview.headless.parallel.ChunkRunner`, giving the
+:class:`~holoview.headless.run_data.RunData` one process gives on the same frames, the
 same numbers, whatever the number of workers or chunks:
 
-- the workers (:mod:`holoview.headless.parallel`) measure every frame's carrier values
+- :func:`measure_chunks`: the workers measure every frame's carrier values
   (:func:`~holoview.headless.chunks.measure_chunk`), which depend on that frame alone;
-- this process adds them to the run's
-  :class:`~holoview.engine.series.PhaseSeries` frame after frame, in order, as the
-  serial loop does, as soon as the chunks before have come: the phase steps against
-  the previous finite value, and the joint estimate with its ambiguities (a Kalman-like
-  prediction from frame to frame) where the prefactors are known before the run;
-  after the run (:mod:`holoview.headless.analysis`) the unwrapping in time, the depths
-  and the rates (and the joint estimate of an auto run), once over the whole series.
-  Nothing is computed per chunk, so no chunk boundary can show in the results;
-- meanwhile this process demodulates the frames the maps need
-  (:class:`~holoview.headless.pipeline.MapsPass`: about 50 frames spread over the run
-  for the displacements, and the last ones), in order, with the same core: the maps'
-  reference (previous or first frame) and the displacements see the same frames. A
-  frame is demodulated once the chunk holding it is measured, so that it is known
-  whether the frame was damaged, and so that an interrupted run keeps a prefix of
-  frames that both halves have done;
-- with ``--maps`` (every frame's maps, most of the run's time) the workers demodulate
-  them too, in short chunks (:mod:`holoview.headless.chunk_maps`: each worker starts
-  from the serial run's reference, and this process moves the maps by the whole turns
-  of mean phase a worker could not know), and this process counts them, measures the
-  displacements over them and writes them, in order.
+  this process adds them to the run's :class:`~holoview.engine.series.PhaseSeries`
+  frame after frame, in order, as the serial loop does, as soon as the chunks before
+  have come: the phase steps against the previous finite value, and the joint
+  estimate with its ambiguities where the prefactors are known before the run. Nothing
+  is computed per chunk, so no chunk boundary can show in the results. Meanwhile this
+  process measures the displacements on frames spread over the run
+  (:func:`~holoview.headless.frame_passes.spread_pass`), each once the chunk holding
+  it is in. In ``relative`` mode with ``--maps`` the workers make every frame's maps
+  in the same pass (:mod:`holoview.headless.chunk_maps`), the displacements measured
+  first;
+- :func:`map_chunks` (``--maps`` in the ``absolute`` and ``synthetic`` modes, and after
+  an auto run's identification): the workers make every frame's maps and fused map,
+  each chunk from the mean phases this process replays from the series up to its start.
+
+This process keeps what depends on the order of the frames (the series, the
+displacements, the mean phases at each chunk's start) and writes the maps in order.
 """
 
 from __future__ import annotations
 
 import logging
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import replace
 
 import numpy as np
 
-from holoview.engine.frame_core import FrameCore
-from holoview.headless.analysis import JointSetup
-from holoview.headless.chunk_maps import MapsSpec, TurnFix
-from holoview.headless.chunks import CHUNK_FLAGS, ChunkResult, make_tasks, split_frames
+from holoview.headless.chunk_maps import MapsWork
+from holoview.headless.chunks import ChunkResult, make_tasks, split_frames
+from holoview.headless.frame_passes import MapsSpec
 from holoview.headless.inputs import InputFile
 from holoview.headless.parallel import ChunkRunner
-from holoview.headless.pipeline import MapSink, MapsPass, RunData, check_run, new_run_data
-from holoview.headless.reader import DEFAULT_DEPTH, FrameReader
+from holoview.headless.reader import DEFAULT_DEPTH
+from holoview.headless.run_data import MapRecord, RunData, check_run
+from holoview.processing.fourier.fftplans import current_wisdom
+from holoview.processing.maps.mean_phases import MeanPhases, MeanPhaseState
+from holoview.processing.peaks.detection import Peak
 
 logger = logging.getLogger(__name__)
 
-_DAMAGED_BIT = 1 << CHUNK_FLAGS.index("damaged")
+__all__ = ["map_chunks", "measure_chunks"]
 
 
 class _Gathered:
@@ -88,33 +87,53 @@ class _Gathered:
                 chunk = self.chunks[self._ready]
                 assert chunk is not None
                 self._in_order(chunk)
-                self.chunks[self._ready] = replace(chunk, maps=())  # their memory back
+                self.chunks[self._ready] = replace(chunk, maps=None)  # their memory back
                 self.done = self._ends[self._ready]
                 self._ready += 1
             if self._progress is not None:
                 self._progress(self._measured)
 
-    def damaged(self, position: int) -> bool:
-        """Whether the frame at ``position`` (of a chunk in) was damaged in transfer."""
-        k = int(np.searchsorted(self._ends, position, side="right"))
-        chunk = self.chunks[k]
-        assert chunk is not None
-        return bool(chunk.flags[position - chunk.start] & _DAMAGED_BIT)
+
+def _gather(
+    runner: ChunkRunner,
+    gathered: _Gathered,
+    data: RunData,
+    n: int,
+    *,
+    what: str = "",
+    meanwhile: Callable[[Callable[[int], None]], None] | None = None,
+) -> None:
+    """Take every chunk in order (``meanwhile`` first); an interruption keeps the prefix done."""
+    try:
+        if meanwhile is not None:
+            meanwhile(gathered.until)
+        gathered.until(n - 1)
+    except KeyboardInterrupt:
+        runner.abort()
+        if gathered.done == 0:
+            raise
+        logger.warning(
+            "interrupted after %d of %d frames%s: results of those", gathered.done, n, what
+        )
+        data.truncate(gathered.done)  # a chunk interrupted while added
+    finally:
+        gathered.close()
 
 
-def demodulate_chunks(
+def measure_chunks(
     source: InputFile,
     frames: range,
     times: np.ndarray,
-    core: FrameCore,
-    runner: ChunkRunner,
+    data: RunData,
+    peaks: Sequence[Peak],
     *,
-    sink: MapSink | None = None,
+    runner: ChunkRunner,
     read_ahead: int = DEFAULT_DEPTH,
     progress: Callable[[int], None] | None = None,
-    joint: JointSetup | None = None,
+    spread: Callable[[Callable[[int], None]], None] | None = None,
+    maps: tuple[MapsSpec, MapRecord] | None = None,
 ) -> RunData:
-    """:func:`~holoview.headless.pipeline.demodulate_frames`, the carriers on ``runner``.
+    """:func:`~holoview.headless.frame_passes.measure_frames`, the frames on ``runner``.
 
     Parameters
     ----------
@@ -124,90 +143,190 @@ def demodulate_chunks(
         Input frame indices to process.
     times : ndarray, shape (len(frames),)
         Their times, s.
-    core : FrameCore
-        Built for the selected peaks; the maps are demodulated with it here.
+    data : RunData
+        The run's record (its series set up, a joint estimate tracked where known).
+    peaks : sequence of Peak
+        The demodulator's peaks.
     runner : ChunkRunner
         Where the chunks are measured.
-    sink : MapSink, optional
-        Receives every frame's maps (every frame is then demodulated, in the workers).
     read_ahead : int
         Frames read ahead (by each worker, and here).
     progress : callable, optional
         Called with the number of frames measured, as chunks complete.
-    joint : JointSetup, optional
-        The joint estimate known before the frames
-        (:func:`~holoview.headless.analysis.known_joint`): made here as the chunks come
-        in, in order, while the workers measure the next ones, and kept by the analysis.
+    spread : callable, optional
+        ``spread(until)``: this process's pass over frames spread over the run, run
+        while the workers measure, calling ``until(position)`` before it takes a frame.
+    maps : (MapsSpec, MapRecord), optional
+        The workers make every frame's maps in the same pass (relative mode; the
+        displacements measured before), recorded here in order.
 
     Returns
     -------
     RunData
-        As :func:`~holoview.headless.pipeline.demodulate_frames`; its timings add up the
-        workers' (``read_seconds``, ``demod_seconds``), ``wall_seconds`` is the run's.
-        After an interruption with frames done, the frames of the chunks complete from
-        the first, ``interrupted`` set.
+        ``data``, as :func:`~holoview.headless.frame_passes.measure_frames` gives it; its
+        timings add up the workers'. After an interruption with frames done, the
+        frames of the chunks complete from the first, ``interrupted`` set.
     """
-    start_time = time.perf_counter()
     n = len(frames)
-    data = new_run_data(core, n)
     data.workers = runner.name
-    demodulator = core.build()
-    assert demodulator is not None
-    maps = MapsPass(core, data, n, sink)
-    chunks = split_frames(n, runner.workers, maps=sink is not None)
+    chunks = split_frames(n, runner.workers, maps=maps is not None)
+    works = None
+    if maps is not None:
+        wisdom = current_wisdom()
+        fused = bool(data.fused_labels)
+        works = [
+            MapsWork(maps[0], wisdom, fused, before=tuple(frames[: chunk.start]))
+            for chunk in chunks
+        ]
     tasks = make_tasks(
         source.path,
         frames,
         chunks,
-        peaks=demodulator.peaks,
-        frame_shape=core.frame_shape,
-        saturation=core.saturation,
+        peaks=peaks,
+        frame_shape=source.frame_shape,
+        saturation=source.saturation,
         read_ahead=read_ahead,
-        maps=MapsSpec.of(core) if sink is not None else None,
+        maps=works,
     )
     logger.info("%d frames in %d chunks on %s", n, len(chunks), runner.name)
     series = data.series
-    if joint is not None:
-        series.track_joint(joint.alphas, joint.couplings, joint.wavelength_m, joint.exclude)
-
-    turns = TurnFix(demodulator.reference, len(demodulator.peaks))
 
     def add(result: ChunkResult) -> None:
         start = time.perf_counter()
         for k in range(len(result)):
             position = result.start + k
             series.add(float(times[position]), frames[position], result.measured(k))
-        for k, frame_maps in enumerate(result.maps):
-            turns.apply(frame_maps)
-            maps.record(result.start + k, frames[result.start + k], frame_maps)
-        data.read_seconds += result.read_seconds
-        data.demod_seconds += result.measure_seconds + result.maps_seconds
-        data.maps_seconds += result.maps_seconds
-        data.worker_seconds += result.measure_seconds + result.maps_seconds
-        data.parent_seconds += time.perf_counter() - start
+            data.frame_bits[position] = result.flags[k]
+        if maps is not None and result.maps is not None:
+            for k in range(len(result)):
+                maps[1].record(result.start + k, frames[result.start + k], result.maps.frame(k))
+        _account(data, result, time.perf_counter() - start)
 
     gathered = _Gathered(runner.run(tasks), [c.start for c in chunks], n, progress, add)
-    positions = np.flatnonzero(maps.wanted) if sink is None else np.zeros(0, int)
-    reader = FrameReader(source.read, [frames[int(p)] for p in positions], depth=read_ahead)
-    try:
-        with reader:
-            for k, (index, frame) in enumerate(reader):
-                position = int(positions[k])
-                gathered.until(position)
-                start = time.perf_counter()
-                maps.feed(position, index, frame, gathered.damaged(position))
-                data.parent_seconds += time.perf_counter() - start
-        gathered.until(n - 1)
-    except KeyboardInterrupt:
-        runner.abort()
-        if gathered.done == 0:
-            raise
-        logger.warning("interrupted after %d of %d frames: results of those", gathered.done, n)
-        data.interrupted = True
-        series.truncate(gathered.done)  # a chunk interrupted while added
-    finally:
-        gathered.close()
-    maps.finish()
-    data.read_seconds += reader.read_seconds
-    data.wall_seconds = time.perf_counter() - start_time
+    _gather(runner, gathered, data, n, meanwhile=spread)
     return check_run(data)
+
+
+def _account(data: RunData, result: ChunkResult, parent_seconds: float) -> None:
+    data.read_seconds += result.read_seconds
+    data.demod_seconds += result.measure_seconds + result.maps_seconds
+    data.maps_seconds += result.maps_seconds
+    data.worker_seconds += result.measure_seconds + result.maps_seconds
+    data.parent_seconds += parent_seconds
+
+
+def chunk_states(
+    data: RunData, chunks: Sequence[range], spec: MapsSpec, start: MeanPhaseState, mode: str
+) -> list[tuple[MeanPhaseState, int | None]]:
+    """Per chunk, the mean phases and the reference frame's position the serial pass has there.
+
+    The serial maps pass (:func:`~holoview.headless.frame_passes.maps_pass`) advances
+    its mean phases (:class:`~holoview.processing.maps.mean_phases.MeanPhases`) on the
+    series' values of every frame it demodulates; this replays it, with the same
+    arithmetic, from ``start`` (a fresh demodulator's state).
+    """
+    m = len(spec.peaks)
+    phases = MeanPhases(m, mode)
+    phases.restore(start)
+    first = last = None
+    background = spec.background is not None
+    out: list[tuple[MeanPhaseState, int | None]] = []
+    for chunk in chunks:
+        reference = None
+        if mode == "relative":
+            reference = last
+        elif mode == "absolute" and not background:
+            reference = first
+        out.append((phases.state(), reference))
+        for position in chunk:
+            if not data.demodulable(position):
+                continue
+            values = data.values[position]
+            for j in range(m):
+                phases.advance(j, complex(values[j]))
+            first = position if first is None else first
+            last = position
+    return out
+
+
+def map_chunks(
+    source: InputFile,
+    frames: range,
+    data: RunData,
+    spec: MapsSpec,
+    record: MapRecord,
+    *,
+    runner: ChunkRunner,
+    read_ahead: int = DEFAULT_DEPTH,
+    progress: Callable[[int], None] | None = None,
+) -> RunData:
+    """:func:`~holoview.headless.frame_passes.maps_pass`, the frames' maps on ``runner``.
+
+    Parameters
+    ----------
+    source : InputFile
+        The input.
+    frames : range
+        The run's input frame indices.
+    data : RunData
+        The run's record, its series measured.
+    spec : MapsSpec
+        The maps step, its displacements measured.
+    record : MapRecord
+        Counts and writes each frame's maps, in order.
+    runner : ChunkRunner
+        Where the chunks' maps are made.
+    read_ahead : int
+        Frames read ahead by each worker.
+    progress : callable, optional
+        Called with the number of frames done, as chunks complete.
+
+    Returns
+    -------
+    RunData
+        ``data``; after an interruption with frames done, the frames of the chunks
+        complete from the first, ``interrupted`` set.
+    """
+    n = len(data.series)
+    core = spec.core(source.frame_shape, source.saturation)
+    demod = core.demodulator
+    assert demod is not None
+    wisdom = current_wisdom()
+    chunks = split_frames(n, runner.workers, maps=True)
+    states = chunk_states(data, chunks, spec, demod.phase_state(), demod.reference)
+    fused = bool(data.fused_labels)
+    works = []
+    for chunk, (state, reference) in zip(chunks, states, strict=True):
+        works.append(
+            MapsWork(
+                spec,
+                wisdom,
+                fused,
+                values=data.values[chunk.start : chunk.stop].copy(),
+                frame_bits=data.frame_bits[chunk.start : chunk.stop].copy(),
+                state=state,
+                reference=None if reference is None else frames[reference],
+                reference_values=None if reference is None else data.values[reference].copy(),
+            )
+        )
+    tasks = make_tasks(
+        source.path,
+        frames,
+        chunks,
+        peaks=spec.peaks,
+        frame_shape=source.frame_shape,
+        saturation=source.saturation,
+        read_ahead=read_ahead,
+        maps=works,
+    )
+
+    def add(result: ChunkResult) -> None:
+        start = time.perf_counter()
+        assert result.maps is not None
+        for k in range(len(result)):
+            record.record(result.start + k, frames[result.start + k], result.maps.frame(k))
+        _account(data, result, time.perf_counter() - start)
+
+    gathered = _Gathered(runner.run(tasks), [c.start for c in chunks], n, progress, add)
+    _gather(runner, gathered, data, n, what="' maps")
+    return data

@@ -14,8 +14,8 @@ import pytest
 from faults_helpers import child_env, one_line_error, run_holoview
 
 from holoview.atomic import OutputSet, atomic_path
-from holoview.headless.pipeline import ProcessSettings
 from holoview.headless.run import PeakChoice, process_file
+from holoview.headless.settings import ProcessSettings
 
 PARTIAL = "*.partial*"
 

@@ -10,8 +10,8 @@ import h5py
 import pytest
 from headless_sim import Simulated
 
-from holoview.headless.pipeline import ProcessSettings
 from holoview.headless.run import PeakChoice, process_file
+from holoview.headless.settings import ProcessSettings
 
 
 def test_an_interruption_keeps_the_results_of_the_frames_done(
