@@ -2,7 +2,7 @@
 
 An experiment is what an operator sets at alignment and what every later replay needs:
 the optics (wavelength, pixel pitch, refractive indices), the labelled peaks on the
-twin where the phase grows with the height (DESIGN.md), the window, its radius, the
+twin where the phase grows with the height (docs/design.md), the window, its radius, the
 reference mode and the unwrapping policy. The GUI saves and loads it, ``holoview peaks
 --json`` writes it, ``holoview process --experiment`` and ``holoview live --experiment``
 read it, and every recording carries the one in force
@@ -62,18 +62,21 @@ READABLE_VERSIONS = (1, 2)
 #: Labels offered when an operator names a peak (any other usable name is allowed).
 PEAK_LABELS: tuple[str, ...] = ("RB1", "FB1", "RF", "RB2", "FB2")
 
-#: A label usable as a CSV value and an HDF5 name (``fused`` is reserved).
+#: A label usable as a CSV value and an HDF5 name.
 LABEL_PATTERN = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.+~-]{0,31}")
+
+#: Names a label cannot take: the fused map's, and the dimensions of ``results.h5``'s maps.
+RESERVED_LABELS = ("fused", "time", "frame", "y", "x")
 
 Carrier = tuple[float, float]
 
 
 def check_label(label: object, where: str) -> str:
     """Return ``label`` if it can name a series, a CSV row and an HDF5 dataset."""
-    if not isinstance(label, str) or not LABEL_PATTERN.fullmatch(label) or label == "fused":
+    if not isinstance(label, str) or not LABEL_PATTERN.fullmatch(label) or label in RESERVED_LABELS:
         raise InputError(
             f"{where}: label {label!r} is not usable (a letter or digit, then letters, "
-            "digits and _.+~-, at most 32 characters, not 'fused')"
+            f"digits and _.+~-, at most 32 characters, not {', '.join(RESERVED_LABELS)})"
         )
     return label
 
@@ -180,7 +183,7 @@ class Experiment:
     radius : float or None
         Window radius, cycles/pixel; None: automatic from the carriers.
     reference : {"relative", "absolute", "synthetic"}
-        Reference mode of the maps (DESIGN.md).
+        Reference mode of the maps (docs/design.md).
     unwrap : {"auto", "always", "never"}
         Spatial unwrapping of the maps.
     peaks : tuple of LabelledPeak

@@ -26,7 +26,6 @@ from holoview.engine.experiment import Experiment
 from holoview.engine.frame_core import FFT_THREADS, FrameCore
 from holoview.engine.map_step import MapStep
 from holoview.engine.resolve import Resolution, resolve_peaks
-from holoview.errors import InputError
 from holoview.live.continuity import Continuity
 from holoview.processing.fourier.spectrum import display_spectrum
 from holoview.processing.maps.demodulate import Demodulator
@@ -152,7 +151,7 @@ class LivePipeline:
         """Apply a command: ``experiment`` (new settings) or ``reset``."""
         if name == "experiment":
             if not isinstance(value, Experiment):
-                raise InputError(f"experiment command needs an Experiment, not {value!r}")
+                raise TypeError(f"experiment command needs an Experiment, not {value!r}")
             radius_changed = value.radius != self.experiment.radius
             self.experiment = value
             if radius_changed:
@@ -160,7 +159,7 @@ class LivePipeline:
         elif name == "reset":
             self._core.reset_reference()
         else:
-            raise InputError(f"unknown command {name!r}")
+            raise ValueError(f"unknown command {name!r}")
 
     @property
     def demodulator(self) -> Demodulator | None:
@@ -267,6 +266,6 @@ class LivePipeline:
             shifts_px=maps.shifts_px,
             grid_of=maps.grid_of,
             notes=resolution.notes,
-            frame_index=meta.index,
+            frame_index=meta.file_index,
             segment=meta.segment,
         )

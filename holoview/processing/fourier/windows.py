@@ -8,7 +8,7 @@ so elliptical in FFT bins on a non-square frame), centred on the sub-bin carrier
   (the paper's improved filter; roll-off over the whole radius);
 - ``"tukey"``: flat to ``(1 - taper) r``, then a cosine edge reaching 0 at ``r``.
 
-The shot-noise phase floor of DESIGN.md depends on the window through its
+The shot-noise phase floor of docs/design.md depends on the window through its
 *area fraction* ``eta = sum |W|^2 / (rows cols)`` over the spectrum's bins
 (:func:`area_fraction`).
 """
@@ -108,13 +108,17 @@ def _distances(points: np.ndarray, others: np.ndarray) -> np.ndarray:
     return np.hypot(delta[..., 0], delta[..., 1])
 
 
-def _points(carriers: Sequence[tuple[float, float]] | np.ndarray) -> np.ndarray:
+#: Carriers ``(fx, fy)`` in cycles/pixel: a sequence of pairs or an array of shape (N, 2).
+Carriers = Sequence[tuple[float, float]] | np.ndarray
+
+
+def _points(carriers: Carriers) -> np.ndarray:
     return np.asarray(carriers, dtype=np.float64).reshape(-1, 2)
 
 
 def spacing(
-    carriers: Sequence[tuple[float, float]],
-    neighbours: Sequence[tuple[float, float]] = (),
+    carriers: Carriers,
+    neighbours: Carriers = (),
 ) -> np.ndarray:
     """Return, per carrier, its distance to the nearest other carrier or twin (cycles/pixel).
 
@@ -145,9 +149,9 @@ def spacing(
 
 
 def auto_radii(
-    carriers: Sequence[tuple[float, float]],
+    carriers: Carriers,
     *,
-    neighbours: Sequence[tuple[float, float]] = (),
+    neighbours: Carriers = (),
     min_radius: float = 0.0,
     max_radius: float = MAX_AUTO_RADIUS,
 ) -> np.ndarray:
@@ -190,9 +194,9 @@ def auto_radii(
 
 
 def auto_radius(
-    carriers: Sequence[tuple[float, float]],
+    carriers: Carriers,
     *,
-    neighbours: Sequence[tuple[float, float]] = (),
+    neighbours: Carriers = (),
     min_radius: float = 0.0,
     max_radius: float = MAX_AUTO_RADIUS,
 ) -> float:

@@ -179,7 +179,7 @@ def from_labels(
     anchors: list[Anchor], fitter: Fitter, n1: float, n2: float
 ) -> tuple[Candidate, tuple[str, ...]]:
     """The labels' lattice, checked against itself and against the best automatic one."""
-    fits = []
+    fits: list[tuple[Candidate | None, InputError | None]] = []
     for basis in label_bases(anchors, fitter.carriers):
         try:
             candidate = fitter.fit(basis)
