@@ -7,7 +7,7 @@ names those, in natural order. A folder of images is one input, as before.
 
 :func:`process_batch` processes each into its own folder, ``OUT/<name>`` (the
 recording's file name without its suffix; ``<name>_2``, ... where two share one),
-one after the other, each on the same workers (:mod:`holoview.headless.parallel`,
+one after the other, each on the same workers (:mod:`holoview.headless.parallel.runners`,
 started once), and writes ``OUT/index.csv``: one row per recording, its status
 (``ok``, ``failed`` with the reason, ``interrupted``), frames, seconds, and the
 fused rate and each peak's rate with their standard errors (m/s), under a temporary
@@ -29,7 +29,6 @@ import re
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 
 from holoview.acquire.replay_files import (
     HDF5_SUFFIXES,
@@ -39,10 +38,11 @@ from holoview.acquire.replay_files import (
 )
 from holoview.atomic import atomic_path
 from holoview.errors import HoloviewError, InputError, OutputError, os_error_text
-from holoview.headless.chunks import plan_jobs
-from holoview.headless.output_folder import OutputFolder
-from holoview.headless.parallel import ChunkRunner, open_runner
+from holoview.headless.parallel.chunks import plan_jobs
+from holoview.headless.parallel.runners import ChunkRunner, open_runner
+from holoview.headless.results.output_folder import OutputFolder
 from holoview.headless.run import OUTPUT_NAMES, process_file
+from holoview.headless.settings import ProcessOptions
 
 logger = logging.getLogger(__name__)
 
@@ -198,12 +198,9 @@ def _check_folders(out: Path, rows: list[BatchRow], overwrite: bool) -> None:
 def process_batch(
     recordings: list[Path],
     out: str | Path,
+    options: ProcessOptions,
     *,
     progress: Callable[[int, int], None] | None = None,
-    jobs: int | None = None,
-    scheduler: str | None = None,
-    overwrite: bool = False,
-    **options: Any,
 ) -> BatchOutcome:
     """Process every recording into ``out/<name>`` and write ``out/index.csv``.
 
@@ -213,16 +210,12 @@ def process_batch(
         From :func:`find_recordings`.
     out : str or Path
         The batch's folder (created if missing).
+    options : ProcessOptions
+        Each recording's (:func:`~holoview.headless.run.process_file`); the workers
+        (``jobs``, ``scheduler``) are started once for the whole batch, and
+        ``overwrite`` replaces earlier results (each recording's, and the index).
     progress : callable, optional
         ``progress(done, total)`` within each recording.
-    jobs, scheduler : optional
-        As for :func:`~holoview.headless.run.process_file`; the workers are started
-        once for the whole batch.
-    overwrite : bool
-        Replace earlier results (each recording's, and the index).
-    **options
-        Passed to :func:`~holoview.headless.run.process_file` (``choice``,
-        ``optics_options``, ``settings``, ``frames``, ``report``).
 
     Returns
     -------
@@ -245,23 +238,18 @@ def process_batch(
         BatchRow(input=r, out=folder / name)
         for r, name in zip(recordings, output_names(recordings), strict=True)
     ]
-    _check_folders(folder, rows, overwrite)
+    _check_folders(folder, rows, options.overwrite)
     interrupted = False
     with contextlib.ExitStack() as stack:
         runner: ChunkRunner | None = None
-        workers = plan_jobs(jobs, _LONG, "hdf5")
-        if workers > 1 or scheduler is not None:
-            runner = stack.enter_context(open_runner(workers, scheduler))
+        workers = plan_jobs(options.jobs, _LONG, "hdf5")
+        if workers > 1 or options.scheduler is not None:
+            runner = stack.enter_context(open_runner(workers, options.scheduler))
         for k, row in enumerate(rows):
             logger.info("recording %d of %d: %s", k + 1, len(rows), row.input)
             try:
                 outcome = process_file(
-                    row.input,
-                    row.out,
-                    progress=progress,
-                    overwrite=overwrite,
-                    runner=runner,
-                    **options,
+                    row.input, row.out, options, progress=progress, runner=runner
                 )
             except HoloviewError as exc:
                 row.status, row.message = "failed", str(exc)

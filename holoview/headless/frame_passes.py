@@ -14,7 +14,7 @@
    step, into the :class:`~holoview.headless.run_data.MapSink` as they come; the maps'
    mean phases follow the series' values of step 1, so that a worker given a chunk of
    the run places every map's 2 pi offset as this pass does
-   (:mod:`holoview.headless.chunk_maps`).
+   (:mod:`holoview.headless.parallel.chunk_maps`).
 
 Each pass reads its frames through a :class:`~holoview.headless.reader.FrameReader`,
 so memory stays bounded by the few frames it reads ahead. :class:`MapsSpec` says what

@@ -3,7 +3,7 @@
 A run passes over its frames to measure the series (every frame's carrier values), to
 measure the maps' displacements (frames spread over the run) and, with ``--maps``, to
 make every frame's maps (:mod:`holoview.headless.frame_passes`, or on many processes
-:mod:`holoview.headless.stitch`); each pass fills its part of one :class:`RunData`,
+:mod:`holoview.headless.parallel.stitch`); each pass fills its part of one :class:`RunData`,
 and :class:`MapRecord` counts the maps of a pass, frame after frame in order, and
 hands them to the :class:`MapSink` (``results.h5``).
 """

@@ -1,7 +1,7 @@
 """Which passes a headless run makes over its frames, in what order, in one process or many.
 
 The passes (:mod:`holoview.headless.frame_passes`; on many processes
-:mod:`holoview.headless.stitch`): the series of every frame, the displacements on frames
+:mod:`holoview.headless.parallel.stitch`): the series of every frame, the displacements on frames
 spread over the run, and with ``--maps`` every frame's maps. Their order follows from
 what each needs:
 
@@ -12,7 +12,7 @@ what each needs:
   (each frame read once), in one process or, in ``relative`` mode, in the workers;
   in the ``absolute`` and ``synthetic`` modes the workers need the mean phases at
   their chunk's start, which the series gives: series first (the displacements beside
-  it), then the maps (:func:`~holoview.headless.stitch.map_chunks`).
+  it), then the maps (:func:`~holoview.headless.parallel.stitch.map_chunks`).
 
 An interruption keeps the frames whose every pass is done; a run interrupted before
 its maps pass keeps the series of the frames done, and no maps (a note says so).
@@ -35,11 +35,11 @@ from holoview.headless.frame_passes import (
     spread_pass,
 )
 from holoview.headless.inputs import InputFile, Optics
-from holoview.headless.parallel import ChunkRunner
+from holoview.headless.parallel.runners import ChunkRunner
+from holoview.headless.parallel.stitch import map_chunks, measure_chunks
 from holoview.headless.run_data import MapRecord, MapSink, RunData, new_run_data
 from holoview.headless.selection import Selection
 from holoview.headless.settings import ProcessSettings
-from holoview.headless.stitch import map_chunks, measure_chunks
 
 logger = logging.getLogger(__name__)
 

@@ -23,18 +23,18 @@ from headless_sim import Simulated, run_cli
 from holoview.acquire.recording import RecordingWriter
 from holoview.cli import main
 from holoview.errors import InputError
-from holoview.headless import chunk_maps
 from holoview.headless.batch import INDEX_CSV
-from holoview.headless.chunks import (
+from holoview.headless.parallel import chunk_maps
+from holoview.headless.parallel.chunks import (
     ChunkTask,
     make_tasks,
     measure_chunk,
     plan_jobs,
     split_frames,
 )
-from holoview.headless.parallel import ChunkRunner, DaskRunner, ProcessRunner, open_runner
-from holoview.headless.run import PeakChoice, ProcessOutcome, process_file
-from holoview.headless.settings import ProcessSettings
+from holoview.headless.parallel.runners import ChunkRunner, DaskRunner, ProcessRunner, open_runner
+from holoview.headless.run import ProcessOutcome, process_file
+from holoview.headless.settings import ProcessOptions, ProcessSettings
 
 
 @pytest.fixture(scope="module")
@@ -87,15 +87,10 @@ def _run(
     settings: ProcessSettings | None = None,
     **kwargs: object,
 ) -> ProcessOutcome:
-    return process_file(
-        path,
-        out,
-        choice=PeakChoice(),
-        settings=settings or ProcessSettings(reference=reference),
-        report=False,
-        runner=runner,
-        **kwargs,  # type: ignore[arg-type]
+    options = ProcessOptions(
+        settings=settings or ProcessSettings(reference=reference), report=False
     )
+    return process_file(path, out, options, runner=runner, **kwargs)  # type: ignore[arg-type]
 
 
 def _assert_same_series(serial: ProcessOutcome, other: ProcessOutcome, what: str) -> None:

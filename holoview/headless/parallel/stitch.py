@@ -1,12 +1,12 @@
 """A run's passes on many processes: chunks measured elsewhere, stitched in order here.
 
 The passes of :mod:`holoview.headless.frame_passes`, their per-frame work on a
-:class:`~holoview.headless.parallel.ChunkRunner`, giving the
+:class:`~holoview.headless.parallel.runners.ChunkRunner`, giving the
 :class:`~holoview.headless.run_data.RunData` one process gives on the same frames, the
 same numbers, whatever the number of workers or chunks:
 
 - :func:`measure_chunks`: the workers measure every frame's carrier values
-  (:func:`~holoview.headless.chunks.measure_chunk`), which depend on that frame alone;
+  (:func:`~holoview.headless.parallel.chunks.measure_chunk`), which depend on that frame alone;
   this process adds them to the run's :class:`~holoview.engine.series.PhaseSeries`
   frame after frame, in order, as the serial loop does, as soon as the chunks before
   have come: the phase steps against the previous finite value, and the joint
@@ -15,7 +15,7 @@ same numbers, whatever the number of workers or chunks:
   process measures the displacements on frames spread over the run
   (:func:`~holoview.headless.frame_passes.spread_pass`), each once the chunk holding
   it is in. In ``relative`` mode with ``--maps`` the workers make every frame's maps
-  in the same pass (:mod:`holoview.headless.chunk_maps`), the displacements measured
+  in the same pass (:mod:`holoview.headless.parallel.chunk_maps`), the displacements measured
   first;
 - :func:`map_chunks` (``--maps`` in the ``absolute`` and ``synthetic`` modes, and after
   an auto run's identification): the workers make every frame's maps and fused map,
@@ -34,11 +34,11 @@ from dataclasses import replace
 
 import numpy as np
 
-from holoview.headless.chunk_maps import MapsWork
-from holoview.headless.chunks import ChunkResult, make_tasks, split_frames
 from holoview.headless.frame_passes import MapsSpec
 from holoview.headless.inputs import InputFile
-from holoview.headless.parallel import ChunkRunner
+from holoview.headless.parallel.chunk_maps import MapsWork
+from holoview.headless.parallel.chunks import ChunkResult, make_tasks, split_frames
+from holoview.headless.parallel.runners import ChunkRunner
 from holoview.headless.reader import DEFAULT_DEPTH
 from holoview.headless.run_data import MapRecord, RunData, check_run
 from holoview.processing.fourier.fftplans import current_wisdom

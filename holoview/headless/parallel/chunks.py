@@ -9,10 +9,10 @@ builds its own probe (its own FFTW plans) and streams the chunk through a
 and the chunk's carrier values (a few numbers a frame), whatever the run's length.
 Everything that depends on the order of the frames (the phase steps, the unwrapping in
 time, the joint estimate, the displacements, the rates) is computed once, in order,
-from the gathered values (:mod:`holoview.headless.stitch`). No frame is needed twice:
+from the gathered values (:mod:`holoview.headless.parallel.stitch`). No frame is needed twice:
 the chunks do not overlap. With ``--maps`` the worker makes every frame's maps of its
 chunk too, and the fused map (most of such a run's time), through the run's maps step
-from the state the serial run holds there (:mod:`holoview.headless.chunk_maps`), in
+from the state the serial run holds there (:mod:`holoview.headless.parallel.chunk_maps`), in
 shorter chunks.
 
 :func:`plan_jobs` settles ``--jobs``: the default is every usable core but one (the
@@ -34,9 +34,9 @@ import numpy as np
 
 from holoview.engine.frame_core import CarrierCore
 from holoview.errors import InputError
-from holoview.headless import chunk_maps
-from holoview.headless.chunk_maps import ChunkMaps, MapsWork
 from holoview.headless.inputs import InputFile
+from holoview.headless.parallel import chunk_maps
+from holoview.headless.parallel.chunk_maps import ChunkMaps, MapsWork
 from holoview.headless.reader import DEFAULT_DEPTH, FrameReader
 from holoview.headless.run_data import FRAME_FLAG_BITS, flag_bits
 from holoview.processing.fourier.fftplans import usable_cpus
@@ -111,7 +111,7 @@ def split_frames(n_frames: int, jobs: int, *, maps: bool = False) -> list[range]
     """Contiguous chunks of positions ``0..n_frames-1``, in order, for ``jobs`` workers.
 
     :data:`CHUNKS_PER_JOB` chunks a job (one with one job), none longer than
-    :data:`MAX_CHUNK_FRAMES` (:data:`~holoview.headless.chunk_maps.MAPS_CHUNK_FRAMES`
+    :data:`MAX_CHUNK_FRAMES` (:data:`~holoview.headless.parallel.chunk_maps.MAPS_CHUNK_FRAMES`
     when the workers make every frame's ``maps``), their lengths differing by one at
     most.
 
@@ -153,7 +153,7 @@ class ChunkTask:
     read_ahead : int
         Frames the worker's reader reads ahead.
     maps : MapsWork or None
-        Make every frame's maps too (:mod:`holoview.headless.chunk_maps`); when it
+        Make every frame's maps too (:mod:`holoview.headless.parallel.chunk_maps`); when it
         carries the chunk's carrier values, they are not measured again.
     """
 
@@ -230,7 +230,7 @@ def make_tasks(
 ) -> list[ChunkTask]:
     """One task per chunk of positions into ``frames`` (input indices).
 
-    ``maps``: one :class:`~holoview.headless.chunk_maps.MapsWork` per chunk, when the
+    ``maps``: one :class:`~holoview.headless.parallel.chunk_maps.MapsWork` per chunk, when the
     workers make every frame's maps too.
     """
     where = str(Path(path).resolve())

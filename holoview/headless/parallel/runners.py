@@ -1,7 +1,7 @@
 """Where chunks are measured: processes on this machine, or the workers of a Dask cluster.
 
-A :class:`ChunkRunner` takes :class:`~holoview.headless.chunks.ChunkTask` objects and
-hands back their :class:`~holoview.headless.chunks.ChunkResult` as they complete, in any
+A :class:`ChunkRunner` takes :class:`~holoview.headless.parallel.chunks.ChunkTask` objects and
+hands back their :class:`~holoview.headless.parallel.chunks.ChunkResult` as they complete, in any
 order (the stitching puts them in order), giving out :func:`in_flight` chunks at a time:
 
 - :class:`ProcessRunner` (``--jobs N``): a pool of ``N`` processes forked from a
@@ -44,7 +44,7 @@ from types import TracebackType
 from typing import Any, Self
 
 from holoview.errors import HoloviewError, InputError
-from holoview.headless.chunks import ChunkResult, ChunkTask, measure_chunk
+from holoview.headless.parallel.chunks import ChunkResult, ChunkTask, measure_chunk
 
 logger = logging.getLogger(__name__)
 
@@ -62,7 +62,7 @@ SINGLE_THREADED = {
 }
 
 #: What the forkserver imports once for every local worker.
-PRELOAD = ["holoview.headless.chunks"]
+PRELOAD = ["holoview.headless.parallel.chunks"]
 
 #: ``prctl`` option: the signal a process gets when its parent dies (Linux).
 _PR_SET_PDEATHSIG = 1

@@ -6,8 +6,8 @@ of the worker's time), the experiment's labels snapped to the detected peaks and
 model's families added (:func:`holoview.engine.resolve.resolve_peaks`), and the
 maps step (:class:`holoview.engine.map_step.MapStep`: every peak's map, the phase-step
 rule, the displacements, added to at most :data:`COREGISTER_HZ`, and the fused map). The
-demodulator's peaks (:attr:`LivePipeline.peaks`) go to the series worker, which takes
-every frame (:mod:`holoview.live.trends`). Every number comes from the engine, the same
+demodulator's peaks (:attr:`MapsPipeline.peaks`) go to the series worker, which takes
+every frame (:mod:`holoview.live.series_pipeline`). Every number comes from the engine, the same
 code ``holoview process`` runs; this module only decides when to call what, and packs
 a :class:`LiveResult` for the window.
 """
@@ -33,7 +33,7 @@ from holoview.processing.peaks.detection import Peak, find_peaks
 
 logger = logging.getLogger(__name__)
 
-__all__ = ["LivePipeline", "LiveResult", "block_max"]
+__all__ = ["LiveResult", "MapsPipeline", "block_max"]
 
 #: Highest rate of the display spectrum, Hz.
 SPECTRUM_HZ = 10.0
@@ -103,7 +103,7 @@ def block_max(image: np.ndarray, limit: int) -> np.ndarray:
     return out
 
 
-class LivePipeline:
+class MapsPipeline:
     """Turn frames into :class:`LiveResult` objects; used by one thread at a time.
 
     Commands (:meth:`apply`) change the experiment, or restart the absolute reference

@@ -11,12 +11,12 @@
     See :func:`summary_document`.
 ``results.h5``
     Format ``holoview-results`` 2.0, netCDF-4 in the CF manner: its layout is
-    documented in :mod:`holoview.headless.results_layout`, which writes its series and
+    documented in :mod:`holoview.headless.results.results_layout`, which writes its series and
     peaks tables and the maps' dimensions; :class:`ResultsFile` writes the maps as they
     come and the rest at the end.
 
 Each writer writes the path it is given: a run gives them temporary names and
-renames the files when it completes (:mod:`holoview.headless.output_folder`). A
+renames the files when it completes (:mod:`holoview.headless.results.output_folder`). A
 failed write is an :class:`~holoview.errors.OutputError` naming the file.
 """
 
@@ -41,10 +41,10 @@ from holoview import __version__
 from holoview.acquire.durability import CLOSE_MARGIN_BYTES, DiskReserve, free_bytes
 from holoview.engine.map_step import frame_shift, pixel_step
 from holoview.errors import OutputError, os_error_text
-from holoview.headless import cf
 from holoview.headless.analysis import Analysis, PeakOutcome
 from holoview.headless.inputs import Optics
-from holoview.headless.results_layout import (
+from holoview.headless.results import cf
+from holoview.headless.results.results_layout import (
     RESULTS_FORMAT,
     RESULTS_VERSION,
     map_dimensions,

@@ -1,6 +1,6 @@
 """The report of a headless run (``report.png``, or PDF or SVG): what a person looks at first.
 
-Drawn with matplotlib on its Agg canvas (:mod:`holoview.headless.figures`), 1366
+Drawn with matplotlib on its Agg canvas (:mod:`holoview.headless.results.figures`), 1366
 pixels wide as a PNG, in three parts:
 
 1. the spatial-frequency spectrum of the first processed frame (log magnitude,
@@ -38,8 +38,8 @@ from matplotlib.figure import Figure
 from matplotlib.patches import Circle
 
 from holoview.headless.analysis import Analysis
-from holoview.headless.figures import new_figure, save_figure
 from holoview.headless.inputs import Optics
+from holoview.headless.results.figures import new_figure, save_figure
 from holoview.headless.run_data import RunData
 from holoview.headless.settings import ProcessSettings
 from holoview.processing.peaks.detection import Peak
