@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass, replace
+from pathlib import Path
 
 import numpy as np
 
@@ -22,8 +23,10 @@ from holoview.headless.frame_passes import MapsSpec
 from holoview.headless.inputs import (
     InputFile,
     Optics,
+    check_not_background_subtracted,
     check_run_settings,
     first_good_frame,
+    frame_problem,
     resolve_optics,
 )
 from holoview.headless.run_passes import RunFrames
@@ -33,7 +36,15 @@ from holoview.processing.peaks.detection import Peak, find_peaks
 
 logger = logging.getLogger(__name__)
 
-__all__ = ["DEFAULT_AUTO", "PreparedRun", "choose_peaks", "prepare_run", "read_background"]
+__all__ = [
+    "DEFAULT_AUTO",
+    "PreparedRun",
+    "check_background",
+    "choose_peaks",
+    "prepare_run",
+    "read_background",
+    "run_inputs",
+]
 
 #: Peaks identified by PCA when nothing names them (no options, no experiment stored).
 DEFAULT_AUTO = 4
@@ -95,7 +106,7 @@ def prepare_run(source: InputFile, selected: range, options: ProcessOptions) -> 
     optics = resolve_optics(source.setup, options.optics, from_file)
     optics.require("wavelength_m")
     experiment, settings = _settle(base, options.settings, optics)
-    times = source.times(selected, options.optics.fps_hz)
+    frame_times = source.times(selected, options.optics.fps_hz)
     check_run_settings(
         area_m2=settings.area_m2, radius=settings.radius, frame_shape=source.frame_shape
     )
@@ -110,9 +121,12 @@ def prepare_run(source: InputFile, selected: range, options: ProcessOptions) -> 
         shape=source.frame_shape,
         optics=optics,
     )
-    selection = replace(selection, notes=(*notes, *selection.notes))
-    for note in notes:
+    for note in (*notes, *source.notes):
         logger.warning("%s", note)
+    level = logging.WARNING if frame_times.warning else logging.INFO
+    logger.log(level, "%s: %s", source.path, frame_times.note)
+    notes += [*source.notes, frame_times.note]
+    selection = replace(selection, notes=(*notes, *selection.notes))
     spec = MapsSpec(
         experiment=experiment,
         peaks=tuple(selection.peaks),
@@ -131,7 +145,9 @@ def prepare_run(source: InputFile, selected: range, options: ProcessOptions) -> 
         demodulator.radius,
         demodulator.box_shape,
     )
-    run = RunFrames(source, selected, times, selection, spec, experiment, optics, settings)
+    run = RunFrames(
+        source, selected, frame_times.times, selection, spec, experiment, optics, settings
+    )
     return PreparedRun(run, first, detected, demodulator.box_shape)
 
 
@@ -210,8 +226,9 @@ def read_background(spec: str | None, source: InputFile) -> np.ndarray | None:
     Raises
     ------
     InputError
-        For an index outside the input, a file that cannot be read, or a frame of
-        another shape than the input's.
+        For an index outside the input, a file that cannot be read, a frame of another
+        shape than the input's, or one that is no hologram: constant (all zero),
+        non-finite, damaged, or negative (:func:`check_background`).
     """
     if spec is None:
         return None
@@ -221,12 +238,44 @@ def read_background(spec: str | None, source: InputFile) -> np.ndarray | None:
             raise InputError(
                 f"--background {spec}: {source.path} has frames 0 to {len(source) - 1}"
             )
-        return source.read(index)
-    with InputFile(spec) as other:
-        frame = other.read(0)
-    if frame.shape != source.frame_shape:
-        raise InputError(
-            f"--background {spec}: frames of {frame.shape[0]} x {frame.shape[1]} pixels, "
-            f"the input's are {source.frame_shape[0]} x {source.frame_shape[1]}"
-        )
+        frame = source.read(index)
+    else:
+        with InputFile(spec) as other:
+            frame = other.read(0)
+        if frame.shape != source.frame_shape:
+            raise InputError(
+                f"--background {spec}: frames of {frame.shape[0]} x {frame.shape[1]} pixels, "
+                f"the input's are {source.frame_shape[0]} x {source.frame_shape[1]}"
+            )
+    check_background(frame, f"--background {spec}")
     return frame
+
+
+def run_inputs(input_path: str | Path, choice: PeakChoice, settings: ProcessSettings) -> list[Path]:
+    """Every file or folder a run reads: the input, an experiment file, a background file."""
+    inputs = [Path(input_path)]
+    if choice.experiment is not None:
+        inputs.append(Path(choice.experiment))
+    spec = settings.background
+    if spec is not None and not spec.lstrip("-").isdigit():
+        inputs.append(Path(spec))
+    return inputs
+
+
+def check_background(frame: np.ndarray, where: str) -> None:
+    """Refuse a background that is no hologram: absolute phases against it would be noise.
+
+    A background is an object-free hologram: an intensity with fringes. A constant
+    frame (all zero), one with NaN, one damaged in transfer, and one of negative or
+    zero mean intensity (a negated or background-subtracted frame) are refused.
+    """
+    problem = frame_problem(frame)
+    if problem is not None:
+        raise InputError(f"{where}: the frame {problem}; give an object-free hologram")
+    mean = float(np.mean(frame, dtype=np.float64))
+    if mean <= 0:
+        raise InputError(
+            f"{where}: the frame's mean intensity is {mean:.3g} (values {frame.min():.3g} to "
+            f"{frame.max():.3g}): a hologram is an intensity; give an object-free hologram"
+        )
+    check_not_background_subtracted(frame, where)

@@ -8,10 +8,12 @@ the series, the displacements, and the maps to ``results.h5`` as they come
 (:mod:`~holoview.headless.analysis`); write ``trends.csv``, ``summary.json``,
 ``results.h5`` (:mod:`~holoview.headless.results.outputs`) and ``report.png`` (or PDF, SVG:
 :mod:`~holoview.headless.results.report`). Every user mistake is an
-:class:`~holoview.errors.InputError` raised before the output folder is touched where
-it can be known that early. The outputs are written under temporary names and put in
-place when the run completes; what an earlier run left in the folder is replaced only
-then, and only with ``overwrite`` (:mod:`~holoview.headless.results.output_folder`).
+:class:`~holoview.errors.InputError` raised before anything is written where it can be
+known that early (:mod:`~holoview.headless.prepare`). The output folder is locked for
+the run from its start (one run at a time); the outputs are written under temporary
+names and put in place when the run completes; what an earlier run left in the folder
+is replaced only then, and only with ``overwrite``; no output may be an input
+(:mod:`~holoview.headless.results.output_folder`).
 """
 
 from __future__ import annotations
@@ -29,7 +31,7 @@ from holoview.headless.analysis import Analysis, analyse
 from holoview.headless.inputs import InputFile, parse_frame_range
 from holoview.headless.parallel.chunks import plan_jobs
 from holoview.headless.parallel.runners import ChunkRunner, open_runner
-from holoview.headless.prepare import PreparedRun, prepare_run
+from holoview.headless.prepare import PreparedRun, prepare_run, run_inputs
 from holoview.headless.results.figures import FORMATS
 from holoview.headless.results.output_folder import OutputFolder
 from holoview.headless.results.outputs import (
@@ -105,10 +107,12 @@ def process_file(
     InputError
         For an unreadable input, missing or wrong parameters, a bad experiment file or
         labels (a label on no detected peak, an unknown label without alpha), peaks the
-        PCA cannot identify, earlier results without ``overwrite``, ``jobs`` below 1,
-        a scheduler that does not answer, or workers that cannot read the input.
+        PCA cannot identify, earlier results without ``overwrite``, an output that is
+        an input, a folder another run holds, ``jobs`` below 1, a scheduler that does
+        not answer, or workers that cannot read the input.
     OutputError
-        An output could not be written (the folder keeps what it held).
+        An output could not be written, or (without ``overwrite``) results appeared
+        in the folder during the run (the folder keeps what it held).
 
     Examples
     --------
@@ -120,14 +124,18 @@ def process_file(
     options = (options or ProcessOptions()).checked()
     out_dir = Path(out)
     with (
-        OutputFolder(out_dir, OUTPUT_NAMES, overwrite=options.overwrite) as outputs,
+        OutputFolder(
+            out_dir,
+            OUTPUT_NAMES,
+            overwrite=options.overwrite,
+            inputs=run_inputs(input_path, options.choice, options.settings),
+        ) as outputs,
         InputFile(input_path) as source,
         contextlib.ExitStack() as stack,
     ):
         selected = parse_frame_range(options.frames, len(source))
         runner = _workers(options, source, selected, runner, stack)
         prepared = prepare_run(source, selected, options)
-        outputs.create()
         data, analysis = _run_frames(prepared, outputs.path(RESULTS_H5), runner, progress)
         summary = _write_outputs(prepared, outputs, data, analysis, options.report)
         files = outputs.finish(interrupted=data.interrupted)
