@@ -35,6 +35,7 @@ import numpy as np
 from holoview.engine.frame_core import CarrierCore
 from holoview.errors import InputError
 from holoview.headless.chunk_maps import MAPS_CHUNK_FRAMES, MapsSpec, prepare_reference
+from holoview.headless.input_identity import InputIdentity
 from holoview.headless.inputs import InputFile
 from holoview.headless.pipeline import FrameMaps, frame_maps
 from holoview.headless.reader import DEFAULT_DEPTH, FrameReader
@@ -156,6 +157,8 @@ class ChunkTask:
     before : sequence of int
         With ``maps``: the input indices of the run's frames before the chunk, in order
         (:func:`~holoview.headless.chunk_maps.prepare_reference`).
+    identity : InputIdentity or None
+        What the input was when the run started: the worker checks that it still is.
     """
 
     path: str
@@ -167,6 +170,7 @@ class ChunkTask:
     read_ahead: int = DEFAULT_DEPTH
     maps: MapsSpec | None = None
     before: Sequence[int] = ()
+    identity: InputIdentity | None = None
 
 
 @dataclass(frozen=True)
@@ -232,11 +236,13 @@ def make_tasks(
     saturation: float | None,
     read_ahead: int = DEFAULT_DEPTH,
     maps: MapsSpec | None = None,
+    identity: InputIdentity | None = None,
 ) -> list[ChunkTask]:
     """One task per chunk of positions into ``frames`` (input indices).
 
     With ``maps`` the workers demodulate every frame's maps too (give a ``range`` of
-    ``frames``: each task carries the frames before its chunk).
+    ``frames``: each task carries the frames before its chunk). With ``identity`` (the
+    input's when the run started) a worker refuses an input replaced since.
     """
     where = str(Path(path).resolve())
     return [
@@ -250,6 +256,7 @@ def make_tasks(
             read_ahead=read_ahead,
             maps=maps,
             before=frames[: chunk.start] if maps is not None else (),
+            identity=identity,
         )
         for chunk in chunks
     ]
@@ -261,9 +268,20 @@ def measure_chunk(task: ChunkTask) -> ChunkResult:
     Raises
     ------
     InputError
-        The worker cannot open or read the input, or finds frames of another shape
-        (the message names the worker's host).
+        The worker cannot open or read the input, finds it replaced since the run
+        started (the task's ``identity``), or finds frames of another shape (the
+        message names the worker's host).
     """
+    try:
+        return _measure_chunk(task)
+    except Exception:
+        if task.identity is not None:  # a file replaced while read can fail in any way
+            task.identity.check(who=f"a worker on {socket.gethostname()}")
+        raise
+
+
+def _measure_chunk(task: ChunkTask) -> ChunkResult:
+    """:func:`measure_chunk`, before a failure is put down to a replaced input."""
     worker = f"{socket.gethostname()}:{os.getpid()}"
     try:
         source = InputFile(task.path)
@@ -271,6 +289,9 @@ def measure_chunk(task: ChunkTask) -> ChunkResult:
         host = socket.gethostname()
         raise InputError(f"a worker on {host} cannot read the input: {exc}") from None
     with source:
+        if task.identity is not None:
+            now = InputIdentity.of(task.path, source.info.get("uuid"))
+            task.identity.check(now, who=f"a worker on {socket.gethostname()}")
         if source.frame_shape != task.frame_shape:
             raise InputError(
                 f"a worker on {socket.gethostname()} sees {task.path} with frames of "

@@ -14,8 +14,11 @@ order (the stitching puts them in order), giving out :func:`in_flight` chunks at
   The workers ignore Ctrl-C, which the terminal sends to the whole process group: the
   parent decides, and when it is interrupted or fails it sends its workers SIGTERM (with
   ``--maps`` it lets the chunks under way finish instead: a worker stopped while sending
-  a chunk's maps would leave the pool waiting for the rest); on Linux a worker also gets
-  SIGTERM if the parent dies without a word.
+  a chunk's maps would leave the pool waiting for the rest). A parent that dies without
+  a word (SIGKILL, out of memory) cannot: each worker watches it (:func:`_follow_parent`)
+  and ends within moments of it, and then the forkserver and the resource tracker, which
+  wait for the last of their users, end too. (A parent-death signal would not do: the
+  workers' parent is the forkserver, which lives as long as a worker does.)
 - :class:`DaskRunner` (``--scheduler ADDRESS``, or ``local`` for a
   :class:`distributed.LocalCluster` of ``--jobs`` worker processes): the same tasks as
   Dask futures. The workers open the input by its path (it must be on storage they
@@ -29,13 +32,14 @@ order (the stitching puts them in order), giving out :func:`in_flight` chunks at
 from __future__ import annotations
 
 import contextlib
-import ctypes
 import itertools
 import logging
 import multiprocessing
 import os
+import select
 import signal
 import threading
+import time
 from abc import ABC, abstractmethod
 from collections.abc import Iterator, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
@@ -64,8 +68,8 @@ SINGLE_THREADED = {
 #: What the forkserver imports once for every local worker.
 PRELOAD = ["holoview.headless.chunks"]
 
-#: ``prctl`` option: the signal a process gets when its parent dies (Linux).
-_PR_SET_PDEATHSIG = 1
+#: Seconds between two looks at the parent where the system cannot wait on it (no pidfd).
+PARENT_POLL_S = 0.2
 
 
 def in_flight(workers: int) -> int:
@@ -77,12 +81,57 @@ def in_flight(workers: int) -> int:
     return 2 * max(1, workers)
 
 
-def _worker_start() -> None:
-    """In each local worker: leave Ctrl-C to the parent; SIGTERM when the parent dies."""
+def _alive(pid: int) -> bool:
+    """Whether process ``pid`` runs (a zombie, dead but not yet reaped, does not)."""
+    try:
+        with open(f"/proc/{pid}/stat", "rb") as f:
+            return f.read().rsplit(b")", 1)[1].split()[0] != b"Z"
+    except OSError:
+        pass  # no /proc: ask the kernel
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
+def _watch_parent(pid: int, pidfd: int | None) -> None:
+    """Wait until process ``pid`` ends, then end this process at once."""
+    if pidfd is not None:
+        select.select([pidfd], [], [])  # readable once the process has ended
+    else:
+        while _alive(pid):
+            time.sleep(PARENT_POLL_S)
+    os._exit(1)  # the parent is gone: nothing to hand the results to, nothing to clean
+
+
+def _follow_parent(pid: int) -> None:
+    """End this worker when process ``pid`` (the run's parent) ends, however it ends.
+
+    A thread waits on a pidfd of the parent (Linux 5.3 and later), or polls every
+    :data:`PARENT_POLL_S` s where there is none.
+    """
+    pidfd: int | None = None
+    try:
+        pidfd = os.pidfd_open(pid)
+    except ProcessLookupError:
+        os._exit(1)  # gone already
+    except (OSError, AttributeError):
+        pidfd = None  # no pidfd_open here: poll
+    if pidfd is None and not _alive(pid):
+        os._exit(1)
+    watcher = threading.Thread(
+        target=_watch_parent, args=(pid, pidfd), name="holoview-parent-watch", daemon=True
+    )
+    watcher.start()
+
+
+def _worker_start(parent: int) -> None:
+    """In each local worker: leave Ctrl-C to the parent; end when the parent ends."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
-    with contextlib.suppress(OSError, AttributeError):
-        libc = ctypes.CDLL(None, use_errno=True)
-        libc.prctl(_PR_SET_PDEATHSIG, int(signal.SIGTERM), 0, 0, 0)
+    _follow_parent(parent)
 
 
 @contextlib.contextmanager
@@ -166,7 +215,10 @@ class ProcessRunner(ChunkRunner):
         context = multiprocessing.get_context("forkserver")
         context.set_forkserver_preload(PRELOAD)
         self._executor = ProcessPoolExecutor(
-            max_workers=self.workers, mp_context=context, initializer=_worker_start
+            max_workers=self.workers,
+            mp_context=context,
+            initializer=_worker_start,
+            initargs=(os.getpid(),),
         )
         # every worker (and the forkserver, on first use) starts now, on a thread: the
         # forkserver's import of holoview would otherwise hold this one for a second

@@ -29,6 +29,7 @@ from holoview.engine.experiment import Experiment, LabelledPeak
 from holoview.errors import InputError
 from holoview.headless.analysis import Analysis, analyse, known_joint
 from holoview.headless.chunks import plan_jobs
+from holoview.headless.input_identity import InputIdentity
 from holoview.headless.inputs import (
     InputFile,
     Optics,
@@ -304,6 +305,7 @@ def process_file(
         InputFile(input_path) as source,
         contextlib.ExitStack() as stack,
     ):
+        identity = InputIdentity.of(source.path, source.info.get("uuid"))
         selected = parse_frame_range(frames, len(source))
         if runner is None:  # started first: the workers start while this process prepares
             planned = plan_jobs(jobs, len(selected), source.kind)
@@ -388,6 +390,7 @@ def process_file(
                     read_ahead=settings.read_ahead,
                     progress=step,
                     joint=known_joint(selection, optics),
+                    identity=identity,
                 )
             analysis = analyse(data, selection, optics)
             results.finish(
@@ -399,6 +402,9 @@ def process_file(
                 frame_shape=source.frame_shape,
                 converted=data.maps_in_metres,
             )
+        except Exception:
+            identity.check()  # a file replaced while read can fail in any way
+            raise
         finally:
             results.close()
         summary = summary_document(
@@ -427,5 +433,6 @@ def process_file(
                 title=f"{Path(input_path).name}: frames {data.frames[0]}..{data.frames[-1]}"
                 + (" (interrupted)" if data.interrupted else ""),
             )
+        identity.check()  # the frames were all of the input the run started on
         files = outputs.finish(interrupted=data.interrupted)
     return ProcessOutcome(out_dir, selection, experiment, data, analysis, summary, tuple(files))

@@ -41,6 +41,7 @@ from holoview.engine.frame_core import FrameCore
 from holoview.headless.analysis import JointSetup
 from holoview.headless.chunk_maps import MapsSpec, TurnFix
 from holoview.headless.chunks import CHUNK_FLAGS, ChunkResult, make_tasks, split_frames
+from holoview.headless.input_identity import InputIdentity
 from holoview.headless.inputs import InputFile
 from holoview.headless.parallel import ChunkRunner
 from holoview.headless.pipeline import MapSink, MapsPass, RunData, check_run, new_run_data
@@ -113,6 +114,7 @@ def demodulate_chunks(
     read_ahead: int = DEFAULT_DEPTH,
     progress: Callable[[int], None] | None = None,
     joint: JointSetup | None = None,
+    identity: InputIdentity | None = None,
 ) -> RunData:
     """:func:`~holoview.headless.pipeline.demodulate_frames`, the carriers on ``runner``.
 
@@ -138,6 +140,8 @@ def demodulate_chunks(
         The joint estimate known before the frames
         (:func:`~holoview.headless.analysis.known_joint`): made here as the chunks come
         in, in order, while the workers measure the next ones, and kept by the analysis.
+    identity : InputIdentity, optional
+        The input's when the run started: every worker checks it before each chunk.
 
     Returns
     -------
@@ -164,6 +168,7 @@ def demodulate_chunks(
         saturation=core.saturation,
         read_ahead=read_ahead,
         maps=MapsSpec.of(core) if sink is not None else None,
+        identity=identity,
     )
     logger.info("%d frames in %d chunks on %s", n, len(chunks), runner.name)
     series = data.series
