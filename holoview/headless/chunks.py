@@ -66,6 +66,8 @@ CHUNK_FLAGS = ("nonfinite", "saturated", "damaged")
 def plan_jobs(jobs: int | None, n_frames: int, kind: str, cores: int | None = None) -> int:
     """The processes a run of ``n_frames`` frames uses for ``--jobs JOBS``.
 
+    The one rule for ``--jobs``, local processes and a local Dask cluster alike.
+
     Parameters
     ----------
     jobs : int or None
@@ -81,7 +83,9 @@ def plan_jobs(jobs: int | None, n_frames: int, kind: str, cores: int | None = No
     Returns
     -------
     int
-        At least 1; more jobs than frames are cut to the frames, with a warning.
+        At least 1; more jobs than usable cores, or than frames, are cut to those, with
+        a warning (a worker process per core is the most that gains: each costs a
+        start, memory, and a core the others need).
 
     Raises
     ------
@@ -98,12 +102,15 @@ def plan_jobs(jobs: int | None, n_frames: int, kind: str, cores: int | None = No
                 kind,
             )
         return 1
+    cores = usable_cpus() if cores is None else cores
     if jobs is None:
-        cores = usable_cpus() if cores is None else cores
         return max(1, min(cores - 1, n_frames // MIN_FRAMES_PER_JOB))
-    if jobs > n_frames:
-        logger.warning("--jobs %d: the run has %d frames; using %d", jobs, n_frames, n_frames)
-        return max(1, n_frames)
+    most, why = n_frames, f"the run has {n_frames} frames"
+    if cores < most:
+        most, why = cores, f"this machine has {cores} usable cores"
+    if jobs > most:
+        logger.warning("--jobs %d: %s; using %d", jobs, why, max(1, most))
+        return max(1, most)
     return jobs
 
 

@@ -20,7 +20,8 @@ order (the stitching puts them in order), giving out :func:`in_flight` chunks at
   wait for the last of their users, end too. (A parent-death signal would not do: the
   workers' parent is the forkserver, which lives as long as a worker does.)
 - :class:`DaskRunner` (``--scheduler ADDRESS``, or ``local`` for a
-  :class:`distributed.LocalCluster` of ``--jobs`` worker processes): the same tasks as
+  :class:`distributed.LocalCluster` of ``--jobs`` worker processes, started so that a
+  stop signal stops its start: :mod:`holoview.headless.dask_cluster`): the same tasks as
   Dask futures. The workers open the input by its path (it must be on storage they
   share, with holoview installed in their environment); a worker lost mid-run has its
   chunks measured again by Dask on another (``distributed.scheduler.allowed-failures``
@@ -49,11 +50,9 @@ from typing import Any, Self
 
 from holoview.errors import HoloviewError, InputError
 from holoview.headless.chunks import ChunkResult, ChunkTask, measure_chunk
+from holoview.headless.dask_cluster import CONNECT_TIMEOUT_S, LocalDask, check_scheduler
 
 logger = logging.getLogger(__name__)
-
-#: Seconds to wait for a scheduler to answer before giving up.
-CONNECT_TIMEOUT_S = 5.0
 
 #: Seconds a remote cluster is given to have at least one worker.
 WORKERS_TIMEOUT_S = 30.0
@@ -296,41 +295,40 @@ class DaskRunner(ChunkRunner):
     Raises
     ------
     InputError
-        No scheduler answers at the address within :data:`CONNECT_TIMEOUT_S`, or it has
-        no worker within :data:`WORKERS_TIMEOUT_S`.
+        No scheduler answers at the address within
+        :data:`~holoview.headless.dask_cluster.CONNECT_TIMEOUT_S` (or something else
+        answers), or it has no worker within :data:`WORKERS_TIMEOUT_S`.
+    KeyboardInterrupt
+        A stop signal while the local cluster starts (its processes are ended first).
     """
 
     def __init__(self, scheduler: str, jobs: int = 1) -> None:
         import distributed
 
-        self._cluster: Any = None
-        if scheduler == "local":
-            self._cluster = distributed.LocalCluster(
-                n_workers=max(1, int(jobs)),
-                threads_per_worker=1,
-                processes=True,
-                dashboard_address=None,
-                silence_logs=logging.ERROR,
-                # its HTTP server (health, metrics) on a free port, not on 8787
-                scheduler_kwargs={"dashboard_address": ":0"},
-            )
-            address = self._cluster.scheduler_address
-        else:
-            address = scheduler
+        self._cluster: LocalDask | None = None
+        self._client: Any = None
         try:
-            self._client = distributed.Client(address, timeout=CONNECT_TIMEOUT_S)
-        except (OSError, TimeoutError, ValueError) as exc:
-            self._close_cluster()
-            raise InputError(
-                f"--scheduler {scheduler}: no Dask scheduler answers there ({exc})"
-            ) from None
-        try:
-            self._client.wait_for_workers(1, timeout=WORKERS_TIMEOUT_S)
-        except (OSError, TimeoutError) as exc:
+            if scheduler == "local":
+                self._cluster = LocalDask(max(1, int(jobs)))
+                address = self._cluster.address
+            else:
+                check_scheduler(scheduler)
+                address = scheduler
+            try:
+                self._client = distributed.Client(address, timeout=CONNECT_TIMEOUT_S)
+            except (OSError, TimeoutError, ValueError) as exc:
+                raise InputError(
+                    f"--scheduler {scheduler}: no Dask scheduler answers there ({exc})"
+                ) from None
+            try:
+                self._client.wait_for_workers(1, timeout=WORKERS_TIMEOUT_S)
+            except (OSError, TimeoutError) as exc:
+                raise InputError(
+                    f"--scheduler {scheduler}: the scheduler has no worker ({exc})"
+                ) from None
+        except BaseException:  # an error, or a stop signal while the cluster starts
             self.close()
-            raise InputError(
-                f"--scheduler {scheduler}: the scheduler has no worker ({exc})"
-            ) from None
+            raise
         self.workers = max(1, len(self._client.scheduler_info().get("workers", {})))
         self.name = f"Dask at {address} ({self.workers} workers)"
 
@@ -342,8 +340,9 @@ class DaskRunner(ChunkRunner):
     def run(self, tasks: Sequence[ChunkTask]) -> Iterator[ChunkResult]:
         import distributed
 
+        client = self._client  # an interruption closes the runner before this ends
         queue = iter(tasks)
-        futures = self._client.map(
+        futures = client.map(
             measure_chunk, list(itertools.islice(queue, in_flight(self.workers))), pure=False
         )
         try:
@@ -352,7 +351,7 @@ class DaskRunner(ChunkRunner):
                 yield future.result()
                 task = next(queue, None)
                 if task is not None:
-                    futures.append(self._client.submit(measure_chunk, task, pure=False))
+                    futures.append(client.submit(measure_chunk, task, pure=False))
                     completed.add(futures[-1])
         except distributed.client.FutureCancelledError as exc:
             raise HoloviewError(f"the Dask cluster dropped the work ({exc})") from None
@@ -361,34 +360,37 @@ class DaskRunner(ChunkRunner):
                 f"Dask workers kept dying on a chunk of frames ({exc}): out of memory?"
             ) from None
         finally:
-            self._client.cancel(futures)
+            if client.status == "running":  # not closed by abort()
+                client.cancel(futures)
 
     def abort(self) -> None:
         self.close()
 
-    def _close_cluster(self) -> None:
-        if self._cluster is not None:
-            self._cluster.close()
-            self._cluster = None
-
     def close(self) -> None:
-        client = getattr(self, "_client", None)
+        client, self._client = self._client, None
         if client is not None:
             client.close()
-            self._client = None
-        self._close_cluster()
+        cluster, self._cluster = self._cluster, None
+        if cluster is not None:
+            cluster.close()
 
 
 def open_runner(jobs: int, scheduler: str | None = None) -> ChunkRunner:
     """The runner for ``--jobs`` and ``--scheduler`` (a Dask one when a scheduler is given).
 
+    Parameters
+    ----------
+    jobs : int
+        Local worker processes, as :func:`~holoview.headless.chunks.plan_jobs` settled
+        them (at least 1).
+    scheduler : str, optional
+        A Dask scheduler's address, or ``"local"``.
+
     Raises
     ------
     InputError
-        For ``jobs`` below 1, or a scheduler that does not answer.
+        A scheduler that does not answer.
     """
-    if jobs < 1:
-        raise InputError(f"--jobs must be at least 1, got {jobs}")
     if scheduler is not None:
         if not scheduler.strip():
             raise InputError("--scheduler: give an address (host:port) or 'local'")
