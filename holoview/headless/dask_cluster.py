@@ -110,6 +110,7 @@ class LocalDask:
     """
 
     def __init__(self, workers: int) -> None:
+        self.address = ""
         self._cluster: Any = None
         self._before = set(multiprocessing.active_children())
         self._loop = asyncio.new_event_loop()
@@ -126,7 +127,6 @@ class LocalDask:
             self._end_processes()  # a cluster stopped while it starts does not close them
             self.close()
             raise
-        self.address: str = self._cluster.scheduler_address
 
     async def _start(self, workers: int) -> None:
         import distributed
@@ -145,6 +145,7 @@ class LocalDask:
         # this loop, stopped by then, after a start interrupted
         self._cluster.shutdown_on_close = False
         await self._cluster
+        self.address = str(self._cluster.scheduler_address)
 
     async def _close(self) -> None:
         try:

@@ -221,11 +221,14 @@ def command_line(pid: int) -> str:
         return ""
 
 
-def start_holoview_to_files(folder: Path, *args: str) -> subprocess.Popen[str]:
+def start_holoview_to_files(
+    folder: Path, *args: str, env: dict[str, str] | None = None
+) -> subprocess.Popen[str]:
     """Start ``python -m holoview ARGS`` with stdout and stderr in files of ``folder``.
 
     For children whose own children may outlive them: a pipe would stay open as long
-    as they do. Read the output with :func:`output_of`.
+    as they do. ``env`` is added to :func:`child_env`'s. Read the output with
+    :func:`output_of`.
     """
     with open(folder / "stdout.txt", "w") as out, open(folder / "stderr.txt", "w") as err:
         child = subprocess.Popen(
@@ -233,7 +236,7 @@ def start_holoview_to_files(folder: Path, *args: str) -> subprocess.Popen[str]:
             stdout=out,
             stderr=err,
             text=True,
-            env=child_env(),
+            env=child_env(**(env or {})),
         )
     _children.append(child)
     return child

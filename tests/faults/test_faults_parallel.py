@@ -3,10 +3,13 @@ process is left behind, and what was done is kept (real child processes, real si
 
 from __future__ import annotations
 
+import http.server
 import json
 import re
 import signal
+import threading
 import time
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -15,6 +18,7 @@ from faults_helpers import (
     command_line,
     descendants,
     finish,
+    one_line_error,
     output_of,
     run_holoview,
     start_holoview,
@@ -150,3 +154,50 @@ def test_more_local_dask_workers_than_cores_are_capped(sim_recording: Path, tmp_
     assert f"--jobs 200: this machine has {cores} usable cores; using {cores}" in done.err
     summary = json.loads((out / "summary.json").read_text())
     assert summary["timing"]["workers"].endswith(f"({cores} workers)")
+
+
+@pytest.fixture
+def http_listener() -> Iterator[int]:
+    """A real HTTP server on a free port of 127.0.0.1, in a thread; its port."""
+    server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), _QuietHandler)
+    thread = threading.Thread(target=server.serve_forever, name="http-listener", daemon=True)
+    thread.start()
+    try:
+        yield server.server_address[1]
+    finally:
+        server.shutdown()
+        server.server_close()
+        thread.join(10)
+
+
+class _QuietHandler(http.server.BaseHTTPRequestHandler):
+    def log_message(self, format: str, *args: object) -> None:
+        """Nothing on the test's stderr."""
+
+
+def test_a_scheduler_address_where_http_answers_is_one_line(
+    http_listener: int, sim_recording: Path, tmp_path: Path
+) -> None:
+    """``--scheduler`` at an HTTP server: one line, exit 2, nothing written. Before: no end
+    after 120 s (Dask read the HTTP reply's first bytes as a message's length)."""
+    address = f"127.0.0.1:{http_listener}"
+    out = tmp_path / "results"
+    done = run_holoview(
+        "process", str(sim_recording), "--out", str(out), "--scheduler", address, timeout=60
+    )
+    one_line_error(done, 2, f"--scheduler {address}", "Dask scheduler")
+    assert not out.exists()
+
+
+def test_a_tls_scheduler_without_tls_settings_is_one_line(
+    sim_recording: Path, tmp_path: Path
+) -> None:
+    """``--scheduler tls://...`` without Dask's TLS settings: one line, exit 2. Before: a
+    ``TypeError`` traceback."""
+    out = tmp_path / "results"
+    done = run_holoview(
+        "process", str(sim_recording), "--out", str(out), "--scheduler", "tls://127.0.0.1:1",
+        timeout=60,
+    )  # fmt: skip
+    one_line_error(done, 2, "--scheduler tls://127.0.0.1:1", "TLS settings")
+    assert not out.exists()
