@@ -18,7 +18,7 @@ Printed per band of distance from the frame's edge (pixels): the rms error (nm) 
 
 - holoview as it demodulates (the FFT treats the frame as periodic), Tukey 0.25 and
   top-hat windows, and the fraction of each band its mask trusts
-  (:func:`holoview.processing.boxes.border_mask`); the error over the trusted pixels
+  (:func:`holoview.processing.fourier.boxes.border_mask`); the error over the trusted pixels
   beside the interior's is the target (within 2 x);
 - the frame apodised first (a cosine taper over 16 pixels of the deviation from the
   mean), the alternative to an untrusted border;
@@ -45,8 +45,8 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
 from holoview.optics.synthesis import HologramSynthesizer  # noqa: E402
-from holoview.processing.boxes import UNTRUSTED_BORDER, border_mask  # noqa: E402
-from holoview.processing.demodulate import Demodulator  # noqa: E402
+from holoview.processing.fourier.boxes import UNTRUSTED_BORDER, border_mask  # noqa: E402
+from holoview.processing.maps.demodulate import Demodulator  # noqa: E402
 
 BANDS = ((0, 2), (2, 5), (5, 10), (10, 20), (20, 30), (30, 60), (60, 10**6))
 SEEDS = 2
@@ -71,7 +71,7 @@ def holoview_fields(
 ) -> tuple[list[np.ndarray], np.ndarray]:
     """RB1's fields on the frame grid, and the border it trusts (the frame grid's pixels).
 
-    The mask is :func:`~holoview.processing.boxes.border_mask`'s rule applied to every
+    The mask is :func:`~holoview.processing.fourier.boxes.border_mask`'s rule applied to every
     frame pixel rather than to the map's coarser grid.
     """
     shape = frames[0].shape

@@ -10,7 +10,7 @@ Prints, after the machine (CPU model, vector extensions, cores, load average):
 1. per-frame time at 1024^2 and 2048^2 with 5 and 6 peaks (uint16 frames), medians,
    90th percentiles and best over rounds that interleave the candidates (so that the
    load of a shared machine falls on all alike): the probe
-   (:class:`~holoview.processing.carrier_values.CarrierProbe`, with and without its
+   (:class:`~holoview.processing.series.carrier_probe.CarrierProbe`, with and without its
    noise estimate), one single-threaded real FFT (pyFFTW, the frame copied into its
    float32 buffer first, as the demodulator does), and the whole
    ``Demodulator.process`` (one FFTW thread, relative reference, no unwrapping), with
@@ -54,12 +54,12 @@ from holoview.cli import main as holoview_main  # noqa: E402
 from holoview.optics.families import predict_families  # noqa: E402
 from holoview.optics.setup import Ghost, Setup  # noqa: E402
 from holoview.optics.synthesis import HologramSynthesizer  # noqa: E402
-from holoview.processing.carrier_values import CarrierProbe  # noqa: E402
-from holoview.processing.demodulate import Demodulator  # noqa: E402
-from holoview.processing.fftplans import rfft2_plan  # noqa: E402
-from holoview.processing.peaks import Peak  # noqa: E402
-from holoview.processing.phase_series import unwrap_in_time  # noqa: E402
-from holoview.processing.rates import fit_rate  # noqa: E402
+from holoview.processing.fourier.fftplans import rfft2_plan  # noqa: E402
+from holoview.processing.maps.demodulate import Demodulator  # noqa: E402
+from holoview.processing.peaks.detection import Peak  # noqa: E402
+from holoview.processing.series.carrier_probe import CarrierProbe  # noqa: E402
+from holoview.processing.series.phase_series import unwrap_in_time  # noqa: E402
+from holoview.processing.series.rate_fits import fit_rate  # noqa: E402
 
 #: The issue's figures on a 2-core AVX2 machine, ms: separable DFT at 5 carriers of 1024^2.
 ISSUE_PROBE_MS = 1.7

@@ -9,7 +9,7 @@ Each seed simulates a recording with :func:`holoview.optics.scenarios.simulate` 
 Poisson shot noise, reference air-path jitter of 10 nm rms for the evaporation and 3 nm
 for the injection, correlation time 0.5 s), labels its peaks with the model from RB1
 and FB1, demodulates every detected peak with the real
-:class:`~holoview.processing.demodulate.Demodulator` (synthetic reference, carrier value)
+:class:`~holoview.processing.maps.demodulate.Demodulator` (synthetic reference, carrier value)
 and then runs the temporal PCA and the depth tracking. The recordings are the ones the
 tests in ``tests/identify/test_identify_targets.py`` use (seed 11 and 12 there). Prints,
 per scenario, medians over seeds (worst in brackets) of:
@@ -46,12 +46,12 @@ from holoview.optics.families import alpha_of, predict_families  # noqa: E402
 from holoview.optics.scenarios import ScenarioConfig  # noqa: E402
 from holoview.optics.setup import FLUIDS, Setup  # noqa: E402
 from holoview.optics.synthesis import HologramSynthesizer  # noqa: E402
-from holoview.processing.identify import identify_peaks  # noqa: E402
-from holoview.processing.labelling import label_peaks  # noqa: E402
-from holoview.processing.peaks import find_peaks  # noqa: E402
-from holoview.processing.phase_series import check_aliasing, unwrap_in_time  # noqa: E402
-from holoview.processing.rates import compare_rate  # noqa: E402
-from holoview.processing.trends import track_depth  # noqa: E402
+from holoview.processing.naming.identify import identify_peaks  # noqa: E402
+from holoview.processing.naming.labelling import label_peaks  # noqa: E402
+from holoview.processing.peaks.detection import find_peaks  # noqa: E402
+from holoview.processing.series.depth_series import track_depth  # noqa: E402
+from holoview.processing.series.phase_series import check_aliasing, unwrap_in_time  # noqa: E402
+from holoview.processing.series.rate_fits import compare_rate  # noqa: E402
 
 SHAPE = (128, 128)
 AREA = 70.6e-4  # m^2

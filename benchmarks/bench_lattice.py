@@ -46,11 +46,12 @@ from holoview.errors import InputError  # noqa: E402
 from holoview.optics.families import predict_families  # noqa: E402
 from holoview.optics.scenarios import ScenarioConfig  # noqa: E402
 from holoview.optics.setup import Setup  # noqa: E402
-from holoview.processing.joint_estimation import JointEstimator  # noqa: E402
-from holoview.processing.joint_series import estimate_joint  # noqa: E402
-from holoview.processing.lattice import LatticeKind, identify_lattice  # noqa: E402
-from holoview.processing.phase_series import unwrap_in_time  # noqa: E402
-from holoview.processing.trends import track_depth  # noqa: E402
+from holoview.processing.naming.lattice import identify_lattice  # noqa: E402
+from holoview.processing.naming.lattice_geometry import LatticeKind  # noqa: E402
+from holoview.processing.series.depth_series import track_depth  # noqa: E402
+from holoview.processing.series.joint_estimation import JointEstimator  # noqa: E402
+from holoview.processing.series.joint_series import estimate_joint  # noqa: E402
+from holoview.processing.series.phase_series import unwrap_in_time  # noqa: E402
 
 
 def _apart(a, b, shape) -> float:

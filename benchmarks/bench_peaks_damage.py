@@ -6,13 +6,13 @@ Run from the repository root::
 
 Prints, on simulated 256 x 256 and 1024 x 1024 holograms (:class:`HologramSynthesizer`):
 
-1. :func:`~holoview.processing.frames.frame_damage` on a clean frame and on one with an
+1. :func:`~holoview.processing.fourier.frames.frame_damage` on a clean frame and on one with an
    eighth of its rows zeroed (the simulator's ``corrupt_rate``), microseconds; and
-   :func:`~holoview.processing.peaks.find_peaks` on both (the damaged frame is refused
+   :func:`~holoview.processing.peaks.detection.find_peaks` on both (the damaged frame is refused
    with the reason, not searched), milliseconds; medians of repeated calls;
 2. the same frame with a zeroed block that leaves every row partly lit (not detected as
    damage: the search runs, bounded by ``MAX_CANDIDATES`` and the tree relation check);
-3. :func:`~holoview.processing.peaks.flag_relations` on n random peaks, n = 100 to 12800:
+3. :func:`~holoview.processing.peaks.detection.flag_relations` on n random peaks, n = 100 to 12800:
    milliseconds and the ratio to ``n log n`` (flat when the check is ``O(n log n)``), beside
    the cubic check it replaced for the smallest n (its cost grows as n^3).
 
@@ -38,14 +38,14 @@ from machine import machine  # noqa: E402
 from holoview.errors import InputError  # noqa: E402
 from holoview.optics.setup import Setup  # noqa: E402
 from holoview.optics.synthesis import HologramSynthesizer  # noqa: E402
-from holoview.processing.frames import frame_damage  # noqa: E402
-from holoview.processing.peaks import (  # noqa: E402
+from holoview.processing.fourier.frames import frame_damage  # noqa: E402
+from holoview.processing.fourier.windows import wrap_frequency  # noqa: E402
+from holoview.processing.peaks.detection import (  # noqa: E402
     RELATION_TOLERANCE_BINS,
     Peak,
     find_peaks,
     flag_relations,
 )
-from holoview.processing.windows import wrap_frequency  # noqa: E402
 
 
 def median_seconds(call, repeats: int) -> float:

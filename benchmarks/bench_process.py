@@ -55,7 +55,7 @@ from holoview.headless.selection import select_from_experiment  # noqa: E402
 from holoview.optics.families import predict_families  # noqa: E402
 from holoview.optics.setup import Setup  # noqa: E402
 from holoview.optics.synthesis import HologramSynthesizer  # noqa: E402
-from holoview.processing.peaks import find_peaks  # noqa: E402
+from holoview.processing.peaks.detection import find_peaks  # noqa: E402
 
 SHAPE = (1024, 1024)
 FPS = 80.0

@@ -4,7 +4,7 @@ Run from the repository root::
 
     .venv/bin/python benchmarks/bench_threads.py     # about a minute
 
-Times :class:`~holoview.processing.demodulate.Demodulator` on 1024 x 1024 frames with
+Times :class:`~holoview.processing.maps.demodulate.Demodulator` on 1024 x 1024 frames with
 the four peaks of ``bench_demodulation.py`` (relative reference, no unwrapping), with
 one FFTW thread and with one per core, first as the machine is, then while one busy
 process per core competes (started here, stopped here). Prints the median, 90th
@@ -28,8 +28,8 @@ from machine import machine
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from holoview.processing.demodulate import Demodulator  # noqa: E402
-from holoview.processing.fftplans import DEFAULT_THREADS, usable_cpus  # noqa: E402
+from holoview.processing.fourier.fftplans import DEFAULT_THREADS, usable_cpus  # noqa: E402
+from holoview.processing.maps.demodulate import Demodulator  # noqa: E402
 
 FRAMES = 150
 SHAPE = (1024, 1024)

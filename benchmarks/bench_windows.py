@@ -19,7 +19,7 @@ from the frame's edge. The fused map is the noise-weighted fusion of the four ma
 
 Prints, per window shape and radius, the rms error of RB1's map (nm, all seeds and
 frames), FB1's and the fused map's beside the defaults (window
-:data:`~holoview.processing.windows.DEFAULT_WINDOW`, per-peak automatic radius), and
+:data:`~holoview.processing.fourier.windows.DEFAULT_WINDOW`, per-peak automatic radius), and
 the targets: the default's RB1 error within 1.15 x the best of the sweep; the default
 fused map below the best single peak. ``--kmax`` shows how the answer moves with the
 surface's spectrum.
@@ -47,11 +47,11 @@ from holoview.optics.families import (  # noqa: E402
 )
 from holoview.optics.setup import Setup  # noqa: E402
 from holoview.optics.synthesis import HologramSynthesizer  # noqa: E402
-from holoview.processing.coregister import fuse_coregistered  # noqa: E402
-from holoview.processing.demodulate import Demodulator  # noqa: E402
-from holoview.processing.peaks import Peak  # noqa: E402
-from holoview.processing.resample import box_positions  # noqa: E402
-from holoview.processing.windows import DEFAULT_TAPER, DEFAULT_WINDOW  # noqa: E402
+from holoview.processing.fourier.resample import box_positions  # noqa: E402
+from holoview.processing.fourier.windows import DEFAULT_TAPER, DEFAULT_WINDOW  # noqa: E402
+from holoview.processing.maps.coregister import fuse_coregistered  # noqa: E402
+from holoview.processing.maps.demodulate import Demodulator  # noqa: E402
+from holoview.processing.peaks.detection import Peak  # noqa: E402
 
 LABELS = ("RB1", "RF", "FB1", "RB2")
 #: Tilts (rad): RF at (0.150, 0.090) and FB1 at (-0.050, 0.047) cycles/pixel with 20 um

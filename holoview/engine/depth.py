@@ -4,7 +4,7 @@
 depth change, the fused depth and the rates (m/s): from the series' joint estimate when
 it has one (the reference-arm phase solved for and removed from the fused depth), else
 each peak unwrapped on its own and the peaks that do not alias in time fused by their
-noise (:func:`holoview.processing.trends.track_depth`). :func:`pca_check` is the
+noise (:func:`holoview.processing.series.depth_series.track_depth`). :func:`pca_check` is the
 temporal PCA of peaks whose prefactors are known, for information. The live trends
 view and ``holoview process`` both call these.
 
@@ -23,10 +23,10 @@ import numpy as np
 
 from holoview.engine.series import PhaseSeries
 from holoview.errors import InputError
-from holoview.processing.pca import phase_pca
-from holoview.processing.phase_series import check_aliasing
-from holoview.processing.rates import RateFit, fit_rate
-from holoview.processing.trends import track_depth
+from holoview.processing.naming.pca import phase_pca
+from holoview.processing.series.depth_series import track_depth
+from holoview.processing.series.phase_series import check_aliasing
+from holoview.processing.series.rate_fits import RateFit, fit_rate
 
 logger = logging.getLogger(__name__)
 
@@ -109,7 +109,7 @@ def summarise(
     it and its height is the fused depth (the reference-arm phase solved for and
     removed); otherwise each peak is unwrapped on its own and the peaks that do not
     alias in time are fused by their noise
-    (:func:`holoview.processing.trends.track_depth`).
+    (:func:`holoview.processing.series.depth_series.track_depth`).
 
     Parameters
     ----------

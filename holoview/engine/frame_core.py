@@ -5,15 +5,15 @@ The live worker (:mod:`holoview.live`) and ``holoview process``
 the same numbers on the same frames:
 
 - :class:`CarrierCore` measures the peaks' carrier values of every frame (the mean-phase
-  series' input) with a :class:`~holoview.processing.carrier_values.CarrierProbe`: a
+  series' input) with a :class:`~holoview.processing.series.carrier_probe.CarrierProbe`: a
   separable DFT at the exact carriers, a quarter of a full FFT's time;
-- :class:`FrameCore` keeps one :class:`~holoview.processing.demodulate.Demodulator`
+- :class:`FrameCore` keeps one :class:`~holoview.processing.maps.demodulate.Demodulator`
   for a set of peaks and an experiment's settings (window, radius, reference,
   unwrapping), rebuilt only when they change: the maps;
 - :func:`trusted_maps`: each peak's map, NaN where untrusted (delta-h in m where the
   peak has alpha, else phase in rad);
 - :class:`Coregistration`: the maps' displacements against the first peak's, measured
-  over the frames it is given (:mod:`holoview.processing.coregister`);
+  over the frames it is given (:mod:`holoview.processing.maps.coregister`);
 - :func:`fuse_maps`: the fused delta-h map of one frame, co-registered, leaving out a
   peak whose mean phase stepped at that frame.
 
@@ -29,17 +29,18 @@ from collections.abc import Sequence
 import numpy as np
 
 from holoview.engine.experiment import Experiment
-from holoview.processing.carrier_values import CarrierProbe, CarrierValues
-from holoview.processing.coregister import (
+from holoview.processing.fourier.frames import DamagedFrameError, frame_damage
+from holoview.processing.maps.coregister import (
     MIN_MAP_SIDE,
     Displacement,
     DisplacementEstimator,
     fuse_coregistered,
 )
-from holoview.processing.demodulate import DemodResult, Demodulator
-from holoview.processing.frames import DamagedFrameError, frame_damage
-from holoview.processing.peak_windows import distinct_neighbours, peak_radii
-from holoview.processing.peaks import Peak
+from holoview.processing.maps.demod_results import DemodResult
+from holoview.processing.maps.demodulate import Demodulator
+from holoview.processing.peaks.detection import Peak
+from holoview.processing.peaks.radii import distinct_neighbours, peak_radii
+from holoview.processing.series.carrier_probe import CarrierProbe, CarrierValues
 
 logger = logging.getLogger(__name__)
 
@@ -112,7 +113,8 @@ class CarrierCore:
     def measure(self, frame: np.ndarray) -> CarrierValues | None:
         """The carrier values of ``frame`` (not modified); None when there is no peak.
 
-        A frame damaged in transfer (rows lost, :func:`~holoview.processing.frames.frame_damage`)
+        A frame damaged in transfer (rows lost,
+        :func:`~holoview.processing.fourier.frames.frame_damage`)
         gives NaN values and the flag ``"damaged"``: its values would be wrong, not noisy.
         """
         if self._probe is None:
@@ -141,7 +143,7 @@ class FrameCore:
     background : ndarray, optional
         An object-free hologram (counts, ``frame_shape``): with an absolute reference
         the maps are taken against it rather than against the first frame
-        (:meth:`~holoview.processing.demodulate.Demodulator.set_background`).
+        (:meth:`~holoview.processing.maps.demodulate.Demodulator.set_background`).
     neighbours : sequence of (fx, fy)
         Every detected peak's carrier, cycles/pixel: the automatic windows reach none
         (the demodulated ones among them are recognised and dropped).
@@ -270,7 +272,7 @@ class FrameCore:
     def break_sequence(self) -> None:
         """The next frame does not follow the previous one (a replay jumped): no map pairs them.
 
-        See :meth:`~holoview.processing.demodulate.Demodulator.break_sequence`.
+        See :meth:`~holoview.processing.maps.demodulate.Demodulator.break_sequence`.
         """
         if self._demod is not None:
             self._demod.break_sequence()
@@ -311,7 +313,7 @@ class Coregistration:
     """The displacements of a frame's maps against the first peak's, measured over frames.
 
     A new estimate starts whenever the peaks or the map shape change. Maps smaller
-    than :data:`~holoview.processing.coregister.MIN_MAP_SIDE` and single maps are not
+    than :data:`~holoview.processing.maps.coregister.MIN_MAP_SIDE` and single maps are not
     co-registered; reference frames (zero maps) are not added.
     """
 
@@ -382,7 +384,7 @@ def fuse_maps(
     displacements : sequence of Displacement, optional
         One per peak (:class:`Coregistration`): the maps are moved onto the first's grid.
     method : {"spline", "cubic"}
-        Interpolation (:func:`~holoview.processing.coregister.fuse_coregistered`).
+        Interpolation (:func:`~holoview.processing.maps.coregister.fuse_coregistered`).
     """
     chosen = [j for j, m in enumerate(maps) if m is not None]
     steady = [j for j in chosen if not stepped[j]]

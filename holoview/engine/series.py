@@ -7,9 +7,9 @@ that the series can take every frame of the camera while the maps take what time
 left. :class:`PhaseSeries` keeps them with each value's phase noise and the frame's
 flags, for every frame it is given (the whole run headless; the last
 :data:`LIVE_LENGTH` frames live), and marks a peak whose mean phase steps past
-:data:`~holoview.processing.demodulate.PHASE_STEP_LIMIT` between two frames. With
+:data:`~holoview.processing.maps.demodulate.PHASE_STEP_LIMIT` between two frames. With
 :meth:`PhaseSeries.track_joint` it also estimates every frame jointly over its peaks
-(:mod:`holoview.processing.joint_estimation`): one height and one reference-arm phase,
+(:mod:`holoview.processing.series.joint_estimation`): one height and one reference-arm phase,
 each peak's 2 pi ambiguity resolved by all of them together, so a peak that aliases in
 time is unwrapped by the others instead of dropped. :mod:`holoview.engine.depth` turns
 a series into depths, the fused depth and the rates; the live trends view and
@@ -27,11 +27,11 @@ from collections.abc import Sequence
 import numpy as np
 
 from holoview.errors import InputError
-from holoview.processing.carrier_values import CarrierValues
-from holoview.processing.demodulate import PHASE_STEP_LIMIT
-from holoview.processing.joint_estimation import JointEstimator
-from holoview.processing.lattice_geometry import point_of
-from holoview.processing.trends import unwrap_in_time
+from holoview.processing.maps.demodulate import PHASE_STEP_LIMIT
+from holoview.processing.naming.lattice_geometry import point_of
+from holoview.processing.series.carrier_probe import CarrierValues
+from holoview.processing.series.joint_estimation import JointEstimator
+from holoview.processing.series.phase_series import unwrap_in_time
 
 logger = logging.getLogger(__name__)
 
@@ -48,7 +48,7 @@ _ARRAYS = ("_t", "_frames", "_values", "_noise", "_steps", "_jphase", "_jfused",
 def coupling_of(label: str | None, n1: float | None, n2: float | None) -> int | None:
     """How many times the reference-arm phase enters a peak: its lattice ``rf`` coordinate.
 
-    RF +1, every RB_j -1, every FB_j 0, 2RB1 -2 (DESIGN.md, "The lattice"); None for a
+    RF +1, every RB_j -1, every FB_j 0, 2RB1 -2 (docs/design.md, "The lattice"); None for a
     label the lattice does not place (a custom name, a ghost) or unknown indices.
     """
     if label is None or n1 is None or n2 is None:
@@ -222,7 +222,7 @@ class PhaseSeries:
         wavelength_m: float,
         exclude: Sequence[bool] | None = None,
     ) -> None:
-        """Estimate the frames jointly (:mod:`holoview.processing.joint_estimation`).
+        """Estimate the frames jointly (:mod:`holoview.processing.series.joint_estimation`).
 
         The peaks with an alpha and a coupling (and not in ``exclude``) give, frame by
         frame, one height and one reference-arm phase, each peak's 2 pi ambiguity

@@ -3,7 +3,7 @@
 Everything here works on the per-frame carrier values a run kept
 (:class:`~holoview.headless.pipeline.RunData`), through :mod:`holoview.processing`:
 
-- auto mode: :func:`~holoview.processing.identify.identify_peaks` (the carrier lattice,
+- auto mode: :func:`~holoview.processing.naming.identify.identify_peaks` (the carrier lattice,
   with the temporal PCA confirming; off the lattice the PCA with the reference peak's
   label, de-aliasing from the phase steps) names every peak and gives
   its prefactor: the model's for a family, its repeats and second orders, the PCA's
@@ -30,9 +30,11 @@ from holoview.errors import InputError
 from holoview.headless.inputs import Optics
 from holoview.headless.pipeline import RunData
 from holoview.headless.selection import Selection
-from holoview.processing.identify import Identification, PeakKind, identify_peaks
-from holoview.processing.lattice import LatticePeak
-from holoview.processing.trends import RateFit, check_aliasing
+from holoview.processing.naming.identify import Identification, identify_peaks
+from holoview.processing.naming.lattice_geometry import LatticePeak
+from holoview.processing.naming.prefactors import PeakKind
+from holoview.processing.series.phase_series import check_aliasing
+from holoview.processing.series.rate_fits import RateFit
 
 logger = logging.getLogger(__name__)
 
@@ -318,7 +320,7 @@ def analyse(data: RunData, selection: Selection, optics: Optics) -> Analysis:
     else:
         naming = _given_names(selection)
     labels, signed = naming.labels, naming.signed
-    # a peak with a negative prefactor is stored on its other twin (DESIGN.md)
+    # a peak with a negative prefactor is stored on its other twin (docs/design.md)
     signs = [-1.0 if (a is not None and a < 0) else 1.0 for a in signed]
     alphas = [abs(a) if a is not None else None for a in signed]
     joint = _joint_setup(naming, optics, wavelength)

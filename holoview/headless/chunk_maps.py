@@ -31,9 +31,9 @@ from holoview.engine.experiment import Experiment
 from holoview.engine.frame_core import FrameCore
 from holoview.headless.inputs import InputFile
 from holoview.headless.pipeline import FrameMaps
-from holoview.processing.frames import frame_damage
-from holoview.processing.peaks import Peak
-from holoview.processing.unwrap import TWO_PI
+from holoview.processing.fourier.fastmath import TWO_PI
+from holoview.processing.fourier.frames import frame_damage
+from holoview.processing.peaks.detection import Peak
 
 #: Most frames in one chunk of a run with ``--maps``: a chunk's maps travel back whole
 #: (about 0.8 MB a 1024 x 1024 frame with six peaks), and the parent writes them in order.

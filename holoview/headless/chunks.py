@@ -39,9 +39,9 @@ from holoview.headless.input_identity import InputIdentity
 from holoview.headless.inputs import InputFile
 from holoview.headless.pipeline import FrameMaps, frame_maps
 from holoview.headless.reader import DEFAULT_DEPTH, FrameReader
-from holoview.processing.carrier_values import CarrierValues
-from holoview.processing.fftplans import usable_cpus
-from holoview.processing.peaks import Peak
+from holoview.processing.fourier.fftplans import usable_cpus
+from holoview.processing.peaks.detection import Peak
+from holoview.processing.series.carrier_probe import CarrierValues
 
 logger = logging.getLogger(__name__)
 
@@ -78,7 +78,7 @@ def plan_jobs(jobs: int | None, n_frames: int, kind: str, cores: int | None = No
     kind : str
         The input's kind (:attr:`InputFile.kind`): a video runs in one process.
     cores : int, optional
-        Usable cores (default: :func:`~holoview.processing.fftplans.usable_cpus`).
+        Usable cores (default: :func:`~holoview.processing.fourier.fftplans.usable_cpus`).
 
     Returns
     -------
@@ -182,7 +182,8 @@ class ChunkTask:
 
 @dataclass(frozen=True)
 class ChunkResult:
-    """The carrier values of one chunk (:class:`~holoview.processing.carrier_values.CarrierValues`).
+    """The carrier values of one chunk
+    (:class:`~holoview.processing.series.carrier_probe.CarrierValues`).
 
     Attributes
     ----------

@@ -17,7 +17,7 @@ Maps are at the demodulator's box resolution (pixel ``(p, q)`` at frame position
 amplitude is below a quarter of the peak's). With known prefactors they are delta-h
 in metres; in auto mode (prefactors from the PCA after the run) they are phases in
 radians, converted by the sink afterwards. The peaks' displacements against the first
-peak are measured over the run (:mod:`holoview.processing.coregister`, on up to
+peak are measured over the run (:mod:`holoview.processing.maps.coregister`, on up to
 :data:`COREGISTER_FRAMES` frames spread over it), so fused maps, made after the run
 (:func:`fuse_frame`), are co-registered.
 """
@@ -44,9 +44,9 @@ from holoview.engine.series import PhaseSeries
 from holoview.errors import InputError
 from holoview.headless.inputs import InputFile
 from holoview.headless.reader import DEFAULT_DEPTH, FrameReader
-from holoview.processing.coregister import Displacement
-from holoview.processing.heights import phase_to_height
-from holoview.processing.peaks import Peak
+from holoview.processing.maps.coregister import Displacement
+from holoview.processing.maps.heights import phase_to_height
+from holoview.processing.peaks.detection import Peak
 
 logger = logging.getLogger(__name__)
 
@@ -136,7 +136,7 @@ class RunData:
     displacements : list of Displacement
         Each peak's measured shift against the first peak, in map pixels (empty
         with one peak, or maps smaller than
-        :data:`~holoview.processing.coregister.MIN_MAP_SIDE`).
+        :data:`~holoview.processing.maps.coregister.MIN_MAP_SIDE`).
     maps_in_metres : bool
         Whether the maps are delta-h in m (every peak had alpha), else phases in rad.
     interrupted : bool

@@ -1,6 +1,6 @@
 """Which peaks a headless run demodulates, and what each is called.
 
-Two ways, as the operator would at the bench (DESIGN.md, paper section 4):
+Two ways, as the operator would at the bench (docs/design.md, paper section 4):
 
 - an **experiment** (:mod:`holoview.engine.experiment`: the one a recording carries,
   a file given with ``--experiment``, or ``--label``): its labels snap to the peaks
@@ -11,7 +11,7 @@ Two ways, as the operator would at the bench (DESIGN.md, paper section 4):
   amplitude until the temporal PCA names them (:mod:`holoview.headless.analysis`),
   with the brightest as RB1 unless an anchor names another peak. The PCA fixes
   every sign from the reference peak's twin: without an anchor, that is the twin
-  :func:`~holoview.processing.peaks.find_peaks` keeps (``fx > 0``), so every height
+  :func:`~holoview.processing.peaks.detection.find_peaks` keeps (``fx > 0``), so every height
   may come out with the opposite sign; an anchor on the right twin settles it.
 
 Carriers are in cycles/pixel, ``(fx, fy)``, on the stored twin (phase grows with height).
@@ -26,10 +26,11 @@ from typing import Any
 
 from holoview.engine.experiment import Experiment, check_carrier, check_label, is_model_label
 from holoview.errors import InputError
-from holoview.processing.labelling import ModelLabelling
-from holoview.processing.lattice import LatticeIdentification, LatticePeak
-from holoview.processing.peaks import Peak
-from holoview.processing.snapping import SNAP_BINS, snap
+from holoview.processing.naming.labelling import ModelLabelling
+from holoview.processing.naming.lattice import LatticeIdentification
+from holoview.processing.naming.lattice_geometry import LatticePeak
+from holoview.processing.peaks.detection import Peak
+from holoview.processing.peaks.snapping import SNAP_BINS, snap
 
 logger = logging.getLogger(__name__)
 
@@ -99,17 +100,25 @@ def select_from_experiment(
     Raises
     ------
     InputError
-        When the experiment names no peak, a label (of a file or ``--label``; not of the
-        recording's own experiment) lies on no detected peak, or a label that is not one
-        of the model's families comes without an alpha.
+        When the experiment names no peak, the carrier lattice contradicts a label (any
+        source), a label (of a file or ``--label``; not of the recording's own
+        experiment, which may have drifted) lies on no detected peak, or a label that is
+        not one of the model's families comes without an alpha.
     """
     from holoview.engine.resolve import resolve_peaks
 
     if not experiment.peaks:
         raise InputError(f"the {source} names no peak to process")
     resolution = resolve_peaks(experiment, detected, shape)
-    if source != "recording":
-        resolution.strict()
+    try:
+        resolution.strict(unmatched=source != "recording")
+    except InputError as exc:
+        if source == "recording":
+            raise InputError(
+                f"the experiment the recording carries: {exc}; name the peaks with --label, "
+                "--experiment or --auto N"
+            ) from exc
+        raise InputError(f"the {source}: {exc}") from exc
     for peak in resolution.peaks:
         if peak.alpha is None and is_model_label(peak.label or ""):
             experiment.require("n1", "n2")

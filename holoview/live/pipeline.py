@@ -31,15 +31,14 @@ from holoview.engine.frame_core import (
     trusted_maps,
 )
 from holoview.engine.resolve import Resolution, resolve_peaks
-from holoview.errors import InputError
 from holoview.live.continuity import Continuity
-from holoview.processing.demodulate import Demodulator
-from holoview.processing.peaks import Peak, find_peaks
-from holoview.processing.spectrum import display_spectrum
+from holoview.processing.fourier.spectrum import display_spectrum
+from holoview.processing.maps.demodulate import Demodulator
+from holoview.processing.peaks.detection import Peak, find_peaks
 
 logger = logging.getLogger(__name__)
 
-__all__ = ["FFT_THREADS", "LivePipeline", "LiveResult", "block_max"]
+__all__ = ["LivePipeline", "LiveResult", "block_max"]
 
 #: Highest rate of the display spectrum, Hz.
 SPECTRUM_HZ = 10.0
@@ -67,6 +66,8 @@ class LiveResult:
     the map ``grid_of``, in camera pixels; the fused map is on that map's grid.
     ``frame_index`` is the frame's index in a replayed file (-1 for a camera) and
     ``segment`` its unbroken run of frames (:mod:`holoview.live.continuity`).
+    ``contradiction`` names a label the carrier lattice contradicts (the engine's rule,
+    :func:`holoview.engine.resolve.resolve_peaks`; an error headless), None when none.
     """
 
     seq: int
@@ -88,6 +89,7 @@ class LiveResult:
     notes: tuple[str, ...] = ()
     frame_index: int = -1
     segment: int = 0
+    contradiction: str | None = None
 
 
 def block_max(image: np.ndarray, limit: int) -> np.ndarray:
@@ -157,7 +159,7 @@ class LivePipeline:
         """Apply a command: ``experiment`` (new settings) or ``reset``."""
         if name == "experiment":
             if not isinstance(value, Experiment):
-                raise InputError(f"experiment command needs an Experiment, not {value!r}")
+                raise TypeError(f"experiment command needs an Experiment, not {value!r}")
             radius_changed = value.radius != self.experiment.radius
             self.experiment = value
             if radius_changed:
@@ -165,7 +167,7 @@ class LivePipeline:
         elif name == "reset":
             self._core.reset_reference()
         else:
-            raise InputError(f"unknown command {name!r}")
+            raise ValueError(f"unknown command {name!r}")
 
     @property
     def demodulator(self) -> Demodulator | None:
@@ -295,6 +297,7 @@ class LivePipeline:
             shifts_px=shifts,
             grid_of=grid_of,
             notes=resolution.notes,
-            frame_index=meta.index,
+            frame_index=meta.file_index,
             segment=meta.segment,
+            contradiction=resolution.contradiction,
         )

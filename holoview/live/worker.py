@@ -32,10 +32,11 @@ import numpy as np
 from holoview.acquire.ring import CLOSED, FrameRing, RingConsumer, RingStatus
 from holoview.acquire.source import FrameMeta
 from holoview.engine.experiment import Experiment
-from holoview.errors import HoloviewError, InputError
-from holoview.live.pipeline import FFT_THREADS, LivePipeline, LiveResult
+from holoview.engine.frame_core import FFT_THREADS
+from holoview.errors import HoloviewError
+from holoview.live.pipeline import LivePipeline, LiveResult
 from holoview.live.trends import SeriesPipeline, TrendSummary
-from holoview.processing.peaks import Peak, find_peaks
+from holoview.processing.peaks.detection import Peak, find_peaks
 
 logger = logging.getLogger(__name__)
 
@@ -226,7 +227,7 @@ class RingWorker:
             self.listener()
 
     def _apply(self, name: str, value: Any) -> None:
-        raise InputError(f"unknown command {name!r}")
+        raise ValueError(f"unknown command {name!r}")
 
     def _apply_commands(self) -> None:
         while True:

@@ -28,7 +28,7 @@ from PyQt6.QtWidgets import (
 
 from holoview.engine.experiment import PEAK_LABELS
 from holoview.engine.peak_geometry import Carrier, swallowed_neighbour, window_warnings
-from holoview.processing.snapping import SNAP_BINS, snap
+from holoview.processing.peaks.snapping import SNAP_BINS, snap
 
 #: Pen colour of a labelled peak's marker, window and label.
 LABEL_COLOUR = "#33ddff"

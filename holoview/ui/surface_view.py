@@ -28,7 +28,7 @@ from PyQt6.QtWidgets import (
 )
 
 from holoview.engine.experiment import PEAK_LABELS
-from holoview.processing.demodulate import REFERENCE_MODES
+from holoview.processing.maps.demod_results import REFERENCE_MODES
 from holoview.ui.colour_index import colour_indices, colour_table
 from holoview.ui.legends import FUSED, curve_pen, side_legend
 

@@ -9,7 +9,7 @@ import pyqtgraph as pg
 from PyQt6.QtCore import Qt, pyqtSignal
 from PyQt6.QtWidgets import QCheckBox, QHBoxLayout, QLabel, QPushButton, QVBoxLayout, QWidget
 
-from holoview.processing.trends import format_rate
+from holoview.processing.series.rate_fits import format_rate
 from holoview.ui.legends import curve_pen, side_legend
 
 #: What the empty view says before a peak is labelled.

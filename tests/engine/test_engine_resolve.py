@@ -12,8 +12,8 @@ from holoview.engine.peak_geometry import swallowed_neighbour, window_warnings
 from holoview.engine.resolve import resolve_peaks
 from holoview.errors import InputError
 from holoview.optics.families import alpha_of, infer_carriers
-from holoview.processing.peaks import Peak
-from holoview.processing.snapping import SNAP_BINS, bin_distance, snap
+from holoview.processing.peaks.detection import Peak
+from holoview.processing.peaks.snapping import SNAP_BINS, bin_distance, snap
 
 SHAPE = (512, 512)
 N1, N2 = 1.0, 1.333

@@ -8,7 +8,6 @@ import json
 import re
 import signal
 import threading
-import time
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -16,6 +15,7 @@ import pytest
 from faults_helpers import (
     alive,
     command_line,
+    cpu_seconds,
     descendants,
     finish,
     one_line_error,
@@ -26,7 +26,7 @@ from faults_helpers import (
     wait_for,
 )
 
-from holoview.processing.fftplans import usable_cpus
+from holoview.processing.fourier.fftplans import usable_cpus
 
 
 @pytest.mark.slow
@@ -42,7 +42,8 @@ def test_sigterm_stops_the_workers_and_keeps_the_frames_done(
     wait_for(lambda: out.is_dir() and any(out.glob(".results.*.partial.h5")), what="the run")
     wait_for(lambda: len(descendants(child.pid)) >= 3, what="the workers")
     workers = descendants(child.pid)
-    time.sleep(0.5)
+    start = cpu_seconds(*workers)  # the forkserver's import, the workers' start
+    wait_for(lambda: cpu_seconds(*workers) > start + 1.0, what="the workers at work")
     child.send_signal(signal.SIGTERM)
     done = finish(child, timeout=60)
     assert done.status == 130, done.err

@@ -14,15 +14,15 @@ from faults_helpers import one_line_error, run_main, write_recording
 from holoview.acquire.simulated import SimulatedSource
 from holoview.optics.setup import Setup
 from holoview.optics.synthesis import HologramSynthesizer
-from holoview.processing.frames import DamagedFrameError, frame_damage
-from holoview.processing.peaks import (
+from holoview.processing.fourier.frames import DamagedFrameError, frame_damage
+from holoview.processing.fourier.windows import wrap_frequency
+from holoview.processing.peaks.detection import (
     MAX_CANDIDATES,
     RELATION_TOLERANCE_BINS,
     Peak,
     find_peaks,
     flag_relations,
 )
-from holoview.processing.windows import wrap_frequency
 
 
 def corrupted_frames(n: int) -> list[np.ndarray]:

@@ -28,7 +28,7 @@ from holoview.acquire.recording import RecordingWriter
 from holoview.errors import InputError
 from holoview.headless.chunks import make_tasks, measure_chunk
 from holoview.headless.input_identity import InputIdentity
-from holoview.processing.peaks import Peak
+from holoview.processing.peaks.detection import Peak
 
 SHAPE = (3, 64, 48)  # frames, rows, cols of the small inputs
 

@@ -13,8 +13,8 @@ from headless_sim import Simulated, run_cli
 
 from holoview.engine.series import PhaseSeries
 from holoview.headless.pipeline import RunData, fuse_frame
-from holoview.processing.coregister import MIN_MAP_SIDE, Displacement, coregister
-from holoview.processing.heights import fuse
+from holoview.processing.maps.coregister import MIN_MAP_SIDE, Displacement, coregister
+from holoview.processing.maps.heights import fuse
 
 
 def test_displacements_are_reported_and_stored_with_the_maps(

@@ -129,9 +129,9 @@ def synthesise(
     """
     from holoview.optics.families import predict_families
     from holoview.optics.scenarios import simulate
-    from holoview.processing.demodulate import Demodulator
-    from holoview.processing.labelling import label_peaks
-    from holoview.processing.peaks import find_peaks
+    from holoview.processing.maps.demodulate import Demodulator
+    from holoview.processing.naming.labelling import label_peaks
+    from holoview.processing.peaks.detection import find_peaks
 
     stream = simulate(setup, scenario, frames=frames, fps=fps, seed=seed, config=config)
     first, first_truth = next(stream)

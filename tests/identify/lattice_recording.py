@@ -17,9 +17,10 @@ import numpy as np
 from holoview.optics.families import predict_families
 from holoview.optics.scenarios import ScenarioConfig, simulate
 from holoview.optics.setup import Setup
-from holoview.processing.demodulate import Demodulator
-from holoview.processing.lattice import LatticeIdentification, LatticeKind, identify_lattice
-from holoview.processing.peaks import Peak, find_peaks
+from holoview.processing.maps.demodulate import Demodulator
+from holoview.processing.naming.lattice import LatticeIdentification, identify_lattice
+from holoview.processing.naming.lattice_geometry import LatticeKind
+from holoview.processing.peaks.detection import Peak, find_peaks
 
 #: Kinds demodulated: everything on the lattice with a height.
 USED_KINDS = (LatticeKind.FIRST_ORDER, LatticeKind.SECOND_ORDER, LatticeKind.INTERMODULATION)

@@ -18,8 +18,8 @@ from holoview.errors import InputError
 from holoview.optics.families import Family, alpha_of, predict_families
 from holoview.optics.setup import FLUIDS, Ghost, Setup
 from holoview.optics.synthesis import HologramSynthesizer
-from holoview.processing.lattice import LatticeIdentification
-from holoview.processing.peaks import Peak, find_peaks
+from holoview.processing.naming.lattice import LatticeIdentification
+from holoview.processing.peaks.detection import Peak, find_peaks
 
 #: The first-order families the target names (j up to 3).
 TARGET_FAMILIES = ("RF", "RB1", "FB1", "RB2", "FB2", "RB3", "FB3")

@@ -10,9 +10,9 @@ from holoview.optics.families import predict_families
 from holoview.optics.setup import Setup
 from holoview.optics.surfaces import Mode, StandingWaves, dispersion_omega
 from holoview.optics.synthesis import HologramSynthesizer, pixel_coordinates
-from holoview.processing.demodulate import Demodulator
-from holoview.processing.dynamics import compare_dispersion, space_time_spectrum
-from holoview.processing.peaks import find_peaks
+from holoview.processing.maps.demodulate import Demodulator
+from holoview.processing.peaks.detection import find_peaks
+from holoview.processing.waves.dynamics import compare_dispersion, space_time_spectrum
 
 WATER = {"depth": 5e-3, "surface_tension": 0.072, "density": 1000.0}
 FRAMES, SIZE, INTERVAL, PIXEL = 128, 64, 0.01, 0.5e-3  # 100 fps, 32 mm field of view

@@ -7,13 +7,9 @@ import pytest
 from identify_model import N_AIR, ModelPeak, model_peaks, simulate
 
 from holoview.errors import InputError
-from holoview.processing.identify import (
-    PeakKind,
-    classify_prefactors,
-    family_alphas,
-    identify_peaks,
-)
-from holoview.processing.phase_series import check_aliasing, unwrap_in_time
+from holoview.processing.naming.identify import identify_peaks
+from holoview.processing.naming.prefactors import PeakKind, classify_prefactors, family_alphas
+from holoview.processing.series.phase_series import check_aliasing, unwrap_in_time
 
 N1, N2 = 1.0, 1.333
 

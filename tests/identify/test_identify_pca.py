@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from holoview.errors import InputError
-from holoview.processing.pca import phase_pca, spatial_phase_pca, temporal_phase_pca
-from holoview.processing.phase_series import unwrap_in_time
+from holoview.processing.naming.pca import phase_pca, spatial_phase_pca, temporal_phase_pca
+from holoview.processing.series.phase_series import unwrap_in_time
 
 ALPHAS = np.array([0.333, 1.0, 1.333, 1.666])
 

@@ -3,7 +3,7 @@
 Frames come from :func:`holoview.optics.scenarios.simulate` (128 x 128, Poisson shot
 noise, an Ornstein-Uhlenbeck jitter of the reference air path), peaks from
 ``find_peaks`` and the model labelling, carrier values from
-:class:`holoview.processing.demodulate.Demodulator`.
+:class:`holoview.processing.maps.demodulate.Demodulator`.
 """
 
 from __future__ import annotations
@@ -17,14 +17,15 @@ from holoview.optics.scenarios import ScenarioConfig
 from holoview.optics.setup import FLUIDS, Setup
 from holoview.optics.surfaces import Mode, StandingWaves
 from holoview.optics.synthesis import HologramSynthesizer, pixel_coordinates
-from holoview.processing.demodulate import Demodulator
-from holoview.processing.identify import PeakKind, identify_peaks
-from holoview.processing.labelling import label_peaks
-from holoview.processing.pca import spatial_phase_pca
-from holoview.processing.peaks import find_peaks
-from holoview.processing.phase_series import check_aliasing, unwrap_in_time
-from holoview.processing.rates import compare_rate
-from holoview.processing.trends import track_depth
+from holoview.processing.maps.demodulate import Demodulator
+from holoview.processing.naming.identify import identify_peaks
+from holoview.processing.naming.labelling import label_peaks
+from holoview.processing.naming.pca import spatial_phase_pca
+from holoview.processing.naming.prefactors import PeakKind
+from holoview.processing.peaks.detection import find_peaks
+from holoview.processing.series.depth_series import track_depth
+from holoview.processing.series.phase_series import check_aliasing, unwrap_in_time
+from holoview.processing.series.rate_fits import compare_rate
 
 SHAPE = (128, 128)
 INJECTION_AREA = 70.6e-4  # m^2

@@ -12,10 +12,10 @@ from lattice_recording import injection_setup, record
 from holoview.errors import InputError
 from holoview.optics.scenarios import ScenarioConfig
 from holoview.optics.setup import Setup
-from holoview.processing.joint_estimation import JointEstimator
-from holoview.processing.joint_series import estimate_joint
-from holoview.processing.phase_series import unwrap_in_time
-from holoview.processing.trends import track_depth
+from holoview.processing.series.depth_series import track_depth
+from holoview.processing.series.joint_estimation import JointEstimator
+from holoview.processing.series.joint_series import estimate_joint
+from holoview.processing.series.phase_series import unwrap_in_time
 
 N2 = 1.333
 #: RB1, RF, FB1, RB2, FB2, RB3, FB3: prefactor, coupling, amplitude, phase noise (rad).

@@ -10,16 +10,18 @@ from holoview.errors import InputError
 from holoview.optics.families import alpha_of, predict_families
 from holoview.optics.setup import Ghost, Setup
 from holoview.optics.synthesis import HologramSynthesizer
-from holoview.processing.identify import PeakKind, identify_peaks
-from holoview.processing.lattice import LatticeKind, identify_lattice
-from holoview.processing.lattice_geometry import (
+from holoview.processing.naming.identify import identify_peaks
+from holoview.processing.naming.lattice import identify_lattice
+from holoview.processing.naming.lattice_geometry import (
+    LatticeKind,
     coupling,
     describe,
     point_of,
     search_points,
     stored,
 )
-from holoview.processing.peaks import find_peaks
+from holoview.processing.naming.prefactors import PeakKind
+from holoview.processing.peaks.detection import find_peaks
 
 N1, N2 = 1.000293, 1.333
 SETUP = Setup(shape=(256, 256))

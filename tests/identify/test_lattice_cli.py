@@ -11,8 +11,9 @@ import pytest
 
 from holoview.acquire.recording import RecordingReader
 from holoview.cli import main
-from holoview.processing.lattice import LatticeKind, identify_lattice
-from holoview.processing.peaks import find_peaks
+from holoview.processing.naming.lattice import identify_lattice
+from holoview.processing.naming.lattice_geometry import LatticeKind
+from holoview.processing.peaks.detection import find_peaks
 
 NAMED = ("RF", "RB1", "FB1", "RB2", "FB2")
 

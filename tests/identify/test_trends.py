@@ -7,9 +7,19 @@ import pytest
 from identify_model import N_AIR, WAVELENGTH, ModelPeak, model_peaks, simulate
 
 from holoview.errors import InputError
-from holoview.processing.phase_series import check_aliasing, phase_steps, unwrap_in_time
-from holoview.processing.rates import compare_rate, depth_to_volume, fit_rate, volume_to_depth
-from holoview.processing.trends import depth_series, fuse_depths, series_noise, track_depth
+from holoview.processing.series.depth_series import (
+    depth_series,
+    fuse_depths,
+    series_noise,
+    track_depth,
+)
+from holoview.processing.series.phase_series import check_aliasing, phase_steps, unwrap_in_time
+from holoview.processing.series.rate_fits import (
+    compare_rate,
+    depth_to_volume,
+    fit_rate,
+    volume_to_depth,
+)
 
 INJECTION_AREA = 70.6e-4  # m^2
 INJECTION_RATE = 12.3e-9  # m^3/s (12.3 uL/s)

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import pytest
 
-from holoview.processing import fftplans
+from holoview.processing.fourier import fftplans
 
 
 @pytest.fixture(autouse=True)

@@ -13,7 +13,9 @@ from holoview.optics.families import predict_families
 from holoview.optics.scenarios import ScenarioConfig, simulate
 from holoview.optics.setup import Setup
 from holoview.optics.synthesis import HologramSynthesizer
-from holoview.processing.carrier_values import (
+from holoview.processing.maps.demodulate import Demodulator
+from holoview.processing.peaks.detection import Peak
+from holoview.processing.series.carrier_probe import (
     TAPER_CYCLES,
     CarrierProbe,
     auto_taper,
@@ -21,10 +23,8 @@ from holoview.processing.carrier_values import (
     structure,
     tukey,
 )
-from holoview.processing.demodulate import Demodulator
-from holoview.processing.peaks import Peak
-from holoview.processing.phase_series import check_aliasing, unwrap_in_time
-from holoview.processing.rates import fit_rate
+from holoview.processing.series.phase_series import check_aliasing, unwrap_in_time
+from holoview.processing.series.rate_fits import fit_rate
 
 #: Off-bin carriers (cycles/pixel), amplitudes and phases (rad) of a three-peak frame.
 CARRIERS = ((-0.2013, 0.0617), (0.1507, 0.0911), (-0.0498, 0.1523))

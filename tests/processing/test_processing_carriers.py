@@ -14,10 +14,10 @@ import pytest
 import tifffile
 
 from holoview.errors import InputError
-from holoview.processing.demodulate import Demodulator
-from holoview.processing.peaks import Peak, find_peaks, refine_carriers
-from holoview.processing.unwrap import unwrap_spatial
-from holoview.processing.windows import radial_window
+from holoview.processing.fourier.windows import radial_window
+from holoview.processing.maps.demodulate import Demodulator
+from holoview.processing.maps.unwrap import unwrap_spatial
+from holoview.processing.peaks.detection import Peak, find_peaks, refine_carriers
 
 
 def cells_hologram(

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from holoview.errors import InputError
-from holoview.processing.coregister import MAX_STDERR, DisplacementEstimator, coregister
+from holoview.processing.maps.coregister import MAX_STDERR, DisplacementEstimator, coregister
 
 SHAPE = (96, 80)
 YY, XX = np.mgrid[: SHAPE[0], : SHAPE[1]].astype(float)

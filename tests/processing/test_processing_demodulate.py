@@ -7,12 +7,13 @@ import pytest
 from processing_synth import BENCH, WAVELENGTH, bench_frame, bump, frame, intensity
 
 from holoview.errors import InputError
-from holoview.processing.boxes import UNTRUSTED_BORDER, box_shape_for
-from holoview.processing.demodulate import FRAME_FLAGS, PEAK_RESULT_FLAGS, Demodulator
-from holoview.processing.heights import height_to_phase
-from holoview.processing.peaks import Peak, find_peaks, refine_carriers
-from holoview.processing.resample import box_positions
-from holoview.processing.windows import auto_radii, radial_window
+from holoview.processing.fourier.boxes import UNTRUSTED_BORDER, box_shape_for
+from holoview.processing.fourier.resample import box_positions
+from holoview.processing.fourier.windows import auto_radii, radial_window
+from holoview.processing.maps.demod_results import FRAME_FLAGS, PEAK_RESULT_FLAGS
+from holoview.processing.maps.demodulate import Demodulator
+from holoview.processing.maps.heights import height_to_phase
+from holoview.processing.peaks.detection import Peak, find_peaks, refine_carriers
 
 SHAPE = (256, 256)
 PHOTONS = 800.0

@@ -10,7 +10,7 @@ import tifffile
 from processing_synth import frame
 
 from holoview.errors import InputError
-from holoview.processing.peaks import Peak, find_peaks, flag_relations
+from holoview.processing.peaks.detection import Peak, find_peaks, flag_relations
 
 
 def _canonical(carrier: tuple[float, float]) -> tuple[float, float]:
@@ -209,7 +209,7 @@ def test_real_holograms_carrier_found_twin_rejected(
 
 def test_real_hologram_twin_demodulates_to_the_conjugate(real_data: Path) -> None:
     # a real frame's spectrum is Hermitian: the twin's field is the conjugate field
-    from holoview.processing.demodulate import Demodulator
+    from holoview.processing.maps.demodulate import Demodulator
 
     image = tifffile.imread(real_data / "paramecium_oa_oof.tif")
     main = find_peaks(image)[0]

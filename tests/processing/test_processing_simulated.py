@@ -10,11 +10,11 @@ import pytest
 from holoview.optics.families import predict_families
 from holoview.optics.setup import Setup
 from holoview.optics.synthesis import HologramSynthesizer
-from holoview.processing.coregister import DisplacementEstimator, coregister
-from holoview.processing.demodulate import Demodulator
-from holoview.processing.heights import fuse
-from holoview.processing.peaks import Peak, find_peaks
-from holoview.processing.resample import box_positions
+from holoview.processing.fourier.resample import box_positions
+from holoview.processing.maps.coregister import DisplacementEstimator, coregister
+from holoview.processing.maps.demodulate import Demodulator
+from holoview.processing.maps.heights import fuse
+from holoview.processing.peaks.detection import Peak, find_peaks
 
 SIGMA = 40.0  # bump width, pixels
 HEIGHT = 5e-9  # bump height, m

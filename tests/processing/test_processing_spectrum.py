@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 from holoview.errors import InputError
-from holoview.processing import fftplans
-from holoview.processing.fastmath import MAX_ERROR, angle
-from holoview.processing.spectrum import display_spectrum, frequencies, log_magnitude, rfft2
+from holoview.processing.fourier import fftplans
+from holoview.processing.fourier.fastmath import MAX_ERROR, angle
+from holoview.processing.fourier.spectrum import display_spectrum, frequencies, log_magnitude, rfft2
 
 
 @pytest.mark.parametrize("shape", [(64, 64), (48, 80), (81, 63)])
@@ -90,7 +90,7 @@ def test_unwritable_cache_only_warns(
     blocker.write_text("a file where the cache directory should be")
     monkeypatch.setenv("HOLOVIEW_CACHE_DIR", str(blocker / "cache"))
     fftplans.forget_loaded_wisdom()
-    with caplog.at_level(logging.WARNING, logger="holoview.processing.fftplans"):
+    with caplog.at_level(logging.WARNING, logger="holoview.processing.fourier.fftplans"):
         assert not fftplans.save_wisdom()
     assert "cannot write FFT wisdom" in caplog.text
 
@@ -101,7 +101,7 @@ def test_corrupt_wisdom_is_ignored_with_a_warning(
     monkeypatch.setenv("HOLOVIEW_CACHE_DIR", str(tmp_path))
     (tmp_path / "wisdom.bin").write_bytes(b"\x05\x00\x00\x00garbage")
     fftplans.forget_loaded_wisdom()
-    with caplog.at_level(logging.WARNING, logger="holoview.processing.fftplans"):
+    with caplog.at_level(logging.WARNING, logger="holoview.processing.fourier.fftplans"):
         assert not fftplans.load_wisdom()
     assert "unusable FFT wisdom" in caplog.text
 

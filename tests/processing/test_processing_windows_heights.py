@@ -7,25 +7,8 @@ import pytest
 from processing_synth import BENCH, WAVELENGTH, bench_frame, bump
 
 from holoview.errors import InputError
-from holoview.processing.demodulate import Demodulator
-from holoview.processing.heights import (
-    fuse,
-    height_to_phase,
-    phase_to_height,
-    plain_average,
-    rms_spread,
-)
-from holoview.processing.peaks import Peak
-from holoview.processing.resample import box_positions, resample_mask, upsample
-from holoview.processing.unwrap import (
-    aperture_mask,
-    has_wraps,
-    phase_ratio,
-    unwrap_guided,
-    unwrap_spatial,
-    wrap,
-)
-from holoview.processing.windows import (
+from holoview.processing.fourier.resample import box_positions, resample_mask, upsample
+from holoview.processing.fourier.windows import (
     DEFAULT_WINDOW,
     WINDOW_KINDS,
     area_fraction,
@@ -34,6 +17,23 @@ from holoview.processing.windows import (
     radial_window,
     spacing,
 )
+from holoview.processing.maps.demodulate import Demodulator
+from holoview.processing.maps.heights import (
+    fuse,
+    height_to_phase,
+    phase_to_height,
+    plain_average,
+    rms_spread,
+)
+from holoview.processing.maps.unwrap import (
+    aperture_mask,
+    has_wraps,
+    phase_ratio,
+    unwrap_guided,
+    unwrap_spatial,
+    wrap,
+)
+from holoview.processing.peaks.detection import Peak
 
 
 def test_window_shapes() -> None:

@@ -9,7 +9,7 @@ import pytest
 
 pytest.importorskip("pyqtgraph")
 
-from holoview.processing.rates import format_rate
+from holoview.processing.series.rate_fits import format_rate
 from holoview.ui.colour_index import colour_indices, colour_table
 from holoview.ui.hologram_view import HologramView
 from holoview.ui.spectrum_view import CLEAR, SpectrumView

@@ -1,0 +1,487 @@
+"""Co-registration of the peaks' maps: measured displacements, accumulated over frames.
+
+Each hologram images a laterally shifted patch of the surface (paper section 2,
+``h_AB(r) = h(r + delta_AB)``), so the peaks' maps must be moved onto one grid
+before they are fused. :class:`DisplacementEstimator` measures each map's shift
+against a reference peak's map from their cross-power spectrum, summed over frames:
+the surface's structure adds up coherently from frame to frame, the peaks'
+independent noise does not (maps of opposite signs, such as phases of peaks whose
+alphas differ in sign, are recognised), so a shift too small to see in one noisy
+relative map (a fraction of a pixel) becomes measurable over tens of frames. A
+surface without structure (uniform evaporation) gives no measurable shift, and
+needs none.
+
+Estimate: with ``moving(r) = reference(r - d)`` the summed cross-power
+``C(k) = sum_t F_ref(k) conj(F_moving(k))`` is ``|F_ref|^2 exp(2 pi i k.d)``. The
+whole-pixel part of ``d`` is the peak of the cross-correlation (the inverse FFT of
+``C``); the rest is a weighted least-squares fit of the remaining phase ramp over
+the coherent bins, weights ``|C|``, which also gives its standard error.
+Maps are mean-subtracted inside their trusted pixels and Hann-windowed first.
+
+The window stays put while the surface moves under it, which pulls a single
+estimate towards zero: by a few per cent for detail a few pixels across, but on a
+simulated standing wave a box long the shift came out at a third of the model's.
+So the estimate is iterated as frames come: each frame's moving maps are first
+co-registered with the current estimate, and after :data:`UPDATE_EVERY` frames
+(then twice as many each time, up to :data:`MAX_UPDATE_EVERY`: later updates,
+smaller, average more frames) the residual shift measured on them is added to it
+and the sums start again. The residual, and with it the pull, shrinks at each
+update. On detail a few pixels across the first update is within 0.02 pixel of the
+model's displacement. On a standing wave a box long, the shifts across the wave
+came within 10 % in 200 frames. The shifts along it still fell short by up to half,
+and the smallest one, 0.04 map pixel, came out with the wrong sign.
+
+A residual counts as measured when the cross-correlation's peak stands out of what
+the maps' noise alone would give (:data:`MIN_SIGNIFICANCE`) and its standard
+errors are below :data:`MAX_STDERR`; a surface without structure in common leaves
+the estimate where it was (zero at first).
+Shifts are in pixels of the maps' grid, ``(dy, dx)``, with ``moving(r) = reference(r - d)``:
+:func:`coregister` moves each map by ``-d`` onto the reference's grid.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import ndimage
+
+from holoview.errors import InputError
+from holoview.processing.maps.heights import fuse
+
+#: Smallest side (pixels) of maps the estimator takes; smaller maps are not co-registered.
+MIN_MAP_SIDE = 8
+
+#: A shift is taken as measured when both standard errors are below this (pixels).
+MAX_STDERR = 0.1
+
+#: Bins whose coherence ``|C| / sqrt(P_ref P_moving)`` is below this are left out of the fit.
+MIN_COHERENCE = 0.5
+
+#: Fewest coherent bins a fit needs.
+MIN_BINS = 8
+
+#: Frames summed before the first update of the current estimate.
+UPDATE_EVERY = 10
+
+#: Most frames summed between two updates.
+MAX_UPDATE_EVERY = 80
+
+#: The normalised correlation peak must exceed this many times its noise-only spread,
+#: ``1 / sqrt(n_eff frames / NOISE_AREA)`` with ``n_eff`` the window's effective
+#: pixel count.
+MIN_SIGNIFICANCE = 8.0
+
+#: Pixels over which a map's noise is correlated (the spectral window's footprint);
+#: conservative, so that noise alone is not taken for structure.
+NOISE_AREA = 4.0
+
+
+@dataclass(frozen=True)
+class Displacement:
+    """One map's shift against the reference map.
+
+    Attributes
+    ----------
+    shift : tuple of float
+        ``(dy, dx)`` in pixels of the maps' grid: ``map(r) ~ reference(r - shift)``;
+        ``(0, 0)`` when not measured.
+    stderr : tuple of float
+        Standard errors (pixels) of the latest measured step of the estimate; infinite
+        when none was measured.
+    measured : bool
+        Whether any step of the estimate was measured (significant correlation, both
+        standard errors below :data:`MAX_STDERR`).
+    bins : int
+        Coherent spectral bins that step's fit used.
+    """
+
+    shift: tuple[float, float]
+    stderr: tuple[float, float]
+    measured: bool
+    bins: int
+
+
+_UNMEASURED = Displacement((0.0, 0.0), (float("inf"), float("inf")), False, 0)
+
+
+def _hann(n: int) -> np.ndarray:
+    return np.hanning(n + 2)[1:-1]  # no zero at the ends: every pixel counts
+
+
+class DisplacementEstimator:
+    """Estimate the maps' shifts from frame after frame, iteratively (module documentation).
+
+    Parameters
+    ----------
+    shape : tuple of int
+        ``(rows, cols)`` of every map.
+    count : int
+        Maps per frame (peaks), at least 2.
+    reference : int
+        Index of the map the others are registered to.
+    update_every : int
+        Frames summed before the first update of the current estimate (then twice as
+        many each time, up to :data:`MAX_UPDATE_EVERY`).
+    """
+
+    def __init__(
+        self,
+        shape: tuple[int, int],
+        count: int,
+        reference: int = 0,
+        update_every: int = UPDATE_EVERY,
+    ) -> None:
+        rows, cols = int(shape[0]), int(shape[1])
+        if min(rows, cols) < MIN_MAP_SIDE:
+            raise InputError(
+                f"maps of shape {shape} are too small to co-register "
+                f"(>= {MIN_MAP_SIDE} x {MIN_MAP_SIDE})"
+            )
+        if count < 2:
+            raise InputError(f"co-registration needs at least 2 maps, got {count}")
+        if not 0 <= reference < count:
+            raise InputError(f"reference map {reference} is not one of the {count} maps")
+        if update_every < 1:
+            raise InputError(f"update_every must be >= 1 frame, got {update_every}")
+        self.shape = (rows, cols)
+        self.count = int(count)
+        self.reference = int(reference)
+        self.update_every = int(update_every)
+        self._window = np.outer(_hann(rows), _hann(cols))
+        squared = self._window**2
+        #: independent pixels the window leaves, for white noise
+        self._n_eff = float(squared.sum() ** 2 / (squared**2).sum())
+        self._energy = np.zeros(count)
+        spectrum_shape = (rows, cols // 2 + 1)
+        self._cross = np.zeros((count, *spectrum_shape), dtype=np.complex128)
+        self._power = np.zeros((count, *spectrum_shape), dtype=np.float64)
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget every frame added and the current estimate."""
+        #: Frames added since construction or :meth:`reset`.
+        self.frames = 0
+        self._interval = self.update_every
+        self._start_sums()
+        self._current = [(0.0, 0.0)] * self.count
+        self._last = [_UNMEASURED] * self.count
+        self._answer: list[Displacement] | None = None
+
+    def _start_sums(self) -> None:
+        self._summed = 0
+        self._cross[...] = 0
+        self._power[...] = 0
+        self._energy[...] = 0
+
+    def _windowed(self, values: np.ndarray) -> np.ndarray:
+        trusted = np.isfinite(values)
+        if not trusted.any():
+            return np.zeros(self.shape)
+        return np.where(trusted, values - values[trusted].mean(), 0.0) * self._window
+
+    def add(self, maps: Sequence[np.ndarray]) -> None:
+        """Add one frame's maps (NaN where untrusted; not modified).
+
+        Raises
+        ------
+        InputError
+            For another number of maps or another shape.
+        """
+        if len(maps) != self.count:
+            raise InputError(f"{len(maps)} maps given, the estimator holds {self.count}")
+        for values in maps:
+            if np.shape(values) != self.shape:
+                raise InputError(
+                    f"map of shape {np.shape(values)}; the estimator holds {self.shape}"
+                )
+        windowed = [
+            self._windowed(np.asarray(m, np.float64)) for m in coregister(maps, self._current)
+        ]
+        spectra = [np.fft.rfft2(w) for w in windowed]
+        ref = spectra[self.reference]
+        for j, spectrum in enumerate(spectra):
+            self._cross[j] += ref * np.conj(spectrum)
+            self._power[j] += (spectrum * np.conj(spectrum)).real
+            self._energy[j] += float(np.vdot(windowed[j], windowed[j]))
+        self.frames += 1
+        self._summed += 1
+        self._answer = None
+        if self._summed >= self._interval:
+            self._update()
+            self._interval = min(2 * self._interval, max(self.update_every, MAX_UPDATE_EVERY))
+
+    def _update(self) -> None:
+        """Add each measured residual to the current estimate; start the sums again."""
+        for j, residual in enumerate(self._residuals()):
+            if residual.measured:
+                dy, dx = self._current[j]
+                self._current[j] = (dy + residual.shift[0], dx + residual.shift[1])
+                self._last[j] = residual
+        self._start_sums()
+
+    def _residuals(self) -> list[Displacement]:
+        return [
+            _UNMEASURED if j == self.reference or self._summed == 0 else self._fit(j)
+            for j in range(self.count)
+        ]
+
+    def displacements(self) -> list[Displacement]:
+        """Return each map's shift against the reference (the reference's own is zero).
+
+        The current estimate plus the residual measured on the frames summed since the
+        last update, when that is measured. ``stderr`` is the latest measured
+        residual's; ``measured`` says whether any update or the residual was. Kept
+        until the next frame is added.
+        """
+        if self._answer is not None:
+            return list(self._answer)
+        out = []
+        for j, residual in enumerate(self._residuals()):
+            if j == self.reference:
+                out.append(Displacement((0.0, 0.0), (0.0, 0.0), True, 0))
+                continue
+            dy, dx = self._current[j]
+            last = self._last[j]
+            if residual.measured:
+                dy, dx = dy + residual.shift[0], dx + residual.shift[1]
+                last = residual
+            out.append(Displacement((dy, dx), last.stderr, last.measured, last.bins))
+        self._answer = out
+        return list(out)
+
+    def _fit(self, j: int) -> Displacement:
+        rows, cols = self.shape
+        cross = self._cross[j]
+        energy = self._energy[self.reference] * self._energy[j]
+        if not energy > 0:
+            return _UNMEASURED
+        # whole pixels: the cross-correlation peaks at -d (see the module documentation),
+        # negative for maps of opposite signs (phases of peaks with alphas of both signs)
+        correlation = np.fft.irfft2(cross, s=self.shape)
+        py, px = np.unravel_index(int(np.argmax(np.abs(correlation))), self.shape)
+        peak = abs(float(correlation[py, px])) / np.sqrt(energy)
+        if peak < MIN_SIGNIFICANCE / np.sqrt(self._n_eff * self._summed / NOISE_AREA):
+            return _UNMEASURED
+        if correlation[py, px] < 0:
+            cross = -cross
+        d0 = (-(((py + rows // 2) % rows) - rows // 2), -(((px + cols // 2) % cols) - cols // 2))
+        ky = np.fft.fftfreq(rows)[:, None]
+        kx = np.fft.rfftfreq(cols)[None, :]
+        residual = cross * np.exp(-2j * np.pi * (ky * d0[0] + kx * d0[1]))
+        with np.errstate(invalid="ignore", divide="ignore"):
+            coherence = np.abs(cross) / np.sqrt(self._power[self.reference] * self._power[j])
+        use = coherence >= MIN_COHERENCE
+        use[0, 0] = False
+        n = int(np.count_nonzero(use))
+        if n < MIN_BINS:
+            return _UNMEASURED
+        weights = np.abs(residual[use])
+        phase = np.angle(residual[use])
+        design = (
+            2
+            * np.pi
+            * np.stack(
+                [np.broadcast_to(ky, use.shape)[use], np.broadcast_to(kx, use.shape)[use]], axis=1
+            )
+        )
+        weighted = design * weights[:, None]
+        normal = design.T @ weighted
+        try:
+            covariance_unit = np.linalg.inv(normal)
+        except np.linalg.LinAlgError:
+            return _UNMEASURED
+        fine = covariance_unit @ (weighted.T @ phase)
+        misfit = phase - design @ fine
+        dof = max(n - 2, 1)
+        scale = float(np.sum(weights * misfit**2) / dof)
+        stderr = np.sqrt(np.diag(covariance_unit) * scale)
+        shift = (float(d0[0] + fine[0]), float(d0[1] + fine[1]))
+        err = (float(stderr[0]), float(stderr[1]))
+        measured = bool(np.all(np.isfinite(stderr)) and max(err) < MAX_STDERR)
+        if not measured:
+            return Displacement((0.0, 0.0), err, False, n)
+        return Displacement(shift, err, True, n)
+
+
+#: Interpolations :func:`coregister` offers.
+METHODS = ("spline", "cubic")
+
+
+def _weights(kind: str, t: float) -> tuple[float, float, float, float]:
+    """Weights of the samples at -1, 0, 1, 2 around an offset ``t`` in [0, 1).
+
+    ``spline``: cubic B-spline (of prefiltered coefficients); ``cubic``: Keys' cubic
+    convolution, a = -1/2 (of the samples themselves); ``reach``: 1 for every sample
+    read (spreads an untrusted mask).
+    """
+    if kind == "spline":
+        return (
+            (1.0 - t) ** 3 / 6.0,
+            (3.0 * t**3 - 6.0 * t**2 + 4.0) / 6.0,
+            (-3.0 * t**3 + 3.0 * t**2 + 3.0 * t + 1.0) / 6.0,
+            t**3 / 6.0,
+        )
+    if kind == "cubic":
+        return (
+            -0.5 * t**3 + t**2 - 0.5 * t,
+            1.5 * t**3 - 2.5 * t**2 + 1.0,
+            -1.5 * t**3 + 2.0 * t**2 + 0.5 * t,
+            0.5 * t**3 - 0.5 * t**2,
+        )
+    return (1.0, 1.0, 1.0, 1.0)
+
+
+def _along(values: np.ndarray, shift: float, axis: int, kind: str) -> np.ndarray:
+    """Move ``values`` by ``shift`` pixels along ``axis`` (edges held), as float32.
+
+    The output at ``i`` sums the four samples around ``i - shift`` with the weights
+    of ``kind`` (:func:`_weights`); a whole-pixel shift only moves the samples, except
+    for spline coefficients, which still need their weights.
+    """
+    start = -shift
+    whole = math.floor(start)
+    t = start - whole
+    size = values.shape[axis]
+    values = values.astype(np.float32, copy=False)
+    if whole:
+        values = np.take(values, np.clip(np.arange(size) + whole, 0, size - 1), axis=axis)
+    if t == 0 and kind != "spline":
+        return values
+    taps = np.array(_weights(kind, t), dtype=np.float32)
+    # correlate1d's taps j = 0..3 read offsets j - 2 - origin: origin -1 reads -1..2
+    return ndimage.correlate1d(values, taps, axis=axis, mode="nearest", origin=-1)
+
+
+def _fill_untrusted(array: np.ndarray, trusted: np.ndarray) -> np.ndarray:
+    """Return ``array`` (float32) with untrusted pixels set to a local trusted average.
+
+    Normalised convolution with a Gaussian of 2 pixels (out to 4); pixels with no
+    trusted neighbour within its reach take the trusted mean.
+    """
+    values = np.where(trusted, array, np.float32(0.0)).astype(np.float32)
+    weight = ndimage.gaussian_filter(trusted.astype(np.float32), 2.0, truncate=2.0)
+    local = np.full(array.shape, values[trusted].mean(), dtype=np.float32)
+    reached = weight > 1e-3
+    smooth = ndimage.gaussian_filter(values, 2.0, truncate=2.0)
+    local[reached] = smooth[reached] / weight[reached]
+    return np.where(trusted, values, local)
+
+
+def _spline_move(array: np.ndarray, dy: float, dx: float) -> np.ndarray:
+    trusted = np.isfinite(array)
+    whole = bool(trusted.all())
+    if not trusted.any():
+        return np.full(array.shape, np.nan, dtype=np.float32)
+    filled = array if whole else _fill_untrusted(array, trusted)
+    coefficients = ndimage.spline_filter(filled, order=3, output=np.float32, mode="mirror")
+    moved = _along(_along(coefficients, -dy, 0, "spline"), -dx, 1, "spline")
+    if not whole:
+        moved[_along(_along(~trusted, -dy, 0, "reach"), -dx, 1, "reach") > 0] = np.nan
+    return moved
+
+
+def coregister(
+    maps: Sequence[np.ndarray],
+    shifts: Sequence[tuple[float, float]],
+    *,
+    method: str = "spline",
+) -> list[np.ndarray]:
+    """Return the maps moved by ``-shift`` each onto the reference grid (NaN: untrusted).
+
+    Maps at the box resolution hold detail up to near their Nyquist frequency, which
+    linear interpolation would damp by up to half at a half-pixel shift. Measured on
+    waves 7 pixels and longer (rms error, time for a 144 x 144 map here):
+
+    - ``"spline"``: cubic B-spline, a separable prefilter then four taps per axis:
+      0.04 %, 0.3 ms (0.7 ms with untrusted pixels, filled from their trusted
+      neighbours for the prefilter). For estimates and stored results; Keys'
+      convolution biased the iterated displacements by 0.02 map pixels, this did not.
+    - ``"cubic"``: Keys' cubic convolution, four taps per axis: 0.2 %, 0.09 ms. For
+      the live view's fused map.
+    - linear interpolation, for comparison: 3 %.
+
+    An untrusted pixel stays untrusted and spoils every pixel whose four taps per
+    axis read it (4 x 4 pixels); pixels moved in from outside the map are untrusted
+    too. A zero shift returns the map as float32, unmoved.
+
+    Parameters
+    ----------
+    maps : sequence of ndarray, shape (rows, cols)
+        Maps (NaN where untrusted); not modified.
+    shifts : sequence of (dy, dx)
+        Each map's :attr:`Displacement.shift`, pixels.
+    method : {"spline", "cubic"}
+        The interpolation.
+
+    Returns
+    -------
+    list of ndarray
+        The moved maps, float32.
+    """
+    if len(maps) != len(shifts):
+        raise InputError(f"{len(maps)} maps but {len(shifts)} shifts")
+    if method not in METHODS:
+        raise InputError(f"unknown interpolation {method!r}; choose one of {', '.join(METHODS)}")
+    out = []
+    for values, (dy, dx) in zip(maps, shifts, strict=True):
+        array = np.asarray(values, dtype=np.float32)
+        if dy == 0 and dx == 0:
+            out.append(array)
+            continue
+        if method == "spline":
+            moved = _spline_move(array, dy, dx)
+        else:
+            moved = _along(_along(array, -dy, 0, "cubic"), -dx, 1, "cubic")
+        _blank_outside(moved, dy, dx)
+        out.append(moved)
+    return out
+
+
+def _blank_outside(moved: np.ndarray, dy: float, dx: float) -> None:
+    """Set to NaN the pixels whose source ``r + shift`` lies outside the map."""
+    for axis, shift in ((0, dy), (1, dx)):
+        size = moved.shape[axis]
+        source = np.arange(size) + shift
+        outside = (source < 0) | (source > size - 1)
+        index = [slice(None), slice(None)]
+        index[axis] = outside  # type: ignore[call-overload]
+        moved[tuple(index)] = np.nan
+
+
+def fuse_coregistered(
+    maps: Sequence[np.ndarray],
+    noises: Sequence[float | None],
+    shifts: Sequence[tuple[float, float]] | None = None,
+    *,
+    method: str = "spline",
+) -> np.ndarray:
+    """Fuse maps (NaN: untrusted) weighted by ``1 / noise^2``, co-registered first.
+
+    Parameters
+    ----------
+    maps : sequence of ndarray, shape (rows, cols)
+        Maps of one quantity (delta-h in m); not modified.
+    noises : sequence of float or None
+        Each map's noise (unit of the maps). When any is not a positive number (a
+        reference frame, whose maps are zero), the maps are averaged unweighted.
+    shifts : sequence of (dy, dx), optional
+        Each map's :attr:`Displacement.shift` (pixels); the maps are moved onto the
+        grid of the map whose shift is zero (:func:`coregister`).
+    method : {"spline", "cubic"}
+        The interpolation of :func:`coregister`.
+
+    Returns
+    -------
+    ndarray of float32
+        NaN where no map is trusted.
+    """
+    sigma = np.asarray(noises, dtype=np.float64)
+    if not (np.all(np.isfinite(sigma)) and np.all(sigma > 0)):
+        sigma = np.ones(len(maps))
+    if shifts is not None:
+        maps = coregister(maps, shifts, method=method)
+    fused, _ = fuse(maps, list(sigma), masks=[np.isfinite(m) for m in maps])
+    return fused.astype(np.float32)

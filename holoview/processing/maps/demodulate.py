@@ -1,0 +1,597 @@
+"""Fourier demodulation of every labelled carrier, frame after frame (paper section 3).
+
+:class:`Demodulator` takes one real FFT of each frame (pyFFTW, planned once per
+shape), and per peak cuts a small box out of the half spectrum with the carrier
+moved to the origin and the window applied in the same step, then takes an
+inverse FFT of the box only. The complex field per peak therefore comes at the
+box resolution (pixel ``(p, q)`` at frame position ``(p rows / by, q cols / bx)``);
+:meth:`Demodulator.upsample` brings any map to the frame grid.
+
+Conventions (docs/design.md):
+
+- the field is in counts: ``|field| = Y0 A`` for a fringe term ``Y0 A exp(i phi)``,
+  demodulated at the FFT bin nearest the carrier (a residual sub-bin tilt remains
+  in it; the synthetic reference removes it);
+- phases are ``current - reference`` in rad: ``synthetic`` against the plane wave
+  at the sub-bin carrier, ``absolute`` against the first frame after construction
+  or :meth:`~Demodulator.reset_reference` (or against an object-free background
+  hologram, :meth:`~Demodulator.set_background`), ``relative`` against the previous
+  frame;
+- ``delta_h = phase wavelength / (4 pi alpha)`` in metres for peaks with alpha.
+
+Per peak and frame also: the trusted pixels (aperture, amplitude, off the border that
+the periodic FFT spoils: :func:`~holoview.processing.fourier.boxes.border_mask`), the phase
+noise (rad, and m, from the spectrum's noise floor), and the complex value at the
+carrier alone, whose phase is the spatially averaged phase (paper section 4.2),
+unwrapped in time. Maps that wrap are unwrapped in space (Herraez et al. 2002) or
+against another peak's map scaled by the ratio of alphas
+(:func:`~holoview.processing.maps.phase_maps.unwrap_maps`). Every returned array is new;
+frames and peaks are never modified. Carriers below one FFT bin:
+:func:`holoview.processing.peaks.detection.refine_carriers`.
+
+The demodulator keeps state (references, plans, buffers): use it from one thread
+at a time. It creates no thread; FFTW may use ``threads`` internally.
+"""
+
+from __future__ import annotations
+
+import cmath
+import logging
+from collections.abc import Sequence
+
+import numpy as np
+import pyfftw
+
+from holoview.errors import InputError
+from holoview.processing.fourier.boxes import BoxGeometry, border_mask, box_geometry, box_shape_for
+from holoview.processing.fourier.fastmath import TWO_PI, AngleWorkspace, angle
+from holoview.processing.fourier.fftplans import DEFAULT_THREADS, ifft2_plan, rfft2_plan
+from holoview.processing.fourier.frames import MIN_SIDE
+from holoview.processing.fourier.resample import resample_mask, upsample
+from holoview.processing.fourier.windows import DEFAULT_TAPER, DEFAULT_WINDOW, check_kind
+from holoview.processing.maps.demod_results import (
+    REFERENCE_MODES,
+    UNWRAP_MODES,
+    DemodResult,
+    PeakResult,
+)
+from holoview.processing.maps.phase_maps import (
+    PhaseMap,
+    floor_bins,
+    floor_power,
+    phase_noise,
+    unwrap_maps,
+)
+from holoview.processing.peaks.detection import Peak
+from holoview.processing.peaks.radii import (
+    check_peaks,
+    check_radii,
+    distinct_neighbours,
+    peak_radii,
+)
+
+logger = logging.getLogger(__name__)
+
+__all__ = ["Demodulator"]
+
+#: Box size (bins) from which a box's inverse FFT uses the frame FFT's threads.
+LARGE_BOX = 256 * 256
+
+#: A mean-phase step per frame (rad) beyond which a peak is flagged ``"phase_step"``.
+PHASE_STEP_LIMIT = 0.8 * np.pi
+
+#: A peak with fewer trusted pixels than this fraction of those it could have (inside the
+#: aperture, off the border) is flagged ``"low_amplitude"``.
+MIN_VALID_FRACTION = 0.5
+
+
+class Demodulator:
+    """Demodulate a fixed list of peaks from frame after frame of one shape.
+
+    Parameters
+    ----------
+    shape : tuple of int
+        Frame shape ``(rows, cols)`` in pixels.
+    peaks : sequence of Peak
+        The carriers to demodulate (not empty, inside the spectrum).
+    window : {"tukey", "raised-cosine", "top-hat"}
+        Spectral window (:mod:`holoview.processing.fourier.windows`); by default
+        :data:`~holoview.processing.fourier.windows.DEFAULT_WINDOW`, chosen by measurement.
+    radius : float, optional
+        Window radius (cycles/pixel), the same for every peak; by default each
+        peak's own, the widest that reaches no other peak, twin or zero frequency
+        (:func:`~holoview.processing.fourier.windows.auto_radii`).
+    reference : {"synthetic", "absolute", "relative"}
+        Reference mode (module documentation).
+    unwrap : {"auto", "always", "never"}
+        Spatial unwrapping: ``"auto"`` runs it only when a map has wraps.
+    wavelength : float, optional
+        Laser wavelength (m), needed for ``delta_h``.
+    aperture : ndarray of bool, optional
+        Trusted region at frame resolution, shape ``shape``.
+    min_amplitude : float
+        A pixel is trusted when ``|field|`` reaches this fraction of the peak's
+        expected amplitude ``peak.amplitude * mean`` (or of the median ``|field|``
+        when the peak's amplitude is not known).
+    saturation : float, optional
+        Pixel value (counts) at which the camera saturates; frames reaching it
+        (checked on every 4th row and column) are flagged ``"saturated"``.
+    taper : float
+        Tukey window edge fraction.
+    threads : int, optional
+        FFTW threads for the frame's FFT; by default
+        :data:`~holoview.processing.fourier.fftplans.DEFAULT_THREADS` (one: see there why).
+    neighbours : sequence of (fx, fy)
+        Other peaks of the spectrum (cycles/pixel), not demodulated, which the
+        automatic radii must not reach either: for example every detected peak (those
+        within a few bins of a carrier or its twin are that peak and are dropped,
+        :func:`~holoview.processing.peaks.radii.distinct_neighbours`).
+    background : ndarray, optional
+        An object-free hologram of shape ``shape`` (counts): with ``reference=
+        "absolute"`` every frame's phase is taken against it instead of against
+        the first frame (:meth:`set_background`).
+
+    Raises
+    ------
+    InputError
+        For a bad shape, an empty peak list, a carrier outside the spectrum, an
+        unknown mode, a radius so large that a window holds another peak or zero
+        frequency, or a background of another shape or mode.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from holoview.processing.peaks.detection import Peak
+    >>> y, x = np.mgrid[:256, :256]
+    >>> frame = 1000 + 300 * np.cos(2 * np.pi * (0.25 * x + 0.125 * y))
+    >>> demod = Demodulator(frame.shape, [Peak((0.25, 0.125), 0.15, 100.0, label="RB1")])
+    >>> result = demod.process(frame)
+    >>> round(abs(result.peaks[0].carrier_value))
+    150
+    """
+
+    def __init__(
+        self,
+        shape: tuple[int, int],
+        peaks: Sequence[Peak],
+        *,
+        window: str = DEFAULT_WINDOW,
+        radius: float | None = None,
+        reference: str = "relative",
+        unwrap: str = "auto",
+        wavelength: float | None = None,
+        aperture: np.ndarray | None = None,
+        min_amplitude: float = 0.25,
+        saturation: float | None = None,
+        taper: float = DEFAULT_TAPER,
+        threads: int | None = None,
+        neighbours: Sequence[tuple[float, float]] = (),
+        background: np.ndarray | None = None,
+    ) -> None:
+        if len(shape) != 2 or min(int(shape[0]), int(shape[1])) < MIN_SIDE:
+            raise InputError(f"frame shape must be (rows, cols), each >= {MIN_SIDE}; got {shape}")
+        self.shape: tuple[int, int] = (int(shape[0]), int(shape[1]))
+        self.peaks: tuple[Peak, ...] = check_peaks(peaks)
+        self.window = check_kind(window)
+        if reference not in REFERENCE_MODES:
+            raise InputError(
+                f"unknown reference {reference!r}; choose one of {', '.join(REFERENCE_MODES)}"
+            )
+        if unwrap not in UNWRAP_MODES:
+            raise InputError(
+                f"unknown unwrap mode {unwrap!r}; choose one of {', '.join(UNWRAP_MODES)}"
+            )
+        if wavelength is not None and not (np.isfinite(wavelength) and wavelength > 0):
+            raise InputError(f"wavelength must be > 0 metres, got {wavelength}")
+        if not 0 <= min_amplitude < 1:
+            raise InputError(f"min_amplitude must be in [0, 1), got {min_amplitude}")
+        self.reference = reference
+        self.unwrap = unwrap
+        self.wavelength = wavelength
+        self.min_amplitude = float(min_amplitude)
+        self.saturation = saturation
+        self.taper = float(taper)
+        self.threads = int(threads) if threads else DEFAULT_THREADS
+        carriers = np.array([p.carrier for p in self.peaks], dtype=np.float64)
+        others = distinct_neighbours(self.shape, carriers, neighbours)
+        #: the neighbouring peaks given (cycles/pixel), kept for :meth:`with_peaks`
+        self.neighbours: tuple[tuple[float, float], ...] = tuple(
+            (float(fx), float(fy)) for fx, fy in neighbours
+        )
+        #: each peak's window radius, cycles/pixel
+        self.radii = peak_radii(self.shape, carriers, radius, others)
+        self._overlapping = check_radii(self.peaks, self.radii, others)
+        #: the largest window radius (cycles/pixel): it sets the box shape
+        self.radius = max(self.radii)
+        self.box_shape = box_shape_for(self.shape, self.radius)
+        self._boxes = [
+            box_geometry(
+                self.shape,
+                self.box_shape,
+                carrier=(float(p.carrier[0]), float(p.carrier[1])),
+                kind=window,
+                radius=r,
+                taper=self.taper,
+            )
+            for p, r in zip(self.peaks, self.radii, strict=True)
+        ]
+        logger.debug(
+            "demodulating %d peak(s) of %s frames: %s window, radii %s cycles/pixel, box %s",
+            len(self.peaks),
+            self.shape,
+            window,
+            ", ".join(f"{r:.4g}" for r in self.radii),
+            self.box_shape,
+        )
+        self.aperture: np.ndarray | None = None
+        aperture_box = np.ones(self.box_shape, dtype=bool)
+        if aperture is not None:
+            ap = np.array(aperture, dtype=bool)  # a copy: the caller's mask may change
+            if ap.shape != self.shape:
+                raise InputError(f"aperture mask has shape {ap.shape}, frames have {self.shape}")
+            ap.setflags(write=False)
+            self.aperture = ap
+            aperture_box = resample_mask(ap, self.box_shape)
+        #: per peak, the box pixels that may be trusted: inside the aperture, off the border
+        self._trusted_box = [
+            aperture_box & border_mask(self.box_shape, self.shape, r) for r in self.radii
+        ]
+        self._trustable = [int(np.count_nonzero(t)) for t in self._trusted_box]
+        self._floor_index = floor_bins(self.shape)
+        n_box = self.box_shape[0] * self.box_shape[1]
+        #: boxes of 256 x 256 bins or more are worth FFTW's threads; smaller ones are not
+        self._box_threads = self.threads if n_box >= LARGE_BOX else 1
+        self._angle_workspace = AngleWorkspace(self.box_shape)
+        self._product = np.empty(self.box_shape, dtype=np.complex64)
+        self._magnitude = np.empty(self.box_shape, dtype=np.float32)
+        self._weights = np.empty(n_box, dtype=np.float32)
+        self.background: np.ndarray | None = None
+        self._background: list[tuple[np.ndarray, complex]] | None = None
+        self._background_floor: np.ndarray | None = None
+        self.set_background(background)
+
+    # -- state -----------------------------------------------------------------------------
+
+    def reset_reference(self) -> None:
+        """Forget the reference frame and the running mean phases; the next frame starts over.
+
+        With a background hologram (:meth:`set_background`) the reference stays the
+        background: the next frame is taken against it.
+        """
+        n = len(self.peaks)
+        self._index = 0
+        self._ref_conj: list[np.ndarray | None] = [None] * n
+        self._prev_value: list[complex | None] = [None] * n
+        self._ref_value: list[complex | None] = [None] * n
+        self._unwrapped_mean = [0.0] * n
+        #: the reference's spectrum at the noise-floor bins (absolute and relative modes)
+        self._ref_floor: np.ndarray | None = None
+        if self._background is not None:
+            for i, (conj, value) in enumerate(self._background):
+                self._ref_conj[i] = conj.copy()
+                self._ref_value[i] = value
+            self._ref_floor = self._background_floor
+
+    def break_sequence(self) -> None:
+        """Forget the previous frame: the next one does not follow it (a replay jumped).
+
+        Relative maps start over (the next frame is a reference frame: no map pairs
+        frames from before and after the jump); an absolute reference, or a background
+        hologram, is kept; the mean phase is not unwrapped in time across the break
+        (the next frame's is taken as it is, against the reference), and no phase step
+        is measured over it.
+        """
+        n = len(self.peaks)
+        self._prev_value = [None] * n
+        if self.reference == "relative":
+            self._ref_conj = [None] * n
+            self._ref_value = [None] * n
+            self._ref_floor = None
+
+    def set_background(self, background: np.ndarray | None) -> None:
+        """Take absolute phases against an object-free hologram from the next frame on.
+
+        Parameters
+        ----------
+        background : ndarray or None
+            A hologram of the demodulator's shape (counts; not modified), recorded
+            without the object (or before the change to measure); None returns to
+            taking the first frame after :meth:`reset_reference` as the reference.
+
+        Raises
+        ------
+        InputError
+            For a background with another reference mode than ``"absolute"``, of
+            another shape, not 2-D, not real, or holding NaN or infinity.
+        """
+        if background is None:
+            self.background, self._background, self._background_floor = None, None, None
+            self.reset_reference()
+            return
+        if self.reference != "absolute":
+            raise InputError(
+                "a background hologram is the reference of absolute phases: use "
+                f"reference='absolute', not {self.reference!r}"
+            )
+        array = np.array(self._check(background, "background hologram"))  # a copy
+        half, mean = self._spectrum(array)
+        if half is None:
+            raise InputError("the background hologram holds NaN or infinite pixels")
+        flat = half.reshape(-1)
+        box_plan = ifft2_plan(self.box_shape, threads=self._box_threads)
+        kept = []
+        for i, geo in enumerate(self._boxes):
+            field = self._field(i, flat, box_plan)
+            kept.append((np.conj(field), complex(np.vdot(geo.ramp, field)) / field.size))
+        array.setflags(write=False)
+        self.background, self._background = array, kept
+        self._background_floor = np.take(flat, self._floor_index)
+        logger.debug("background hologram set: mean %.4g counts", mean)
+        self.reset_reference()
+
+    def with_peaks(self, peaks: Sequence[Peak], **changes: object) -> Demodulator:
+        """Return a demodulator for other peaks (and optionally other settings), same frames.
+
+        Windows and FFT plans are cached by shape and parameters, so this is cheap
+        when the GUI relabels or moves peaks. The radii are recomputed from the new
+        carriers unless given in ``changes``; references start over (against the
+        background hologram, when there is one and the reference stays absolute).
+        """
+        settings: dict[str, object] = {
+            "aperture": self.aperture,
+            "window": self.window,
+            "reference": self.reference,
+            "unwrap": self.unwrap,
+            "wavelength": self.wavelength,
+            "min_amplitude": self.min_amplitude,
+            "saturation": self.saturation,
+            "taper": self.taper,
+            "threads": self.threads,
+            "neighbours": self.neighbours,
+            "background": self.background,
+        }
+        settings.update(changes)
+        if settings["reference"] != "absolute" and "background" not in changes:
+            settings["background"] = None
+        return Demodulator(self.shape, peaks, **settings)  # type: ignore[arg-type]
+
+    def reference_field(self, i: int) -> np.ndarray | None:
+        """Return peak ``i``'s reference field (counts, box resolution), or None before one.
+
+        The background hologram's (:meth:`set_background`) or the reference frame's in
+        absolute mode, the previous frame's in relative mode; None in synthetic mode.
+        """
+        conj = self._ref_conj[i]
+        return None if conj is None or self.reference == "synthetic" else np.conj(conj)
+
+    def geometry(self, i: int) -> BoxGeometry:
+        """Return peak ``i``'s box geometry: spectrum indices, window, sub-bin plane wave."""
+        return self._boxes[i]
+
+    def area_fraction(self, i: int) -> float:
+        """Return peak ``i``'s window area fraction ``sum |W|^2 / (rows cols)`` (docs/design.md)."""
+        return self._boxes[i].area_fraction
+
+    def upsample(self, box_map: np.ndarray) -> np.ndarray:
+        """Return a box-resolution map (field, unwrapped phase, delta-h) on the frame grid."""
+        array = np.asarray(box_map)
+        if array.shape != self.box_shape:
+            raise InputError(
+                f"map of shape {array.shape} is not at box resolution {self.box_shape}"
+            )
+        return upsample(array, self.shape)
+
+    # -- processing ------------------------------------------------------------------------
+
+    def _check(self, frame: np.ndarray, what: str = "frame") -> np.ndarray:
+        array = np.asarray(frame)
+        if array.ndim != 2:
+            raise InputError(f"{what} must be 2-D (rows, cols), got shape {array.shape}")
+        if array.shape != self.shape:
+            raise InputError(
+                f"{what} has shape {array.shape}; this demodulator expects {self.shape}"
+            )
+        if array.dtype.kind not in "uif":
+            raise InputError(
+                f"{what} has dtype {array.dtype}: expected integer or real pixel values"
+            )
+        return array
+
+    def _spectrum(self, array: np.ndarray) -> tuple[np.ndarray | None, float]:
+        """The frame's half spectrum (the plan's buffer) and mean (counts); None if not finite."""
+        plan = rfft2_plan(self.shape, threads=self.threads)
+        np.copyto(plan.input_array, array, casting="unsafe")
+        plan.execute()
+        half = plan.output_array
+        dc = float(half[0, 0].real)
+        if not np.isfinite(dc):
+            return None, float("nan")
+        return half, dc / (self.shape[0] * self.shape[1])
+
+    def _field(self, i: int, flat: np.ndarray, box_plan: pyfftw.FFTW) -> np.ndarray:
+        """Cut, window and invert peak ``i``'s box: its field (counts), a new array."""
+        geo = self._boxes[i]
+        box = box_plan.input_array.reshape(-1)
+        np.take(flat, geo.index, out=box)
+        pairs = box.view(np.float32)  # window and conjugation in one pass (BoxGeometry)
+        np.multiply(pairs, geo.weights, out=pairs)
+        box_plan.execute()
+        return box_plan.output_array.copy()
+
+    def _result(
+        self, flags: set[str], mean: float, peaks: tuple[PeakResult, ...] = ()
+    ) -> DemodResult:
+        """This frame's result: ``peaks`` (none for a frame flagged unusable) and flags."""
+        return DemodResult(
+            index=self._index,
+            reference=self.reference,
+            mean_counts=mean,
+            frame_shape=self.shape,
+            box_shape=self.box_shape,
+            radius=self.radius,
+            peaks=peaks,
+            flags=frozenset(flags),
+        )
+
+    def process(self, frame: np.ndarray) -> DemodResult:
+        """Demodulate one frame (never modified) and advance the reference.
+
+        Returns
+        -------
+        DemodResult
+            A result with no peak results and the ``"nonfinite"`` flag for a frame
+            holding NaN or infinity (the reference is then left as it was).
+
+        Raises
+        ------
+        InputError
+            For a frame of another shape, not 2-D, or not of real numbers.
+        """
+        array = self._check(frame)
+        half, mean = self._spectrum(array)
+        if half is None:
+            return self._result({"nonfinite"}, mean)
+        frame_flags: set[str] = set()
+        if self.saturation is not None and (array[::4, ::4] >= self.saturation).any():
+            frame_flags.add("saturated")
+        flat = half.reshape(-1)
+        floor = self._floor(np.take(flat, self._floor_index))
+        box_plan = ifft2_plan(self.box_shape, threads=self._box_threads)
+        partial = [self._demodulate(i, flat, box_plan, mean, floor) for i in range(len(self.peaks))]
+        if self.unwrap != "never":
+            unwrap_maps(partial, self.peaks, always=self.unwrap == "always")
+        results = tuple(self._finish(i, part) for i, part in enumerate(partial))
+        if all(not r.mask.any() for r in results):
+            frame_flags.add("no_signal")
+        if any("reference" in r.flags for r in results):
+            frame_flags.add("reference")
+        result = self._result(frame_flags, mean, results)
+        self._index += 1
+        return result
+
+    def _floor(self, samples: np.ndarray) -> float:
+        """Noise power per bin (counts^2) of this frame's phase maps; 0 for a reference frame.
+
+        Synthetic mode: the frame's own floor; absolute and relative modes: the floor
+        of the change since the reference frame (the previous frame in relative mode),
+        whose noise both enter the map. Advances the reference's samples.
+        """
+        if self.reference == "synthetic":
+            return floor_power(samples)
+        reference = self._ref_floor
+        if self.reference == "relative" or reference is None:
+            self._ref_floor = samples
+        return 0.0 if reference is None else floor_power(samples, reference)
+
+    def _demodulate(
+        self, i: int, flat: np.ndarray, box_plan: pyfftw.FFTW, mean: float, floor: float
+    ) -> PhaseMap:
+        """Cut, window and invert peak ``i``'s box; phase against the reference (wrapped)."""
+        peak = self.peaks[i]
+        geo = self._boxes[i]
+        field = self._field(i, flat, box_plan)
+        flags: set[str] = set()
+        if i in self._overlapping:
+            flags.add("overlap")
+
+        # trusted pixels
+        magnitude = np.abs(field, out=self._magnitude)
+        expected = peak.amplitude * mean if peak.amplitude > 0 else float(np.median(magnitude))
+        mask = np.greater_equal(magnitude, np.float32(self.min_amplitude * expected))
+        if not expected > 0:
+            mask[...] = False
+        mask &= self._trusted_box[i]
+        valid = int(np.count_nonzero(mask))
+        if valid < MIN_VALID_FRACTION * self._trustable[i]:
+            flags.add("low_amplitude")
+
+        # mean phase: the field against the sub-bin plane wave, averaged
+        value = complex(np.vdot(geo.ramp, field)) / field.size
+        prev = self._prev_value[i]
+        step = 0.0 if prev is None else cmath.phase(value * prev.conjugate())
+        if abs(step) > PHASE_STEP_LIMIT:
+            flags.add("phase_step")
+        self._prev_value[i] = value
+
+        product: np.ndarray | None = self._product
+        if self.reference == "synthetic":
+            np.multiply(field, geo.ramp_conj, out=product)
+            if prev is None:
+                self._unwrapped_mean[i] = cmath.phase(value)
+            else:
+                self._unwrapped_mean[i] += step
+            mean_phase = cmath.phase(value)
+        elif self._ref_conj[i] is None:
+            flags.add("reference")
+            self._ref_conj[i] = np.conj(field)
+            self._ref_value[i] = value
+            self._unwrapped_mean[i] = 0.0
+            product = None
+            mean_phase = 0.0
+        else:
+            ref_conj = self._ref_conj[i]
+            ref_value = self._ref_value[i]
+            assert ref_conj is not None and ref_value is not None  # set together above
+            np.multiply(field, ref_conj, out=product)
+            self._unwrapped_mean[i] += step
+            if self.reference == "relative":
+                np.conjugate(field, out=ref_conj)
+                mean_phase = step
+            else:
+                mean_phase = cmath.phase(value * ref_value.conjugate())
+                if prev is None:  # the first against a background, or after a break
+                    self._unwrapped_mean[i] = mean_phase
+        if product is None:
+            phase = np.zeros(field.shape, dtype=np.float32)
+            noise = 0.0
+        else:
+            phase = angle(product, workspace=self._angle_workspace)
+            size = self.shape[0] * self.shape[1]
+            noise = phase_noise(magnitude, mask, floor, geo.area_fraction, size)
+        return PhaseMap(
+            field=field,
+            phase=phase,
+            mask=mask,
+            valid=valid,
+            value=value,
+            mean_phase=mean_phase,
+            target=mean_phase if self.reference == "relative" else self._unwrapped_mean[i],
+            flags=flags,
+            live=product is not None,
+            noise=noise,
+        )
+
+    def _finish(self, i: int, part: PhaseMap) -> PeakResult:
+        """Set the map's 2 pi offset, estimate the noise, convert to height."""
+        peak = self.peaks[i]
+        phase = part.phase
+        if part.live and part.valid:
+            # put the map's 2 pi offset where the time-unwrapped mean phase says
+            if part.valid == phase.size:
+                level = float(np.mean(phase))
+            else:
+                weights = self._weights
+                np.copyto(weights, part.mask.reshape(-1))
+                level = float(np.dot(phase.reshape(-1), weights)) / part.valid
+            offset = TWO_PI * round((part.target - level) / TWO_PI)
+            if offset:
+                phase += np.float32(offset)
+        noise = part.noise
+        to_height = None
+        if peak.alpha is not None and self.wavelength is not None:
+            to_height = self.wavelength / (4 * np.pi * peak.alpha)
+        return PeakResult(
+            peak=peak,
+            radius=self.radii[i],
+            field=part.field,
+            phase=phase,
+            delta_h=None if to_height is None else phase * np.float32(to_height),
+            carrier_value=part.value,
+            mean_phase=part.mean_phase,
+            mean_phase_unwrapped=float(self._unwrapped_mean[i]),
+            mask=part.mask,
+            noise=noise,
+            noise_height=None if to_height is None else abs(noise * to_height),
+            unwrapped=part.unwrapped,
+            flags=frozenset(part.flags),
+        )

@@ -1,0 +1,1 @@
+"""Waves on the surface, from height maps over time: spectra and dispersion."""
