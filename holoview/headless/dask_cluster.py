@@ -136,7 +136,9 @@ class LocalDask:
             threads_per_worker=1,
             processes=True,
             dashboard_address=None,
-            silence_logs=logging.ERROR,
+            # the workers' own logs: an interrupted run's shutdown has them complain of
+            # the scheduler gone before them; what fails in a chunk comes back anyway
+            silence_logs=logging.INFO if logger.isEnabledFor(logging.DEBUG) else logging.CRITICAL,
             # its HTTP server (health, metrics) on a free port, not on 8787
             scheduler_kwargs={"dashboard_address": ":0"},
             asynchronous=True,

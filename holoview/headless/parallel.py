@@ -307,6 +307,7 @@ class DaskRunner(ChunkRunner):
 
         self._cluster: LocalDask | None = None
         self._client: Any = None
+        self._futures: list[Any] = []
         try:
             if scheduler == "local":
                 self._cluster = LocalDask(max(1, int(jobs)))
@@ -345,10 +346,16 @@ class DaskRunner(ChunkRunner):
         futures = client.map(
             measure_chunk, list(itertools.islice(queue, in_flight(self.workers))), pure=False
         )
+        self._futures = futures  # cancelled by abort()
         try:
-            completed = distributed.as_completed(futures)
-            for future in completed:
-                yield future.result()
+            # the results fetched on the client's loop: an interruption lands in this
+            # thread's wait for them, never inside a call of Dask's own (whose cleanup
+            # then fails, printing a traceback)
+            completed = distributed.as_completed(futures, with_results=True)
+            for future, result in completed:
+                if future.status == "cancelled":
+                    raise HoloviewError(f"the Dask cluster dropped the work ({result})")
+                yield result
                 task = next(queue, None)
                 if task is not None:
                     futures.append(client.submit(measure_chunk, task, pure=False))
@@ -364,6 +371,12 @@ class DaskRunner(ChunkRunner):
                 client.cancel(futures)
 
     def abort(self) -> None:
+        client = self._client
+        if client is not None and client.status == "running":
+            # first: a result being fetched when the client closes fails on Dask's loop,
+            # which prints the traceback
+            with contextlib.suppress(Exception):
+                client.cancel(self._futures)
         self.close()
 
     def close(self) -> None:

@@ -13,6 +13,7 @@ from pathlib import Path
 
 import pytest
 from faults_helpers import (
+    REPO,
     alive,
     command_line,
     cpu_seconds,
@@ -105,8 +106,10 @@ def test_a_stop_signal_during_a_dask_run_keeps_the_frames_done(
     child.send_signal(getattr(signal, name))
     done = output_of(tmp_path, child, timeout=60)
     assert done.status == 130, done.err
-    assert "Traceback" not in done.err, done.err
-    assert "frames done (marked interrupted)" in done.err
+    # -vv shows Dask's own debug output, its shutdown's complaints included: no traceback
+    # through holoview's code
+    assert f'File "{REPO / "holoview"}' not in done.err, done.err
+    assert done.err_lines[-1].endswith("frames done (marked interrupted)"), done.err
     summary = json.loads((out / "summary.json").read_text())
     assert summary["input"]["interrupted"] is True
     assert _stitched(tmp_path / "stderr.txt") <= summary["frames"]["processed"] < 3000
