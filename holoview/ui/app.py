@@ -96,18 +96,17 @@ def stop_on_lost_display(windows: list[MainWindow]) -> Iterator[None]:
         if text.startswith(LOST_DISPLAY_WARNINGS):
             for window in windows:
                 window.shut_down()
-            print(
-                f"holoview live: the display is gone ({text.strip()}); the window's work "
-                "was stopped and its files closed",
-                file=sys.stderr,
-                flush=True,
+            logger.error(
+                "the display is gone (%s); the window's work was stopped and its files closed",
+                text.strip(),
             )
             sys.stdout.flush()
             os._exit(STOPPED_STATUS)  # Qt ends the process as this returns: end it first
         if previous is not None:
             previous(kind, context, message)
-        else:
-            print(text, file=sys.stderr, flush=True)
+        else:  # as Qt's own handler does
+            sys.stderr.write(text + "\n")
+            sys.stderr.flush()
 
     previous = qInstallMessageHandler(handle)
     try:

@@ -109,7 +109,7 @@ def test_losing_the_display_stops_the_window_cleanly(
     below = descendants(child.pid)
     server.terminate()
     done = output_of(tmp_path, child, timeout=60)
-    line = one_line_error(done, 130, "holoview live: the display is gone", "X11")
+    line = one_line_error(done, 130, "the display is gone", "X11")
     assert "files closed" in line
     assert not any(alive(p) for p in below)
 
