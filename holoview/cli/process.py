@@ -169,8 +169,6 @@ def run(args: argparse.Namespace) -> int:
     from holoview.headless.settings import PeakChoice, ProcessOptions, ProcessSettings
     from holoview.processing.fourier.fftplans import usable_cpus
 
-    if args.jobs is not None and args.jobs < 1:
-        raise InputError(f"--jobs must be at least 1, got {args.jobs}")
     if args.threads < 1:
         raise InputError(f"--threads must be at least 1, got {args.threads}")
     cores = usable_cpus()

@@ -20,6 +20,7 @@ import numpy as np
 from holoview.engine.experiment import Experiment, LabelledPeak
 from holoview.errors import InputError
 from holoview.headless.frame_passes import MapsSpec
+from holoview.headless.input_identity import InputIdentity
 from holoview.headless.inputs import (
     InputFile,
     Optics,
@@ -92,8 +93,16 @@ class PreparedRun:
         return self.frames.settings
 
 
-def prepare_run(source: InputFile, selected: range, options: ProcessOptions) -> PreparedRun:
+def prepare_run(
+    source: InputFile,
+    selected: range,
+    options: ProcessOptions,
+    identity: InputIdentity | None = None,
+) -> PreparedRun:
     """Settle a run of ``selected`` frames of ``source`` (module documentation).
+
+    ``identity`` (the input's when the run started) goes with the run's frames to its
+    workers, which refuse an input replaced since.
 
     Raises
     ------
@@ -146,7 +155,15 @@ def prepare_run(source: InputFile, selected: range, options: ProcessOptions) -> 
         demodulator.box_shape,
     )
     run = RunFrames(
-        source, selected, frame_times.times, selection, spec, experiment, optics, settings
+        source,
+        selected,
+        frame_times.times,
+        selection,
+        spec,
+        experiment,
+        optics,
+        settings,
+        identity,
     )
     return PreparedRun(run, first, detected, demodulator.box_shape)
 

@@ -28,6 +28,7 @@ from typing import Any
 
 from holoview.engine.experiment import Experiment
 from holoview.headless.analysis import Analysis, analyse
+from holoview.headless.input_identity import InputIdentity
 from holoview.headless.inputs import InputFile, parse_frame_range
 from holoview.headless.parallel.chunks import plan_jobs
 from holoview.headless.parallel.runners import ChunkRunner, open_runner
@@ -133,11 +134,17 @@ def process_file(
         InputFile(input_path) as source,
         contextlib.ExitStack() as stack,
     ):
+        identity = InputIdentity.of(source.path, source.info.get("uuid"))
         selected = parse_frame_range(options.frames, len(source))
         runner = _workers(options, source, selected, runner, stack)
-        prepared = prepare_run(source, selected, options)
-        data, analysis = _run_frames(prepared, outputs.path(RESULTS_H5), runner, progress)
+        prepared = prepare_run(source, selected, options, identity)
+        try:
+            data, analysis = _run_frames(prepared, outputs.path(RESULTS_H5), runner, progress)
+        except Exception:
+            identity.check()  # a file replaced while read can fail in any way
+            raise
         summary = _write_outputs(prepared, outputs, data, analysis, options.report)
+        identity.check()  # the frames were all of the input the run started on
         files = outputs.finish(interrupted=data.interrupted)
     return ProcessOutcome(
         out_dir,

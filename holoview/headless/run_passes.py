@@ -34,6 +34,7 @@ from holoview.headless.frame_passes import (
     measure_frames,
     spread_pass,
 )
+from holoview.headless.input_identity import InputIdentity
 from holoview.headless.inputs import InputFile, Optics
 from holoview.headless.parallel.runners import ChunkRunner
 from holoview.headless.parallel.stitch import map_chunks, measure_chunks
@@ -68,6 +69,8 @@ class RunFrames:
         The run's optics.
     settings : ProcessSettings
         Its settings.
+    identity : InputIdentity or None
+        The input's when the run started: the workers check it before each chunk.
     """
 
     source: InputFile
@@ -78,6 +81,7 @@ class RunFrames:
     experiment: Experiment
     optics: Optics
     settings: ProcessSettings
+    identity: InputIdentity | None = None
 
 
 def run_passes(
@@ -149,6 +153,7 @@ def run_passes(
                 data,
                 demod.peaks,
                 runner=runner,
+                identity=run.identity,
                 read_ahead=read_ahead,
                 progress=first,
                 maps=(spec, record),
@@ -174,6 +179,7 @@ def run_passes(
             data,
             demod.peaks,
             runner=runner,
+            identity=run.identity,
             read_ahead=read_ahead,
             progress=first,
             spread=beside,
@@ -201,6 +207,7 @@ def run_passes(
                 spec,
                 record,
                 runner=runner,
+                identity=run.identity,
                 read_ahead=read_ahead,
                 progress=second,
             )

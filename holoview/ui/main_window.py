@@ -578,8 +578,12 @@ class MainWindow(ExperimentActions, QMainWindow):
         self.restoreState(self._default_state)
         self.transport.attach(self.transport.control)
 
-    def closeEvent(self, event: QCloseEvent) -> None:
-        """Stop every thread and timer, remember the layout, then close."""
+    def shut_down(self) -> None:
+        """Stop every thread and timer (a recording's file closed), remember the layout.
+
+        What closing the window does before it goes; also called alone when the display
+        is lost (:mod:`holoview.ui.app`), where the window cannot be closed.
+        """
         self.timer.stop()
         opened = self.opener.wait()
         if isinstance(opened, LiveSession):
@@ -587,4 +591,8 @@ class MainWindow(ExperimentActions, QMainWindow):
         self.discovery.wait()
         self.stop_source()
         self.save_layout()
+
+    def closeEvent(self, event: QCloseEvent) -> None:
+        """Stop every thread and timer, remember the layout, then close."""
+        self.shut_down()
         super().closeEvent(event)

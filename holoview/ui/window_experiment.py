@@ -27,6 +27,10 @@ if TYPE_CHECKING:
     from holoview.ui.surface_view import SurfaceView
 
 
+#: Added to the name of an experiment file the window could not read, for its own settings.
+IGNORED_SUFFIX = ".window.json"
+
+
 class ExperimentActions:
     """The experiment part of the main window (mixed into it; no state of its own)."""
 
@@ -121,7 +125,13 @@ class ExperimentActions:
             try:
                 self.experiment = Experiment.load(self.experiment_path)
             except HoloviewError as exc:
-                problem = f"experiment settings ignored: {exc}"
+                # the file is the user's: kept as it is, the window's settings saved beside
+                ignored = self.experiment_path
+                self.experiment_path = ignored.with_name(ignored.name + IGNORED_SUFFIX)
+                problem = (
+                    f"experiment settings ignored: {exc} (the file is kept; this window's "
+                    f"settings are saved to {self.experiment_path})"
+                )
         try:
             self.experiment = replace(self.experiment, **self.optics)
         except HoloviewError as exc:

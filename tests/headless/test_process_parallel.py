@@ -297,13 +297,17 @@ def test_a_dask_worker_killed_mid_run_is_replaced_and_the_result_unchanged(
 
 
 def test_jobs_are_planned_from_the_cores_and_the_frames(caplog: pytest.LogCaptureFixture) -> None:
-    """Default: every core but one when long enough; never more jobs than frames; video: one."""
+    """Default: every core but one when long enough; never more jobs than frames or usable
+    cores; video: one."""
     assert plan_jobs(None, 10_000, "hdf5", cores=8) == 7
     assert plan_jobs(None, 300, "hdf5", cores=8) == 1
     assert plan_jobs(None, 10_000, "hdf5", cores=1) == 1
-    assert plan_jobs(3, 10, "tiff") == 3
-    assert plan_jobs(7, 5, "hdf5") == 5
+    assert plan_jobs(3, 10, "tiff", cores=8) == 3
+    assert plan_jobs(7, 5, "hdf5", cores=8) == 5
     assert "the run has 5 frames" in caplog.text
+    assert plan_jobs(24, 10_000, "hdf5", cores=4) == 4
+    assert "--jobs 24: this machine has 4 usable cores; using 4" in caplog.text
+    assert plan_jobs(9, 3, "hdf5", cores=4) == 3  # the tighter of the two
     assert plan_jobs(4, 1000, "video") == 1
     assert "one process" in caplog.text
     with pytest.raises(InputError, match="--jobs must be at least 1"):
@@ -334,13 +338,13 @@ def test_more_jobs_than_frames_warns_and_uses_fewer(
     capsys: pytest.CaptureFixture,
     caplog: pytest.LogCaptureFixture,
 ) -> None:
-    """``--jobs 9`` on 4 frames: a warning, 4 jobs, the results of one."""
+    """``--jobs 9`` on 2 frames: a warning, 2 jobs (no fewer cores here), the results of one."""
     argv = ["process", str(evaporation.path), "--out", str(tmp_path / "o")]
-    status, _, err = run_cli([*argv, "--jobs", "9", "--frames", "0:4"], capsys)
+    status, _, err = run_cli([*argv, "--jobs", "9", "--frames", "0:2"], capsys)
     assert status == 0, err
-    assert "--jobs 9: the run has 4 frames; using 4" in caplog.text
+    assert "--jobs 9: the run has 2 frames; using 2" in caplog.text
     summary = json.loads((tmp_path / "o" / "summary.json").read_text())
-    assert summary["timing"]["workers"] == "4 processes"
+    assert summary["timing"]["workers"] == "2 processes"
 
 
 def test_a_scheduler_that_does_not_answer_is_one_line_and_exit_2(

@@ -34,6 +34,7 @@ import numpy as np
 
 from holoview.engine.frame_core import CarrierCore
 from holoview.errors import InputError
+from holoview.headless.input_identity import InputIdentity
 from holoview.headless.inputs import InputFile
 from holoview.headless.parallel import chunk_maps
 from holoview.headless.parallel.chunk_maps import ChunkMaps, MapsWork
@@ -66,6 +67,8 @@ CHUNK_FLAGS = FRAME_FLAG_BITS
 def plan_jobs(jobs: int | None, n_frames: int, kind: str, cores: int | None = None) -> int:
     """The processes a run of ``n_frames`` frames uses for ``--jobs JOBS``.
 
+    The one rule for ``--jobs``, local processes and a local Dask cluster alike.
+
     Parameters
     ----------
     jobs : int or None
@@ -81,7 +84,9 @@ def plan_jobs(jobs: int | None, n_frames: int, kind: str, cores: int | None = No
     Returns
     -------
     int
-        At least 1; more jobs than frames are cut to the frames, with a warning.
+        At least 1; more jobs than usable cores, or than frames, are cut to those, with
+        a warning (a worker process per core is the most that gains: each costs a
+        start, memory, and a core the others need).
 
     Raises
     ------
@@ -98,12 +103,15 @@ def plan_jobs(jobs: int | None, n_frames: int, kind: str, cores: int | None = No
                 kind,
             )
         return 1
+    cores = usable_cpus() if cores is None else cores
     if jobs is None:
-        cores = usable_cpus() if cores is None else cores
         return max(1, min(cores - 1, n_frames // MIN_FRAMES_PER_JOB))
-    if jobs > n_frames:
-        logger.warning("--jobs %d: the run has %d frames; using %d", jobs, n_frames, n_frames)
-        return max(1, n_frames)
+    most, why = n_frames, f"the run has {n_frames} frames"
+    if cores < most:
+        most, why = cores, f"this machine has {cores} usable cores"
+    if jobs > most:
+        logger.warning("--jobs %d: %s; using %d", jobs, why, max(1, most))
+        return max(1, most)
     return jobs
 
 
@@ -155,6 +163,8 @@ class ChunkTask:
     maps : MapsWork or None
         Make every frame's maps too (:mod:`holoview.headless.parallel.chunk_maps`); when it
         carries the chunk's carrier values, they are not measured again.
+    identity : InputIdentity or None
+        What the input was when the run started: the worker checks that it still is.
     """
 
     path: str
@@ -165,6 +175,7 @@ class ChunkTask:
     saturation: float | None
     read_ahead: int = DEFAULT_DEPTH
     maps: MapsWork | None = None
+    identity: InputIdentity | None = None
 
 
 @dataclass(frozen=True)
@@ -227,11 +238,13 @@ def make_tasks(
     saturation: float | None,
     read_ahead: int = DEFAULT_DEPTH,
     maps: Sequence[MapsWork] | None = None,
+    identity: InputIdentity | None = None,
 ) -> list[ChunkTask]:
     """One task per chunk of positions into ``frames`` (input indices).
 
     ``maps``: one :class:`~holoview.headless.parallel.chunk_maps.MapsWork` per chunk, when the
-    workers make every frame's maps too.
+    workers make every frame's maps too. With ``identity`` (the input's when the run
+    started) a worker refuses an input replaced since.
     """
     where = str(Path(path).resolve())
     return [
@@ -244,6 +257,7 @@ def make_tasks(
             saturation=saturation,
             read_ahead=read_ahead,
             maps=None if maps is None else maps[k],
+            identity=identity,
         )
         for k, chunk in enumerate(chunks)
     ]
@@ -256,6 +270,13 @@ def _open(task: ChunkTask) -> InputFile:
     except InputError as exc:
         host = socket.gethostname()
         raise InputError(f"a worker on {host} cannot read the input: {exc}") from None
+    if task.identity is not None:
+        now = InputIdentity.of(task.path, source.info.get("uuid"))
+        try:
+            task.identity.check(now, who=f"a worker on {socket.gethostname()}")
+        except InputError:
+            source.close()
+            raise
     if source.frame_shape != task.frame_shape:
         source.close()
         raise InputError(
@@ -271,9 +292,20 @@ def measure_chunk(task: ChunkTask) -> ChunkResult:
     Raises
     ------
     InputError
-        The worker cannot open or read the input, or finds frames of another shape
-        (the message names the worker's host).
+        The worker cannot open or read the input, finds it replaced since the run
+        started (the task's ``identity``), or finds frames of another shape (the
+        message names the worker's host).
     """
+    try:
+        return _measure_chunk(task)
+    except Exception:
+        if task.identity is not None:  # a file replaced while read can fail in any way
+            task.identity.check(who=f"a worker on {socket.gethostname()}")
+        raise
+
+
+def _measure_chunk(task: ChunkTask) -> ChunkResult:
+    """:func:`measure_chunk`, before a failure is put down to a replaced input."""
     worker = f"{socket.gethostname()}:{os.getpid()}"
     with _open(task) as source:
         n, m = len(task.indices), len(task.peaks)

@@ -35,6 +35,7 @@ from dataclasses import replace
 import numpy as np
 
 from holoview.headless.frame_passes import MapsSpec
+from holoview.headless.input_identity import InputIdentity
 from holoview.headless.inputs import InputFile
 from holoview.headless.parallel.chunk_maps import MapsWork
 from holoview.headless.parallel.chunks import ChunkResult, make_tasks, split_frames
@@ -128,6 +129,7 @@ def measure_chunks(
     peaks: Sequence[Peak],
     *,
     runner: ChunkRunner,
+    identity: InputIdentity | None = None,
     read_ahead: int = DEFAULT_DEPTH,
     progress: Callable[[int], None] | None = None,
     spread: Callable[[Callable[[int], None]], None] | None = None,
@@ -149,6 +151,8 @@ def measure_chunks(
         The demodulator's peaks.
     runner : ChunkRunner
         Where the chunks are measured.
+    identity : InputIdentity, optional
+        The input's when the run started: every worker checks it before each chunk.
     read_ahead : int
         Frames read ahead (by each worker, and here).
     progress : callable, optional
@@ -187,6 +191,7 @@ def measure_chunks(
         saturation=source.saturation,
         read_ahead=read_ahead,
         maps=works,
+        identity=identity,
     )
     logger.info("%d frames in %d chunks on %s", n, len(chunks), runner.name)
     series = data.series
@@ -257,6 +262,7 @@ def map_chunks(
     record: MapRecord,
     *,
     runner: ChunkRunner,
+    identity: InputIdentity | None = None,
     read_ahead: int = DEFAULT_DEPTH,
     progress: Callable[[int], None] | None = None,
 ) -> RunData:
@@ -276,6 +282,8 @@ def map_chunks(
         Counts and writes each frame's maps, in order.
     runner : ChunkRunner
         Where the chunks' maps are made.
+    identity : InputIdentity, optional
+        The input's when the run started: every worker checks it before each chunk.
     read_ahead : int
         Frames read ahead by each worker.
     progress : callable, optional
@@ -318,6 +326,7 @@ def map_chunks(
         saturation=source.saturation,
         read_ahead=read_ahead,
         maps=works,
+        identity=identity,
     )
 
     def add(result: ChunkResult) -> None:
