@@ -20,7 +20,7 @@ from holoview.engine.experiment import Experiment, LabelledPeak
 from holoview.errors import HoloviewError
 
 if TYPE_CHECKING:
-    from holoview.live.pipeline import LiveResult
+    from holoview.live.maps_pipeline import LiveResult
     from holoview.live.session import LiveSession
     from holoview.ui.spectrum_view import SpectrumView
     from holoview.ui.status_bar import LiveStatusBar

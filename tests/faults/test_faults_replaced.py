@@ -26,8 +26,8 @@ from faults_helpers import (
 
 from holoview.acquire.recording import RecordingWriter
 from holoview.errors import InputError
-from holoview.headless.chunks import make_tasks, measure_chunk
 from holoview.headless.input_identity import InputIdentity
+from holoview.headless.parallel.chunks import make_tasks, measure_chunk
 from holoview.processing.peaks.detection import Peak
 
 SHAPE = (3, 64, 48)  # frames, rows, cols of the small inputs

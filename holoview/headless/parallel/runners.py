@@ -1,7 +1,7 @@
 """Where chunks are measured: processes on this machine, or the workers of a Dask cluster.
 
-A :class:`ChunkRunner` takes :class:`~holoview.headless.chunks.ChunkTask` objects and
-hands back their :class:`~holoview.headless.chunks.ChunkResult` as they complete, in any
+A :class:`ChunkRunner` takes :class:`~holoview.headless.parallel.chunks.ChunkTask` objects and
+hands back their :class:`~holoview.headless.parallel.chunks.ChunkResult` as they complete, in any
 order (the stitching puts them in order), giving out :func:`in_flight` chunks at a time:
 
 - :class:`ProcessRunner` (``--jobs N``): a pool of ``N`` processes forked from a
@@ -21,7 +21,7 @@ order (the stitching puts them in order), giving out :func:`in_flight` chunks at
   workers' parent is the forkserver, which lives as long as a worker does.)
 - :class:`DaskRunner` (``--scheduler ADDRESS``, or ``local`` for a
   :class:`distributed.LocalCluster` of ``--jobs`` worker processes, started so that a
-  stop signal stops its start: :mod:`holoview.headless.dask_cluster`): the same tasks as
+  stop signal stops its start: :mod:`holoview.headless.parallel.dask_cluster`): the same tasks as
   Dask futures. The workers open the input by its path (it must be on storage they
   share, with holoview installed in their environment); a worker lost mid-run has its
   chunks measured again by Dask on another (``distributed.scheduler.allowed-failures``
@@ -49,8 +49,8 @@ from types import TracebackType
 from typing import Any, Self
 
 from holoview.errors import HoloviewError, InputError
-from holoview.headless.chunks import ChunkResult, ChunkTask, measure_chunk
-from holoview.headless.dask_cluster import CONNECT_TIMEOUT_S, LocalDask, check_scheduler
+from holoview.headless.parallel.chunks import ChunkResult, ChunkTask, measure_chunk
+from holoview.headless.parallel.dask_cluster import CONNECT_TIMEOUT_S, LocalDask, check_scheduler
 
 logger = logging.getLogger(__name__)
 
@@ -65,7 +65,7 @@ SINGLE_THREADED = {
 }
 
 #: What the forkserver imports once for every local worker.
-PRELOAD = ["holoview.headless.chunks"]
+PRELOAD = ["holoview.headless.parallel.chunks"]
 
 #: Seconds between two looks at the parent where the system cannot wait on it (no pidfd).
 PARENT_POLL_S = 0.2
@@ -296,7 +296,7 @@ class DaskRunner(ChunkRunner):
     ------
     InputError
         No scheduler answers at the address within
-        :data:`~holoview.headless.dask_cluster.CONNECT_TIMEOUT_S` (or something else
+        :data:`~holoview.headless.parallel.dask_cluster.CONNECT_TIMEOUT_S` (or something else
         answers), or it has no worker within :data:`WORKERS_TIMEOUT_S`.
     KeyboardInterrupt
         A stop signal while the local cluster starts (its processes are ended first).
@@ -394,7 +394,7 @@ def open_runner(jobs: int, scheduler: str | None = None) -> ChunkRunner:
     Parameters
     ----------
     jobs : int
-        Local worker processes, as :func:`~holoview.headless.chunks.plan_jobs` settled
+        Local worker processes, as :func:`~holoview.headless.parallel.chunks.plan_jobs` settled
         them (at least 1).
     scheduler : str, optional
         A Dask scheduler's address, or ``"local"``.
