@@ -51,11 +51,11 @@ import xarray as xr
 
 from holoview.engine.experiment import Experiment
 from holoview.errors import InputError
-from holoview.headless.exports import Export, Progress, export_results
 from holoview.headless.inputs import InputFile, OpticsOptions
-from holoview.headless.pipeline import ProcessSettings
-from holoview.headless.results_data import open_results as _open_results
-from holoview.headless.run import PeakChoice, ProcessOutcome, process_file
+from holoview.headless.results.exports import Export, Progress, export_results
+from holoview.headless.results.results_data import open_results as _open_results
+from holoview.headless.run import ProcessOutcome, process_file
+from holoview.headless.settings import PeakChoice, ProcessOptions, ProcessSettings
 
 logger = logging.getLogger(__name__)
 
@@ -286,11 +286,9 @@ def process(
         threads=threads,
         background=None if background is None else str(background),
     )
-    return process_file(
-        recording,
-        out,
+    options = ProcessOptions(
         choice=choice,
-        optics_options=optics,
+        optics=optics,
         settings=settings,
         frames=_frame_range(frames),
         report=report,
@@ -298,6 +296,7 @@ def process(
         jobs=jobs,
         scheduler=scheduler,
     )
+    return process_file(recording, out, options)
 
 
 class _Frames:
@@ -352,6 +351,9 @@ class Recording:
         Each frame's time, s, from 0 at the first: the camera's clock, else the host's
         arrival times, or ``index / fps``; None when the file has no times and no
         ``fps`` was given.
+    times_note : str
+        Which clock timed the frames and why (the rule of ``holoview process``'s notes),
+        or why there are no times.
     setup : dict
         A holoview recording's optical setup (``wavelength_m``, ``pixel_pitch_m``,
         ``n1``, ``n2``, ...); empty for other files.
@@ -382,11 +384,19 @@ class Recording:
             name="holoview-frames-" + tokenize(str(self.path), stat.st_mtime_ns, shape),
             meta=np.empty((0, 0, 0), source.dtype),
         )
-        try:
-            self.times: np.ndarray | None = source.times(range(n), fps) if n else None
-        except InputError as exc:
-            logger.info("%s", exc)
-            self.times = None
+        #: How the times were found (the clock rule's note), or why there are none.
+        self.times_note = ""
+        self.times: np.ndarray | None = None
+        if n:
+            try:
+                found = source.times(range(n), fps)
+            except InputError as exc:
+                logger.info("%s", exc)
+                self.times_note = str(exc)
+            else:
+                self.times, self.times_note = found.times, found.note
+                if found.warning:
+                    logger.warning("%s", found.note)
         self.experiments: list[tuple[int, Experiment]] = []
         for start, text in source.experiments:
             where = f"{self.path} experiment (from frame {start})"
@@ -487,7 +497,7 @@ def open_results(
     ``maps`` gives ``h(time, y, x)`` per peak and ``fused`` (m; ``time`` in s, ``y``
     and ``x`` in m on the object side, at the map pixels' centres); ``trends`` the
     series by ``(time, label)``; ``peaks`` the table by ``label``. Format 1.0 files
-    open the same way (:mod:`holoview.headless.results_data`).
+    open the same way (:mod:`holoview.headless.results.results_data`).
 
     Parameters
     ----------
@@ -564,7 +574,7 @@ def export(
     Raises
     ------
     InputError
-        See :func:`holoview.headless.exports.export_results`.
+        See :func:`holoview.headless.results.exports.export_results`.
     OutputError
         The output could not be written (nothing is left at ``out``).
 

@@ -1,7 +1,7 @@
 """The height maps of a ``results.h5`` for the wave analyses, read a block of frames at a time.
 
 The maps are ``/maps/<label>`` (``holoview process --maps``; layout in
-:mod:`holoview.headless.outputs`), read through h5py by dataset name, so that a file
+:mod:`holoview.headless.results.outputs`), read through h5py by dataset name, so that a file
 with netCDF dimension scales attached reads the same. Each needs:
 
 - heights (``unit`` ``m``): a peak without alpha keeps phases and is refused;

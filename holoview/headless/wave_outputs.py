@@ -50,7 +50,7 @@ import numpy as np
 
 from holoview import __version__
 from holoview.errors import OutputError, os_error_text
-from holoview.headless.output_folder import OutputFolder
+from holoview.headless.results.output_folder import OutputFolder
 from holoview.headless.wave_figures import FIGURES, draw_figures
 from holoview.headless.wave_input import WaveMaps, open_wave_maps
 from holoview.headless.waves import WaveOptions, WaveResults, analyse_waves, summary_values
@@ -291,7 +291,7 @@ def run_waves(
 ) -> WavesOutcome:
     """Analyse one label's maps of a ``results.h5`` and write the outputs into ``out``.
 
-    The output folder follows :mod:`holoview.headless.output_folder`: earlier outputs
+    The output folder follows :mod:`holoview.headless.results.output_folder`: earlier outputs
     of this command are replaced only with ``overwrite``, and only when every file is
     complete.
 
