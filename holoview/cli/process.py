@@ -249,9 +249,13 @@ def run(args: argparse.Namespace) -> int:
         )
     if waves is not None:
         from holoview.headless.run import RESULTS_H5
-        from holoview.headless.wave_outputs import run_waves
+        from holoview.headless.waves.outputs import run_waves
 
-        analysed = run_waves(outcome.out / RESULTS_H5, outcome.out, waves, overwrite=args.overwrite)
+        written = [path for path in outcome.files if path.name == RESULTS_H5]
+        if not written:  # an interrupted run returned 130 above: this is a bug
+            raise RuntimeError(f"process --maps wrote no {RESULTS_H5} in {outcome.out}")
+        # the maps step's fused maps, as the run wrote them (results.h5 2.0)
+        analysed = run_waves(written[0], outcome.out, waves, overwrite=args.overwrite)
         if not args.quiet:
             emit(summary_line(outcome.out, analysed.summary))
     return 0

@@ -1,7 +1,7 @@
 """``holoview waves``: the wave analyses of the maps in a ``results.h5``.
 
 Reads one label's height maps (``holoview process --maps``), writes ``waves.h5``,
-``waves.json`` and PNG figures into ``--out`` (:mod:`holoview.headless.wave_outputs`):
+``waves.json`` and PNG figures into ``--out`` (:mod:`holoview.headless.waves.outputs`):
 the omega-k spectrum with the dispersion relation fitted (sigma, d, U with standard
 errors), E(k) and E(f); around a centre the (m, f) spectrum, the partial waves'
 incoming and outgoing amplitudes and a ringdown; lock-in maps at a drive frequency; a
@@ -176,8 +176,8 @@ def _band(args: argparse.Namespace) -> Any:
 
 
 def wave_options(args: argparse.Namespace) -> Any:
-    """Return the :class:`~holoview.headless.waves.WaveOptions` the arguments give."""
-    from holoview.headless.waves import WaveOptions
+    """Return the :class:`~holoview.headless.waves.analysis.WaveOptions` the arguments give."""
+    from holoview.headless.waves.analysis import WaveOptions
     from holoview.optics.surfaces import FLUID_MECHANICS
     from holoview.processing.waves.dispersion import Fluid
 
@@ -272,7 +272,7 @@ def summary_line(out: Path, summary: dict[str, Any]) -> str:
 
 def run(args: argparse.Namespace) -> int:
     """Analyse, write, print one line."""
-    from holoview.headless.wave_outputs import run_waves
+    from holoview.headless.waves.outputs import run_waves
 
     options = wave_options(args)
     for name, value in (("--pixel-size-um", args.pixel_size_um), ("--fps", args.fps)):

@@ -1,6 +1,6 @@
 """The wave analyses of one label's maps, streamed from a ``results.h5`` in a few passes.
 
-:func:`analyse_waves` reads the maps a block at a time (:mod:`~holoview.headless.wave_input`)
+:func:`analyse_waves` reads the maps a block at a time (:mod:`~holoview.headless.waves.maps`)
 and runs the Qt-free analyses of :mod:`holoview.processing.waves`, so memory stays a
 segment's whatever the number of frames:
 
@@ -29,7 +29,7 @@ from typing import Any
 import numpy as np
 
 from holoview.errors import InputError
-from holoview.headless.wave_input import WaveMaps
+from holoview.headless.waves.maps import WaveMaps
 from holoview.optics.surfaces import dispersion_k
 from holoview.processing.waves.azimuthal import (
     AzimuthalAccumulator,

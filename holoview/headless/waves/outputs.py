@@ -30,7 +30,7 @@ coordinates attached as HDF5 dimension scales (xarray reads each group with
   ``x``; the band in the attributes.
 
 ``waves.json`` (format ``holoview-waves-summary`` 1.0): the input, the clock, every value
-with its standard error and unit (:func:`~holoview.headless.waves.summary_values`), the
+with its standard error and unit (:func:`~holoview.headless.waves.analysis.summary_values`), the
 notes, the figures and the timing.
 """
 
@@ -51,9 +51,9 @@ import numpy as np
 from holoview import __version__
 from holoview.errors import OutputError, os_error_text
 from holoview.headless.results.output_folder import OutputFolder
-from holoview.headless.wave_figures import FIGURES, draw_figures
-from holoview.headless.wave_input import WaveMaps, open_wave_maps
-from holoview.headless.waves import WaveOptions, WaveResults, analyse_waves, summary_values
+from holoview.headless.waves.analysis import WaveOptions, WaveResults, analyse_waves, summary_values
+from holoview.headless.waves.figures import FIGURES, draw_figures
+from holoview.headless.waves.maps import WaveMaps, open_wave_maps
 from holoview.processing.waves.filters import band_filter
 from holoview.processing.waves.omega_k import SIGN_CONVENTION
 

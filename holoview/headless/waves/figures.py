@@ -1,6 +1,6 @@
 """The figures of ``holoview waves``, drawn with matplotlib (Agg, no pyplot state).
 
-Each function draws one PNG from :class:`~holoview.headless.waves.WaveResults`, axes in
+Each function draws one PNG from :class:`~holoview.headless.waves.analysis.WaveResults`, axes in
 physical units (k in rad/m, f in Hz, r in mm, heights in nm), for a talk:
 
 - ``omega_k.png``: the power against f and |k| (all directions), and along the flow
@@ -30,7 +30,7 @@ from matplotlib.figure import Figure
 from matplotlib.ticker import FuncFormatter
 from scipy import special
 
-from holoview.headless.waves import WaveResults
+from holoview.headless.waves.analysis import WaveResults
 
 __all__ = ["FIGURES", "draw_figures"]
 
