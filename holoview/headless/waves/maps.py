@@ -38,7 +38,7 @@ from holoview.processing.waves.clock import FrameClock, frame_clock
 
 logger = logging.getLogger(__name__)
 
-__all__ = ["CHECKPOINT", "WaveMaps", "open_wave_maps"]
+__all__ = ["CHECKPOINT", "WaveMaps", "open_wave_maps", "results_path"]
 
 #: Frames between the kept running sums of relative maps.
 CHECKPOINT = 256
@@ -159,6 +159,12 @@ def _attr(attrs: Any, name: str) -> Any:
     return value.decode() if isinstance(value, bytes) else value
 
 
+def results_path(path: str | Path) -> Path:
+    """``path``, or the ``results.h5`` in it when it is a run's output folder."""
+    given = Path(path)
+    return given / "results.h5" if given.is_dir() else given
+
+
 def open_wave_maps(
     path: str | Path,
     label: str = "fused",
@@ -172,7 +178,7 @@ def open_wave_maps(
     Parameters
     ----------
     path : str or Path
-        A ``results.h5`` written by ``holoview process --maps``.
+        A ``results.h5`` written by ``holoview process --maps`` (or its folder).
     label : str
         ``fused`` or a peak's label.
     time_range : (float or None, float or None), optional
@@ -188,7 +194,7 @@ def open_wave_maps(
         Not an HDF5 file, no maps, no such label, phase maps, no pixel size, no
         times, or fewer than two frames in the time range.
     """
-    file_path = Path(path)
+    file_path = results_path(path)
     if not file_path.is_file():
         raise InputError(f"{file_path}: no such file")
     try:
