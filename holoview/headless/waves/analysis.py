@@ -32,6 +32,7 @@ from holoview.errors import InputError
 from holoview.headless.waves.maps import WaveMaps
 from holoview.optics.surfaces import dispersion_k
 from holoview.processing.waves.azimuthal import (
+    CENTRE_TOLERANCE_PX,
     AzimuthalAccumulator,
     MFSpectrum,
     PolarGrid,
@@ -295,14 +296,15 @@ def _auto_centre(maps: WaveMaps, options: WaveOptions, results: WaveResults) -> 
             )
         )
     results.centre = centres[0]
-    results.centre_stderr = (
-        0.5 * abs(centres[1][0] - centres[2][0]),
-        0.5 * abs(centres[1][1] - centres[2][1]),
+    results.centre_stderr = (  # never below where the search stops
+        max(0.5 * abs(centres[1][0] - centres[2][0]), CENTRE_TOLERANCE_PX * dx),
+        max(0.5 * abs(centres[1][1] - centres[2][1]), CENTRE_TOLERANCE_PX * dy),
     )
     results.centre_method = (
         f"auto: least entropy over m of the lock-in map (equal weights) at "
         f"{frequency:.4g} Hz, "
-        f"rings to {radius * 1e3:.3g} mm; error: half the difference of the two halves' centres"
+        f"rings to {radius * 1e3:.3g} mm; error: half the difference of the two halves' "
+        f"centres, at least the search's tolerance ({CENTRE_TOLERANCE_PX:g} pixel)"
     )
 
 

@@ -131,7 +131,11 @@ def omega_k_figure(results: WaveResults, path: Path) -> None:
         q, spectrum.frequency, along, norm=_log_norm(along), shading="nearest", cmap=cmap
     )
     flowing = fit is not None and any(fit.flow)
-    right.set_xlabel(f"wavenumber along {math.degrees(angle):.0f}° (rad/m; < 0: against)")
+    right.set_xlabel(
+        f"wavenumber along {math.degrees(angle):.0f}° (rad/m; < 0: against the flow)"
+        if flowing
+        else "wavenumber along x (rad/m; < 0: travelling towards -x)"
+    )
     right.set_title("power along the flow (zoom)" if flowing else "power along x (zoom)")
     reach = _extent(*spectrum.energy_k(), spectrum.k_cut)
     if fit is not None:
