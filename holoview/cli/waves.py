@@ -1,7 +1,7 @@
 """``holoview waves``: the wave analyses of the maps in a ``results.h5``.
 
 Reads one label's height maps (``holoview process --maps``), writes ``waves.h5``,
-``waves.json`` and PNG figures into ``--out`` (:mod:`holoview.headless.wave_outputs`):
+``waves.json`` and PNG figures into ``--out`` (:mod:`holoview.headless.waves.outputs`):
 the omega-k spectrum with the dispersion relation fitted (sigma, d, U with standard
 errors), E(k) and E(f); around a centre the (m, f) spectrum, the partial waves'
 incoming and outgoing amplitudes and a ringdown; lock-in maps at a drive frequency; a
@@ -69,7 +69,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
         "by holoview process --maps) as a wave field h(t, y, x) and write waves.h5, "
         "waves.json and PNG figures into DIR.",
     )
-    parser.add_argument("input", type=Path, metavar="INPUT", help="a results.h5 with maps")
+    parser.add_argument(
+        "input", type=Path, metavar="INPUT", help="a results.h5 with maps, or the run's folder"
+    )
     parser.add_argument("--out", type=Path, required=True, metavar="DIR", help="output folder")
     parser.add_argument("--overwrite", action="store_true", help="replace earlier waves outputs")
     parser.add_argument(
@@ -176,8 +178,8 @@ def _band(args: argparse.Namespace) -> Any:
 
 
 def wave_options(args: argparse.Namespace) -> Any:
-    """Return the :class:`~holoview.headless.waves.WaveOptions` the arguments give."""
-    from holoview.headless.waves import WaveOptions
+    """Return the :class:`~holoview.headless.waves.analysis.WaveOptions` the arguments give."""
+    from holoview.headless.waves.analysis import WaveOptions
     from holoview.optics.surfaces import FLUID_MECHANICS
     from holoview.processing.waves.dispersion import Fluid
 
@@ -270,15 +272,15 @@ def summary_line(out: Path, summary: dict[str, Any]) -> str:
     return "; ".join(parts)
 
 
-def run(args: argparse.Namespace) -> int:
-    """Analyse, write, print one line."""
-    from holoview.headless.wave_outputs import run_waves
+def analyse(args: argparse.Namespace) -> Any:
+    """Analyse and write as the arguments say; return the :class:`WavesOutcome`."""
+    from holoview.headless.waves.outputs import run_waves
 
     options = wave_options(args)
     for name, value in (("--pixel-size-um", args.pixel_size_um), ("--fps", args.fps)):
         if value is not None and not (math.isfinite(value) and value > 0):
             raise InputError(f"{name} must be positive, got {value}")
-    outcome = run_waves(
+    return run_waves(
         args.input,
         args.out,
         options,
@@ -288,6 +290,11 @@ def run(args: argparse.Namespace) -> int:
         fps=args.fps,
         overwrite=args.overwrite,
     )
+
+
+def run(args: argparse.Namespace) -> int:
+    """Analyse, write, print one line."""
+    outcome = analyse(args)
     if not args.quiet:
         emit(summary_line(args.out, outcome.summary))
     return 0

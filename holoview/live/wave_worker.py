@@ -17,7 +17,8 @@ held, :meth:`WavesWorker._window_radius`), into a
 - a replay played as fast as it reads waits for it (:meth:`WavesWorker.wait_for_room`),
   so a replay at full speed fills the panel from every frame;
 - frames lost before it read them are gaps in the history (by the frame times),
-  never closed.
+  never closed; a replay's jump, or a demodulator rebuilt (new peaks: its reference
+  starts again), starts the history again.
 
 A second thread (``holoview-waves-fit``) analyses the history at most :data:`WAVES_HZ`
 times a second, and less often when an analysis takes more than :data:`FIT_SHARE` of
@@ -41,7 +42,8 @@ import numpy as np
 from holoview.acquire.ring import FrameRing
 from holoview.acquire.source import FrameMeta
 from holoview.engine.experiment import Experiment
-from holoview.engine.frame_core import Coregistration, FrameCore, fuse_maps, trusted_maps
+from holoview.engine.frame_core import FrameCore
+from holoview.engine.map_step import MapStep
 from holoview.engine.series import frame_time
 from holoview.errors import HoloviewError, InputError
 from holoview.live.continuity import Continuity
@@ -53,7 +55,6 @@ from holoview.live.wave_window import (
     analyse_window,
 )
 from holoview.live.worker import YIELDING_NICENESS, DemodWorker, RingWorker, yield_to_others
-from holoview.processing.maps.demod_results import DemodResult
 from holoview.processing.peaks.detection import Peak
 from holoview.processing.peaks.radii import peak_radii
 
@@ -73,20 +74,19 @@ MAX_STRIDE = 16
 TARGET_BUSY = 0.8
 #: Seconds a smaller stride must have sufficed before the stride halves.
 RELAX_S = 5.0
-#: Seconds between two coregistrations of the fused map's peaks.
+#: Seconds between two frames added to the fused map's displacement estimate.
 COREGISTER_S = 0.5
 
 
 def _chosen(peaks: tuple[Peak, ...], label: str) -> list[Peak]:
     """The peaks whose maps make the map ``label`` (InputError when there is none)."""
-    if label == FUSED:
-        heights = [p for p in peaks if p.label and p.alpha is not None]
-        if len(heights) < 2:
+    if label == FUSED:  # every peak, as the maps worker's fused map (the engine chooses)
+        if sum(1 for p in peaks if p.label and p.alpha is not None) < 2:
             raise InputError(
                 "no fused map: fewer than two labelled peaks have a height prefactor; "
                 "label peaks in the Spectrum or choose one peak's map"
             )
-        return heights
+        return [p for p in peaks if p.label]
     found = [p for p in peaks if p.label == label]
     if not found:
         raise InputError(
@@ -133,8 +133,8 @@ class WavesWorker(RingWorker):
         self.history.label = settings.label
         self.stride = 1
         self._core: FrameCore | None = None
+        self._maps_step: MapStep | None = None
         self._radius: tuple[tuple, float] | None = None
-        self._coregistration = Coregistration()
         self._coregistered_at = -math.inf
         self._continuity = Continuity()
         self._costs: collections.deque[float] = collections.deque(maxlen=16)  # s per map
@@ -241,7 +241,7 @@ class WavesWorker(RingWorker):
         built = self._core is None or self._core.demodulator is not demodulator
         with self._lock:
             history = self.history
-            if jumped:  # a replay's seek, step back or loop: a new record
+            if jumped or built:  # a replay's jump; a new demodulator (its reference anew)
                 history.clear()
             if pixel_size != history.pixel_size or k_cut != history.k_cut:
                 history.clear()
@@ -302,13 +302,22 @@ class WavesWorker(RingWorker):
         label = self.settings.label
         chosen = _chosen(peaks, label)
         experiment = replace(experiment, radius=self._window_radius(chosen, peaks, experiment))
-        if self._core is None:
+        if self._core is None or self._maps_step is None:
             self._core = FrameCore(self.frame_shape, experiment, chosen, saturation=self.saturation)
+            self._maps_step = MapStep(self._core)
         self._core.configure(experiment, chosen)
-        demod = self._core.process(pixels)
-        if demod is None:
-            raise InputError(f"no map of {label}: no peak to demodulate")
-        height = self._height(demod, label)
+        fused = label == FUSED
+        now = time.monotonic()
+        estimate = fused and now - self._coregistered_at >= COREGISTER_S
+        maps = self._maps_step.process(pixels, estimate=estimate, fuse=fused)
+        demod = maps.result
+        if demod is None or not maps.maps:
+            raise InputError(f"no map of {label} from this frame ({', '.join(maps.flags)})")
+        if estimate:
+            self._coregistered_at = now
+        height = maps.fused if fused else maps.maps[0]
+        if height is None:
+            raise InputError("no fused map: fewer than two peaks give a height on this frame")
         rows, cols = self.frame_shape
         by, bx = demod.box_shape
         pitch = experiment.pixel_pitch_m
@@ -343,25 +352,6 @@ class WavesWorker(RingWorker):
                 min(r for p, r in zip(peaks, radii, strict=True) if p.label in wanted),
             )
         return self._radius[1]
-
-    def _height(self, demod: DemodResult, label: str) -> np.ndarray:
-        maps = trusted_maps(demod)
-        if label != FUSED:
-            return maps[0]
-        now = time.monotonic()
-        if now - self._coregistered_at >= COREGISTER_S:
-            self._coregistration.add(demod, maps)
-            self._coregistered_at = now
-        fused = fuse_maps(
-            maps,
-            [r.noise_height for r in demod.peaks],
-            ["phase_step" in r.flags for r in demod.peaks],
-            self._coregistration.displacements(demod),
-            method="cubic",
-        )
-        if fused is None:
-            raise InputError("no fused map: fewer than two peaks give a height on this frame")
-        return fused
 
     # ---- the analyses ----------------------------------------------------------
     def _fit_loop(self) -> None:

@@ -21,7 +21,7 @@ from holoview.live.wave_window import WaveSettings
 from holoview.ui.waves_view import WavesView
 
 if TYPE_CHECKING:
-    from holoview.live.pipeline import LiveResult
+    from holoview.live.maps_pipeline import LiveResult
     from holoview.live.session import LiveSession
 
 

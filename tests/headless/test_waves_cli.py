@@ -158,15 +158,29 @@ def test_process_maps_waves_in_one_run(
 
 
 def results_file(
-    path: Path, maps: np.ndarray, times: np.ndarray | None, pixel: float | None
+    path: Path,
+    maps: np.ndarray,
+    times: np.ndarray | None,
+    pixel: float | None,
+    *,
+    version: str = "2.0",
 ) -> Path:
-    """A results.h5 with one fused map stack, as process --maps writes it (the parts read)."""
+    """A results.h5 with one fused map stack, as process --maps writes it (the parts read).
+
+    Version 2.0: ``units`` and the maps' ``time`` dimension scale; 1.0: ``unit`` and
+    ``/trends/time_s``.
+    """
     with h5py.File(path, "w") as f:
         dataset = f.create_dataset("maps/fused", data=maps.astype(np.float32))
-        dataset.attrs.update({"unit": "m", "quantity": "delta_h", "reference": "absolute"})
+        unit = "units" if version == "2.0" else "unit"
+        dataset.attrs.update({unit: "m", "quantity": "delta_h", "reference": "absolute"})
         if pixel is not None:
             dataset.attrs["pixel_size_m"] = [pixel, pixel]
-        if times is not None:
+        if times is not None and version == "2.0":
+            f["maps/time"] = times
+            f["maps/time"].make_scale("time")
+            dataset.dims[0].attach_scale(f["maps/time"])
+        elif times is not None:
             f["trends/time_s"] = times
     return path
 
@@ -287,6 +301,28 @@ def test_bad_input_is_one_line_exit_2_and_writes_nothing(
     assert message in err
     assert err.count("\n") == 1 and "Traceback" not in err
     assert not out.exists() or not any(out.iterdir())
+
+
+def test_phase_maps_are_refused_and_a_1_0_file_reads_as_2_0(
+    tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    x = np.arange(24)[None, :] * 1e-3
+    times = np.arange(128) / 100.0
+    maps = np.array([1e-8 * np.cos(800 * x - 2 * np.pi * 20 * t) + 0 * x.T for t in times])
+    argv = ["--segment", "64", "--no-fit"]
+    summaries = []
+    for version in ("2.0", "1.0"):
+        path = results_file(tmp_path / f"{version}.h5", maps, times, 1e-3, version=version)
+        out = tmp_path / f"out{version}"
+        assert run_cli(["waves", str(path), "--out", str(out), *argv], capsys)[0] == 0
+        summaries.append(json.loads((out / "waves.json").read_text()))
+    assert summaries[0]["omega_k"] == summaries[1]["omega_k"]
+    assert summaries[0]["input"]["frames"] == 128
+    path = results_file(tmp_path / "phase.h5", maps, times, 1e-3)
+    with h5py.File(path, "r+") as f:
+        f["maps/fused"].attrs.update({"units": "rad", "quantity": "phase"})
+    status, _, err = run_cli(["waves", str(path), "--out", str(tmp_path / "p"), *argv], capsys)
+    assert status == 2 and "not heights" in err and err.count("\n") == 1
 
 
 def test_earlier_outputs_are_kept_without_overwrite(

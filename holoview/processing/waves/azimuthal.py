@@ -51,6 +51,7 @@ from holoview.processing.waves.omega_k import SEGMENT, hann, pixel_pair
 logger = logging.getLogger(__name__)
 
 __all__ = [
+    "CENTRE_TOLERANCE_PX",
     "AzimuthalAccumulator",
     "MFSpectrum",
     "PolarGrid",
@@ -61,6 +62,9 @@ __all__ = [
 
 #: Points per side of the coarse grid a centre search starts from.
 CENTRE_GRID = 7
+
+#: Where the centre search stops: its steps below this, map pixels.
+CENTRE_TOLERANCE_PX = 0.05
 
 #: Frames whose ring samples are made at once (a few MB: reused, not mapped afresh).
 MODES_CHUNK = 16
@@ -521,7 +525,11 @@ def find_centre(
         score,
         first,
         method="Nelder-Mead",
-        options={"initial_simplex": simplex, "xatol": 0.05 * min(dx, dy), "fatol": 1e-7},
+        options={
+            "initial_simplex": simplex,
+            "xatol": CENTRE_TOLERANCE_PX * min(dx, dy),
+            "fatol": 1e-7,
+        },
     )
     if not np.isfinite(result.fun):
         raise InputError("no centre can be found: the rings meet untrusted pixels everywhere")

@@ -5,9 +5,10 @@ convention ``exp(-i omega t)`` (its power at numpy's frequency ``-f``). The fit:
 
 1. each ring's series ``h_m(r, t)`` is band-passed to ``f1 <= f <= f2`` by a complex
    FIR filter (a Hann-windowed sinc of half-width ``(f2 - f1) / 2`` moved to the band's
-   centre at ``-f``), run within each gap-free run in "valid" mode, so no output mixes
-   frames across a gap or past a run's ends. A linear filter keeps a damped
-   exponential's ``gamma`` and ``omega``: only its complex amplitude changes;
+   centre at ``-f``, at most a quarter of the longest gap-free run long, so that most
+   of the record is left to fit), run within each gap-free run in "valid" mode, so no
+   output mixes frames across a gap or past a run's ends. A linear filter keeps a
+   damped exponential's ``gamma`` and ``omega``: only its complex amplitude changes;
 2. the rings are combined with the leading singular vector of the filtered
    ``(time, ring)`` matrix (rings weighted by ``r``), giving one series ``z(t)``;
 3. ``z(t) = C exp(-(gamma + i omega)(t - t0))`` is fitted by least squares on the
@@ -97,11 +98,24 @@ class Ringdown:
         }
 
 
-def band_pass_taps(band: tuple[float, float], interval: float) -> NDArray[np.complex128]:
+def band_pass_taps(
+    band: tuple[float, float], interval: float, *, max_taps: int | None = None
+) -> NDArray[np.complex128]:
     """Return a complex FIR band-pass for ``exp(-i omega t)`` with ``f`` in ``band`` (Hz).
 
     A Hann-windowed sinc, four periods of the band's half-width long (odd, at least
     9 taps), moved to numpy's frequency ``-f_centre``; gain 1 at the centre.
+
+    Parameters
+    ----------
+    band : (float, float)
+        ``f1, f2``, Hz.
+    interval : float
+        Time between frames, s.
+    max_taps : int, optional
+        At most this many taps (at least 9): a shorter filter leaves more of a short
+        record to fit, and its band's edges are softer (about ``2 / (taps interval)`` Hz
+        wide).
     """
     f1, f2 = band
     if not (0 <= f1 < f2 <= 0.5 / interval):
@@ -110,7 +124,10 @@ def band_pass_taps(band: tuple[float, float], interval: float) -> NDArray[np.com
             f"{0.5 / interval:.4g} Hz and increase"
         )
     half = 0.5 * (f2 - f1)
-    n = max(9, 2 * math.ceil(2.0 / (half * interval)) + 1)
+    n = 2 * math.ceil(2.0 / (half * interval)) + 1
+    if max_taps is not None:
+        n = min(n, max_taps - (1 - max_taps % 2))  # odd
+    n = max(9, n)
     t = (np.arange(n) - (n - 1) / 2) * interval
     taps = 2 * half * np.sinc(2 * half * t) * np.hanning(n + 2)[1:-1]
     taps = taps * np.exp(-2j * np.pi * 0.5 * (f1 + f2) * t)
@@ -182,13 +199,13 @@ def fit_ringdown(
         raise InputError(f"ringdown m={m}: no ring is finite in every frame")
     data = data[:, rings]
     weight = np.ones(data.shape[1]) if radii is None else np.asarray(radii, float)[rings]
-    taps = band_pass_taps(band, clock.interval)
+    longest = max(b - a for a, b in clock.runs)
+    taps = band_pass_taps(band, clock.interval, max_taps=longest // 4)
     filtered, index = _filtered(data, clock.runs, taps)
     if index.size < 8:
         raise InputError(
             f"ringdown m={m} in {band[0]:g}:{band[1]:g} Hz: the band's filter needs runs of "
-            f"more than {taps.size + 8} frames without a gap; the longest has "
-            f"{max(b - a for a, b in clock.runs)}"
+            f"more than {taps.size + 8} frames without a gap; the longest has {longest}"
         )
     scaled = filtered * np.sqrt(weight)[np.newaxis, :]
     _, _, vh = np.linalg.svd(scaled, full_matrices=False)

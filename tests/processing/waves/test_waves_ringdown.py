@@ -61,6 +61,17 @@ def test_the_band_pass_has_unit_gain_in_its_band_and_none_outside():
 
 
 def test_runs_too_short_for_the_filter_are_refused():
-    times = np.arange(40) / FPS
+    times = np.arange(12) / FPS  # 9 taps at least: 4 samples, 8 needed
     with pytest.raises(InputError, match="runs of"):
-        fit_ringdown(times, np.ones(40, complex), (11.0, 13.0))
+        fit_ringdown(times, np.ones(12, complex), (11.0, 13.0))
+
+
+def test_the_filter_leaves_most_of_a_short_record_to_fit(ringing):
+    _, g, acc = ringing
+    times, series = acc.series()
+    fit = fit_ringdown(times, series[:, :, 0], (11.0, 13.0), m=2, radii=g.radii, start=0.0)
+    # four periods of a 1 Hz half-width would be 401 taps, longer than the 390 frames
+    assert fit.times.size > 0.5 * times.size
+    longest = 240  # frames 160-399, after the gap
+    taps = band_pass_taps((11.0, 13.0), 1 / FPS, max_taps=longest // 4)
+    assert taps.size == 59

@@ -1,6 +1,6 @@
 """The wave analyses of one label's maps, streamed from a ``results.h5`` in a few passes.
 
-:func:`analyse_waves` reads the maps a block at a time (:mod:`~holoview.headless.wave_input`)
+:func:`analyse_waves` reads the maps a block at a time (:mod:`~holoview.headless.waves.maps`)
 and runs the Qt-free analyses of :mod:`holoview.processing.waves`, so memory stays a
 segment's whatever the number of frames:
 
@@ -29,9 +29,10 @@ from typing import Any
 import numpy as np
 
 from holoview.errors import InputError
-from holoview.headless.wave_input import WaveMaps
+from holoview.headless.waves.maps import WaveMaps
 from holoview.optics.surfaces import dispersion_k
 from holoview.processing.waves.azimuthal import (
+    CENTRE_TOLERANCE_PX,
     AzimuthalAccumulator,
     MFSpectrum,
     PolarGrid,
@@ -295,14 +296,15 @@ def _auto_centre(maps: WaveMaps, options: WaveOptions, results: WaveResults) -> 
             )
         )
     results.centre = centres[0]
-    results.centre_stderr = (
-        0.5 * abs(centres[1][0] - centres[2][0]),
-        0.5 * abs(centres[1][1] - centres[2][1]),
+    results.centre_stderr = (  # never below where the search stops
+        max(0.5 * abs(centres[1][0] - centres[2][0]), CENTRE_TOLERANCE_PX * dx),
+        max(0.5 * abs(centres[1][1] - centres[2][1]), CENTRE_TOLERANCE_PX * dy),
     )
     results.centre_method = (
         f"auto: least entropy over m of the lock-in map (equal weights) at "
         f"{frequency:.4g} Hz, "
-        f"rings to {radius * 1e3:.3g} mm; error: half the difference of the two halves' centres"
+        f"rings to {radius * 1e3:.3g} mm; error: half the difference of the two halves' "
+        f"centres, at least the search's tolerance ({CENTRE_TOLERANCE_PX:g} pixel)"
     )
 
 

@@ -1,13 +1,17 @@
 """The height maps of a ``results.h5`` for the wave analyses, read a block of frames at a time.
 
-The maps are ``/maps/<label>`` (``holoview process --maps``; layout in
-:mod:`holoview.headless.outputs`), read through h5py by dataset name, so that a file
-with netCDF dimension scales attached reads the same. Each needs:
+The maps are ``/maps/<label>``, as the maps step writes them (``holoview process
+--maps``; results.h5 2.0, layout in :mod:`holoview.headless.results.results_layout`),
+read through h5py by dataset name; a 1.0 file (``unit``, ``/trends/time_s``) reads the
+same. Each needs:
 
-- heights (``unit`` ``m``): a peak without alpha keeps phases and is refused;
+- heights (``units`` ``m``): a peak without alpha keeps phases and is refused;
 - its pixel size (attribute ``pixel_size_m``, (dy, dx) in m), or one given;
-- the frame times (``/trends/time_s``, else a ``time`` dimension scale of the maps),
-  or a frame rate given (then the frames are taken as evenly spaced).
+- the frame times (the maps' ``time`` dimension scale, else ``/trends/time_s``), or a
+  frame rate given (then the frames are taken as evenly spaced).
+
+Positions (a centre) are from the first map pixel's centre, x along the columns and y
+down the rows: the maps' own ``x`` and ``y`` coordinates, which start at 0.
 
 The wavenumber cut-off of the maps is the demodulation window's radius
 (``radius_cpp``, cycles per frame pixel): ``k_cut = 2 pi radius_cpp / pitch`` with the
@@ -34,7 +38,7 @@ from holoview.processing.waves.clock import FrameClock, frame_clock
 
 logger = logging.getLogger(__name__)
 
-__all__ = ["CHECKPOINT", "WaveMaps", "open_wave_maps"]
+__all__ = ["CHECKPOINT", "WaveMaps", "open_wave_maps", "results_path"]
 
 #: Frames between the kept running sums of relative maps.
 CHECKPOINT = 256
@@ -139,19 +143,26 @@ class WaveMaps:
         self.close()
 
 
-def _times(file: h5py.File, dataset: h5py.Dataset, path: Path) -> np.ndarray | None:
-    if "trends/time_s" in file:
-        return np.asarray(file["trends/time_s"][:], dtype=np.float64)
+def _times(file: h5py.File, dataset: h5py.Dataset) -> np.ndarray | None:
+    """The maps' ``time`` dimension scale (2.0), else ``/trends/time_s`` (1.0), s."""
     for scale in dataset.dims[0].values() if len(dataset.dims) else ():
         name = scale.name.rsplit("/", 1)[-1]
         if name in ("time", "time_s"):
             return np.asarray(scale[:], dtype=np.float64)
+    if "trends/time_s" in file:
+        return np.asarray(file["trends/time_s"][:], dtype=np.float64)
     return None
 
 
 def _attr(attrs: Any, name: str) -> Any:
     value = attrs.get(name)
     return value.decode() if isinstance(value, bytes) else value
+
+
+def results_path(path: str | Path) -> Path:
+    """``path``, or the ``results.h5`` in it when it is a run's output folder."""
+    given = Path(path)
+    return given / "results.h5" if given.is_dir() else given
 
 
 def open_wave_maps(
@@ -167,7 +178,7 @@ def open_wave_maps(
     Parameters
     ----------
     path : str or Path
-        A ``results.h5`` written by ``holoview process --maps``.
+        A ``results.h5`` written by ``holoview process --maps`` (or its folder).
     label : str
         ``fused`` or a peak's label.
     time_range : (float or None, float or None), optional
@@ -183,7 +194,7 @@ def open_wave_maps(
         Not an HDF5 file, no maps, no such label, phase maps, no pixel size, no
         times, or fewer than two frames in the time range.
     """
-    file_path = Path(path)
+    file_path = results_path(path)
     if not file_path.is_file():
         raise InputError(f"{file_path}: no such file")
     try:
@@ -215,7 +226,7 @@ def _open(
     if dataset.ndim != 3:
         raise InputError(f"{path}: maps/{label} is not a (frames, rows, cols) stack")
     attrs = dataset.attrs
-    unit = _attr(attrs, "unit")
+    unit = _attr(attrs, "units") or _attr(attrs, "unit")  # results.h5 2.0, else 1.0
     if unit not in (None, "m"):
         raise InputError(
             f"{path}: maps/{label} holds {_attr(attrs, 'quantity') or unit} ({unit}), not "
@@ -236,10 +247,10 @@ def _open(
     if fps is not None:
         times = np.arange(n_frames) / float(fps)
     else:
-        found = _times(file, dataset, path)
+        found = _times(file, dataset)
         if found is None:
             raise InputError(
-                f"{path} carries no frame times (/trends/time_s); give the frame rate with --fps"
+                f"{path} carries no frame times (maps/time); give the frame rate with --fps"
             )
         times = found
     if times.size != n_frames:

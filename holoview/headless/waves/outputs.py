@@ -30,7 +30,7 @@ coordinates attached as HDF5 dimension scales (xarray reads each group with
   ``x``; the band in the attributes.
 
 ``waves.json`` (format ``holoview-waves-summary`` 1.0): the input, the clock, every value
-with its standard error and unit (:func:`~holoview.headless.waves.summary_values`), the
+with its standard error and unit (:func:`~holoview.headless.waves.analysis.summary_values`), the
 notes, the figures and the timing.
 """
 
@@ -50,10 +50,10 @@ import numpy as np
 
 from holoview import __version__
 from holoview.errors import OutputError, os_error_text
-from holoview.headless.output_folder import OutputFolder
-from holoview.headless.wave_figures import FIGURES, draw_figures
-from holoview.headless.wave_input import WaveMaps, open_wave_maps
-from holoview.headless.waves import WaveOptions, WaveResults, analyse_waves, summary_values
+from holoview.headless.results.output_folder import OutputFolder
+from holoview.headless.waves.analysis import WaveOptions, WaveResults, analyse_waves, summary_values
+from holoview.headless.waves.figures import FIGURES, draw_figures
+from holoview.headless.waves.maps import WaveMaps, open_wave_maps, results_path
 from holoview.processing.waves.filters import band_filter
 from holoview.processing.waves.omega_k import SIGN_CONVENTION
 
@@ -270,9 +270,24 @@ def _write_filtered(group: h5py.Group, maps: WaveMaps, options: WaveOptions) -> 
 
 
 class WavesOutcome:
-    """What :func:`run_waves` produced: the results, the summary and the files."""
+    """What :func:`run_waves` produced.
 
-    def __init__(self, results: WaveResults, summary: dict[str, Any], files: list[Path]):
+    Attributes
+    ----------
+    out : Path
+        The output folder.
+    results : WaveResults
+        The analyses' results (arrays in SI units).
+    summary : dict
+        The content of ``waves.json`` (values with standard errors and units).
+    files : list of Path
+        The files written.
+    """
+
+    def __init__(
+        self, out: Path, results: WaveResults, summary: dict[str, Any], files: list[Path]
+    ) -> None:
+        self.out = out
         self.results = results
         self.summary = summary
         self.files = files
@@ -291,7 +306,7 @@ def run_waves(
 ) -> WavesOutcome:
     """Analyse one label's maps of a ``results.h5`` and write the outputs into ``out``.
 
-    The output folder follows :mod:`holoview.headless.output_folder`: earlier outputs
+    The output folder follows :mod:`holoview.headless.results.output_folder`: earlier outputs
     of this command are replaced only with ``overwrite``, and only when every file is
     complete.
 
@@ -304,8 +319,9 @@ def run_waves(
     """
     started = time.perf_counter()
     folder = Path(out)
+    input_path = results_path(input_path)
     names = (WAVES_H5, WAVES_JSON, *FIGURES)
-    with OutputFolder(folder, names, overwrite=overwrite, inputs=[Path(input_path)]) as outputs:
+    with OutputFolder(folder, names, overwrite=overwrite, inputs=[input_path]) as outputs:
         with open_wave_maps(
             input_path, label, time_range=time_range, pixel_size=pixel_size, fps=fps
         ) as maps:
@@ -332,7 +348,7 @@ def run_waves(
                 raise OutputError(f"cannot write {WAVES_JSON}: {os_error_text(exc)}") from exc
         files = outputs.finish(interrupted=False)
     logger.info("wrote %s", ", ".join(p.name for p in files))
-    return WavesOutcome(results, summary, files)
+    return WavesOutcome(folder, results, summary, files)
 
 
 def _summary(results: WaveResults, maps: WaveMaps, drawn: list[str]) -> dict[str, Any]:

@@ -1,6 +1,6 @@
 """The figures of ``holoview waves``, drawn with matplotlib (Agg, no pyplot state).
 
-Each function draws one PNG from :class:`~holoview.headless.waves.WaveResults`, axes in
+Each function draws one PNG from :class:`~holoview.headless.waves.analysis.WaveResults`, axes in
 physical units (k in rad/m, f in Hz, r in mm, heights in nm), for a talk:
 
 - ``omega_k.png``: the power against f and |k| (all directions), and along the flow
@@ -11,7 +11,8 @@ physical units (k in rad/m, f in Hz, r in mm, heights in nm), for a talk:
 - ``partial_waves.png``: |A_m(r)| of each fitted partial wave with its Hankel fit and
   its incoming and outgoing parts;
 - ``ringdown.png``: the band's series and the damped-mode fit;
-- ``lockin.png``: amplitude and phase at the drive frequency, amplitudes of its harmonics.
+- ``lockin.png``: amplitude and phase at the drive frequency, amplitudes of its harmonics,
+  the centre marked.
 """
 
 from __future__ import annotations
@@ -26,9 +27,10 @@ from matplotlib import colormaps
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.colors import LogNorm
 from matplotlib.figure import Figure
+from matplotlib.ticker import FuncFormatter
 from scipy import special
 
-from holoview.headless.waves import WaveResults
+from holoview.headless.waves.analysis import WaveResults
 
 __all__ = ["FIGURES", "draw_figures"]
 
@@ -129,7 +131,11 @@ def omega_k_figure(results: WaveResults, path: Path) -> None:
         q, spectrum.frequency, along, norm=_log_norm(along), shading="nearest", cmap=cmap
     )
     flowing = fit is not None and any(fit.flow)
-    right.set_xlabel(f"wavenumber along {math.degrees(angle):.0f}° (rad/m; < 0: against)")
+    right.set_xlabel(
+        f"wavenumber along {math.degrees(angle):.0f}° (rad/m; < 0: against the flow)"
+        if flowing
+        else "wavenumber along x (rad/m; < 0: travelling towards -x)"
+    )
     right.set_title("power along the flow (zoom)" if flowing else "power along x (zoom)")
     reach = _extent(*spectrum.energy_k(), spectrum.k_cut)
     if fit is not None:
@@ -213,7 +219,8 @@ def partial_waves_figure(results: WaveResults, path: Path) -> None:
     """``partial_waves.png`` (module docstring)."""
     fits = results.partial_waves
     count = max(len(fits), 1)
-    figure = Figure(figsize=(4.2 * min(count, 4), 4.0 * math.ceil(count / 4)))
+    width, height = 4.2 * min(count, 4), 4.0 * math.ceil(count / 4)
+    figure = Figure(figsize=(width, height))
     axes_list = np.atleast_1d(figure.subplots(math.ceil(count / 4), min(count, 4))).ravel()
     for axes, fit in zip(axes_list, fits, strict=False):
         r = fit.radii * 1e3
@@ -233,7 +240,14 @@ def partial_waves_figure(results: WaveResults, path: Path) -> None:
         axes.legend(fontsize=7)
     for axes in axes_list[len(fits) :]:
         axes.set_axis_off()
-    figure.subplots_adjust(left=0.06, right=0.98, bottom=0.12, top=0.9, wspace=0.3, hspace=0.35)
+    figure.subplots_adjust(  # margins in inches, whatever the number of panels
+        left=0.7 / width,
+        right=1 - 0.15 / width,
+        bottom=0.5 / height,
+        top=1 - 0.4 / height,
+        wspace=0.3,
+        hspace=0.35,
+    )
     _save(figure, path)
 
 
@@ -243,26 +257,34 @@ def ringdown_figure(results: WaveResults, path: Path) -> None:
     assert fit is not None
     figure = Figure(figsize=(11, 4.5))
     left, right = figure.subplots(1, 2)
-    left.semilogy(fit.times, np.abs(fit.series), ".", ms=2, color="k", label="band |z|")
-    left.semilogy(fit.times, np.abs(fit.model), color="C3", label="fit")
+    series, model = fit.series * 1e9, fit.model * 1e9  # nm
+    left.semilogy(fit.times, np.abs(series), ".", ms=2, color="k", label="band-passed |z|")
+    left.semilogy(fit.times, np.abs(model), color="C3", label="fit: |C| exp(-γ t)")
     left.set_xlabel("time t (s)")
-    left.set_ylabel("|z|, the rings combined (arbitrary scale)")
+    left.set_ylabel("|z|, the rings combined (nm)")
+    left.set_title("envelope", fontsize=9)
+    plain = FuncFormatter(lambda value, _: f"{value:g}")
+    left.yaxis.set_major_formatter(plain)
+    left.yaxis.set_minor_formatter(plain)
     left.legend(fontsize=8)
-    right.plot(fit.times, fit.series.real, ".", ms=2, color="k", label="Re z")
-    right.plot(fit.times, fit.model.real, color="C3", lw=0.8, label="fit")
+    right.plot(fit.times, series.real, ".", ms=3, color="k", label="Re z")
+    right.plot(fit.times, model.real, color="C3", lw=0.8, label="fit")
+    right.plot(fit.times, np.abs(model), color="0.6", lw=0.8, ls="--", label="± envelope")
+    right.plot(fit.times, -np.abs(model), color="0.6", lw=0.8, ls="--")
     right.set_xlabel("time t (s)")
-    right.set_ylabel("Re z (arbitrary scale)")
+    right.set_ylabel("Re z (nm)")
+    right.set_title("the first periods", fontsize=9)
     right.set_xlim(
         fit.times[0], fit.times[0] + min(fit.times[-1] - fit.times[0], 8 / fit.frequency)
     )
-    right.legend(fontsize=8)
+    right.legend(fontsize=8, loc="upper right")
     figure.suptitle(
         f"ringdown m={fit.m}, band {fit.band[0]:g}-{fit.band[1]:g} Hz: "
         f"f = {fit.frequency:.5g} ± {fit.frequency_stderr:.2g} Hz, "
         f"γ = {fit.decay:.4g} ± {fit.decay_stderr:.2g} 1/s, Q = {fit.quality:.3g}",
         fontsize=10,
     )
-    figure.subplots_adjust(left=0.08, right=0.98, bottom=0.12, top=0.88, wspace=0.25)
+    figure.subplots_adjust(left=0.08, right=0.98, bottom=0.12, top=0.86, wspace=0.25)
     _save(figure, path)
 
 
@@ -274,7 +296,8 @@ def lockin_figure(results: WaveResults, path: Path) -> None:
     rows, cols = results.maps.shape
     extent = (0.0, (cols - 1) * dx * 1e3, (rows - 1) * dy * 1e3, 0.0)
     panels = 2 + len(lockin.harmonics) - 1
-    figure = Figure(figsize=(4.2 * panels, 4.0))
+    width = 4.2 * panels
+    figure = Figure(figsize=(width, 4.0))
     axes_list = np.atleast_1d(figure.subplots(1, panels))
     amplitude = lockin.magnitude * 1e9
     image = axes_list[0].imshow(amplitude[0], extent=extent, cmap="viridis")
@@ -292,7 +315,14 @@ def lockin_figure(results: WaveResults, path: Path) -> None:
     for axes in axes_list:
         axes.set_xlabel("x (mm)")
         axes.set_ylabel("y (mm)")
-    figure.subplots_adjust(left=0.05, right=0.97, bottom=0.14, top=0.9, wspace=0.45)
+        if results.centre is not None:
+            x0, y0 = results.centre
+            axes.plot(x0 * 1e3, y0 * 1e3, "+", color="red", ms=10, mew=1.5, label="centre")
+    if results.centre is not None:
+        axes_list[0].legend(fontsize=7, loc="upper right")
+    figure.subplots_adjust(
+        left=0.6 / width, right=1 - 0.3 / width, bottom=0.14, top=0.9, wspace=0.45
+    )
     _save(figure, path)
 
 
