@@ -18,6 +18,13 @@ the file and its ``segment``: a frame that is not the one after the previous fra
 delivered (a seek, a step back, the loop starting over) opens a new segment, so
 processing never pairs frames across a jump.
 
+Each frame is stamped (``FrameMeta.t_device``) with its time in the recording, so that
+what the frames measure over time (a rate) is the same at every speed: the file's own
+clock where it has one (a recording's camera clock, else its host's; a video's frame
+rate), else the index over the frame rate given (``rate_hz``), else over
+:data:`DEFAULT_RATE_HZ`, assumed; a rate given replaces the file's clock, as ``holoview
+process --fps`` does. :meth:`ReplaySource.clock` says which, in words.
+
 With ``loop`` the file starts over at its end (frame ids keep increasing, device
 times too); otherwise, with ``hold``, the replay pauses on the last frame (a
 window keeps showing it; resuming plays from the start again); otherwise
@@ -35,6 +42,7 @@ from __future__ import annotations
 import math
 import threading
 import time
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -57,6 +65,26 @@ DEFAULT_RATE_HZ = 30.0
 SPEEDS = ("recorded", "fast", "step")
 #: Slowest and fastest ``speed_factor`` against the recorded pace.
 SPEED_FACTOR_LIMITS = (0.25, 8.0)
+
+
+@dataclass(frozen=True)
+class ReplayClock:
+    """What times a replay's frames (the module docstring's rule).
+
+    Attributes
+    ----------
+    origin : {"file", "given", "assumed"}
+        The file's own clock; a frame rate given; :data:`DEFAULT_RATE_HZ` assumed for a
+        file without times.
+    rate_hz : float or None
+        The frame rate that times the frames, frames per second (None: the file's clock).
+    text : str
+        Which, in words (``"10 frames/s, given"``).
+    """
+
+    origin: str
+    rate_hz: float | None
+    text: str
 
 
 class ReplaySource(Source):
@@ -236,15 +264,42 @@ class ReplaySource(Source):
         """Times the recorded pace."""
         return self._factor
 
+    def clock(self) -> ReplayClock:
+        """What times the frames: the file's clock, or a frame rate given or assumed."""
+        file = self._require_file()
+        if self._rate_hz is not None:
+            return ReplayClock("given", self._rate_hz, f"{self._rate_hz:g} frames/s, given")
+        if _has_times(file):
+            kind = "the video's frame rate" if file.kind == "video" else "the recording's clock"
+            return ReplayClock("file", None, kind)
+        rate = self._effective_rate()
+        return ReplayClock(
+            "assumed",
+            rate,
+            f"{rate:g} frames/s, assumed: {self.path.name} carries no frame times; "
+            "give its rate (rate_hz)",
+        )
+
     def frame_time_s(self, index: int) -> float:
         """Time of frame ``index`` in the recording since its first frame, seconds.
 
-        From the file's timestamps (a recording's device or host clock, a video's rate),
-        else ``index`` over the playback rate.
+        By :meth:`clock`: the file's times, else ``index`` over the frame rate.
         """
         file = self._require_file()
-        t = file.time_s(index) if 0 <= index < len(file) else math.nan
-        return t if math.isfinite(t) else index / self._effective_rate()
+        if self._rate_hz is None and 0 <= index < len(file):
+            t = file.time_s(index)
+            if math.isfinite(t):
+                return t
+        return index / self._effective_rate()
+
+    def _stamp(self, file: FrameFile, index: int) -> float:
+        """The time frame ``index`` is stamped with, s: the camera's own where the file's
+        clock is used and has it (kept as recorded), else :meth:`frame_time_s`."""
+        if self._rate_hz is None:
+            t = file.t_device(index)
+            if math.isfinite(t):
+                return t
+        return self.frame_time_s(index)
 
     def pause(self) -> None:
         """Stop delivering frames until :meth:`resume` (steps and seeks still do)."""
@@ -392,7 +447,7 @@ class ReplaySource(Source):
         id_offset, t_offset = self._loop_offsets(file)
         meta = FrameMeta(
             frame_id=id_offset + file.frame_id(index),
-            t_device=file.t_device(index) + t_offset,
+            t_device=self._stamp(file, index) + t_offset,
             t_host=time.time(),
             pixel_format=file.pixel_format,
             file_index=index,
@@ -406,6 +461,11 @@ class ReplaySource(Source):
             return 0, 0.0
         n = len(file)
         rate = self._effective_rate()
-        t_span = file.t_device(n - 1) - file.t_device(0)
+        t_span = self._stamp(file, n - 1) - self._stamp(file, 0)
         period = t_span + 1.0 / rate if math.isfinite(t_span) else n / rate
         return self._loops * (file.frame_id(n - 1) + 1), self._loops * period
+
+
+def _has_times(file: FrameFile) -> bool:
+    """Whether the file times its frames itself (a recording's clock, a video's rate)."""
+    return len(file) >= 2 and math.isfinite(file.time_s(len(file) - 1))

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import os
 import sys
+from pathlib import Path
 
 from holoview.cli.options import add_experiment_option, add_optics_options, optics_in_metres
 
@@ -18,6 +19,15 @@ NO_DISPLAY_HELP = (
 def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     """Register ``live``."""
     parser = subparsers.add_parser("live", help="open the live GUI (default: simulated camera)")
+    parser.add_argument(
+        "file",
+        nargs="?",
+        type=Path,
+        metavar="FILE",
+        help="a recording (or TIFF stack, image folder, video, .npy) to open as File > Open "
+        "does: paused on its first frame, its whole run measured, the experiment it "
+        "carries applied (`holoview FILE` is the same)",
+    )
     parser.add_argument(
         "--source",
         default="sim",
@@ -55,8 +65,12 @@ def run(args: argparse.Namespace) -> int:
         return 2
     from holoview.ui.app import run_live
 
+    if args.file is not None and not args.file.exists():
+        print(f"holoview live: error: {args.file}: no such file or folder", file=sys.stderr)
+        return 2
     return run_live(
         source=args.source,
+        open_path=args.file,
         quit_after=args.quit_after,
         experiment=args.experiment,
         optics=optics_in_metres(args),

@@ -65,6 +65,7 @@ def run_live(
     quit_after: float | None = None,
     experiment: Path | None = None,
     optics: dict[str, float] | None = None,
+    open_path: Path | None = None,
 ) -> int:
     """Open the main window on ``source`` and run the event loop.
 
@@ -78,6 +79,8 @@ def run_live(
         Experiment file to use (and keep up to date) instead of the default.
     optics : dict, optional
         ``wavelength_m``, ``pixel_pitch_m``, ``n1``, ``n2`` to use over the experiment's.
+    open_path : Path, optional
+        A file to open as File > Open does, instead of starting ``source``.
 
     Returns
     -------
@@ -85,8 +88,12 @@ def run_live(
         The exit status of the event loop.
     """
     app = application()
-    window = MainWindow(source=source, experiment_path=experiment, optics=optics)
+    window = MainWindow(
+        source=source, autostart=open_path is None, experiment_path=experiment, optics=optics
+    )
     window.show()
+    if open_path is not None:
+        window.open_file(open_path)
     if quit_after is not None:
         QTimer.singleShot(int(quit_after * 1000), window.close)
     logger.info("main window open on source %s", source)
