@@ -189,7 +189,7 @@ def process(
     threads: int = 1,
     jobs: int | None = None,
     scheduler: str | None = None,
-    report: bool = True,
+    report: str | bool | None = "png",
     overwrite: bool = False,
 ) -> ProcessOutcome:
     """Process a recording into an output folder: ``holoview process RECORDING --out OUT``.
@@ -231,8 +231,9 @@ def process(
         The frames to process (``"100:500"``, ``slice(100, 500)``).
     threads, jobs, scheduler : optional
         FFTW threads per frame; processes (None: automatic); a Dask scheduler.
-    report : bool
-        Draw ``report.png``.
+    report : str or None
+        The report's format, ``"png"``, ``"pdf"`` or ``"svg"`` (``report.png``, ...:
+        ``--report-format``); None (or False): no report.
     overwrite : bool
         Replace the results of an earlier run in ``out``.
 

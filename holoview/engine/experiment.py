@@ -2,7 +2,7 @@
 
 An experiment is what an operator sets at alignment and what every later replay needs:
 the optics (wavelength, pixel pitch, refractive indices), the labelled peaks on the
-twin where the phase grows with the height (DESIGN.md), the window, its radius, the
+twin where the phase grows with the height (docs/design.md), the window, its radius, the
 reference mode and the unwrapping policy. The GUI saves and loads it, ``holoview peaks
 --json`` writes it, ``holoview process --experiment`` and ``holoview live --experiment``
 read it, and every recording carries the one in force
@@ -183,7 +183,7 @@ class Experiment:
     radius : float or None
         Window radius, cycles/pixel; None: automatic from the carriers.
     reference : {"relative", "absolute", "synthetic"}
-        Reference mode of the maps (DESIGN.md).
+        Reference mode of the maps (docs/design.md).
     unwrap : {"auto", "always", "never"}
         Spatial unwrapping of the maps.
     peaks : tuple of LabelledPeak

@@ -5,7 +5,7 @@ One rule, used by the live window (a click, a label following a drifting peak) a
 experiment): a carrier names the detected peak nearest it on either twin, within
 :data:`~holoview.processing.peaks.snapping.SNAP_BINS` FFT bins on the periodic spectrum
 (:func:`holoview.processing.peaks.snapping.snap`). The detected peak is taken on the twin the
-carrier points at, so a label keeps the twin it was given (DESIGN.md: the twin where
+carrier points at, so a label keeps the twin it was given (docs/design.md: the twin where
 the phase grows with the height).
 
 With two or more labels of the model's families (RB1 and FB1, say), the model

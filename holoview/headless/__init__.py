@@ -1,4 +1,4 @@
-"""Headless processing of a recording: the offline replay and test mode of DESIGN.md.
+"""Headless processing of a recording: the offline replay and test mode of docs/design.md.
 
 The same processing as the GUI (:mod:`holoview.processing`), with no display, in a
 plain loop over the frames of a file, usable from scripts and on a server.
@@ -16,8 +16,8 @@ the pieces:
 - :mod:`~holoview.headless.analysis` names the peaks (PCA), converts to depths, fuses
   them and fits the rates;
 - :mod:`~holoview.headless.outputs` writes ``trends.csv``, ``summary.json`` and
-  ``results.h5``, and :mod:`~holoview.headless.report` draws ``report.png`` with the
-  OpenCV helpers of :mod:`~holoview.headless.plotting`;
+  ``results.h5``, and :mod:`~holoview.headless.report` draws ``report.png`` (or PDF,
+  SVG) with matplotlib on the Agg canvas of :mod:`~holoview.headless.figures`;
 - on many cores or a Dask cluster: :mod:`~holoview.headless.chunks` splits the frames
   and measures a chunk's carrier values in a worker, :mod:`~holoview.headless.parallel`
   runs the chunks (local processes or Dask), :mod:`~holoview.headless.stitch` joins

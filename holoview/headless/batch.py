@@ -42,7 +42,7 @@ from holoview.errors import HoloviewError, InputError, OutputError, os_error_tex
 from holoview.headless.chunks import plan_jobs
 from holoview.headless.output_folder import OutputFolder
 from holoview.headless.parallel import ChunkRunner, open_runner
-from holoview.headless.run import REPORT_PNG, RESULTS_H5, SUMMARY_JSON, TRENDS_CSV, process_file
+from holoview.headless.run import OUTPUT_NAMES, process_file
 
 logger = logging.getLogger(__name__)
 
@@ -191,9 +191,8 @@ def _check_folders(out: Path, rows: list[BatchRow], overwrite: bool) -> None:
             f"--out {out} holds the index of an earlier batch ({INDEX_CSV}); give "
             "--overwrite to replace it when this batch completes, or another folder"
         )
-    names = (TRENDS_CSV, SUMMARY_JSON, RESULTS_H5, REPORT_PNG)
     for row in rows:
-        OutputFolder(row.out, names, overwrite=overwrite)
+        OutputFolder(row.out, OUTPUT_NAMES, overwrite=overwrite)
 
 
 def process_batch(

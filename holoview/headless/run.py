@@ -6,8 +6,8 @@ choose those to demodulate (:mod:`~holoview.headless.selection`); stream every f
 through the demodulator, maps to ``results.h5`` as they come
 (:mod:`~holoview.headless.pipeline`); name the peaks, fuse and fit
 (:mod:`~holoview.headless.analysis`); write ``trends.csv``, ``summary.json``,
-``results.h5`` (:mod:`~holoview.headless.outputs`) and ``report.png``
-(:mod:`~holoview.headless.report`). Every user mistake is an
+``results.h5`` (:mod:`~holoview.headless.outputs`) and ``report.png`` (or PDF, SVG:
+:mod:`~holoview.headless.report`). Every user mistake is an
 :class:`~holoview.errors.InputError` raised before the output folder is touched where
 it can be known that early. The outputs are written under temporary names and put in
 place when the run completes; what an earlier run left in the folder is replaced only
@@ -29,6 +29,7 @@ from holoview.engine.experiment import Experiment, LabelledPeak
 from holoview.errors import InputError
 from holoview.headless.analysis import Analysis, analyse, known_joint
 from holoview.headless.chunks import plan_jobs
+from holoview.headless.figures import FORMATS, figure_format
 from holoview.headless.inputs import (
     InputFile,
     Optics,
@@ -63,7 +64,10 @@ logger = logging.getLogger(__name__)
 TRENDS_CSV = "trends.csv"
 SUMMARY_JSON = "summary.json"
 RESULTS_H5 = "results.h5"
-REPORT_PNG = "report.png"
+#: The report in each format (a run writes one; an earlier run's, any).
+REPORT_FILES = tuple(f"report.{kind}" for kind in FORMATS)
+#: Every file a run may write: a folder holding any of them holds an earlier run.
+OUTPUT_NAMES = (TRENDS_CSV, SUMMARY_JSON, RESULTS_H5, *REPORT_FILES)
 
 
 #: Peaks identified by PCA when nothing names them (no options, no experiment stored).
@@ -231,7 +235,7 @@ def process_file(
     optics_options: OpticsOptions | None = None,
     settings: ProcessSettings | None = None,
     frames: str | None = None,
-    report: bool = True,
+    report: str | bool | None = "png",
     progress: Callable[[int, int], None] | None = None,
     overwrite: bool = False,
     jobs: int | None = 1,
@@ -256,8 +260,9 @@ def process_file(
         basin area.
     frames : str, optional
         ``START:STOP`` of the input's frames (all by default).
-    report : bool
-        Draw ``report.png``.
+    report : str or bool or None
+        The report's format: ``"png"``, ``"pdf"`` or ``"svg"`` (``report.png`` ...);
+        True is ``"png"``; None or False: no report.
     progress : callable, optional
         ``progress(done, total)`` after each frame.
     overwrite : bool
@@ -289,6 +294,10 @@ def process_file(
         An output could not be written (the folder keeps what it held).
     """
     settings = settings or ProcessSettings()
+    if report is True:
+        report = "png"
+    if report:
+        figure_format(f"report.{report}", "--report-format")
     if settings.background is not None:
         if settings.reference not in (None, "absolute"):
             raise InputError(
@@ -298,9 +307,8 @@ def process_file(
         settings = replace(settings, reference="absolute")
     options = optics_options or OpticsOptions()
     out_dir = Path(out)
-    names = (TRENDS_CSV, SUMMARY_JSON, RESULTS_H5, REPORT_PNG)
     with (
-        OutputFolder(out_dir, names, overwrite=overwrite) as outputs,
+        OutputFolder(out_dir, OUTPUT_NAMES, overwrite=overwrite) as outputs,
         InputFile(input_path) as source,
         contextlib.ExitStack() as stack,
     ):
@@ -417,7 +425,7 @@ def process_file(
             from holoview.headless.report import write_report
 
             write_report(
-                outputs.path(REPORT_PNG),
+                outputs.path(f"report.{report}"),
                 spectrum=display_spectrum(first, threads=settings.threads),
                 detected=detected,
                 data=data,

@@ -1,6 +1,6 @@
 """Which peaks a headless run demodulates, and what each is called.
 
-Two ways, as the operator would at the bench (DESIGN.md, paper section 4):
+Two ways, as the operator would at the bench (docs/design.md, paper section 4):
 
 - an **experiment** (:mod:`holoview.engine.experiment`: the one a recording carries,
   a file given with ``--experiment``, or ``--label``): its labels snap to the peaks

@@ -8,7 +8,7 @@ so elliptical in FFT bins on a non-square frame), centred on the sub-bin carrier
   (the paper's improved filter; roll-off over the whole radius);
 - ``"tukey"``: flat to ``(1 - taper) r``, then a cosine edge reaching 0 at ``r``.
 
-The shot-noise phase floor of DESIGN.md depends on the window through its
+The shot-noise phase floor of docs/design.md depends on the window through its
 *area fraction* ``eta = sum |W|^2 / (rows cols)`` over the spectrum's bins
 (:func:`area_fraction`).
 """

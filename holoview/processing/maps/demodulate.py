@@ -7,7 +7,7 @@ inverse FFT of the box only. The complex field per peak therefore comes at the
 box resolution (pixel ``(p, q)`` at frame position ``(p rows / by, q cols / bx)``);
 :meth:`Demodulator.upsample` brings any map to the frame grid.
 
-Conventions (DESIGN.md):
+Conventions (docs/design.md):
 
 - the field is in counts: ``|field| = Y0 A`` for a fringe term ``Y0 A exp(i phi)``,
   demodulated at the FFT bin nearest the carrier (a residual sub-bin tilt remains
@@ -369,7 +369,7 @@ class Demodulator:
         return self._boxes[i]
 
     def area_fraction(self, i: int) -> float:
-        """Return peak ``i``'s window area fraction ``sum |W|^2 / (rows cols)`` (DESIGN.md)."""
+        """Return peak ``i``'s window area fraction ``sum |W|^2 / (rows cols)`` (docs/design.md)."""
         return self._boxes[i].area_fraction
 
     def upsample(self, box_map: np.ndarray) -> np.ndarray:

@@ -16,7 +16,7 @@ padded to :data:`COLUMN_TILE` columns), then per peak a dot product of the
 against about ``2.5 log2(rows cols)`` for a real FFT, and no box, window, inverse
 FFT or phase map.
 
-Conventions (DESIGN.md, as :mod:`holoview.processing.maps.demodulate`): carriers in
+Conventions (docs/design.md, as :mod:`holoview.processing.maps.demodulate`): carriers in
 cycles/pixel, ``(fx, fy)``; a term ``Y0 A exp(i (2 pi f.r + phi))`` of the frame
 gives ``v = Y0 A exp(i phi)`` in counts, phase origin at pixel ``(0, 0)``, so ``v``
 is the demodulator's ``carrier_value`` up to the leakage and weighting below. Give

@@ -1,6 +1,6 @@
 """Joint per-frame estimation: one height and one reference-arm phase from every peak.
 
-Every identified peak ``m`` sees the same surface and the same reference arm (DESIGN.md,
+Every identified peak ``m`` sees the same surface and the same reference arm (docs/design.md,
 "The lattice"): between two frames its mean phase steps by
 
     ``s_m = alpha_m du + c_m dpsi + noise``,   ``du = 4 pi dh / wavelength``,
