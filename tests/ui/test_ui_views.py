@@ -13,7 +13,7 @@ from holoview.processing.series.rate_fits import format_rate
 from holoview.ui.colour_index import colour_indices, colour_table
 from holoview.ui.hologram_view import HologramView
 from holoview.ui.spectrum_view import CLEAR, SpectrumView
-from holoview.ui.surface_view import FUSED, SurfaceView, sample_line
+from holoview.ui.surface_view import FUSED, SurfaceView, colour_range, sample_line
 from holoview.ui.trends_view import TrendsView
 
 pytestmark = pytest.mark.gui
@@ -247,3 +247,24 @@ def test_hologram_shows_the_whole_frame_at_every_display_step(qtbot, shape) -> N
         extent = item.mapRectToParent(item.boundingRect())  # in data coordinates
         assert (extent.left(), extent.top()) == (0, 0)
         assert (extent.width(), extent.height()) == pytest.approx((cols, rows))
+
+
+def test_the_colour_range_is_the_trusted_surface_not_a_noisy_peak_or_wild_pixels() -> None:
+    """A 10 nm wave field fills the colour scale (issue 27): untrusted pixels are NaN and
+    left out, a noisy peak's map and a few wild pixels do not set the range."""
+    y, x = np.mgrid[0:128, 0:128]
+    waves = 10.0 * np.sin(2 * np.pi * x / 32) * np.cos(2 * np.pi * y / 40)  # nm
+    rng = np.random.default_rng(1)
+    good = waves + rng.normal(0, 0.5, waves.shape)
+    good[:20, :20] = np.nan  # outside the aperture: untrusted
+    noisy = waves + rng.normal(0, 60.0, waves.shape)  # a weak peak
+    wild = good.copy()
+    wild[60:62, 60:62] = 5000.0  # four wild pixels
+    low, high = colour_range({"RB1": good, "RB3": noisy, "FB1": wild, FUSED: good})
+    finite = good[np.isfinite(good)]
+    assert (low, high) == pytest.approx(tuple(np.percentile(finite, (1, 99))), abs=0.5)
+    assert -12 < low < -7 and 7 < high < 12  # the waves fill the scale
+    # no fused map: the median of the maps' own ranges, not their union
+    low, high = colour_range({"RB1": good, "RB3": noisy, "FB1": wild})
+    assert -12 < low < -7 and 7 < high < 12
+    assert colour_range({"RB1": np.full((4, 4), np.nan)}) is None
