@@ -40,7 +40,7 @@ from holoview.ui.hologram_view import HologramView
 from holoview.ui.notice_bar import NoticeBar
 from holoview.ui.open_files import FileOpening, Opened, opened_source
 from holoview.ui.recording_panel import RecordingPanel
-from holoview.ui.run_trends import RunTrends
+from holoview.ui.run_trends import RunTrends, maps_frame_text
 from holoview.ui.settings import ui_settings
 from holoview.ui.source_panel import SourcePanel
 from holoview.ui.spectrum_view import SpectrumView
@@ -368,6 +368,7 @@ class MainWindow(FileOpening, ExperimentActions, WindowExports, QMainWindow):
         self.timer.stop()
         self.transport.attach(None)
         self.run_trends.attach(None)
+        self.surface.stats_label.clear()
         self.session.close()
         self.session = None
         self.recording_panel.set_progress(None)
@@ -457,8 +458,12 @@ class MainWindow(FileOpening, ExperimentActions, WindowExports, QMainWindow):
             self._draw_camera(newest[1])
             self.display_rate.tick()
         self.draw_maps()
-        if self.run_trends.showing and session.replay is not None:
-            self.run_trends.refresh(session.replay.state().index)
+        state = session.replay.state() if session.replay is not None else None
+        if state is not None:
+            maps_index = -1 if self._last_result is None else self._last_result.frame_index
+            self.surface.stats_label.setText(maps_frame_text(state, maps_index))
+        if self.run_trends.showing and state is not None:
+            self.run_trends.refresh(state.index)
             self._trend_seq = -1
         elif (trend := session.trend()) is not None and trend.seq != self._trend_seq:
             self._trend_seq = trend.seq

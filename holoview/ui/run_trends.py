@@ -30,6 +30,7 @@ from holoview.headless.run_series import (
     frame_range_text,
     measure_series,
 )
+from holoview.live.replay_control import ReplayState
 from holoview.processing.series.rate_fits import format_rate
 from holoview.ui.background import LatestCall
 from holoview.ui.trends_view import MEASURING, NO_TRENDS, TrendsView
@@ -283,6 +284,21 @@ class RunTrends(QObject):
     def _range_cleared(self) -> None:
         self.ranges.cancel()
         self.range_series = None
+
+
+def maps_frame_text(state: ReplayState, maps_index: int) -> str:
+    """Which frame the maps show, and how far behind the frame shown they are, playing.
+
+    The maps worker takes the newest frame at whatever rate is left: at 8x the maps may
+    lag the replay; this says so instead of passing an older frame's maps off as the
+    frame shown ('' before any map).
+    """
+    if maps_index < 0:
+        return ""
+    behind = (state.index - maps_index) % max(1, state.n_frames)
+    if state.paused or behind <= 1:
+        return f"maps of frame {maps_index}"
+    return f"maps of frame {maps_index} ({behind} behind)"
 
 
 def _series_settings(experiment: Experiment) -> Experiment:

@@ -3,6 +3,7 @@ shown is a cursor on it; seeking keeps it; a range fit is ``process --frames A:B
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -12,9 +13,11 @@ from PyQt6.QtGui import QDropEvent
 
 from holoview.cli import main
 from holoview.headless.run import PeakChoice, process_file
+from holoview.live.replay_control import ReplayState
 from holoview.processing.series.rate_fits import format_rate
 from holoview.ui.main_window import MainWindow
 from holoview.ui.open_files import recent_files
+from holoview.ui.run_trends import maps_frame_text
 from holoview.ui.trends_view import NO_TRENDS
 
 pytestmark = [
@@ -176,3 +179,13 @@ def test_a_file_dropped_on_the_window_opens_and_a_missing_one_is_said(
     window.open_file(missing)
     assert window.banner_text == f"{missing}: no such file or folder"
     assert recent_files() == [hologram_file]
+
+
+def test_maps_behind_the_frame_shown_are_said() -> None:
+    playing = ReplayState(135, 300, 6.75, paused=False, held=False, speed=8.0, loop=True)
+    assert maps_frame_text(playing, 131) == "maps of frame 131 (4 behind)"
+    assert maps_frame_text(playing, 134) == "maps of frame 134"
+    assert maps_frame_text(replace(playing, index=2), 297) == "maps of frame 297 (5 behind)"
+    paused = ReplayState(135, 300, 6.75, paused=True, held=False, speed=8.0, loop=True)
+    assert maps_frame_text(paused, 131) == "maps of frame 131"
+    assert maps_frame_text(playing, -1) == ""
