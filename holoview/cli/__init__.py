@@ -102,6 +102,12 @@ def _quiet_hdf5_cleanup(unraisable: sys.UnraisableHookArgs) -> None:
 BLAS_THREADS = "1"
 
 
+def _names_a_file(word: str) -> bool:
+    """Whether a first word that is no command names a file (``holoview FILE``)."""
+    path = Path(word)
+    return path.exists() or bool(path.suffix) or "/" in word
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the ``holoview`` command line; return the process exit status."""
     os.environ.setdefault("OPENBLAS_NUM_THREADS", BLAS_THREADS)  # read as numpy loads
@@ -111,7 +117,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if only_options and not {"-h", "--help", "--version"} & set(args_list):
         args_list.append(DEFAULT_COMMAND)
     first = next((a for a in args_list if not a.startswith("-")), None)
-    if first is not None and first not in COMMANDS and Path(first).exists():
+    if first is not None and first not in COMMANDS and _names_a_file(first):
         args_list.insert(args_list.index(first), DEFAULT_COMMAND)  # holoview FILE: open it
     try:
         args = parser.parse_args(args_list)

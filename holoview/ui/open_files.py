@@ -37,10 +37,15 @@ FILE_FILTER = (
 
 def recent_files() -> list[Path]:
     """The files opened last, newest first."""
-    value = ui_settings().value(RECENT_KEY, [])
-    if isinstance(value, str):  # QSettings gives one entry as a plain string
-        value = [value]
-    return [Path(v) for v in value or [] if v]
+    settings = ui_settings()
+    paths = []
+    for i in range(settings.beginReadArray(RECENT_KEY)):
+        settings.setArrayIndex(i)
+        value = settings.value("path")
+        if isinstance(value, str) and value:
+            paths.append(Path(value))
+    settings.endArray()
+    return paths
 
 
 def remember(path: Path) -> None:
@@ -56,7 +61,12 @@ def forget(path: Path) -> None:
 
 def _store(paths: list[Path]) -> None:
     settings = ui_settings()
-    settings.setValue(RECENT_KEY, [str(p) for p in paths])
+    settings.remove(RECENT_KEY)
+    settings.beginWriteArray(RECENT_KEY, len(paths))
+    for i, path in enumerate(paths):
+        settings.setArrayIndex(i)
+        settings.setValue("path", str(path))
+    settings.endArray()
     settings.sync()
 
 

@@ -194,9 +194,15 @@ class RunTrends(QObject):
         clock = self._clock or "the file's clock"
         given = outcome.request.fps_hz is not None  # a rate given or assumed: said
         caption = f"whole run, {clock.split(':')[0]}" if given else "whole run"
+        peaks = "\n".join(
+            f"{p.label}: {format_rate(p.rate, p.rate_stderr)}"
+            for p in outcome.analysis.peaks
+            if p.rate is not None
+        )
         self.view.rate_label.setToolTip(
             f"every frame of {outcome.request.path.name}: {len(times)} frames, "
-            f"{times[0]:.3f} to {times[-1]:.3f} s; frame times: {clock}"
+            f"{times[0]:.3f} to {times[-1]:.3f} s; frame times: {clock}\n"
+            f"the fused depth's rate; each peak's:\n{peaks}"
         )
         line = None
         if fit is not None:
