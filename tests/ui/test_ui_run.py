@@ -3,18 +3,21 @@ shown is a cursor on it; seeking keeps it; a range fit is ``process --frames A:B
 
 from __future__ import annotations
 
+import threading
+import time
 from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import pytest
-from PyQt6.QtCore import QMimeData, QPointF, Qt, QUrl
+from PyQt6.QtCore import QMimeData, QObject, QPointF, Qt, QUrl
 from PyQt6.QtGui import QDropEvent
 
 from holoview.cli import main
 from holoview.headless.run import PeakChoice, process_file
 from holoview.live.replay_control import ReplayState
 from holoview.processing.series.rate_fits import format_rate
+from holoview.ui.background import LatestCall
 from holoview.ui.main_window import MainWindow
 from holoview.ui.open_files import recent_files
 from holoview.ui.run_trends import maps_frame_text
@@ -189,3 +192,32 @@ def test_maps_behind_the_frame_shown_are_said() -> None:
     paused = ReplayState(135, 300, 6.75, paused=True, held=False, speed=8.0, loop=True)
     assert maps_frame_text(paused, 131) == "maps of frame 131"
     assert maps_frame_text(playing, -1) == ""
+
+
+def test_a_newer_measurement_replaces_the_one_under_way(qtbot) -> None:
+    owner = QObject()
+    call = LatestCall("holoview-test-call", "holoview-test-call", owner)
+    started = threading.Event()
+    given_up = threading.Event()
+
+    def slow(progress, cancelled) -> str:
+        progress(1, 100)
+        started.set()
+        while not cancelled():
+            time.sleep(0.001)
+        given_up.set()
+        return "slow"
+
+    call.start(slow)
+    assert started.wait(10)
+    qtbot.waitUntil(lambda: call.progress() == (1, 100), timeout=5000)
+    with qtbot.waitSignal(call.done, timeout=10000) as blocker:
+        call.start(lambda progress, cancelled: "newest")
+    assert given_up.is_set()
+    assert blocker.args == ["newest"]  # the slow one's outcome is never emitted
+    assert not call.busy and not call.timer.isActive()
+    started.clear()
+    call.start(slow)
+    assert started.wait(10)
+    call.wait()  # the window closing: given up and joined
+    assert not call.busy and not call.timer.isActive()
