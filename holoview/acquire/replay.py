@@ -2,8 +2,9 @@
 
 Three speeds (the ``speed`` setting):
 
-- ``"recorded"``: a holoview recording at the pace of its timestamps (device
-  clock where every frame has one, else host arrival times); other files at
+- ``"recorded"``: a holoview recording at the pace of its timestamps (the clock
+  rule of :mod:`holoview.acquire.frame_times`: the camera's clock where it is finite,
+  forward and free of jumps, else host arrival times); other files at
   ``rate_hz`` (default: the video's own rate, or 30 frames/s for images); the
   ``speed_factor`` setting plays faster or slower than that (0.25 to 8 times);
 - ``"fast"``: as fast as frames can be read;
@@ -20,10 +21,11 @@ processing never pairs frames across a jump.
 
 Each frame is stamped (``FrameMeta.t_device``) with its time in the recording, so that
 what the frames measure over time (a rate) is the same at every speed: the file's own
-clock where it has one (a recording's camera clock, else its host's; a video's frame
-rate), else the index over the frame rate given (``rate_hz``), else over
-:data:`DEFAULT_RATE_HZ`, assumed; a rate given replaces the file's clock, as ``holoview
-process --fps`` does. :meth:`ReplaySource.clock` says which, in words.
+clock where it has a usable one (the one rule of :mod:`holoview.acquire.frame_times`:
+a recording's camera clock, else its host's; a video's frame rate), else the index over
+the frame rate given (``rate_hz``), else over :data:`DEFAULT_RATE_HZ`, assumed; a rate
+given replaces the file's clock, as ``holoview process --fps`` does.
+:meth:`ReplaySource.clock` says which, in words.
 
 With ``loop`` the file starts over at its end (frame ids keep increasing, device
 times too); otherwise, with ``hold``, the replay pauses on the last frame (a
@@ -48,6 +50,7 @@ from typing import Any
 
 import numpy as np
 
+from holoview.acquire.frame_times import CLOCK_NAMES, FrameClock
 from holoview.acquire.replay_files import FrameFile, HDF5File, open_frame_file
 from holoview.acquire.source import (
     AcquisitionError,
@@ -136,6 +139,7 @@ class ReplaySource(Source):
         super().__init__(f"replay:{path}")
         self.path = Path(path)
         self._file: FrameFile | None = None
+        self._file_clock: FrameClock | None = None
         self._speed = speed
         self._rate_hz = rate_hz
         self._loop = bool(loop)
@@ -203,6 +207,7 @@ class ReplaySource(Source):
         if self._file is not None:
             self._file.close()
             self._file = None
+        self._file_clock = None
 
     def _do_start(self) -> None:
         with self._cond:
@@ -269,9 +274,10 @@ class ReplaySource(Source):
         file = self._require_file()
         if self._rate_hz is not None:
             return ReplayClock("given", self._rate_hz, f"{self._rate_hz:g} frames/s, given")
-        if _has_times(file):
-            kind = "the video's frame rate" if file.kind == "video" else "the recording's clock"
-            return ReplayClock("file", None, kind)
+        own = self._clock_of(file)
+        if own.usable:
+            name = own.camera_name if own.source == "camera" else CLOCK_NAMES[own.source]
+            return ReplayClock("file", None, name)
         rate = self._effective_rate()
         return ReplayClock(
             "assumed",
@@ -287,19 +293,26 @@ class ReplaySource(Source):
         """
         file = self._require_file()
         if self._rate_hz is None and 0 <= index < len(file):
-            t = file.time_s(index)
-            if math.isfinite(t):
-                return t
+            own = self._clock_of(file)
+            if own.usable:
+                return float(own.times[index] - own.times[0])
         return index / self._effective_rate()
 
     def _stamp(self, file: FrameFile, index: int) -> float:
-        """The time frame ``index`` is stamped with, s: the camera's own where the file's
-        clock is used and has it (kept as recorded), else :meth:`frame_time_s`."""
+        """The time frame ``index`` is stamped with, s: on the file's clock as recorded
+        (the camera's, or the host's), else :meth:`frame_time_s`."""
         if self._rate_hz is None:
-            t = file.t_device(index)
-            if math.isfinite(t):
-                return t
+            own = self._clock_of(file)
+            if own.usable and index < len(own.times):
+                return float(own.times[index])
         return self.frame_time_s(index)
+
+    def _clock_of(self, file: FrameFile) -> FrameClock:
+        """The file's own clock (the one rule), found again when a growing file grew."""
+        own = self._file_clock
+        if own is None or len(own.times) != len(file):
+            own = self._file_clock = file.clock(range(len(file)))
+        return own
 
     def pause(self) -> None:
         """Stop delivering frames until :meth:`resume` (steps and seeks still do)."""
@@ -464,8 +477,3 @@ class ReplaySource(Source):
         t_span = self._stamp(file, n - 1) - self._stamp(file, 0)
         period = t_span + 1.0 / rate if math.isfinite(t_span) else n / rate
         return self._loops * (file.frame_id(n - 1) + 1), self._loops * period
-
-
-def _has_times(file: FrameFile) -> bool:
-    """Whether the file times its frames itself (a recording's clock, a video's rate)."""
-    return len(file) >= 2 and math.isfinite(file.time_s(len(file) - 1))

@@ -63,11 +63,17 @@ def run(args: argparse.Namespace) -> int:
     if not has_display():
         print(f"holoview live: {NO_DISPLAY_HELP}", file=sys.stderr)
         return 2
+    from holoview.file_kinds import check_regular_file, special_file
     from holoview.ui.app import run_live
 
-    if args.file is not None and not args.file.exists():
-        print(f"holoview live: error: {args.file}: no such file or folder", file=sys.stderr)
-        return 2
+    if args.file is not None:
+        what = special_file(args.file)
+        problem = f"{what}, not a file or folder of frames" if what else "no such file or folder"
+        if what or not args.file.exists():
+            print(f"holoview live: error: {args.file}: {problem}", file=sys.stderr)
+            return 2
+    if args.experiment is not None:  # the window reads it, and saves every change to it
+        check_regular_file(args.experiment, f"experiment file {args.experiment}")
     return run_live(
         source=args.source,
         open_path=args.file,

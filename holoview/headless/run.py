@@ -34,8 +34,10 @@ from holoview.headless.inputs import (
     InputFile,
     Optics,
     OpticsOptions,
+    check_not_background_subtracted,
     check_run_settings,
     first_good_frame,
+    frame_problem,
     parse_frame_range,
     resolve_optics,
 )
@@ -205,8 +207,9 @@ def read_background(spec: str | None, source: InputFile) -> np.ndarray | None:
     Raises
     ------
     InputError
-        For an index outside the input, a file that cannot be read, or a frame of
-        another shape than the input's.
+        For an index outside the input, a file that cannot be read, a frame of another
+        shape than the input's, or one that is no hologram: constant (all zero),
+        non-finite, damaged, or negative (:func:`check_background`).
     """
     if spec is None:
         return None
@@ -216,15 +219,36 @@ def read_background(spec: str | None, source: InputFile) -> np.ndarray | None:
             raise InputError(
                 f"--background {spec}: {source.path} has frames 0 to {len(source) - 1}"
             )
-        return source.read(index)
-    with InputFile(spec) as other:
-        frame = other.read(0)
-    if frame.shape != source.frame_shape:
-        raise InputError(
-            f"--background {spec}: frames of {frame.shape[0]} x {frame.shape[1]} pixels, "
-            f"the input's are {source.frame_shape[0]} x {source.frame_shape[1]}"
-        )
+        frame = source.read(index)
+    else:
+        with InputFile(spec) as other:
+            frame = other.read(0)
+        if frame.shape != source.frame_shape:
+            raise InputError(
+                f"--background {spec}: frames of {frame.shape[0]} x {frame.shape[1]} pixels, "
+                f"the input's are {source.frame_shape[0]} x {source.frame_shape[1]}"
+            )
+    check_background(frame, f"--background {spec}")
     return frame
+
+
+def check_background(frame: np.ndarray, where: str) -> None:
+    """Refuse a background that is no hologram: absolute phases against it would be noise.
+
+    A background is an object-free hologram: an intensity with fringes. A constant
+    frame (all zero), one with NaN, one damaged in transfer, and one of negative or
+    zero mean intensity (a negated or background-subtracted frame) are refused.
+    """
+    problem = frame_problem(frame)
+    if problem is not None:
+        raise InputError(f"{where}: the frame {problem}; give an object-free hologram")
+    mean = float(np.mean(frame, dtype=np.float64))
+    if mean <= 0:
+        raise InputError(
+            f"{where}: the frame's mean intensity is {mean:.3g} (values {frame.min():.3g} to "
+            f"{frame.max():.3g}): a hologram is an intensity; give an object-free hologram"
+        )
+    check_not_background_subtracted(frame, where)
 
 
 def process_file(
@@ -326,7 +350,8 @@ def process_file(
         optics = resolve_optics(source.setup, options, from_file)
         optics.require("wavelength_m")
         experiment, settings = _settle(base, settings, optics)
-        times = source.times(selected, options.fps_hz)
+        frame_times = source.times(selected, options.fps_hz)
+        times = frame_times.times
         check_run_settings(
             area_m2=settings.area_m2, radius=settings.radius, frame_shape=source.frame_shape
         )
@@ -341,9 +366,12 @@ def process_file(
             shape=source.frame_shape,
             optics=optics,
         )
-        selection = replace(selection, notes=(*notes, *selection.notes))
-        for note in notes:
+        for note in (*notes, *source.notes):
             logger.warning("%s", note)
+        level = logging.WARNING if frame_times.warning else logging.INFO
+        logger.log(level, "%s: %s", source.path, frame_times.note)
+        notes += [*source.notes, frame_times.note]
+        selection = replace(selection, notes=(*notes, *selection.notes))
         core = make_core(
             source.frame_shape,
             experiment,

@@ -22,7 +22,7 @@ import logging
 import math
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -214,7 +214,7 @@ def measure_series(
         optics = resolve_optics(source.setup, options, base if request.experiment else None)
         optics.require("wavelength_m")
         experiment, settings = _settle(base, ProcessSettings(), optics)
-        times = source.times(selected, request.fps_hz)
+        frame_times = source.times(selected, request.fps_hz)
         _, first = first_good_frame(source, selected)
         detected = find_peaks(first, radius=experiment.radius, threads=settings.threads)
         selection = choose_peaks(
@@ -225,6 +225,8 @@ def measure_series(
             shape=source.frame_shape,
             optics=optics,
         )
+        notes += [*source.notes, frame_times.note]
+        selection = replace(selection, notes=(*notes, *selection.notes))
         core = make_core(
             source.frame_shape,
             experiment,
@@ -241,10 +243,8 @@ def measure_series(
             if progress is not None:
                 progress(done, total)
 
-        data = demodulate_frames(source, selected, times, core, progress=step)
+        data = demodulate_frames(source, selected, frame_times.times, core, progress=step)
         analysis = analyse(data, selection, optics)
-    for note in notes:
-        logger.info("%s", note)
     return RunSeries(
         request=request,
         frames=np.asarray(data.frames).copy(),
