@@ -103,7 +103,8 @@ def colour_range(
 
     The fused map's where there is one (the peaks' noise-weighted mean: the surface
     best seen); else the median, over the maps, of each map's percentiles, so that one
-    noisy peak does not set the range of all. None without a finite value.
+    noisy peak does not set the range of all. None without a finite value, or where
+    the values are all equal (a reference frame's zero maps say nothing of the range).
 
     Parameters
     ----------
@@ -118,9 +119,7 @@ def colour_range(
         return None
     chosen = [known[FUSED]] if FUSED in known else list(known.values())
     low, high = (float(v) for v in np.median(np.array(chosen), axis=0))
-    if not high > low:
-        low, high = low - 1.0, high + 1.0
-    return low, high
+    return (low, high) if high > low else None
 
 
 def _percentiles(data: np.ndarray, percentiles: tuple[float, float]) -> np.ndarray | None:
@@ -334,12 +333,12 @@ class SurfaceView(QWidget):
         self._draw_maps()
 
     def _range_from_maps(self) -> None:
-        self._range_at = time.monotonic()
         if self._mode == "phase" or not self._data:
             return
         levels = colour_range(self._data)
-        if levels is None:
+        if levels is None:  # no range to take: the next maps are looked at at once
             return
+        self._range_at = time.monotonic()
         self._levels = levels
         self.colour_bar.setLevels(self._levels)
 

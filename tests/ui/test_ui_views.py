@@ -268,3 +268,17 @@ def test_the_colour_range_is_the_trusted_surface_not_a_noisy_peak_or_wild_pixels
     low, high = colour_range({"RB1": good, "RB3": noisy, "FB1": wild})
     assert -12 < low < -7 and 7 < high < 12
     assert colour_range({"RB1": np.full((4, 4), np.nan)}) is None
+    assert colour_range({"RB1": np.zeros((4, 4)), FUSED: np.zeros((4, 4))}) is None
+
+
+def test_a_reference_frame_s_zero_maps_leave_the_range_to_the_next_maps(qtbot) -> None:
+    """Paused on a frame after a jump, its maps are zero (relative reference); the next
+    frame's maps, even within the follow interval, set the range."""
+    view = SurfaceView()
+    qtbot.addWidget(view)
+    view.set_maps({"RB1": np.zeros((32, 32))})
+    assert view.levels == (-1.0, 1.0)  # nothing to take a range from
+    waves = 10e-9 * np.sin(np.linspace(0, 20, 32 * 32)).reshape(32, 32)
+    view.set_maps({"RB1": waves})
+    low, high = view.levels
+    assert -10.5 < low < -9 and 9 < high < 10.5
