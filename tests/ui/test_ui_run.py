@@ -13,7 +13,9 @@ import pytest
 from PyQt6.QtCore import QMimeData, QObject, QPointF, Qt, QUrl
 from PyQt6.QtGui import QDropEvent
 
+from holoview.acquire.replay import DEFAULT_RATE_HZ
 from holoview.cli import main
+from holoview.engine.experiment import Experiment, LabelledPeak
 from holoview.headless.run import PeakChoice, process_file
 from holoview.live.replay_control import ReplayState
 from holoview.processing.series.rate_fits import format_rate
@@ -22,6 +24,8 @@ from holoview.ui.main_window import MainWindow
 from holoview.ui.open_files import recent_files
 from holoview.ui.run_trends import maps_frame_text
 from holoview.ui.trends_view import NO_TRENDS
+
+from .holograms import FB1, N1, N2, RB1, WAVELENGTH_M
 
 pytestmark = [
     pytest.mark.gui,
@@ -221,3 +225,28 @@ def test_a_newer_measurement_replaces_the_one_under_way(qtbot) -> None:
     assert started.wait(10)
     call.wait()  # the window closing: given up and joined
     assert not call.busy and not call.timer.isActive()
+
+
+def test_a_tiff_s_rate_is_assumed_and_said_until_one_is_given(
+    qtbot, open_windows, tmp_path, hologram_file
+) -> None:
+    peaks = (LabelledPeak("RB1", RB1), LabelledPeak("FB1", FB1))
+    Experiment(wavelength_m=WAVELENGTH_M, n1=N1, n2=N2, peaks=peaks).save(tmp_path / "exp.json")
+    window = _window(qtbot, open_windows, tmp_path)
+    window.open_file(hologram_file)
+    _opened(qtbot, window)
+    assumed = window.run_trends.series
+    assert assumed.request.fps_hz == DEFAULT_RATE_HZ
+    assert window.trends.rate_label.text().startswith(
+        f"whole run, {DEFAULT_RATE_HZ:g} frames/s, assumed: "
+    )
+    assert "holograms.tif carries no frame times" in window.trends.rate_label.toolTip()
+    window.apply_setting("rate_hz", 10.0)  # the Source panel's rate
+    qtbot.waitUntil(
+        lambda: window.run_trends.series is not None and window.run_trends.series is not assumed,
+        timeout=60000,
+    )
+    given = window.run_trends.series
+    assert given.times[-1] == pytest.approx(15 / 10.0)
+    assert window.trends.rate_label.text().startswith("whole run, 10 frames/s, given: ")
+    assert given.fit.rate == pytest.approx(assumed.fit.rate * 10.0 / DEFAULT_RATE_HZ, rel=1e-9)
