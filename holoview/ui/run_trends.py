@@ -80,6 +80,7 @@ class RunTrends(QObject):
         view.rangeChosen.connect(self.fit_range)
         view.rangeCleared.connect(self._range_cleared)
         view.cursorMoved.connect(self._cursor_dragged)
+        view.pcaRequested.connect(self._show_pca)
 
     @property
     def active(self) -> bool:
@@ -90,11 +91,6 @@ class RunTrends(QObject):
     def showing(self) -> bool:
         """True while the view shows the run (measured or being measured), not the live series."""
         return self.active and self._problem is None
-
-    @property
-    def measuring(self) -> bool:
-        """True while the run is being measured."""
-        return self.runs.busy
 
     # ---- the file ----------------------------------------------------------
     def attach(
@@ -214,14 +210,22 @@ class RunTrends(QObject):
             line,
             caption=caption,
         )
-        pca = outcome.analysis.pca
-        if pca is not None and self.view.pca_box.isChecked():
-            prefactors = cast(dict[str, float], pca["prefactors"])
-            self.view.set_pca(float(cast(float, pca["confidence"])), prefactors)
+        self._show_pca(self.view.pca_box.isChecked())
         logger.info("%s: whole run measured in %.2f s", self.path, outcome.seconds)
         chosen = self.view.chosen_range()
         if chosen is not None:
             self.fit_range(*chosen)
+
+    def _show_pca(self, on: bool) -> None:
+        """The run's temporal PCA (what ``holoview process`` reports), or nothing."""
+        if not self.showing or self.series is None:
+            return
+        pca = self.series.analysis.pca
+        if not on or pca is None:
+            self.view.set_pca(None, None)
+            return
+        prefactors = cast(dict[str, float], pca["prefactors"])
+        self.view.set_pca(float(cast(float, pca["confidence"])), prefactors)
 
     # ---- the cursor and the range -----------------------------------------
     def index_at(self, time_s: float) -> int | None:

@@ -85,6 +85,9 @@ def test_a_file_opened_shows_its_whole_run_before_it_plays(
     assert run.fit.rate == _process_rate(recording, tmp_path / "out")
     assert format_rate(run.fit.rate, run.fit.stderr) in window.trends.rate_label.text()
     assert window.trends.rate_label.text().startswith("whole run: ")  # the file's own clock
+    window.trends.pca_box.setChecked(True)  # the run's PCA, as process reports it
+    confidence = run.analysis.pca["confidence"]
+    assert f"{confidence * 100:.2f} %" in window.trends.pca_label.text()
     window.redraw()
     assert window.trends.cursor_line.isVisible() and window.trends.cursor_line.value() == 0.0
     assert recent_files()[0] == recording
