@@ -41,6 +41,7 @@ naming it and the frame.
 
 from __future__ import annotations
 
+import bisect
 import math
 import threading
 import time
@@ -285,6 +286,13 @@ class ReplaySource(Source):
             f"{rate:g} frames/s, assumed: {self.path.name} carries no frame times; "
             "give its rate (rate_hz)",
         )
+
+    def carried_experiment(self, index: int) -> str | None:
+        """The file's experiment (JSON text) in force at frame ``index``; None before any."""
+        experiments = self._require_file().experiments
+        starts = [start for start, _ in experiments]
+        k = bisect.bisect_right(starts, index)
+        return experiments[k - 1][1] if k else None
 
     def frame_time_s(self, index: int) -> float:
         """Time of frame ``index`` in the recording since its first frame, seconds.

@@ -77,7 +77,7 @@ def test_a_file_without_times_takes_the_rate_given(evaporation: Simulated, tmp_p
     tifffile.imwrite(stack, frames)
     stored, _ = recording_experiment(evaporation.path)
     assert recording_experiment(stack) == (None, [])  # a TIFF carries none
-    with pytest.raises(InputError, match="have no usable times .*: give --fps"):
+    with pytest.raises(InputError, match=r"have no usable times .*: give --fps"):
         measure_series(SeriesRequest(stack, stored))
     assert stored is not None
     run = measure_series(SeriesRequest(stack, stored, fps_hz=10.0))
