@@ -17,6 +17,7 @@ from collections.abc import Callable
 from PyQt6.QtCore import QObject, QTimer, pyqtSignal
 
 from holoview.errors import HoloviewError
+from holoview.live.worker import yield_to_others
 
 logger = logging.getLogger(__name__)
 
@@ -99,7 +100,7 @@ Job = Callable[[Callable[[int, int], None], Callable[[], bool]], object]
 class _Run:
     """One call of a :class:`LatestCall`: its thread, its give-up flag, its progress."""
 
-    def __init__(self, job: Job, thread_name: str) -> None:
+    def __init__(self, job: Job, thread_name: str, niceness: int) -> None:
         self.cancel = threading.Event()
         self.progress: tuple[int, int] | None = None
         self.outcome: list[object] = []
@@ -108,6 +109,8 @@ class _Run:
             self.progress = (done, total)
 
         def run() -> None:
+            if niceness:
+                yield_to_others(niceness)
             try:
                 self.outcome.append(job(report, self.cancel.is_set))
             except Exception as exc:  # delivered; a HoloviewError is the user's to read
@@ -136,6 +139,9 @@ class LatestCall(QObject):
         The owner.
     poll_ms : int
         How often the timer looks, milliseconds.
+    niceness : int
+        Added to the threads' scheduling niceness (Linux): a long measurement leaves the
+        cores to the window and the live workers first.
 
     Signals
     -------
@@ -145,8 +151,16 @@ class LatestCall(QObject):
 
     done = pyqtSignal(object)
 
-    def __init__(self, thread_name: str, timer_name: str, parent: QObject, poll_ms: int = 50):
+    def __init__(
+        self,
+        thread_name: str,
+        timer_name: str,
+        parent: QObject,
+        poll_ms: int = 50,
+        niceness: int = 0,
+    ):
         super().__init__(parent)
+        self.niceness = niceness
         self.thread_name = thread_name
         self.timer = QTimer(self)
         self.timer.setObjectName(timer_name)
@@ -172,7 +186,7 @@ class LatestCall(QObject):
             self._run.cancel.set()
             self._next = job
         else:
-            self._run = _Run(job, self.thread_name)
+            self._run = _Run(job, self.thread_name, self.niceness)
         self.timer.start()
 
     def cancel(self) -> None:
@@ -196,7 +210,7 @@ class LatestCall(QObject):
         self._run = None
         if self._next is not None:
             job, self._next = self._next, None
-            self._run = _Run(job, self.thread_name)
+            self._run = _Run(job, self.thread_name, self.niceness)
             return
         self.timer.stop()
         if not run.cancel.is_set():

@@ -31,6 +31,7 @@ from holoview.headless.run_series import (
     measure_series,
 )
 from holoview.live.replay_control import ReplayState
+from holoview.live.worker import YIELDING_NICENESS
 from holoview.processing.series.rate_fits import format_rate
 from holoview.ui.background import LatestCall
 from holoview.ui.trends_view import MEASURING, NO_TRENDS, TrendsView
@@ -73,8 +74,9 @@ class RunTrends(QObject):
         self._clock = ""
         self._problem: str | None = None
         self._cursor_index = -1
-        self.runs = LatestCall("holoview-run-series", "holoview-run-series", self)
-        self.ranges = LatestCall("holoview-range-fit", "holoview-range-fit", self)
+        nice = YIELDING_NICENESS
+        self.runs = LatestCall("holoview-run-series", "holoview-run-series", self, niceness=nice)
+        self.ranges = LatestCall("holoview-range-fit", "holoview-range-fit", self, niceness=nice)
         self.runs.done.connect(self._measured)
         self.ranges.done.connect(self._range_fitted)
         view.rangeChosen.connect(self.fit_range)
