@@ -32,6 +32,7 @@ from holoview.headless.analysis import Analysis, analyse, known_joint
 from holoview.headless.chunks import plan_jobs
 from holoview.headless.figures import FORMATS, figure_format
 from holoview.headless.inputs import (
+    FrameTimes,
     InputFile,
     Optics,
     OpticsOptions,
@@ -86,8 +87,9 @@ class PeakChoice:
 
     Attributes
     ----------
-    experiment : Path or None
-        An experiment file (:mod:`holoview.engine.experiment`).
+    experiment : Path or Experiment or None
+        An experiment file (:mod:`holoview.engine.experiment`), or an experiment (a
+        window's labels and optics).
     labels : dict of str to (fx, fy)
         Labelled carriers (cycles/pixel); with two or more of the model's families the
         model adds the others.
@@ -97,7 +99,7 @@ class PeakChoice:
         Auto mode: the reference peak's label and carrier (default: the brightest, RB1).
     """
 
-    experiment: Path | None = None
+    experiment: Path | Experiment | None = None
     labels: dict[str, Carrier] = field(default_factory=dict)
     auto: int | None = None
     anchor: tuple[str, Carrier] | None = None
@@ -144,8 +146,9 @@ def _base_experiment(
     """
     mode = choice.mode()
     if mode == "experiment file":
-        assert choice.experiment is not None
-        return Experiment.load(choice.experiment), mode, []
+        given = choice.experiment
+        assert given is not None
+        return given if isinstance(given, Experiment) else Experiment.load(given), mode, []
     stored, notes = source.experiment_at(first_frame)
     base = stored or Experiment(wavelength_m=None, pixel_pitch_m=None, n1=None, n2=None)
     if mode == "labels":
@@ -236,7 +239,7 @@ def read_background(spec: str | None, source: InputFile) -> np.ndarray | None:
 def run_inputs(input_path: str | Path, choice: PeakChoice, settings: ProcessSettings) -> list[Path]:
     """Every file or folder a run reads: the input, an experiment file, a background file."""
     inputs = [Path(input_path)]
-    if choice.experiment is not None:
+    if choice.experiment is not None and not isinstance(choice.experiment, Experiment):
         inputs.append(Path(choice.experiment))
     spec = settings.background
     if spec is not None and not spec.lstrip("-").isdigit():
@@ -261,6 +264,100 @@ def check_background(frame: np.ndarray, where: str) -> None:
             f"{frame.max():.3g}): a hologram is an intensity; give an object-free hologram"
         )
     check_not_background_subtracted(frame, where)
+
+
+@dataclass(frozen=True)
+class RunPlan:
+    """What a run settles before its frames (:func:`plan_run`).
+
+    Attributes
+    ----------
+    experiment : Experiment
+        The experiment in force: its labels and settings, the optics resolved into it.
+    settings : ProcessSettings
+        The demodulation settings, the experiment's where the options gave none.
+    optics : Optics
+        The optics and where each value came from.
+    frame_times : FrameTimes
+        The frames' times, s, and the clock (or ``--fps``) that gave them.
+    first : ndarray
+        The first usable frame of the run (its peaks were detected).
+    detected : list of Peak
+        Every peak detected on it.
+    selection : Selection
+        The peaks to measure, with the notes a reader of the results should know.
+    background : ndarray or None
+        The ``--background`` hologram, where one was given.
+    """
+
+    experiment: Experiment
+    settings: ProcessSettings
+    optics: Optics
+    frame_times: FrameTimes
+    first: np.ndarray
+    detected: list[Peak]
+    selection: Selection
+    background: np.ndarray | None
+
+
+def plan_run(
+    source: InputFile,
+    frames: range,
+    choice: PeakChoice,
+    options: OpticsOptions,
+    settings: ProcessSettings,
+) -> RunPlan:
+    """Settle a run of ``frames`` of ``source`` before its frames are measured.
+
+    The experiment (``choice``: a file or an experiment given, labels, ``--auto``, else
+    the recording's own), the optics (``options`` over the experiment's over the
+    recording's), the frame times (the file's clock, or ``options.fps_hz``), the
+    settings, the peaks detected on the first usable frame and those chosen. What
+    ``holoview process`` does first, and a window measuring a recording's whole run
+    (:mod:`holoview.headless.run_series`) with it.
+
+    Raises
+    ------
+    InputError
+        For missing or wrong parameters, no usable frame times and no ``--fps``, no
+        usable frame, a bad experiment or labels, an unusable background.
+    """
+    base, mode, notes = _base_experiment(choice, source, frames[0])
+    from_file = base if mode == "experiment file" else None
+    optics = resolve_optics(source.setup, options, from_file)
+    optics.require("wavelength_m")
+    experiment, settings = _settle(base, settings, optics)
+    frame_times = source.times(frames, options.fps_hz)
+    check_run_settings(
+        area_m2=settings.area_m2, radius=settings.radius, frame_shape=source.frame_shape
+    )
+    _, first = first_good_frame(source, frames)
+    background = read_background(settings.background, source)
+    detected = find_peaks(first, radius=experiment.radius, threads=settings.threads)
+    selection = choose_peaks(
+        choice,
+        mode=mode,
+        experiment=experiment,
+        detected=detected,
+        shape=source.frame_shape,
+        optics=optics,
+    )
+    for note in (*notes, *source.notes):
+        logger.warning("%s", note)
+    level = logging.WARNING if frame_times.warning else logging.INFO
+    logger.log(level, "%s: %s", source.path, frame_times.note)
+    notes += [*source.notes, frame_times.note]
+    selection = replace(selection, notes=(*notes, *selection.notes))
+    return RunPlan(
+        experiment=experiment,
+        settings=settings,
+        optics=optics,
+        frame_times=frame_times,
+        first=first,
+        detected=detected,
+        selection=selection,
+        background=background,
+    )
 
 
 def process_file(
@@ -364,33 +461,10 @@ def process_file(
                 runner = stack.enter_context(open_runner(planned, scheduler))
         elif runner.workers > 1 and plan_jobs(runner.workers, len(selected), source.kind) == 1:
             runner = None
-        base, mode, notes = _base_experiment(choice, source, selected[0])
-        from_file = base if mode == "experiment file" else None
-        optics = resolve_optics(source.setup, options, from_file)
-        optics.require("wavelength_m")
-        experiment, settings = _settle(base, settings, optics)
-        frame_times = source.times(selected, options.fps_hz)
-        times = frame_times.times
-        check_run_settings(
-            area_m2=settings.area_m2, radius=settings.radius, frame_shape=source.frame_shape
-        )
-        _, first = first_good_frame(source, selected)
-        background = read_background(settings.background, source)
-        detected = find_peaks(first, radius=experiment.radius, threads=settings.threads)
-        selection = choose_peaks(
-            choice,
-            mode=mode,
-            experiment=experiment,
-            detected=detected,
-            shape=source.frame_shape,
-            optics=optics,
-        )
-        for note in (*notes, *source.notes):
-            logger.warning("%s", note)
-        level = logging.WARNING if frame_times.warning else logging.INFO
-        logger.log(level, "%s: %s", source.path, frame_times.note)
-        notes += [*source.notes, frame_times.note]
-        selection = replace(selection, notes=(*notes, *selection.notes))
+        plan = plan_run(source, selected, choice, options, settings)
+        experiment, settings, optics = plan.experiment, plan.settings, plan.optics
+        selection, detected, background = plan.selection, plan.detected, plan.background
+        times, first = plan.frame_times.times, plan.first
         core = make_core(
             source.frame_shape,
             experiment,

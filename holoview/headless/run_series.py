@@ -2,16 +2,17 @@
 
 A window that opens a recording shows the run's trends, rates and fits at once, not
 only from the frames it has played: :func:`measure_series` measures every frame of the
-file (or of ``--frames A:B``) as ``holoview process`` does for its series, with its
-steps (:mod:`holoview.headless.run`): the experiment (the window's, or the one the
-recording carries), the optics and the frame times settled, the peaks detected on the
-first usable frame and chosen, every frame's carrier values measured by the carrier
-probe (:class:`~holoview.engine.frame_core.CarrierCore`, about a millisecond a
-512^2 frame) into a :class:`~holoview.engine.series.PhaseSeries`, then the depths, the
-fused depth and the rates (:func:`~holoview.headless.analysis.analyse`). No map and
-no file is written. The rate over a range of frames (a selection on the window's
-trends plot) is :func:`measure_series` over that range: the rate ``holoview process
---frames A:B`` writes, by the same code.
+file (or of ``--frames A:B``) as ``holoview process`` does for its series, by its
+functions: :func:`~holoview.headless.run.plan_run` settles the experiment (the
+window's, or the one the recording carries), the optics and the frame times, and
+chooses the peaks detected on the first usable frame; every frame's carrier values
+are measured by the carrier probe (:class:`~holoview.engine.frame_core.CarrierCore`,
+about a millisecond a 512^2 frame) into a
+:class:`~holoview.engine.series.PhaseSeries`, then the depths, the fused depth and
+the rates (:func:`~holoview.headless.analysis.analyse`). No file is written. The rate
+over a range of frames (a selection on the window's trends plot) is
+:func:`measure_series` over that range: the rate ``holoview process --frames A:B``
+writes, by the same code.
 
 Times in s from the first frame measured, depths in m, rates in m/s.
 """
@@ -22,24 +23,17 @@ import logging
 import math
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from holoview.engine.experiment import Experiment
-from holoview.errors import HoloviewError, InputError
+from holoview.errors import HoloviewError
 from holoview.headless.analysis import Analysis, analyse
-from holoview.headless.inputs import (
-    InputFile,
-    OpticsOptions,
-    first_good_frame,
-    parse_frame_range,
-    resolve_optics,
-)
+from holoview.headless.inputs import InputFile, OpticsOptions, parse_frame_range
 from holoview.headless.pipeline import ProcessSettings, demodulate_frames, make_core
-from holoview.headless.run import PeakChoice, _base_experiment, _settle, choose_peaks
-from holoview.processing.peaks.detection import find_peaks
+from holoview.headless.run import PeakChoice, plan_run
 from holoview.processing.series.rate_fits import RateFit
 
 logger = logging.getLogger(__name__)
@@ -201,39 +195,16 @@ def measure_series(
     started = time.perf_counter()
     with InputFile(request.path) as source:
         selected = parse_frame_range(request.frames, len(source))
-        if request.experiment is not None:
-            base, mode, notes = request.experiment, "experiment file", list[str]()
-        else:
-            base, mode, notes = _base_experiment(PeakChoice(), source, selected[0])
-        if not base.peaks:
-            raise InputError(
-                f"{source.path}: no labelled peak to measure (label the peaks, or give "
-                "an experiment that names them)"
-            )
+        choice = PeakChoice(experiment=request.experiment)
         options = OpticsOptions(fps_hz=request.fps_hz)
-        optics = resolve_optics(source.setup, options, base if request.experiment else None)
-        optics.require("wavelength_m")
-        experiment, settings = _settle(base, ProcessSettings(), optics)
-        frame_times = source.times(selected, request.fps_hz)
-        _, first = first_good_frame(source, selected)
-        detected = find_peaks(first, radius=experiment.radius, threads=settings.threads)
-        selection = choose_peaks(
-            PeakChoice(),
-            mode=mode,
-            experiment=experiment,
-            detected=detected,
-            shape=source.frame_shape,
-            optics=optics,
-        )
-        notes += [*source.notes, frame_times.note]
-        selection = replace(selection, notes=(*notes, *selection.notes))
+        plan = plan_run(source, selected, choice, options, ProcessSettings())
         core = make_core(
             source.frame_shape,
-            experiment,
-            selection.peaks,
-            settings,
+            plan.experiment,
+            plan.selection.peaks,
+            plan.settings,
             source.saturation,
-            detected=detected,
+            detected=plan.detected,
         )
         total = len(selected)
 
@@ -243,8 +214,8 @@ def measure_series(
             if progress is not None:
                 progress(done, total)
 
-        data = demodulate_frames(source, selected, frame_times.times, core, progress=step)
-        analysis = analyse(data, selection, optics)
+        data = demodulate_frames(source, selected, plan.frame_times.times, core, progress=step)
+        analysis = analyse(data, plan.selection, plan.optics)
     return RunSeries(
         request=request,
         frames=np.asarray(data.frames).copy(),

@@ -100,7 +100,7 @@ def test_a_file_without_times_takes_the_rate_given(evaporation: Simulated, tmp_p
 def test_no_label_is_a_clear_line(evaporation: Simulated) -> None:
     stored, _ = recording_experiment(evaporation.path)
     assert stored is not None
-    with pytest.raises(InputError, match="no labelled peak to measure"):
+    with pytest.raises(InputError, match="the experiment file names no peak to process"):
         measure_series(SeriesRequest(evaporation.path, replace(stored, peaks=())))
 
 
