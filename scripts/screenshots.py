@@ -89,7 +89,12 @@ def main() -> int:
     args.out.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory() as tmp:
         os.environ["XDG_CONFIG_HOME"] = tmp  # the default layout, not the user's
-        options = {"shape": (args.size, args.size)} if args.source.startswith("sim") else {}
+        # rendered live: a cycle's loop would put a jump back in the run recorded (6-replay)
+        options = (
+            {"shape": (args.size, args.size), "render": "live"}
+            if args.source.startswith("sim")
+            else {}
+        )
         window = MainWindow(
             source=args.source,
             experiment_path=Path(tmp) / "experiment.json",

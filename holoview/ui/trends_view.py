@@ -75,7 +75,7 @@ class TrendsView(QWidget):
         super().__init__(parent)
         self.plot = pg.PlotWidget()
         self.plot.setLabel("bottom", "time", units="s")
-        self.plot.setLabel("left", "mean depth change (nm)")
+        self.plot.setLabel("left", "depth change (nm)")
         self.plot.getAxis("left").enableAutoSIPrefix(False)
         self.legend = side_legend(self.plot.getPlotItem())
         self.plot.showGrid(x=True, y=True, alpha=0.3)
