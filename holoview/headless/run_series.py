@@ -3,16 +3,17 @@
 A window that opens a recording shows the run's trends, rates and fits at once, not
 only from the frames it has played: :func:`measure_series` measures every frame of the
 file (or of ``--frames A:B``) as ``holoview process`` does for its series, by its
-functions: :func:`~holoview.headless.run.plan_run` settles the experiment (the
+functions: :func:`~holoview.headless.prepare.prepare_run` settles the experiment (the
 window's, or the one the recording carries), the optics and the frame times, and
-chooses the peaks detected on the first usable frame; every frame's carrier values
-are measured by the carrier probe (:class:`~holoview.engine.frame_core.CarrierCore`,
-about a millisecond a 512^2 frame) into a
-:class:`~holoview.engine.series.PhaseSeries`, then the depths, the fused depth and
-the rates (:func:`~holoview.headless.analysis.analyse`). No file is written. The rate
-over a range of frames (a selection on the window's trends plot) is
-:func:`measure_series` over that range: the rate ``holoview process --frames A:B``
-writes, by the same code.
+chooses the peaks detected on the first usable frame;
+:func:`~holoview.headless.run_passes.run_passes` (series only) measures every frame's
+carrier values with the carrier probe
+(:class:`~holoview.engine.frame_core.CarrierCore`, about a millisecond a 512^2 frame)
+into a :class:`~holoview.engine.series.PhaseSeries` and names the peaks; then the
+depths, the fused depth and the rates (:func:`~holoview.headless.analysis.analyse`).
+No map and no file is written. The rate over a range of frames (a selection on the
+window's trends plot) is :func:`measure_series` over that range: the rate ``holoview
+process --frames A:B`` writes, by the same code.
 
 Times in s from the first frame measured, depths in m, rates in m/s.
 """
@@ -32,8 +33,9 @@ from holoview.engine.experiment import Experiment
 from holoview.errors import HoloviewError
 from holoview.headless.analysis import Analysis, analyse
 from holoview.headless.inputs import InputFile, OpticsOptions, parse_frame_range
-from holoview.headless.pipeline import ProcessSettings, demodulate_frames, make_core
-from holoview.headless.run import PeakChoice, plan_run
+from holoview.headless.prepare import prepare_run
+from holoview.headless.run_passes import run_passes
+from holoview.headless.settings import PeakChoice, ProcessOptions
 from holoview.processing.series.rate_fits import RateFit
 
 logger = logging.getLogger(__name__)
@@ -195,27 +197,22 @@ def measure_series(
     started = time.perf_counter()
     with InputFile(request.path) as source:
         selected = parse_frame_range(request.frames, len(source))
-        choice = PeakChoice(experiment=request.experiment)
-        options = OpticsOptions(fps_hz=request.fps_hz)
-        plan = plan_run(source, selected, choice, options, ProcessSettings())
-        core = make_core(
-            source.frame_shape,
-            plan.experiment,
-            plan.selection.peaks,
-            plan.settings,
-            source.saturation,
-            detected=plan.detected,
+        options = ProcessOptions(
+            choice=PeakChoice(experiment=request.experiment),
+            optics=OpticsOptions(fps_hz=request.fps_hz),
         )
-        total = len(selected)
+        prepared = prepare_run(source, selected, options)
 
-        def step(done: int) -> None:
+        def step(done: int, total: int) -> None:
             if cancelled is not None and cancelled():
                 raise CancelledError(f"{source.path}: measurement given up after {done} frames")
             if progress is not None:
                 progress(done, total)
 
-        data = demodulate_frames(source, selected, plan.frame_times.times, core, progress=step)
-        analysis = analyse(data, plan.selection, plan.optics)
+        data, naming = run_passes(
+            prepared.frames, runner=None, sink=None, progress=step, series_only=True
+        )
+        analysis = analyse(data, prepared.selection, prepared.optics, naming)
     return RunSeries(
         request=request,
         frames=np.asarray(data.frames).copy(),

@@ -26,7 +26,7 @@ from holoview.paths import confined_name
 from holoview.ui.legends import FUSED
 
 if TYPE_CHECKING:
-    from holoview.live.pipeline import LiveResult
+    from holoview.live.maps_pipeline import LiveResult
     from holoview.ui.status_bar import LiveStatusBar
     from holoview.ui.surface_view import SurfaceView
 

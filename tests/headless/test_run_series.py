@@ -15,7 +15,7 @@ from holoview.acquire.recording import RecordingReader
 from holoview.engine.experiment import Experiment
 from holoview.errors import InputError
 from holoview.headless.inputs import OpticsOptions
-from holoview.headless.run import PeakChoice, process_file
+from holoview.headless.run import process_file
 from holoview.headless.run_series import (
     CancelledError,
     SeriesRequest,
@@ -23,10 +23,11 @@ from holoview.headless.run_series import (
     measure_series,
     recording_experiment,
 )
+from holoview.headless.settings import PeakChoice, ProcessOptions
 
 
-def _process(path: Path, out: Path, **kwargs):
-    return process_file(path, out, choice=PeakChoice(), report=False, **kwargs)
+def _process(path: Path, out: Path, frames: str | None = None):
+    return process_file(path, out, ProcessOptions(frames=frames, report=None))
 
 
 def test_the_whole_run_is_what_process_measures(evaporation: Simulated, tmp_path: Path) -> None:
@@ -85,9 +86,11 @@ def test_a_file_without_times_takes_the_rate_given(evaporation: Simulated, tmp_p
     outcome = process_file(
         stack,
         tmp_path / "out",
-        choice=PeakChoice(experiment=_saved(stored, tmp_path)),
-        optics_options=OpticsOptions(fps_hz=10.0),
-        report=False,
+        ProcessOptions(
+            choice=PeakChoice(experiment=_saved(stored, tmp_path)),
+            optics=OpticsOptions(fps_hz=10.0),
+            report=None,
+        ),
     )
     assert run.fit is not None and outcome.analysis.fit is not None
     assert run.fit.rate == pytest.approx(outcome.analysis.fit.rate, rel=1e-12)

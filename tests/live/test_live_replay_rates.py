@@ -20,7 +20,8 @@ from holoview.acquire.recording import RecordingReader
 from holoview.acquire.replay import DEFAULT_RATE_HZ
 from holoview.engine.experiment import Experiment
 from holoview.headless.inputs import OpticsOptions
-from holoview.headless.run import PeakChoice, process_file
+from holoview.headless.run import process_file
+from holoview.headless.settings import PeakChoice, ProcessOptions
 from holoview.live.session import LiveSession
 
 #: The frame rate given to the replay and to ``process --fps``, frames per second.
@@ -46,9 +47,11 @@ def _process_rate(stack: tuple[Path, Path], tmp_path: Path, fps: float) -> float
     outcome = process_file(
         stack[0],
         tmp_path / f"out-{fps:g}",
-        choice=PeakChoice(experiment=stack[1]),
-        optics_options=OpticsOptions(fps_hz=fps),
-        report=False,
+        ProcessOptions(
+            choice=PeakChoice(experiment=stack[1]),
+            optics=OpticsOptions(fps_hz=fps),
+            report=None,
+        ),
     )
     assert outcome.analysis.fit is not None
     return outcome.analysis.fit.rate

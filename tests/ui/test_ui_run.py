@@ -16,7 +16,8 @@ from PyQt6.QtGui import QDropEvent
 from holoview.acquire.replay import DEFAULT_RATE_HZ
 from holoview.cli import main
 from holoview.engine.experiment import Experiment, LabelledPeak
-from holoview.headless.run import PeakChoice, process_file
+from holoview.headless.run import process_file
+from holoview.headless.settings import ProcessOptions
 from holoview.live.replay_control import ReplayState
 from holoview.processing.series.rate_fits import format_rate
 from holoview.ui.background import LatestCall
@@ -62,7 +63,7 @@ def _opened(qtbot, window: MainWindow) -> None:
 
 
 def _process_rate(path: Path, out: Path, frames: str | None = None) -> float:
-    outcome = process_file(path, out, choice=PeakChoice(), frames=frames, report=False)
+    outcome = process_file(path, out, ProcessOptions(frames=frames, report=None))
     assert outcome.analysis.fit is not None
     return outcome.analysis.fit.rate
 
