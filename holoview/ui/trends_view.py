@@ -15,7 +15,8 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 import pyqtgraph as pg
-from PyQt6.QtCore import Qt, pyqtSignal
+from PyQt6.QtCore import QEvent, QObject, Qt, pyqtSignal
+from PyQt6.QtGui import QResizeEvent
 from PyQt6.QtWidgets import (
     QCheckBox,
     QHBoxLayout,
@@ -27,7 +28,7 @@ from PyQt6.QtWidgets import (
 )
 
 from holoview.processing.series.rate_fits import format_rate
-from holoview.ui.legends import curve_pen, side_legend
+from holoview.ui.legends import curve_pen, fit_legend, side_legend
 
 #: What the empty view says before a peak is labelled.
 NO_TRENDS = (
@@ -78,6 +79,7 @@ class TrendsView(QWidget):
         self.plot.setLabel("left", "depth change (nm)")
         self.plot.getAxis("left").enableAutoSIPrefix(False)
         self.legend = side_legend(self.plot.getPlotItem())
+        self.plot.installEventFilter(self)  # resized: the legend's columns (fit_legend)
         self.plot.showGrid(x=True, y=True, alpha=0.3)
         self.curves: dict[str, pg.PlotDataItem] = {}
         self.fit_curve = pg.PlotDataItem(pen=pg.mkPen("y", width=1, style=Qt.PenStyle.DotLine))
@@ -154,6 +156,7 @@ class TrendsView(QWidget):
         """
         self.empty_hint.setText(hint or (JUMPED if jumped else NO_TRENDS))
         self.empty_hint.setVisible(not depths_m)
+        named = set(self.curves)
         for name in list(self.curves):
             if name not in depths_m:
                 self.plot.removeItem(self.curves.pop(name))
@@ -165,6 +168,19 @@ class TrendsView(QWidget):
                 curve.setDownsampling(auto=True, method="peak")
                 curve.setClipToView(True)
             curve.setData(np.asarray(times_s), np.asarray(depth) * 1e9)
+        if set(self.curves) != named:
+            self._fit_legend()
+
+    def eventFilter(self, watched: QObject | None, event: QEvent | None) -> bool:
+        """The plot resized: its legend's columns again (:func:`fit_legend`)."""
+        if watched is self.plot and isinstance(event, QResizeEvent):
+            self._fit_legend(event.size().height())
+        return super().eventFilter(watched, event)
+
+    def _fit_legend(self, height_px: int | None = None) -> None:
+        """The legend's columns for the plot's height (now, or ``height_px`` it is given)."""
+        height = self.plot.height() if height_px is None else height_px
+        fit_legend(self.plot.getPlotItem(), self.legend, height - 2 * self.plot.frameWidth())
 
     def set_rate(
         self,

@@ -210,6 +210,31 @@ def test_trends_show_rate_in_um_per_min(qtbot) -> None:
 
 
 @pytest.mark.qt_log_ignore(r"This plugin does not support propagateSizeHints\(\)")
+def test_a_short_trends_plot_keeps_its_time_axis(qtbot) -> None:
+    """Seven curves' legend in one column needs about 150 pixels: a shorter plot (a
+    trends dock at 1366 x 768) takes more columns instead of losing its bottom."""
+    view = TrendsView()
+    qtbot.addWidget(view)
+    view.resize(560, 400)
+    view.show()
+    times = np.linspace(0.0, 2.0, 50)
+    names = ("RB1", "RF", "RB2", "FB1", "RB3", "FB2", "fused")
+    view.set_series(times, {name: -times * 1e-8 for name in names})
+    item = view.plot.getPlotItem()
+
+    def fits() -> bool:
+        return item.layout.minimumHeight() <= view.plot.viewport().height()
+
+    qtbot.waitUntil(fits)
+    assert view.legend.columnCount == 1
+    view.resize(560, 190)
+    qtbot.waitUntil(lambda: view.legend.columnCount > 1 and fits())
+    assert item.size().height() <= view.plot.viewport().height() + 1  # nothing cut off
+    view.resize(560, 400)
+    qtbot.waitUntil(lambda: view.legend.columnCount == 1)
+
+
+@pytest.mark.qt_log_ignore(r"This plugin does not support propagateSizeHints\(\)")
 def test_hologram_subsampled_to_the_screen_keeps_saturation(qtbot) -> None:
     view = HologramView()
     qtbot.addWidget(view)
