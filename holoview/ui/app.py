@@ -120,6 +120,7 @@ def run_live(
     quit_after: float | None = None,
     experiment: Path | None = None,
     optics: dict[str, float] | None = None,
+    open_path: Path | None = None,
 ) -> int:
     """Open the main window on ``source`` and run the event loop.
 
@@ -133,6 +134,8 @@ def run_live(
         Experiment file to use (and keep up to date) instead of the default.
     optics : dict, optional
         ``wavelength_m``, ``pixel_pitch_m``, ``n1``, ``n2`` to use over the experiment's.
+    open_path : Path, optional
+        A file to open as File > Open does, instead of starting ``source``.
 
     Returns
     -------
@@ -150,9 +153,16 @@ def run_live(
     windows: list[MainWindow] = []
     with stop_on_lost_display(windows):
         try:
-            window = MainWindow(source=source, experiment_path=experiment, optics=optics)
+            window = MainWindow(
+                source=source,
+                autostart=open_path is None,
+                experiment_path=experiment,
+                optics=optics,
+            )
             windows.append(window)
             window.show()
+            if open_path is not None:
+                window.open_file(open_path)
             if quit_after is not None:
                 QTimer.singleShot(int(quit_after * 1000), window.close)
             logger.info("main window open on source %s", source)
