@@ -38,7 +38,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
         type=float,
         default=None,
         metavar="SECONDS",
-        help="close the window after this many seconds (for scripted runs and screenshots)",
+        help="close the window this many seconds after its source has opened (for scripted runs "
+        "and screenshots)",
     )
     add_experiment_option(
         parser,
