@@ -14,8 +14,9 @@ from __future__ import annotations
 
 import logging
 import time
-from dataclasses import replace
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from PyQt6.QtCore import QByteArray, QRect, Qt, QTimer, pyqtSignal
@@ -25,6 +26,8 @@ from PyQt6.QtWidgets import (
     QFileDialog,
     QLabel,
     QMainWindow,
+    QMenu,
+    QMenuBar,
     QToolBar,
     QWidget,
 )
@@ -37,18 +40,20 @@ from holoview.live.session import LiveSession, RecordRequest, discover_sources
 from holoview.ui.background import BackgroundCall
 from holoview.ui.exports import export_maps, export_window_png
 from holoview.ui.hologram_view import HologramView
+from holoview.ui.legends import FUSED
 from holoview.ui.recording_panel import RecordingPanel
 from holoview.ui.settings import ui_settings
 from holoview.ui.source_panel import SourcePanel
 from holoview.ui.spectrum_view import SpectrumView
 from holoview.ui.status_bar import LiveFigures, LiveStatusBar, RateMeter
-from holoview.ui.surface_view import FUSED, SurfaceView
+from holoview.ui.surface_view import SurfaceView
 from holoview.ui.transport_bar import TransportBar
 from holoview.ui.trends_view import TrendsView
 from holoview.ui.window_experiment import ExperimentActions
 from holoview.ui.window_layout import (
     FRAME_ALLOWANCE,
     arrange_docks,
+    available_area,
     fitted,
     initial_size,
     layout_for,
@@ -90,7 +95,7 @@ class MainWindow(ExperimentActions, QMainWindow):
         source: str = "sim",
         autostart: bool = True,
         experiment_path: Path | None = None,
-        source_options: dict | None = None,
+        source_options: dict[str, Any] | None = None,
         optics: dict[str, float] | None = None,
     ) -> None:
         super().__init__()
@@ -146,7 +151,7 @@ class MainWindow(ExperimentActions, QMainWindow):
         self._add_dock("Spectrum", self.spectrum)
         self._add_dock("Surface", self.surface)
         self._add_dock("Trends", self.trends)
-        available = self.screen().availableGeometry().size()
+        available = available_area(self).size()
         self.resize(initial_size(available))
         self.dock_layout = layout_for(available)
         arrange_docks(self, self.docks, self.dock_layout)
@@ -183,12 +188,12 @@ class MainWindow(ExperimentActions, QMainWindow):
         self.docks[title] = dock
 
     def _make_actions(self) -> None:
-        def action(text: str, shortcut: str | None, slot: object) -> QAction:
+        def action(text: str, shortcut: str | None, slot: Callable[[], object]) -> QAction:
             act = QAction(text, self)
             if shortcut:
                 act.setShortcut(QKeySequence(shortcut))
                 act.setShortcutContext(Qt.ShortcutContext.ApplicationShortcut)
-            act.triggered.connect(slot)  # type: ignore[arg-type]
+            act.triggered.connect(slot)
             self.addAction(act)
             return act
 
@@ -207,7 +212,8 @@ class MainWindow(ExperimentActions, QMainWindow):
         self.reset_layout_action = action("Reset layout", None, self.reset_layout)
         self.auto_levels_action = action("Auto levels", "Ctrl+L", self.hologram.auto_levels)
         menus = self.menuBar()
-        file_menu = menus.addMenu("&File")
+        assert menus is not None  # a QMainWindow makes its menu bar when first asked
+        file_menu = _menu(menus, "&File")
         for act in (
             self.load_action,
             self.save_action,
@@ -217,17 +223,17 @@ class MainWindow(ExperimentActions, QMainWindow):
             self.quit_action,
         ):
             file_menu.addAction(act)
-        acq = menus.addMenu("&Acquisition")
+        acq = _menu(menus, "&Acquisition")
         acq.addAction(self.start_action)
         acq.addAction(self.record_action)
         acq.addAction(self.auto_levels_action)
-        view = menus.addMenu("&View")
+        view = _menu(menus, "&View")
         for dock in self.docks.values():
             view.addAction(dock.toggleViewAction())
         view.addAction(self.banner_bar.toggleViewAction())
         view.addSeparator()
         view.addAction(self.reset_layout_action)
-        replay = menus.addMenu("&Replay")
+        replay = _menu(menus, "&Replay")
         for act in self.transport.shortcuts:
             replay.addAction(act)
             self.addAction(act)
@@ -316,14 +322,14 @@ class MainWindow(ExperimentActions, QMainWindow):
         self.transport.attach(self.session.replay)
         self.timer.start()
 
-    def _adopt_source_setup(self, setup: dict) -> None:
+    def _adopt_source_setup(self, setup: dict[str, Any]) -> None:
         """Take the optics a source knows (simulator, recording) into the experiment."""
         fields = ("wavelength_m", "pixel_pitch_m", "n1", "n2")
         changes = {k: float(setup[k]) for k in fields if k in setup and k not in self.optics}
         if not changes or all(getattr(self.experiment, k) == v for k, v in changes.items()):
             return
         try:
-            self._set_experiment(replace(self.experiment, **changes))
+            self._set_experiment(self.experiment.with_optics(changes))
         except HoloviewError as exc:
             self.show_message(f"the source's optical setup is not usable: {exc}")
             return
@@ -406,7 +412,7 @@ class MainWindow(ExperimentActions, QMainWindow):
             self.recording_panel.set_progress(self.session.recording_progress())
 
     # ---- exports -----------------------------------------------------------
-    def current_maps(self) -> tuple[dict, str]:
+    def current_maps(self) -> tuple[dict[str, np.ndarray], str]:
         """Return the maps of the latest result (metres or radians) and their unit."""
         result = self._last_result
         if result is None:
@@ -556,13 +562,15 @@ class MainWindow(ExperimentActions, QMainWindow):
 
     def fit_to_screen(self) -> None:
         """Move and shrink the window (a restored geometry too) into its screen's free area."""
-        self.layout().activate()  # the docks' minimum sizes as they are arranged now
+        layout = self.layout()  # a QMainWindow has its own (the stubs allow None)
+        if layout is not None:
+            layout.activate()  # the docks' minimum sizes as they are arranged now
         frame, client = self.frameGeometry(), self.geometry()
         margins = frame.size() - client.size()
         if not self.isVisible():  # the window manager's frame is not known yet
             margins = margins.expandedTo(FRAME_ALLOWANCE)
             frame = QRect(frame.topLeft(), client.size() + margins)
-        position, size = fitted(frame, margins, self.screen().availableGeometry())
+        position, size = fitted(frame, margins, available_area(self))
         self.resize(size)
         self.move(position)
 
@@ -592,7 +600,14 @@ class MainWindow(ExperimentActions, QMainWindow):
         self.stop_source()
         self.save_layout()
 
-    def closeEvent(self, event: QCloseEvent) -> None:
+    def closeEvent(self, event: QCloseEvent | None) -> None:
         """Stop every thread and timer, remember the layout, then close."""
         self.shut_down()
         super().closeEvent(event)
+
+
+def _menu(bar: QMenuBar, title: str) -> QMenu:
+    """A new menu ``title`` at the end of ``bar`` (owned by it)."""
+    menu = QMenu(title, bar)
+    bar.addMenu(menu)
+    return menu

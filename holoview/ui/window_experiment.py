@@ -14,7 +14,7 @@ from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from PyQt6.QtWidgets import QFileDialog
+from PyQt6.QtWidgets import QFileDialog, QWidget
 
 from holoview.engine.experiment import Experiment, LabelledPeak
 from holoview.errors import HoloviewError
@@ -44,6 +44,10 @@ class ExperimentActions:
     _known: tuple[Experiment, str] | None
     _last_result: LiveResult | None
     show_message: Callable[[str], None]
+
+    def _dialog_parent(self) -> QWidget | None:
+        """The window this part is mixed into, as the parent of its dialogs."""
+        return self if isinstance(self, QWidget) else None
 
     def _set_experiment(self, experiment: Experiment) -> None:
         self.experiment = experiment
@@ -133,7 +137,7 @@ class ExperimentActions:
                     f"settings are saved to {self.experiment_path})"
                 )
         try:
-            self.experiment = replace(self.experiment, **self.optics)
+            self.experiment = self.experiment.with_optics(self.optics)
         except HoloviewError as exc:
             problem = f"optics options ignored: {exc}"
             self.optics = {}
@@ -151,14 +155,19 @@ class ExperimentActions:
 
     def load_experiment_dialog(self) -> None:
         """Ask for an experiment settings file and load it."""
-        path, _ = QFileDialog.getOpenFileName(self, "Load experiment settings", "", "JSON (*.json)")
+        path, _ = QFileDialog.getOpenFileName(
+            self._dialog_parent(), "Load experiment settings", "", "JSON (*.json)"
+        )
         if path:
             self.load_experiment(Path(path))
 
     def save_experiment_dialog(self) -> None:
         """Ask where to save the experiment settings."""
         path, _ = QFileDialog.getSaveFileName(
-            self, "Save experiment settings", str(self.experiment_path), "JSON (*.json)"
+            self._dialog_parent(),
+            "Save experiment settings",
+            str(self.experiment_path),
+            "JSON (*.json)",
         )
         if path:
             try:
