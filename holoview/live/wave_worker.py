@@ -97,7 +97,7 @@ def _chosen(peaks: tuple[Peak, ...], label: str) -> list[Peak]:
     return found
 
 
-class WavesWorker(RingWorker):
+class WavesWorker(RingWorker[LiveWaves]):
     """Demodulate one map from every frame (or every ``stride``-th) and analyse the last N.
 
     Parameters
@@ -134,7 +134,7 @@ class WavesWorker(RingWorker):
         self.stride = 1
         self._core: FrameCore | None = None
         self._maps_step: MapStep | None = None
-        self._radius: tuple[tuple, float] | None = None
+        self._radius: tuple[tuple[object, ...], float] | None = None
         self._coregistered_at = -math.inf
         self._continuity = Continuity()
         self._costs: collections.deque[float] = collections.deque(maxlen=16)  # s per map
