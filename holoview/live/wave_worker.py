@@ -242,6 +242,11 @@ class WavesWorker(RingWorker[LiveWaves]):
         with self._lock:
             history = self.history
             if jumped or built:  # a replay's jump; a new demodulator (its reference anew)
+                if len(history):
+                    logger.info(
+                        "waves: %s; the window starts again",
+                        "the replay jumped" if jumped else "the demodulator was rebuilt",
+                    )
                 history.clear()
             if pixel_size != history.pixel_size or k_cut != history.k_cut:
                 history.clear()
