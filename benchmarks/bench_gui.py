@@ -219,7 +219,10 @@ def main() -> int:
             window.label_peak(name, fx, fy)
         if args.waves:
             window.show_waves()
-            run_for(1.0)
+            for _ in range(40):  # the labelled maps are offered once the maps show them
+                run_for(0.5)
+                if window.waves.map_box.findText(args.waves) >= 0:
+                    break
             window.waves.choose_map(args.waves)
             if window.waves.map_box.currentText() != args.waves:
                 print(f"no map {args.waves} to open in the Waves panel", file=sys.stderr)
