@@ -193,7 +193,7 @@ class WavesView(QWidget):
         self.graphics.scene().sigMouseClicked.connect(self._clicked)
 
     def _make_plots(self) -> None:
-        self.omega_k = self.graphics.addPlot(row=0, col=0, colspan=2)
+        self.omega_k = self.graphics.addPlot(row=0, col=0)
         self.omega_k.setLabel("bottom", "wavenumber along the cut q (rad/m)")
         self.omega_k.setLabel("left", "f (Hz)")
         self.omega_k_image = pg.ImageItem(axisOrder="row-major")
@@ -210,10 +210,10 @@ class WavesView(QWidget):
         )
         self.omega_k.addItem(self.nominal_curve)
         self.omega_k.addItem(self.fit_curve)
-        self.field = self.graphics.addPlot(row=1, col=0)
+        self.field = self.graphics.addPlot(row=0, col=1)
         self.field.setLabel("bottom", "x (mm)")
         self.field.setLabel("left", "y (mm)")
-        self.field.setTitle("newest map: click to set the centre")
+        self.field.setTitle("newest map (click: centre)")
         self.field.invertY(True)
         self.field.setAspectLocked(True)
         self.field_image = pg.ImageItem(axisOrder="row-major")
@@ -223,16 +223,20 @@ class WavesView(QWidget):
             size=14, symbol="+", pen=pg.mkPen("r", width=2), brush=None
         )
         self.field.addItem(self.centre_mark)
-        self.mf = self.graphics.addPlot(row=1, col=1)
+        self.mf = self.graphics.addPlot(row=0, col=2)
         self.mf.setLabel("bottom", "f (Hz)")
         self.mf.setLabel("left", "m")
-        self.mf.setTitle("(m, f): set a centre")
+        self.mf.setTitle("(m, f): no centre")
         self.mf_image = pg.ImageItem(axisOrder="row-major")
         self.mf_image.setColorMap(pg.colormap.get("inferno"))
         self.mf.addItem(self.mf_image)
         for plot in (self.omega_k, self.field, self.mf):
             for side in ("bottom", "left"):
                 plot.getAxis(side).enableAutoSIPrefix(False)
+        # one row: the panel shares a short dock with Trends; the spectrum gets half
+        self.graphics.ci.layout.setColumnStretchFactor(0, 2)
+        for col in (1, 2):
+            self.graphics.ci.layout.setColumnStretchFactor(col, 1)
 
     # ---- settings ----------------------------------------------------------
     def settings(self) -> WaveSettings:
@@ -342,8 +346,7 @@ class WavesView(QWidget):
             self.fit_curve.setData([], [])
             self.nominal_curve.setData(grid, curve(nominal))
         self.omega_k.setTitle(
-            f"omega-k of {waves.label} along {self.direction.value()}° "
-            f"({spectrum.segments} segments; power at +q travels along the cut)"
+            f"omega-k of {waves.label} along {self.direction.value()}° (+q: along the cut)"
         )
 
     def _draw_field(self, waves: LiveWaves) -> None:
@@ -368,7 +371,7 @@ class WavesView(QWidget):
         mf = waves.mf
         if mf is None:
             self.mf_image.clear()
-            self.mf.setTitle("(m, f): click the field to set a centre")
+            self.mf.setTitle("(m, f): no centre")
             return
         image, levels = _log_image(mf.power)
         self.mf_image.setImage(image, levels=levels)
