@@ -22,7 +22,6 @@ from PyQt6.QtCore import QByteArray, QRect, Qt, QTimer, pyqtSignal
 from PyQt6.QtGui import QAction, QCloseEvent, QKeySequence
 from PyQt6.QtWidgets import (
     QDockWidget,
-    QFileDialog,
     QLabel,
     QMainWindow,
     QToolBar,
@@ -35,14 +34,17 @@ from holoview.errors import HoloviewError
 from holoview.live.maps_pipeline import LiveResult
 from holoview.live.session import LiveSession, RecordRequest, discover_sources
 from holoview.ui.background import BackgroundCall
-from holoview.ui.exports import export_maps, export_window_png
+from holoview.ui.exports import WindowExports
 from holoview.ui.hologram_view import HologramView
+from holoview.ui.notice_bar import NoticeBar
+from holoview.ui.open_files import FileOpening, Opened, opened_source
 from holoview.ui.recording_panel import RecordingPanel
+from holoview.ui.run_trends import RunTrends, maps_frame_text
 from holoview.ui.settings import ui_settings
 from holoview.ui.source_panel import SourcePanel
 from holoview.ui.spectrum_view import SpectrumView
 from holoview.ui.status_bar import LiveFigures, LiveStatusBar, RateMeter
-from holoview.ui.surface_view import FUSED, SurfaceView
+from holoview.ui.surface_view import SurfaceView
 from holoview.ui.transport_bar import TransportBar
 from holoview.ui.trends_view import TrendsView
 from holoview.ui.window_experiment import ExperimentActions
@@ -62,7 +64,7 @@ REDRAW_HZ = 30.0
 BANNER_S = 8.0
 
 
-class MainWindow(ExperimentActions, QMainWindow):
+class MainWindow(FileOpening, ExperimentActions, WindowExports, QMainWindow):
     """holoview's live window.
 
     Parameters
@@ -132,6 +134,12 @@ class MainWindow(ExperimentActions, QMainWindow):
         self.banner_bar.addWidget(self.banner)
         self.banner_bar.setVisible(False)
         self.addToolBar(Qt.ToolBarArea.TopToolBarArea, self.banner_bar)
+        self.addToolBarBreak(Qt.ToolBarArea.TopToolBarArea)
+        self.notice = NoticeBar(self)
+        self.addToolBar(Qt.ToolBarArea.TopToolBarArea, self.notice)
+        self._previous_experiment: Experiment | None = None
+        self.run_trends = RunTrends(self.trends, self)
+        self.setAcceptDrops(True)
         self.transport = TransportBar(self)
         self.addToolBar(Qt.ToolBarArea.BottomToolBarArea, self.transport)
 
@@ -198,7 +206,7 @@ class MainWindow(ExperimentActions, QMainWindow):
         self.export_action = action("Export maps...", "Ctrl+E", self.export_maps_dialog)
         self.png_action = action("Save window as PNG...", "Ctrl+P", self.save_png_dialog)
         self.load_action = action(
-            "Load experiment settings...", "Ctrl+O", self.load_experiment_dialog
+            "Load experiment settings...", "Ctrl+Shift+O", self.load_experiment_dialog
         )
         self.save_action = action(
             "Save experiment settings as...", "Ctrl+S", self.save_experiment_dialog
@@ -208,6 +216,10 @@ class MainWindow(ExperimentActions, QMainWindow):
         self.auto_levels_action = action("Auto levels", "Ctrl+L", self.hologram.auto_levels)
         menus = self.menuBar()
         file_menu = menus.addMenu("&File")
+        for act in self._make_file_actions():
+            file_menu.addAction(act)
+        file_menu.addMenu(self.recent_menu)
+        file_menu.addSeparator()
         for act in (
             self.load_action,
             self.save_action,
@@ -250,6 +262,8 @@ class MainWindow(ExperimentActions, QMainWindow):
         self.recording_panel.stopRequested.connect(self.stop_recording)
         self.transport.message.connect(self.show_message)
         self.transport.changed.connect(self._show_source_values)
+        self.run_trends.message.connect(self.show_message)
+        self.run_trends.seekRequested.connect(self.transport.seek)
 
     # ---- messages ----------------------------------------------------------
     def show_message(self, text: str) -> None:
@@ -266,25 +280,29 @@ class MainWindow(ExperimentActions, QMainWindow):
         return self.banner.text() if self.banner_bar.isVisibleTo(self) else ""
 
     # ---- source ------------------------------------------------------------
-    def start_source(self, spec: str) -> None:
+    def start_source(self, spec: str, paused: bool = False) -> None:
         """Open and start ``spec`` on a thread; the window stays responsive meanwhile.
 
         Opening a camera or timing the simulator can take a second. When it is done
         (:attr:`opening` is False again) the views follow the new source, or the banner
-        says why it could not start.
+        says why it could not start. A replay starts ``paused`` on its first frame
+        when asked; the experiment a recording carries is read on the same thread.
         """
         if self.opener.busy:
             self.show_message(f"still opening {self._opening_spec}; try again when it is open")
             return
         self.stop_source()
-        options = self.source_options if spec == self._optioned_source else None
+        options = dict(self.source_options if spec == self._optioned_source else {})
+        if paused:
+            options["speed"] = "step"
         experiment = self.experiment
 
-        def open_session() -> LiveSession | str:
+        def open_session() -> Opened | str:
             try:
-                return LiveSession.open(spec, experiment, source_options=options)
+                session = LiveSession.open(spec, experiment, source_options=options)
             except HoloviewError as exc:
                 return f"cannot start {spec}: {exc}"
+            return opened_source(session, paused)
 
         self._opening_spec = spec
         self.source_panel.set_opening(spec)
@@ -296,17 +314,20 @@ class MainWindow(ExperimentActions, QMainWindow):
         return self.opener.busy
 
     def _opened(self, outcome: object) -> None:
-        if not isinstance(outcome, LiveSession):
+        if not isinstance(outcome, Opened):
             internal = f"cannot start {self._opening_spec}: internal error (see the log)"
             self.show_message(outcome if isinstance(outcome, str) else internal)
             self.source_panel.set_streaming(False)
             return
-        self.session = outcome
+        self.session = outcome.session
         self._last_seq = -1
         self._camera_seq = -1
         self._drawn = None
         self.session.on_maps(self.mapsReady.emit)
         self._adopt_source_setup(self.session.source_setup())
+        for note in outcome.notes:
+            self.show_message(note)
+        self._apply_recording_experiment(outcome.stored, self.session.source_setup())
         self._learn_known_labels()
         self.hologram.set_saturation_value(self.session.saturation_value)
         self.source_panel.set_settings(
@@ -314,7 +335,17 @@ class MainWindow(ExperimentActions, QMainWindow):
         )
         self.source_panel.set_streaming(True, self.session.description)
         self.transport.attach(self.session.replay)
+        self._attach_run()
         self.timer.start()
+
+    def _attach_run(self) -> None:
+        """Measure the whole run of a replayed file (the trends view shows it); else nothing."""
+        replay = self.session.replay if self.session is not None else None
+        if replay is None:
+            self.run_trends.attach(None)
+            return
+        clock = replay.clock()
+        self.run_trends.attach(replay.path, self.experiment, clock.rate_hz, clock.text)
 
     def _adopt_source_setup(self, setup: dict) -> None:
         """Take the optics a source knows (simulator, recording) into the experiment."""
@@ -336,6 +367,8 @@ class MainWindow(ExperimentActions, QMainWindow):
             return
         self.timer.stop()
         self.transport.attach(None)
+        self.run_trends.attach(None)
+        self.surface.stats_label.clear()
         self.session.close()
         self.session = None
         self.recording_panel.set_progress(None)
@@ -370,6 +403,9 @@ class MainWindow(ExperimentActions, QMainWindow):
             self.show_message(str(exc))
         self._last_seq = -1
         self._camera_seq = -1
+        if self.session.replay is not None:
+            clock = self.session.replay.clock()
+            self.run_trends.set_clock(clock.rate_hz, clock.text)
         self.source_panel.show_values(self.session.read_settings())
         self.source_panel.set_streaming(self.session.running, self.session.description)
 
@@ -405,61 +441,6 @@ class MainWindow(ExperimentActions, QMainWindow):
             self.session.stop_recording()
             self.recording_panel.set_progress(self.session.recording_progress())
 
-    # ---- exports -----------------------------------------------------------
-    def current_maps(self) -> tuple[dict, str]:
-        """Return the maps of the latest result (metres or radians) and their unit."""
-        result = self._last_result
-        if result is None:
-            return {}, "m"
-        if self.surface.mode == "phase":
-            return dict(result.phases_rad), "rad"
-        maps = dict(result.heights_m)
-        if result.fused_m is not None:
-            maps[FUSED] = result.fused_m
-        return maps, "m"
-
-    def export_maps_to(self, path: Path) -> list[Path]:
-        """Write the current maps next to ``path`` (``.tif`` or ``.npy``)."""
-        maps, unit = self.current_maps()
-        return export_maps(maps, path, unit)
-
-    def export_maps_dialog(self) -> None:
-        """Ask for a file name and export the current maps."""
-        path, _ = QFileDialog.getSaveFileName(
-            self, "Export maps", "maps.tif", "TIFF (*.tif);;NumPy (*.npy)"
-        )
-        if path:
-            try:
-                written = self.export_maps_to(Path(path))
-            except HoloviewError as exc:
-                self.show_message(str(exc))
-                return
-            self.status.showMessage(f"wrote {len(written)} maps", 4000)
-
-    def save_png_dialog(self) -> None:
-        """Ask for a file name and save the window as PNG."""
-        path, _ = QFileDialog.getSaveFileName(self, "Save window", "holoview.png", "PNG (*.png)")
-        if path:
-            try:
-                export_window_png(self, Path(path))
-            except HoloviewError as exc:
-                self.show_message(str(exc))
-
-    def snapshot(self, folder: Path | None = None) -> list[Path]:
-        """Save the window (PNG) and the current maps (NPY) with a time stamp in the name."""
-        folder = folder or Path.cwd()
-        stem = folder / time.strftime("holoview-%Y%m%d-%H%M%S")
-        try:
-            written = [export_window_png(self, stem.with_suffix(".png"))]
-            maps, unit = self.current_maps()
-            if maps:
-                written += export_maps(maps, stem.with_suffix(".npy"), unit)
-        except HoloviewError as exc:
-            self.show_message(str(exc))
-            return []
-        self.status.showMessage(f"snapshot: {len(written)} files in {folder}", 4000)
-        return written
-
     # ---- redraw ------------------------------------------------------------
     def redraw(self) -> None:
         """Draw the camera's newest frame and any new result; refresh figures and messages."""
@@ -477,8 +458,14 @@ class MainWindow(ExperimentActions, QMainWindow):
             self._draw_camera(newest[1])
             self.display_rate.tick()
         self.draw_maps()
-        trend = session.trend()
-        if trend is not None and trend.seq != self._trend_seq:
+        state = session.replay.state() if session.replay is not None else None
+        if state is not None:
+            maps_index = -1 if self._last_result is None else self._last_result.frame_index
+            self.surface.stats_label.setText(maps_frame_text(state, maps_index))
+        if self.run_trends.showing and state is not None:
+            self.run_trends.refresh(state.index)
+            self._trend_seq = -1
+        elif (trend := session.trend()) is not None and trend.seq != self._trend_seq:
             self._trend_seq = trend.seq
             self.trends.set_series(trend.times_s, trend.depths_m, jumped=trend.segment > 0)
             self.trends.set_rate(trend.rate_m_per_s, trend.rate_stderr_m_per_s, trend.rate_fit)
@@ -551,7 +538,7 @@ class MainWindow(ExperimentActions, QMainWindow):
             self.restoreGeometry(geometry)
         if isinstance(state, QByteArray):
             self.restoreState(state)
-            self.transport.attach(self.transport.control)  # shown only while steering
+            self._bars_as_they_are()
         self.fit_to_screen()
 
     def fit_to_screen(self) -> None:
@@ -576,7 +563,13 @@ class MainWindow(ExperimentActions, QMainWindow):
     def reset_layout(self) -> None:
         """Put the docks back where they start."""
         self.restoreState(self._default_state)
-        self.transport.attach(self.transport.control)
+        self._bars_as_they_are()
+
+    def _bars_as_they_are(self) -> None:
+        """Show the bars a restored layout hid or showed by their state, not the layout's."""
+        self.transport.attach(self.transport.control)  # shown only while steering
+        self.banner_bar.setVisible(bool(self.banner.text()) and self._banner_until > 0)
+        self.notice.setVisible(bool(self.notice.label.text()) and self.notice.has_action)
 
     def shut_down(self) -> None:
         """Stop every thread and timer (a recording's file closed), remember the layout.
@@ -586,9 +579,10 @@ class MainWindow(ExperimentActions, QMainWindow):
         """
         self.timer.stop()
         opened = self.opener.wait()
-        if isinstance(opened, LiveSession):
-            opened.close()
+        if isinstance(opened, Opened):
+            opened.session.close()
         self.discovery.wait()
+        self.run_trends.close()
         self.stop_source()
         self.save_layout()
 
