@@ -43,10 +43,17 @@ import numpy as np
 import pyfftw
 
 from holoview.errors import InputError
-from holoview.processing.fourier.boxes import BoxGeometry, border_mask, box_geometry, box_shape_for
+from holoview.processing.fourier.boxes import (
+    BoxGeometry,
+    border_mask,
+    box_geometry,
+    box_shape_for,
+    cut_box,
+)
 from holoview.processing.fourier.fastmath import TWO_PI, AngleWorkspace, angle
-from holoview.processing.fourier.fftplans import DEFAULT_THREADS, ifft2_plan, rfft2_plan
+from holoview.processing.fourier.fftplans import DEFAULT_THREADS, ifft2_plan
 from holoview.processing.fourier.frames import MIN_SIDE
+from holoview.processing.fourier.half_spectrum import HalfSpectrum
 from holoview.processing.fourier.resample import resample_mask, upsample
 from holoview.processing.fourier.windows import DEFAULT_TAPER, DEFAULT_WINDOW, check_kind
 from holoview.processing.maps.demod_results import (
@@ -57,7 +64,7 @@ from holoview.processing.maps.demod_results import (
 )
 from holoview.processing.maps.phase_maps import (
     PhaseMap,
-    floor_bins,
+    floor_grid,
     floor_power,
     phase_noise,
     unwrap_maps,
@@ -237,7 +244,13 @@ class Demodulator:
             aperture_box & border_mask(self.box_shape, self.shape, r) for r in self.radii
         ]
         self._trustable = [int(np.count_nonzero(t)) for t in self._trusted_box]
-        self._floor_index = floor_bins(self.shape)
+        #: the frame's FFT, along columns only where the boxes and the noise floor read it
+        self._half_spectrum = HalfSpectrum(
+            self.shape,
+            [geo.columns for geo in self._boxes],
+            *floor_grid(self.shape),
+            threads=self.threads,
+        )
         n_box = self.box_shape[0] * self.box_shape[1]
         #: boxes of 256 x 256 bins or more are worth FFTW's threads; smaller ones are not
         self._box_threads = self.threads if n_box >= LARGE_BOX else 1
@@ -314,18 +327,17 @@ class Demodulator:
                 f"reference='absolute', not {self.reference!r}"
             )
         array = np.array(self._check(background, "background hologram"))  # a copy
-        half, mean = self._spectrum(array)
+        half, mean, floor = self._half_spectrum.transform(array)
         if half is None:
             raise InputError("the background hologram holds NaN or infinite pixels")
-        flat = half.reshape(-1)
         box_plan = ifft2_plan(self.box_shape, threads=self._box_threads)
         kept = []
         for i, geo in enumerate(self._boxes):
-            field = self._field(i, flat, box_plan)
+            field = self._field(i, half, box_plan)
             kept.append((np.conj(field), complex(np.vdot(geo.ramp, field)) / field.size))
         array.setflags(write=False)
         self.background, self._background = array, kept
-        self._background_floor = np.take(flat, self._floor_index)
+        self._background_floor = floor
         logger.debug("background hologram set: mean %.4g counts", mean)
         self.reset_reference()
 
@@ -397,24 +409,9 @@ class Demodulator:
             )
         return array
 
-    def _spectrum(self, array: np.ndarray) -> tuple[np.ndarray | None, float]:
-        """The frame's half spectrum (the plan's buffer) and mean (counts); None if not finite."""
-        plan = rfft2_plan(self.shape, threads=self.threads)
-        np.copyto(plan.input_array, array, casting="unsafe")
-        plan.execute()
-        half = plan.output_array
-        dc = float(half[0, 0].real)
-        if not np.isfinite(dc):
-            return None, float("nan")
-        return half, dc / (self.shape[0] * self.shape[1])
-
-    def _field(self, i: int, flat: np.ndarray, box_plan: pyfftw.FFTW) -> np.ndarray:
+    def _field(self, i: int, half: np.ndarray, box_plan: pyfftw.FFTW) -> np.ndarray:
         """Cut, window and invert peak ``i``'s box: its field (counts), a new array."""
-        geo = self._boxes[i]
-        box = box_plan.input_array.reshape(-1)
-        np.take(flat, geo.index, out=box)
-        pairs = box.view(np.float32)  # window and conjugation in one pass (BoxGeometry)
-        np.multiply(pairs, geo.weights, out=pairs)
+        cut_box(half, self._boxes[i], box_plan.input_array)
         box_plan.execute()
         return box_plan.output_array.copy()
 
@@ -448,16 +445,15 @@ class Demodulator:
             For a frame of another shape, not 2-D, or not of real numbers.
         """
         array = self._check(frame)
-        half, mean = self._spectrum(array)
+        half, mean, samples = self._half_spectrum.transform(array)
         if half is None:
             return self._result({"nonfinite"}, mean)
         frame_flags: set[str] = set()
         if self.saturation is not None and (array[::4, ::4] >= self.saturation).any():
             frame_flags.add("saturated")
-        flat = half.reshape(-1)
-        floor = self._floor(np.take(flat, self._floor_index))
+        floor = self._floor(samples)
         box_plan = ifft2_plan(self.box_shape, threads=self._box_threads)
-        partial = [self._demodulate(i, flat, box_plan, mean, floor) for i in range(len(self.peaks))]
+        partial = [self._demodulate(i, half, box_plan, mean, floor) for i in range(len(self.peaks))]
         if self.unwrap != "never":
             unwrap_maps(partial, self.peaks, always=self.unwrap == "always")
         results = tuple(self._finish(i, part) for i, part in enumerate(partial))
@@ -484,12 +480,12 @@ class Demodulator:
         return 0.0 if reference is None else floor_power(samples, reference)
 
     def _demodulate(
-        self, i: int, flat: np.ndarray, box_plan: pyfftw.FFTW, mean: float, floor: float
+        self, i: int, half: np.ndarray, box_plan: pyfftw.FFTW, mean: float, floor: float
     ) -> PhaseMap:
         """Cut, window and invert peak ``i``'s box; phase against the reference (wrapped)."""
         peak = self.peaks[i]
         geo = self._boxes[i]
-        field = self._field(i, flat, box_plan)
+        field = self._field(i, half, box_plan)
         flags: set[str] = set()
         if i in self._overlapping:
             flags.add("overlap")

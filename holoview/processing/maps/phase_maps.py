@@ -27,7 +27,7 @@ from holoview.processing.peaks.detection import Peak
 
 __all__ = [
     "PhaseMap",
-    "floor_bins",
+    "floor_grid",
     "floor_power",
     "guide_index",
     "phase_noise",
@@ -39,7 +39,7 @@ __all__ = [
 #: Side (map pixels) of the coarse grid :func:`unwrap_in_space` starts from.
 COARSE_SIDE = 64
 
-#: About how many spectrum bins :func:`floor_bins` samples per frame for the noise floor.
+#: About how many spectrum bins :func:`floor_grid` samples per frame for the noise floor.
 FLOOR_SAMPLES = 4096
 
 #: :func:`phase_noise` averages over every this many rows and columns of a map.
@@ -182,10 +182,10 @@ def unwrap_maps(maps: Sequence[PhaseMap], peaks: Sequence[Peak], *, always: bool
             m.phase, m.unwrapped = guided, True
 
 
-def floor_bins(shape: tuple[int, int]) -> np.ndarray:
-    """Flat indices into a frame's half spectrum of about :data:`FLOOR_SAMPLES` spread bins.
+def floor_grid(shape: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
+    """Rows and columns of a frame's half spectrum sampled for its noise floor.
 
-    The bins lie on a regular grid offset from the axes (the zero order and the
+    Every row with every column: a grid of about :data:`FLOOR_SAMPLES` spread bins. The bins lie on a regular grid offset from the axes (the zero order and the
     streaks along ``fx = 0`` and ``fy = 0`` that a non-periodic frame leaves); peaks
     cover a few percent of the spectrum, so most of these bins hold noise alone.
     """
@@ -194,15 +194,15 @@ def floor_bins(shape: tuple[int, int]) -> np.ndarray:
     stride = max(1, int(np.sqrt(rows * half / FLOOR_SAMPLES)))
     ky = np.arange(stride // 2, rows, stride)
     kx = np.arange(max(stride // 2, 1), half, stride)
-    index = (ky[:, None] * half + kx[None, :]).astype(np.intp).ravel()
-    index.setflags(write=False)
-    return index
+    ky.setflags(write=False)
+    kx.setflags(write=False)
+    return ky, kx
 
 
 def floor_power(samples: np.ndarray, reference: np.ndarray | None = None) -> float:
     """Noise power per spectrum bin (counts^2) of a frame, or of its change since another.
 
-    The median of ``|S - S_ref|^2`` over the :func:`floor_bins` (``|S|^2`` without a
+    The median of ``|S - S_ref|^2`` over the :func:`floor_grid` (``|S|^2`` without a
     reference) over ln 2: for complex Gaussian noise ``|n|^2`` is exponential, whose
     median is ln 2 times its mean. What does not change between the two frames (fixed
     pattern, the zero order's structure) cancels, as it does in the phase difference.

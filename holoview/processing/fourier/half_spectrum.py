@@ -1,0 +1,140 @@
+"""A frame's half spectrum, transformed only in the columns that are read.
+
+A real 2-D FFT is two passes: a real FFT of every row, then an FFT along every
+column of the result. The demodulator reads the spectrum in a few boxes and at the
+noise-floor bins only, so :class:`HalfSpectrum` runs the first pass whole and the
+second only over the runs of columns its boxes cover (in blocks of
+:data:`~holoview.processing.fourier.fftplans.COLUMN_ALIGN` columns, so that a run's
+plan serves every run of its width), and over the floor bins' columns gathered
+apart. One carrier's box at 1024 x 1024 covers about half of the 513 columns: the
+frame's FFT costs about three quarters of a whole one. The bins it gives are those of
+the whole 2-D FFT, up to float32 rounding (the same transforms, in another order).
+
+The frame's mean comes from the row pass (the sum of every row's zero frequency), so
+it does not depend on which columns are transformed.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+
+import numpy as np
+import pyfftw
+
+from holoview.processing.fourier.fftplans import (
+    COLUMN_ALIGN,
+    DEFAULT_THREADS,
+    column_fft_plan,
+    rfft_rows_plan,
+)
+
+__all__ = ["HalfSpectrum", "column_runs"]
+
+
+def column_runs(half_cols: int, columns: Iterable[np.ndarray]) -> tuple[tuple[int, int], ...]:
+    """Return the runs ``(start, stop)`` of blocks of columns that hold every column given.
+
+    Parameters
+    ----------
+    half_cols : int
+        Columns of the half spectrum, ``cols // 2 + 1``.
+    columns : iterable of ndarray of int
+        Column indices (each in ``[0, half_cols)``) that must be transformed.
+
+    Returns
+    -------
+    tuple of (int, int)
+        Disjoint, ordered runs; each starts at a multiple of
+        :data:`~holoview.processing.fourier.fftplans.COLUMN_ALIGN` and ends at one or at
+        ``half_cols``.
+    """
+    blocks = -(-half_cols // COLUMN_ALIGN)
+    used = np.zeros(blocks, dtype=bool)
+    for c in columns:
+        used[np.asarray(c, dtype=np.intp) // COLUMN_ALIGN] = True
+    runs = []
+    b = 0
+    while b < blocks:
+        if not used[b]:
+            b += 1
+            continue
+        start = b
+        while b < blocks and used[b]:
+            b += 1
+        runs.append((start * COLUMN_ALIGN, min(b * COLUMN_ALIGN, half_cols)))
+    return tuple(runs)
+
+
+class HalfSpectrum:
+    """The real FFT of frames of one shape, complete in chosen columns and at floor bins.
+
+    Parameters
+    ----------
+    shape : tuple of int
+        Frame shape ``(rows, cols)``, pixels.
+    columns : iterable of ndarray of int
+        The half spectrum's columns that must be exact (each box's).
+    floor_rows, floor_cols : ndarray of int
+        The noise-floor bins: every ``(row, col)`` of this grid is sampled.
+    threads : int, optional
+        FFTW threads.
+
+    Notes
+    -----
+    Plans come from :mod:`~holoview.processing.fourier.fftplans` (one per calling
+    thread); the floor's buffer is this object's: use it from one thread at a time.
+    """
+
+    def __init__(
+        self,
+        shape: tuple[int, int],
+        columns: Iterable[np.ndarray],
+        floor_rows: np.ndarray,
+        floor_cols: np.ndarray,
+        *,
+        threads: int | None = None,
+    ) -> None:
+        self.shape = (int(shape[0]), int(shape[1]))
+        self.half_shape = (self.shape[0], self.shape[1] // 2 + 1)
+        self.threads = int(threads) if threads else DEFAULT_THREADS
+        #: the runs of columns transformed along the rows (start, stop)
+        self.runs = column_runs(self.half_shape[1], columns)
+        self._floor_rows = np.asarray(floor_rows, dtype=np.intp)
+        self._floor_cols = np.asarray(floor_cols, dtype=np.intp)
+        self._floor = pyfftw.empty_aligned((self.shape[0], len(self._floor_cols)), "complex64")
+
+    def transform(self, frame: np.ndarray) -> tuple[np.ndarray | None, float, np.ndarray]:
+        """Transform a frame (not modified).
+
+        Returns
+        -------
+        half : ndarray of complex64, shape ``(rows, cols // 2 + 1)``, or None
+            The half spectrum (unnormalised, numpy's sign), exact in :attr:`runs` only
+            (elsewhere it holds the row pass); a plan's buffer, overwritten by the next
+            call. None for a frame holding NaN or infinity.
+        mean : float
+            The frame's mean (counts); NaN when ``half`` is None.
+        floor : ndarray of complex64
+            The spectrum at the floor grid (rows-major), a new array; empty when
+            ``half`` is None.
+        """
+        rows_plan = rfft_rows_plan(self.shape, threads=self.threads)
+        np.copyto(rows_plan.input_array, frame, casting="unsafe")
+        rows_plan.execute()
+        half = rows_plan.output_array
+        total = float(half[:, 0].real.sum(dtype=np.float64))
+        if not np.isfinite(total):
+            return None, float("nan"), np.empty(0, dtype=np.complex64)
+        floor = self._floor
+        if floor.size:
+            np.take(half, self._floor_cols, axis=1, out=floor)
+            plan = column_fft_plan(floor.shape, floor.shape[1], threads=self.threads)
+            plan.update_arrays(floor, floor)
+            plan.execute()
+        for start, stop in self.runs:
+            plan = column_fft_plan(self.half_shape, stop - start, threads=self.threads)
+            run = half[:, start:stop]
+            plan.update_arrays(run, run)
+            plan.execute()
+        samples = floor[self._floor_rows].reshape(-1)
+        return half, total / (self.shape[0] * self.shape[1]), samples
