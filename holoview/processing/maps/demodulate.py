@@ -66,6 +66,7 @@ from holoview.processing.maps.phase_maps import (
     PhaseMap,
     floor_grid,
     floor_power,
+    median_magnitude,
     phase_noise,
     unwrap_maps,
 )
@@ -256,7 +257,8 @@ class Demodulator:
         self._box_threads = self.threads if n_box >= LARGE_BOX else 1
         self._angle_workspace = AngleWorkspace(self.box_shape)
         self._product = np.empty(self.box_shape, dtype=np.complex64)
-        self._magnitude = np.empty(self.box_shape, dtype=np.float32)
+        self._power = np.empty(self.box_shape, dtype=np.float32)
+        self._squares = np.empty((self.box_shape[0], 2 * self.box_shape[1]), dtype=np.float32)
         self._weights = np.empty(n_box, dtype=np.float32)
         self.background: np.ndarray | None = None
         self._background: list[tuple[np.ndarray, complex]] | None = None
@@ -490,10 +492,14 @@ class Demodulator:
         if i in self._overlapping:
             flags.add("overlap")
 
-        # trusted pixels
-        magnitude = np.abs(field, out=self._magnitude)
-        expected = peak.amplitude * mean if peak.amplitude > 0 else float(np.median(magnitude))
-        mask = np.greater_equal(magnitude, np.float32(self.min_amplitude * expected))
+        # trusted pixels: |field|^2 against the threshold's square (no square roots)
+        power = self._power
+        pairs = field.view(np.float32)
+        np.multiply(pairs, pairs, out=self._squares)
+        np.add(self._squares[:, 0::2], self._squares[:, 1::2], out=power)
+        expected = peak.amplitude * mean if peak.amplitude > 0 else median_magnitude(power)
+        threshold = np.float32(self.min_amplitude * expected)
+        mask = np.greater_equal(power, threshold * threshold)
         if not expected > 0:
             mask[...] = False
         mask &= self._trusted_box[i]
@@ -543,7 +549,7 @@ class Demodulator:
         else:
             phase = angle(product, workspace=self._angle_workspace)
             size = self.shape[0] * self.shape[1]
-            noise = phase_noise(magnitude, mask, floor, geo.area_fraction, size)
+            noise = phase_noise(power, mask, floor, geo.area_fraction, size)
         return PhaseMap(
             field=field,
             phase=phase,

@@ -38,8 +38,30 @@ def wrap(phase: np.ndarray | float) -> np.ndarray:
     return p - turns
 
 
+def _jumps(phase: np.ndarray, mask: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+    """Neighbour pairs (along rows, along columns) of trusted pixels more than pi apart."""
+    p = np.asarray(phase)
+    jump_x = np.abs(p[:, 1:] - p[:, :-1]) > np.pi
+    jump_y = np.abs(p[1:, :] - p[:-1, :]) > np.pi
+    if mask is not None:
+        m = np.asarray(mask, dtype=bool)
+        jump_x &= m[:, 1:] & m[:, :-1]
+        jump_y &= m[1:, :] & m[:-1, :]
+    return jump_x, jump_y
+
+
+def _within_half_turn(phase: np.ndarray, mask: np.ndarray | None) -> bool:
+    """Whether every trusted phase lies within pi/2 of 0: no two can then be pi apart."""
+    p = np.asarray(phase)
+    trusted = p if mask is None else np.multiply(p, np.asarray(mask, dtype=bool))
+    return bool(trusted.size) and -np.pi / 2 < trusted.min() and trusted.max() < np.pi / 2
+
+
 def has_wraps(phase: np.ndarray, mask: np.ndarray | None = None) -> bool:
     """Return whether two neighbouring trusted pixels differ by more than pi (rad).
+
+    A map whose trusted phases all lie within pi/2 of zero (a small change against
+    the reference, the usual case) is told apart in two array passes.
 
     Parameters
     ----------
@@ -48,14 +70,40 @@ def has_wraps(phase: np.ndarray, mask: np.ndarray | None = None) -> bool:
     mask : ndarray of bool, optional
         Trusted pixels; a pair counts only when both are trusted.
     """
-    p = np.asarray(phase)
-    jump_x = np.abs(p[:, 1:] - p[:, :-1]) > np.pi
-    jump_y = np.abs(p[1:, :] - p[:-1, :]) > np.pi
-    if mask is not None:
-        m = np.asarray(mask, dtype=bool)
-        jump_x &= m[:, 1:] & m[:, :-1]
-        jump_y &= m[1:, :] & m[:-1, :]
+    if _within_half_turn(phase, mask):
+        return False
+    jump_x, jump_y = _jumps(phase, mask)
     return bool(jump_x.any() or jump_y.any())
+
+
+def wrap_bounds(
+    phase: np.ndarray, mask: np.ndarray | None = None
+) -> tuple[int, int, int, int] | None:
+    """Return the rectangle holding every wrap (:func:`has_wraps`'s pairs), or None.
+
+    Returns
+    -------
+    tuple of int or None
+        ``(top, bottom, left, right)``, the first and last rows and columns (pixels,
+        inclusive) of the pixels of every pair of trusted neighbours more than pi apart;
+        None when there is no such pair.
+    """
+    if _within_half_turn(phase, mask):
+        return None
+    jump_x, jump_y = _jumps(phase, mask)
+    rows_x, rows_y = jump_x.any(axis=1), jump_y.any(axis=1)
+    if not (rows_x.any() or rows_y.any()):
+        return None
+    rows = rows_x.copy()
+    rows[:-1] |= rows_y
+    rows[1:] |= rows_y
+    cols = np.zeros(jump_y.shape[1], dtype=bool)
+    cols[:-1] |= jump_x.any(axis=0)
+    cols[1:] |= jump_x.any(axis=0)
+    cols |= jump_y.any(axis=0)
+    r = np.flatnonzero(rows)
+    c = np.flatnonzero(cols)
+    return int(r[0]), int(r[-1]), int(c[0]), int(c[-1])
 
 
 def _herraez(phase: np.ndarray, mask: np.ndarray | None) -> np.ndarray:
@@ -112,41 +160,54 @@ def unwrap_spatial(
 
 
 def unwrap_guided(
-    phase: np.ndarray, guide: np.ndarray, mask: np.ndarray | None = None
+    phase: np.ndarray, guide: np.ndarray, mask: np.ndarray | None = None, *, scale: float = 1.0
 ) -> np.ndarray:
     """Unwrap a map against an unwrapped map of the same shape up to a constant and a scale.
 
-    Used across peaks: ``guide`` is another peak's unwrapped phase times the ratio
-    of the two alphas. The constant difference between the two (each map's own
+    Used across peaks: ``guide`` is another peak's unwrapped phase and ``scale`` the
+    ratio of the two alphas. The constant difference between the two (each map's own
     offset) is found as the circular mean of the wrapped difference, so only the
-    *shape* of the guide matters; each pixel is then put within pi of guide plus
-    constant.
+    *shape* of the guide matters; each pixel is then moved by whole turns to within
+    pi of ``scale`` times the guide plus the constant.
 
     Parameters
     ----------
     phase : ndarray, shape (rows, cols)
         Wrapped phase (rad); not modified.
     guide : ndarray, shape (rows, cols)
-        Continuous phase (rad) expected to differ from the truth by a constant.
+        Continuous phase (rad); ``scale`` times it is expected to differ from the truth
+        by a constant.
     mask : ndarray of bool, optional
         Pixels trusted for the constant.
+    scale : float
+        Factor applied to ``guide``.
 
     Returns
     -------
     ndarray of float32
+        ``phase`` plus whole turns (rad).
     """
-    p = np.asarray(phase)
-    g = np.asarray(guide)
+    p = np.asarray(phase, dtype=np.float32)
+    g = np.asarray(guide, dtype=np.float32)
     if p.shape != g.shape or p.ndim != 2:
         raise InputError(f"phase {p.shape} and guide {g.shape} must be 2-D of one shape")
-    difference = wrap(p - g)
-    sample = difference[::4, ::4]
+    k = np.float32(scale)
+    # the constant from every 4th row and column (trusted ones): plenty for a mean
+    sample = wrap(p[::4, ::4] - g[::4, ::4] * k)
     if mask is not None:
         sample = sample[np.asarray(mask, dtype=bool)[::4, ::4]]
     if sample.size == 0:
-        sample = difference
+        sample = wrap(p - g * k)
     constant = float(np.angle(np.mean(np.exp(1j * sample))))
-    return (g + constant + wrap(difference - constant)).astype(np.float32)
+    # turns = rint((scale guide + constant - phase) / 2 pi), in place in one buffer
+    turns = np.multiply(g, k)
+    turns -= p
+    turns += np.float32(constant)
+    turns *= np.float32(1 / TWO_PI)
+    np.rint(turns, out=turns)
+    turns *= np.float32(TWO_PI)
+    turns += p
+    return turns
 
 
 def phase_ratio(phase: np.ndarray, guide: np.ndarray, mask: np.ndarray | None = None) -> float:
