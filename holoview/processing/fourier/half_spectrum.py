@@ -74,7 +74,7 @@ class HalfSpectrum:
         Frame shape ``(rows, cols)``, pixels.
     columns : iterable of ndarray of int
         The half spectrum's columns that must be exact (each box's).
-    floor_rows, floor_cols : ndarray of int
+    floor_rows, floor_cols : slice
         The noise-floor bins: every ``(row, col)`` of this grid is sampled.
     threads : int, optional
         FFTW threads.
@@ -89,8 +89,8 @@ class HalfSpectrum:
         self,
         shape: tuple[int, int],
         columns: Iterable[np.ndarray],
-        floor_rows: np.ndarray,
-        floor_cols: np.ndarray,
+        floor_rows: slice,
+        floor_cols: slice,
         *,
         threads: int | None = None,
     ) -> None:
@@ -99,9 +99,10 @@ class HalfSpectrum:
         self.threads = int(threads) if threads else DEFAULT_THREADS
         #: the runs of columns transformed along the rows (start, stop)
         self.runs = column_runs(self.half_shape[1], columns)
-        self._floor_rows = np.asarray(floor_rows, dtype=np.intp)
-        self._floor_cols = np.asarray(floor_cols, dtype=np.intp)
-        self._floor = pyfftw.empty_aligned((self.shape[0], len(self._floor_cols)), "complex64")
+        self._floor_rows = floor_rows
+        self._floor_cols = floor_cols
+        count = len(range(*floor_cols.indices(self.half_shape[1])))
+        self._floor = pyfftw.empty_aligned((self.shape[0], count), "complex64")
 
     def transform(self, frame: np.ndarray) -> tuple[np.ndarray | None, float, np.ndarray]:
         """Transform a frame (not modified).
@@ -127,7 +128,7 @@ class HalfSpectrum:
             return None, float("nan"), np.empty(0, dtype=np.complex64)
         floor = self._floor
         if floor.size:
-            np.take(half, self._floor_cols, axis=1, out=floor)
+            np.copyto(floor, half[:, self._floor_cols])
             plan = column_fft_plan(floor.shape, floor.shape[1], threads=self.threads)
             plan.update_arrays(floor, floor)
             plan.execute()
@@ -136,5 +137,5 @@ class HalfSpectrum:
             run = half[:, start:stop]
             plan.update_arrays(run, run)
             plan.execute()
-        samples = floor[self._floor_rows].reshape(-1)
+        samples = np.array(floor[self._floor_rows]).reshape(-1)  # a copy, kept by callers
         return half, total / (self.shape[0] * self.shape[1]), samples

@@ -267,7 +267,7 @@ def unwrap_maps(maps: Sequence[PhaseMap], peaks: Sequence[Peak], *, always: bool
             m.phase, m.unwrapped = guided, True
 
 
-def floor_grid(shape: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
+def floor_grid(shape: tuple[int, int]) -> tuple[slice, slice]:
     """Rows and columns of a frame's half spectrum sampled for its noise floor.
 
     Every row with every column: a grid of about :data:`FLOOR_SAMPLES` spread bins, on
@@ -276,16 +276,22 @@ def floor_grid(shape: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
     from the axes (the zero order and the streaks along ``fx = 0`` and ``fy = 0`` that a
     non-periodic frame leaves); peaks cover a few percent of the spectrum, so most of
     these bins hold noise alone.
+
+    Returns
+    -------
+    tuple of slice
+        The rows and the columns of the half spectrum, ``(rows, cols // 2 + 1)``.
     """
     rows, cols = shape
     half = cols // 2 + 1
     col_stride = max(1, half // FLOOR_COLUMNS)
-    kx = np.arange(max(col_stride // 2, 1), half, col_stride)[:FLOOR_COLUMNS]
-    row_stride = max(1, rows * len(kx) // FLOOR_SAMPLES)
-    ky = np.arange(max(row_stride // 2, 1), rows, row_stride)
-    ky.setflags(write=False)
-    kx.setflags(write=False)
-    return ky, kx
+    col_start = max(col_stride // 2, 1)
+    count = min(FLOOR_COLUMNS, len(range(col_start, half, col_stride)))
+    row_stride = max(1, rows * count // FLOOR_SAMPLES)
+    return (
+        slice(max(row_stride // 2, 1), rows, row_stride),
+        slice(col_start, col_start + col_stride * (count - 1) + 1, col_stride),
+    )
 
 
 def floor_power(samples: np.ndarray, reference: np.ndarray | None = None) -> float:
@@ -296,19 +302,31 @@ def floor_power(samples: np.ndarray, reference: np.ndarray | None = None) -> flo
     median is ln 2 times its mean. What does not change between the two frames (fixed
     pattern, the zero order's structure) cancels, as it does in the phase difference.
     """
-    d = samples if reference is None else samples - reference
-    power = d.real * d.real + d.imag * d.imag
-    return float(np.median(power)) / np.log(2)
+    d = np.asarray(samples if reference is None else samples - reference)
+    power = d.real * d.real
+    power += d.imag * d.imag
+    return _median(power) / np.log(2)
+
+
+def _median(values: np.ndarray) -> float:
+    """``np.median`` of a 1-D array of numbers that it reorders (no copy, no NaN check)."""
+    k = values.size // 2
+    if values.size % 2:
+        values.partition(k)
+        return float(values[k])
+    values.partition((k - 1, k))
+    return float(np.mean(values[k - 1 : k + 1]))
 
 
 def median_magnitude(power: np.ndarray) -> float:
     """Return the median of ``sqrt(power)`` (``np.median`` of the magnitudes) from ``|f|^2``."""
-    flat = np.asarray(power).reshape(-1)
+    flat = np.array(power).reshape(-1)  # a copy, reordered
     k = flat.size // 2
     if flat.size % 2:
-        return float(np.sqrt(np.partition(flat, k)[k]))
-    middle = np.sqrt(np.partition(flat, (k - 1, k))[k - 1 : k + 1])
-    return float(np.mean(middle))
+        flat.partition(k)
+        return float(np.sqrt(flat[k]))
+    flat.partition((k - 1, k))
+    return float(np.mean(np.sqrt(flat[k - 1 : k + 1])))
 
 
 def phase_noise(
