@@ -107,7 +107,9 @@ def cut_box(half: np.ndarray, geometry: BoxGeometry, out: np.ndarray) -> np.ndar
     """
     for box_rows, box_cols, rows, cols in geometry.blocks:
         np.copyto(out[box_rows, box_cols], half[rows, cols])
-    pairs = out.reshape(-1).view(np.float32)  # window and conjugation in one pass
+    # window and conjugation in one pass over the box as (re, im) pairs (faster than
+    # windowing each block while copying it: measured, twice)
+    pairs = out.reshape(-1).view(np.float32)
     np.multiply(pairs, geometry.weights, out=pairs)
     return out
 

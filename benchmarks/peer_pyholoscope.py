@@ -1,0 +1,53 @@
+"""PyHoloscope's real-FFT demodulation timed in a process of its own, for a benchmark.
+
+Run by ``bench_demodulation.py --floor`` with the interpreter of a separate virtual
+environment that holds ``pyholoscope==1.1.3`` (never holoview's: PyHoloscope is no
+dependency of holoview), so both are timed side by side on the same frame. It imports
+nothing from holoview.
+
+Protocol, one JSON object a line: the first line on stdin gives ``frame`` (a .npy file,
+float32), ``centre`` ((row, col) of the carrier in ``scipy.fft.rfft2``'s layout),
+``radius`` (the crop's half side, bins) and ``mask`` (a .npy file of the window on the
+crop, complex64); the script answers ``{"version": ...}``. Then each line
+``{"calls": N}`` is answered with ``{"seconds": [...]}``, the wall time of each of N
+calls of ``off_axis_demod(frame, centre, radius, real_fft=True, mask=mask)``; an empty
+line ends it.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+from importlib.metadata import version
+
+import numpy as np
+import pyholoscope
+
+
+def main() -> int:
+    setup = json.loads(sys.stdin.readline())
+    frame = np.load(setup["frame"])
+    mask = np.load(setup["mask"])
+    centre = tuple(setup["centre"])
+    radius = int(setup["radius"])
+
+    def call() -> np.ndarray:
+        return pyholoscope.off_axis_demod(frame, centre, radius, real_fft=True, mask=mask)
+
+    field = call()
+    print(json.dumps({"version": version("pyholoscope"), "shape": list(field.shape)}), flush=True)
+    for line in sys.stdin:
+        if not line.strip():
+            break
+        seconds = []
+        for _ in range(int(json.loads(line)["calls"])):
+            start = time.perf_counter()
+            call()
+            seconds.append(time.perf_counter() - start)
+        print(json.dumps({"seconds": seconds}), flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
