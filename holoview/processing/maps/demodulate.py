@@ -413,9 +413,15 @@ class Demodulator:
 
     def _field(self, i: int, half: np.ndarray, box_plan: pyfftw.FFTW) -> np.ndarray:
         """Cut, window and invert peak ``i``'s box: its field (counts), a new array."""
-        cut_box(half, self._boxes[i], box_plan.input_array)
+        source, scratch = box_plan.input_array, box_plan.output_array
+        cut_box(half, self._boxes[i], source)
+        # the inverse FFT writes the new array itself (no copy); the shared plan then
+        # gets its own buffer back
+        field = pyfftw.empty_aligned(self.box_shape, dtype="complex64")
+        box_plan.update_arrays(source, field)
         box_plan.execute()
-        return box_plan.output_array.copy()
+        box_plan.update_arrays(source, scratch)
+        return field
 
     def _result(
         self, flags: set[str], mean: float, peaks: tuple[PeakResult, ...] = ()

@@ -50,18 +50,33 @@ def _jumps(phase: np.ndarray, mask: np.ndarray | None) -> tuple[np.ndarray, np.n
     return jump_x, jump_y
 
 
-def _within_half_turn(phase: np.ndarray, mask: np.ndarray | None) -> bool:
-    """Whether every trusted phase lies within pi/2 of 0: no two can then be pi apart."""
+def _trusted(phase: np.ndarray, mask: np.ndarray | None) -> tuple[np.ndarray, float]:
+    """The phase with untrusted pixels at 0, and its largest magnitude (rad)."""
     p = np.asarray(phase)
     trusted = p if mask is None else np.multiply(p, np.asarray(mask, dtype=bool))
-    return bool(trusted.size) and -np.pi / 2 < trusted.min() and trusted.max() < np.pi / 2
+    if not trusted.size:
+        return trusted, 0.0
+    return trusted, max(-float(trusted.min()), float(trusted.max()))
+
+
+def _wrapped_pairs(phase: np.ndarray, mask: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_jumps`, from the phase with untrusted pixels at 0 where that is exact.
+
+    With every trusted phase within pi of 0, a pair with an untrusted pixel (at 0) is
+    never more than pi apart: the pairs of the zeroed map are those of the trusted
+    pixels, with no mask to apply.
+    """
+    trusted, extent = _trusted(phase, mask)
+    if extent <= np.pi:
+        return _jumps(trusted, None)
+    return _jumps(phase, mask)
 
 
 def has_wraps(phase: np.ndarray, mask: np.ndarray | None = None) -> bool:
     """Return whether two neighbouring trusted pixels differ by more than pi (rad).
 
     A map whose trusted phases all lie within pi/2 of zero (a small change against
-    the reference, the usual case) is told apart in two array passes.
+    the reference, the usual case) is told apart in three array passes.
 
     Parameters
     ----------
@@ -70,8 +85,15 @@ def has_wraps(phase: np.ndarray, mask: np.ndarray | None = None) -> bool:
     mask : ndarray of bool, optional
         Trusted pixels; a pair counts only when both are trusted.
     """
-    if _within_half_turn(phase, mask):
+    trusted, extent = _trusted(phase, mask)
+    if extent < np.pi / 2:
         return False
+    if extent <= np.pi:  # pairs with an untrusted pixel (0) are within pi: no mask needed
+        d = np.subtract(trusted[:, 1:], trusted[:, :-1])
+        if np.abs(d, out=d).max(initial=0.0) > np.pi:
+            return True
+        d = np.subtract(trusted[1:, :], trusted[:-1, :])
+        return bool(np.abs(d, out=d).max(initial=0.0) > np.pi)
     jump_x, jump_y = _jumps(phase, mask)
     return bool(jump_x.any() or jump_y.any())
 
@@ -88,19 +110,15 @@ def wrap_bounds(
         inclusive) of the pixels of every pair of trusted neighbours more than pi apart;
         None when there is no such pair.
     """
-    if _within_half_turn(phase, mask):
+    if not has_wraps(phase, mask):
         return None
-    jump_x, jump_y = _jumps(phase, mask)
-    rows_x, rows_y = jump_x.any(axis=1), jump_y.any(axis=1)
-    if not (rows_x.any() or rows_y.any()):
-        return None
-    rows = rows_x.copy()
-    rows[:-1] |= rows_y
-    rows[1:] |= rows_y
-    cols = np.zeros(jump_y.shape[1], dtype=bool)
+    jump_x, jump_y = _wrapped_pairs(phase, mask)
+    rows = jump_x.any(axis=1)
+    rows[:-1] |= jump_y.any(axis=1)
+    rows[1:] |= jump_y.any(axis=1)
+    cols = jump_y.any(axis=0)
     cols[:-1] |= jump_x.any(axis=0)
     cols[1:] |= jump_x.any(axis=0)
-    cols |= jump_y.any(axis=0)
     r = np.flatnonzero(rows)
     c = np.flatnonzero(cols)
     return int(r[0]), int(r[-1]), int(c[0]), int(c[-1])
