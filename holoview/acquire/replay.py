@@ -2,8 +2,9 @@
 
 Three speeds (the ``speed`` setting):
 
-- ``"recorded"``: a holoview recording at the pace of its timestamps (device
-  clock where every frame has one, else host arrival times); other files at
+- ``"recorded"``: a holoview recording at the pace of its timestamps (the clock
+  rule of :mod:`holoview.acquire.frame_times`: the camera's clock where it is finite,
+  forward and free of jumps, else host arrival times); other files at
   ``rate_hz`` (default: the video's own rate, or 30 frames/s for images); the
   ``speed_factor`` setting plays faster or slower than that (0.25 to 8 times);
 - ``"fast"``: as fast as frames can be read;
@@ -32,6 +33,7 @@ naming it and the frame.
 
 from __future__ import annotations
 
+import bisect
 import math
 import threading
 import time
@@ -235,6 +237,13 @@ class ReplaySource(Source):
     def speed_factor(self) -> float:
         """Times the recorded pace."""
         return self._factor
+
+    def carried_experiment(self, index: int) -> str | None:
+        """The file's experiment (JSON text) in force at frame ``index``; None before any."""
+        experiments = self._require_file().experiments
+        starts = [start for start, _ in experiments]
+        k = bisect.bisect_right(starts, index)
+        return experiments[k - 1][1] if k else None
 
     def frame_time_s(self, index: int) -> float:
         """Time of frame ``index`` in the recording since its first frame, seconds.

@@ -36,6 +36,7 @@ from pathlib import Path
 from typing import Any
 
 from holoview.errors import InputError, finite_number
+from holoview.file_kinds import read_regular_file
 from holoview.optics.families import alpha_of
 from holoview.optics.setup import check_optics
 from holoview.processing.fourier.windows import DEFAULT_WINDOW, WINDOW_KINDS
@@ -85,7 +86,7 @@ def check_carrier(carrier: object, where: str) -> Carrier:
     """Return a carrier ``(fx, fy)`` in cycles/pixel, or raise naming what is wrong."""
     try:
         fx, fy = (float(v) for v in carrier)  # type: ignore[union-attr]
-    except (TypeError, ValueError) as exc:
+    except (TypeError, ValueError, OverflowError) as exc:
         raise InputError(
             f"{where}: carrier must be [fx, fy] in cycles/pixel, got {carrier!r}"
         ) from exc
@@ -135,8 +136,9 @@ class LabelledPeak:
         if self.alpha is not None:
             if isinstance(self.alpha, bool) or not isinstance(self.alpha, int | float):
                 raise InputError(f"{where}: alpha must be a number, got {self.alpha!r}")
-            if not (math.isfinite(self.alpha) and self.alpha != 0):
-                raise InputError(f"{where}: alpha must be finite and nonzero, got {self.alpha}")
+            object.__setattr__(self, "alpha", finite_number(f"{where}: alpha", self.alpha))
+            if self.alpha == 0:
+                raise InputError(f"{where}: alpha must be nonzero, got {self.alpha}")
 
     @property
     def fx(self) -> float:
@@ -325,9 +327,13 @@ class Experiment:
     def from_json(cls, text: str, where: str = "experiment") -> Experiment:
         """Parse JSON text written by :meth:`to_json`; InputError naming what is wrong."""
         try:
-            data = json.loads(text)
+            data = json.loads(text, parse_int=_json_int)
         except json.JSONDecodeError as exc:
             raise InputError(f"{where}: not valid JSON ({exc.msg}, line {exc.lineno})") from exc
+        except RecursionError:
+            raise InputError(
+                f"{where}: not an experiment (its JSON is nested too deeply to read)"
+            ) from None
         return cls.from_dict(data, where)
 
     def save(self, path: Path) -> None:
@@ -345,12 +351,7 @@ class Experiment:
     def load(cls, path: str | os.PathLike[str]) -> Experiment:
         """Read an experiment file; InputError when it is missing, unreadable or malformed."""
         p = Path(path)
-        try:
-            raw = p.read_bytes()
-        except OSError as exc:
-            raise InputError(
-                f"experiment file {p}: cannot be read ({exc.strerror or exc})"
-            ) from exc
+        raw = read_regular_file(p, f"experiment file {p}")
         # PowerShell's ">" writes UTF-16 with a byte-order mark; read it as what it is
         encoding = "utf-16" if raw[:2] in (b"\xff\xfe", b"\xfe\xff") else "utf-8-sig"
         try:
@@ -360,6 +361,16 @@ class Experiment:
                 f"experiment file {p}: not text (a binary file? save it as UTF-8 JSON)"
             ) from None
         return cls.from_json(text, f"experiment file {p}")
+
+
+#: Digits beyond which a JSON integer is read as a float (inf past 1e308): Python refuses
+#: to convert integers of more than 4300 digits, and no experiment value needs 20.
+_INT_DIGITS = 20
+
+
+def _json_int(text: str) -> int | float:
+    """A JSON integer: an int, or a float where it is too long to be a sensible one."""
+    return int(text) if len(text) <= _INT_DIGITS else float(text)
 
 
 def _peak_from_dict(item: object, version: int, where: str) -> LabelledPeak:

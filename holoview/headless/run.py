@@ -8,10 +8,11 @@ through the demodulator, maps to ``results.h5`` as they come
 (:mod:`~holoview.headless.analysis`); write ``trends.csv``, ``summary.json``,
 ``results.h5`` (:mod:`~holoview.headless.outputs`) and ``report.png`` (or PDF, SVG:
 :mod:`~holoview.headless.report`). Every user mistake is an
-:class:`~holoview.errors.InputError` raised before the output folder is touched where
-it can be known that early. The outputs are written under temporary names and put in
-place when the run completes; what an earlier run left in the folder is replaced only
-then, and only with ``overwrite`` (:mod:`~holoview.headless.output_folder`).
+:class:`~holoview.errors.InputError` raised before anything is written where it can be
+known that early. The output folder is locked for the run from its start (one run at a
+time); the outputs are written under temporary names and put in place when the run
+completes; what an earlier run left in the folder is replaced only then, and only with
+``overwrite``; no output may be an input (:mod:`~holoview.headless.output_folder`).
 """
 
 from __future__ import annotations
@@ -34,8 +35,10 @@ from holoview.headless.inputs import (
     InputFile,
     Optics,
     OpticsOptions,
+    check_not_background_subtracted,
     check_run_settings,
     first_good_frame,
+    frame_problem,
     parse_frame_range,
     resolve_optics,
 )
@@ -205,8 +208,9 @@ def read_background(spec: str | None, source: InputFile) -> np.ndarray | None:
     Raises
     ------
     InputError
-        For an index outside the input, a file that cannot be read, or a frame of
-        another shape than the input's.
+        For an index outside the input, a file that cannot be read, a frame of another
+        shape than the input's, or one that is no hologram: constant (all zero),
+        non-finite, damaged, or negative (:func:`check_background`).
     """
     if spec is None:
         return None
@@ -216,15 +220,47 @@ def read_background(spec: str | None, source: InputFile) -> np.ndarray | None:
             raise InputError(
                 f"--background {spec}: {source.path} has frames 0 to {len(source) - 1}"
             )
-        return source.read(index)
-    with InputFile(spec) as other:
-        frame = other.read(0)
-    if frame.shape != source.frame_shape:
-        raise InputError(
-            f"--background {spec}: frames of {frame.shape[0]} x {frame.shape[1]} pixels, "
-            f"the input's are {source.frame_shape[0]} x {source.frame_shape[1]}"
-        )
+        frame = source.read(index)
+    else:
+        with InputFile(spec) as other:
+            frame = other.read(0)
+        if frame.shape != source.frame_shape:
+            raise InputError(
+                f"--background {spec}: frames of {frame.shape[0]} x {frame.shape[1]} pixels, "
+                f"the input's are {source.frame_shape[0]} x {source.frame_shape[1]}"
+            )
+    check_background(frame, f"--background {spec}")
     return frame
+
+
+def run_inputs(input_path: str | Path, choice: PeakChoice, settings: ProcessSettings) -> list[Path]:
+    """Every file or folder a run reads: the input, an experiment file, a background file."""
+    inputs = [Path(input_path)]
+    if choice.experiment is not None:
+        inputs.append(Path(choice.experiment))
+    spec = settings.background
+    if spec is not None and not spec.lstrip("-").isdigit():
+        inputs.append(Path(spec))
+    return inputs
+
+
+def check_background(frame: np.ndarray, where: str) -> None:
+    """Refuse a background that is no hologram: absolute phases against it would be noise.
+
+    A background is an object-free hologram: an intensity with fringes. A constant
+    frame (all zero), one with NaN, one damaged in transfer, and one of negative or
+    zero mean intensity (a negated or background-subtracted frame) are refused.
+    """
+    problem = frame_problem(frame)
+    if problem is not None:
+        raise InputError(f"{where}: the frame {problem}; give an object-free hologram")
+    mean = float(np.mean(frame, dtype=np.float64))
+    if mean <= 0:
+        raise InputError(
+            f"{where}: the frame's mean intensity is {mean:.3g} (values {frame.min():.3g} to "
+            f"{frame.max():.3g}): a hologram is an intensity; give an object-free hologram"
+        )
+    check_not_background_subtracted(frame, where)
 
 
 def process_file(
@@ -288,10 +324,12 @@ def process_file(
     InputError
         For an unreadable input, missing or wrong parameters, a bad experiment file or
         labels (a label on no detected peak, an unknown label without alpha), peaks the
-        PCA cannot identify, earlier results without ``overwrite``, ``jobs`` below 1,
-        a scheduler that does not answer, or workers that cannot read the input.
+        PCA cannot identify, earlier results without ``overwrite``, an output that is
+        an input, a folder another run holds, ``jobs`` below 1, a scheduler that does
+        not answer, or workers that cannot read the input.
     OutputError
-        An output could not be written (the folder keeps what it held).
+        An output could not be written, or (without ``overwrite``) results appeared
+        in the folder during the run (the folder keeps what it held).
     """
     settings = settings or ProcessSettings()
     if report is True:
@@ -308,7 +346,12 @@ def process_file(
     options = optics_options or OpticsOptions()
     out_dir = Path(out)
     with (
-        OutputFolder(out_dir, OUTPUT_NAMES, overwrite=overwrite) as outputs,
+        OutputFolder(
+            out_dir,
+            OUTPUT_NAMES,
+            overwrite=overwrite,
+            inputs=run_inputs(input_path, choice, settings),
+        ) as outputs,
         InputFile(input_path) as source,
         contextlib.ExitStack() as stack,
     ):
@@ -326,7 +369,8 @@ def process_file(
         optics = resolve_optics(source.setup, options, from_file)
         optics.require("wavelength_m")
         experiment, settings = _settle(base, settings, optics)
-        times = source.times(selected, options.fps_hz)
+        frame_times = source.times(selected, options.fps_hz)
+        times = frame_times.times
         check_run_settings(
             area_m2=settings.area_m2, radius=settings.radius, frame_shape=source.frame_shape
         )
@@ -341,9 +385,12 @@ def process_file(
             shape=source.frame_shape,
             optics=optics,
         )
-        selection = replace(selection, notes=(*notes, *selection.notes))
-        for note in notes:
+        for note in (*notes, *source.notes):
             logger.warning("%s", note)
+        level = logging.WARNING if frame_times.warning else logging.INFO
+        logger.log(level, "%s: %s", source.path, frame_times.note)
+        notes += [*source.notes, frame_times.note]
+        selection = replace(selection, notes=(*notes, *selection.notes))
         core = make_core(
             source.frame_shape,
             experiment,
@@ -364,7 +411,6 @@ def process_file(
             demodulator.radius,
             demodulator.box_shape,
         )
-        outputs.create()
         results = ResultsFile(
             outputs.path(RESULTS_H5),
             labels=[p.label or f"P{j}" for j, p in enumerate(selection.peaks)],

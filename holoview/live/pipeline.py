@@ -66,6 +66,8 @@ class LiveResult:
     the map ``grid_of``, in camera pixels; the fused map is on that map's grid.
     ``frame_index`` is the frame's index in a replayed file (-1 for a camera) and
     ``segment`` its unbroken run of frames (:mod:`holoview.live.continuity`).
+    ``contradiction`` names a label the carrier lattice contradicts (the engine's rule,
+    :func:`holoview.engine.resolve.resolve_peaks`; an error headless), None when none.
     """
 
     seq: int
@@ -87,6 +89,7 @@ class LiveResult:
     notes: tuple[str, ...] = ()
     frame_index: int = -1
     segment: int = 0
+    contradiction: str | None = None
 
 
 def block_max(image: np.ndarray, limit: int) -> np.ndarray:
@@ -296,4 +299,5 @@ class LivePipeline:
             notes=resolution.notes,
             frame_index=meta.file_index,
             segment=meta.segment,
+            contradiction=resolution.contradiction,
         )
