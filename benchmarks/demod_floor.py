@@ -142,6 +142,15 @@ def floor_frames(
     return moving, wrapped
 
 
+def _stepper(demod: Demodulator, sequence: list[np.ndarray]) -> Callable[[int], object]:
+    """A case: call ``k`` demodulates frame ``k`` of the sequence (cyclically)."""
+
+    def step(k: int) -> object:
+        return demod.process(sequence[k % len(sequence)])
+
+    return step
+
+
 def run_floor(
     targets: list[tuple[str, str]],
     peaks: list[Peak],
@@ -167,7 +176,7 @@ def run_floor(
             demod = Demodulator(SHAPE, chosen, wavelength=wavelength, unwrap=unwrap, threads=1)
             what = "wrapping" if sequence is wrapped else "waves"
             name = f"{count} carrier{'s' if count > 1 else ''}, unwrap {unwrap}, {what}"
-            cases[name] = lambda k, d=demod, s=sequence: d.process(s[k % len(s)])
+            cases[name] = _stepper(demod, sequence)
     probe = CarrierProbe(SHAPE, peaks)
     cases["carrier probe, 4 carriers"] = lambda k: probe.measure(moving[k % len(moving)])
     rb1 = Demodulator(SHAPE, peaks[:1], threads=1)
@@ -206,8 +215,7 @@ def run_floor(
             statistics.median(r) / f for r, f in zip(per_round, fft_rounds, strict=True)
         )
         print(
-            f"{name:>40} {1e3 * statistics.median(flat):10.2f} {1e3 * min(flat):8.2f} "
-            f"{ratio:8.2f}"
+            f"{name:>40} {1e3 * statistics.median(flat):10.2f} {1e3 * min(flat):8.2f} {ratio:8.2f}"
         )
 
     def versus(a: str, b: str) -> tuple[float, float]:

@@ -22,7 +22,7 @@ import time
 from importlib.metadata import version
 
 import numpy as np
-import pyholoscope
+import pyholoscope  # type: ignore[import-not-found]  # the peers' environment only
 
 
 def main() -> int:

@@ -21,6 +21,7 @@ interior's, at four times the FFT. So the border is marked untrusted,
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass
 from functools import lru_cache
 
@@ -61,7 +62,7 @@ def _runs(values: np.ndarray, step: int) -> list[tuple[int, int]]:
     """Split ``values`` into maximal runs ``[i, j)`` where each next value is ``step`` more."""
     breaks = np.flatnonzero(np.diff(values) != step) + 1
     edges = [0, *breaks.tolist(), len(values)]
-    return list(zip(edges[:-1], edges[1:], strict=True))
+    return list(itertools.pairwise(edges))
 
 
 def _source(start: int, length: int, step: int) -> slice:
@@ -77,7 +78,7 @@ def _blocks(
     blocks: list[Block] = []
     flips = np.flatnonzero(np.diff(direct.astype(np.int8))) + 1
     edges = [0, *flips.tolist(), len(direct)]
-    for a, b in zip(edges[:-1], edges[1:], strict=True):
+    for a, b in itertools.pairwise(edges):
         step = 1 if direct[a] else -1
         src_rows = rows_direct if direct[a] else rows_mirror
         for c0, c1 in _runs(src_cols[a:b], step):

@@ -113,10 +113,10 @@ def wrap_bounds(
     if not has_wraps(phase, mask):
         return None
     jump_x, jump_y = _wrapped_pairs(phase, mask)
-    rows = jump_x.any(axis=1)
+    rows: np.ndarray = np.array(jump_x.any(axis=1))
     rows[:-1] |= jump_y.any(axis=1)
     rows[1:] |= jump_y.any(axis=1)
-    cols = jump_y.any(axis=0)
+    cols: np.ndarray = np.array(jump_y.any(axis=0))
     cols[:-1] |= jump_x.any(axis=0)
     cols[1:] |= jump_x.any(axis=0)
     r = np.flatnonzero(rows)
