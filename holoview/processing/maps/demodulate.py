@@ -576,7 +576,7 @@ class Demodulator:
         if part.live and part.valid:
             # put the map's 2 pi offset where the time-unwrapped mean phase says
             if part.valid == phase.size:
-                level = float(np.mean(phase))
+                level = float(phase.sum()) / phase.size
             else:
                 weights = self._weights
                 np.copyto(weights, part.mask.reshape(-1))

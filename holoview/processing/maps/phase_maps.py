@@ -315,7 +315,7 @@ def _median(values: np.ndarray) -> float:
         values.partition(k)
         return float(values[k])
     values.partition((k - 1, k))
-    return float(np.mean(values[k - 1 : k + 1]))
+    return float((values[k - 1] + values[k]) / 2)
 
 
 def median_magnitude(power: np.ndarray) -> float:
@@ -326,7 +326,7 @@ def median_magnitude(power: np.ndarray) -> float:
         flat.partition(k)
         return float(np.sqrt(flat[k]))
     flat.partition((k - 1, k))
-    return float(np.mean(np.sqrt(flat[k - 1 : k + 1])))
+    return float((np.sqrt(flat[k - 1]) + np.sqrt(flat[k])) / 2)
 
 
 def phase_noise(
@@ -367,5 +367,5 @@ def phase_noise(
         trusted = power[mask]
         if not trusted.size:
             return float("nan")
-    inverse_power = float(np.mean(1.0 / trusted.astype(np.float64)))
+    inverse_power = float(np.reciprocal(trusted, dtype=np.float64).sum()) / trusted.size
     return float(np.sqrt(area_fraction * floor / (2.0 * size) * inverse_power))
