@@ -16,7 +16,9 @@ At 1024 x 1024, one thread, side by side in one run on the same float32 frames:
 
 The cases take turns, a few calls each, round after round, so that a shared machine's
 changing load falls on all of them alike; ratios are the median over rounds of the ratio
-of the rounds' medians. Then where the time of ``process`` goes (cProfile, per frame).
+of the rounds' medians, by the wall clock and by each thread's CPU time (what the code
+itself took, when other work shares the cores). Then where the time of ``process``
+goes (cProfile, per frame).
 """
 
 from __future__ import annotations
@@ -102,9 +104,9 @@ class Peer:
             raise RuntimeError("the PyHoloscope child ended without an answer")
         return json.loads(line)
 
-    def times(self, calls: int) -> list[float]:
-        """Wall times (s) of ``calls`` demodulations in the child."""
-        return list(self._ask({"calls": calls})["seconds"])
+    def times(self, calls: int) -> dict[str, list[float]]:
+        """Wall and CPU times (s, ``"seconds"`` and ``"cpu"``) of ``calls`` demodulations."""
+        return self._ask({"calls": calls})
 
     def close(self) -> None:
         if self._child.stdin is not None:
@@ -187,61 +189,81 @@ def run_floor(
         print(f"PyHoloscope {peer.hello['version']} in {python}: crop {peer.hello['shape']}")
     else:
         print(f"PyHoloscope skipped: {why}")
-    times: dict[str, list[list[float]]] = {name: [] for name in cases}
-    peer_times: list[list[float]] = []
+    # per case, per clock (wall, the thread's CPU time), per round: the calls' seconds
+    times: dict[str, dict[str, list[list[float]]]] = {
+        name: {"wall": [], "cpu": []} for name in cases
+    }
     for k in range(2):  # plans, references, caches
         for fn in cases.values():
             fn(k)
     calls = 0
+    peer_name = "PyHoloscope 1.1.3 real_fft, 1 carrier"
+    if peer is not None:
+        times[peer_name] = {"wall": [], "cpu": []}
     for _ in range(rounds):
         for name, fn in cases.items():
-            spent = []
+            wall, cpu = [], []
             for _ in range(PER_ROUND):
-                start = time.perf_counter()
+                start, start_cpu = time.perf_counter(), time.thread_time()
                 fn(calls)
-                spent.append(time.perf_counter() - start)
+                cpu.append(time.thread_time() - start_cpu)
+                wall.append(time.perf_counter() - start)
                 calls += 1
-            times[name].append(spent)
+            times[name]["wall"].append(wall)
+            times[name]["cpu"].append(cpu)
         if peer is not None:
-            peer_times.append(peer.times(PER_ROUND))
+            answer = peer.times(PER_ROUND)
+            times[peer_name]["wall"].append(answer["seconds"])
+            times[peer_name]["cpu"].append(answer["cpu"])
     if peer is not None:
         peer.close()
-        times["PyHoloscope 1.1.3 real_fft, 1 carrier"] = peer_times
-    print(f"{'case':>40} {'median ms':>10} {'best ms':>8} {'/ rfft2':>8}")
-    fft_rounds = [statistics.median(r) for r in times["one float32 rfft2 (copy included)"]]
-    for name, per_round in times.items():
-        flat = [t for r in per_round for t in r]
-        ratio = statistics.median(
-            statistics.median(r) / f for r, f in zip(per_round, fft_rounds, strict=True)
-        )
-        print(
-            f"{name:>40} {1e3 * statistics.median(flat):10.2f} {1e3 * min(flat):8.2f} {ratio:8.2f}"
-        )
+    fft_name = "one float32 rfft2 (copy included)"
 
-    def versus(a: str, b: str) -> tuple[float, float]:
+    def versus(a: str, b: str, clock: str) -> tuple[float, float]:
+        """Median over rounds of the ratio of the rounds' medians; best over best."""
         rounds_ratio = statistics.median(
             statistics.median(x) / statistics.median(y)
-            for x, y in zip(times[a], times[b], strict=True)
+            for x, y in zip(times[a][clock], times[b][clock], strict=True)
         )
-        best = min(t for r in times[a] for t in r) / min(t for r in times[b] for t in r)
+        best = min(t for r in times[a][clock] for t in r) / min(
+            t for r in times[b][clock] for t in r
+        )
         return rounds_ratio, best
 
-    four = versus("4 carriers, unwrap auto, waves", "one float32 rfft2 (copy included)")
-    verdict = "met" if four[0] <= 2 else "MISSED"
-    targets.append(
-        (
-            "4 carriers at the defaults within 2 x one float32 rfft2 (1024^2, one thread)",
-            f"{verdict} (median of rounds {four[0]:.2f} x, best/best {four[1]:.2f} x)",
-        )
+    print(
+        f"{'case':>40} {'wall: median':>12} {'best':>6} {'/ rfft2':>7}   "
+        f"{'CPU: median':>11} {'best':>6} {'/ rfft2':>7}  (ms)"
     )
-    if peer is None:
-        targets.append(("1 carrier faster than PyHoloscope 1.1.3's real-FFT path", "not run"))
-    else:
-        one = versus("1 carrier, unwrap auto, waves", "PyHoloscope 1.1.3 real_fft, 1 carrier")
+    for name, clocks in times.items():
+        row = f"{name:>40}"
+        for clock in ("wall", "cpu"):
+            flat = [t for r in clocks[clock] for t in r]
+            ratio = versus(name, fft_name, clock)[0]
+            row += f" {1e3 * statistics.median(flat):12.2f} {1e3 * min(flat):6.2f} {ratio:7.2f}  "
+        print(row)
+    print(
+        "(on a machine shared with other work, the wall clock holds the others' load; the "
+        "CPU time is this thread's own)"
+    )
+    for clock in ("wall", "cpu"):
+        four = versus("4 carriers, unwrap auto, waves", fft_name, clock)
+        verdict = "met" if four[0] <= 2 else "MISSED"
+        targets.append(
+            (
+                f"4 carriers at the defaults within 2 x one float32 rfft2 ({clock})",
+                f"{verdict} (median of rounds {four[0]:.2f} x, best/best {four[1]:.2f} x)",
+            )
+        )
+        if peer is None:
+            targets.append(
+                (f"1 carrier faster than PyHoloscope 1.1.3's real-FFT path ({clock})", "not run")
+            )
+            continue
+        one = versus("1 carrier, unwrap auto, waves", peer_name, clock)
         verdict = "met" if one[0] < 1 else "MISSED"
         targets.append(
             (
-                "1 carrier faster than PyHoloscope 1.1.3's real-FFT path (float32, same frame)",
+                f"1 carrier faster than PyHoloscope 1.1.3's real-FFT path ({clock})",
                 f"{verdict} (median of rounds {one[0]:.2f} x its time, best/best {one[1]:.2f} x)",
             )
         )

@@ -9,9 +9,9 @@ Protocol, one JSON object a line: the first line on stdin gives ``frame`` (a .np
 float32), ``centre`` ((row, col) of the carrier in ``scipy.fft.rfft2``'s layout),
 ``radius`` (the crop's half side, bins) and ``mask`` (a .npy file of the window on the
 crop, complex64); the script answers ``{"version": ...}``. Then each line
-``{"calls": N}`` is answered with ``{"seconds": [...]}``, the wall time of each of N
-calls of ``off_axis_demod(frame, centre, radius, real_fft=True, mask=mask)``; an empty
-line ends it.
+``{"calls": N}`` is answered with ``{"seconds": [...], "cpu": [...]}``, the wall time
+and the thread's CPU time of each of N calls of ``off_axis_demod(frame, centre, radius,
+real_fft=True, mask=mask)``; an empty line ends it.
 """
 
 from __future__ import annotations
@@ -40,12 +40,13 @@ def main() -> int:
     for line in sys.stdin:
         if not line.strip():
             break
-        seconds = []
+        seconds, cpu = [], []
         for _ in range(int(json.loads(line)["calls"])):
-            start = time.perf_counter()
+            start, start_cpu = time.perf_counter(), time.thread_time()
             call()
+            cpu.append(time.thread_time() - start_cpu)
             seconds.append(time.perf_counter() - start)
-        print(json.dumps({"seconds": seconds}), flush=True)
+        print(json.dumps({"seconds": seconds, "cpu": cpu}), flush=True)
     return 0
 
 

@@ -1,11 +1,20 @@
 """Fourier demodulation of every labelled carrier, frame after frame (paper section 3).
 
-:class:`Demodulator` takes one real FFT of each frame (pyFFTW, planned once per
-shape), and per peak cuts a small box out of the half spectrum with the carrier
-moved to the origin and the window applied in the same step, then takes an
-inverse FFT of the box only. The complex field per peak therefore comes at the
-box resolution (pixel ``(p, q)`` at frame position ``(p rows / by, q cols / bx)``);
+:class:`Demodulator` takes a real FFT of each frame (pyFFTW, planned once per
+shape), along the columns only where its boxes and the noise floor read the spectrum
+(:class:`~holoview.processing.fourier.half_spectrum.HalfSpectrum`), and per peak cuts a
+small box out of the half spectrum with the carrier moved to the origin and the window
+applied (:func:`~holoview.processing.fourier.boxes.cut_box`), then takes an inverse FFT
+of the box only. The complex field per peak therefore comes at the box resolution
+(pixel ``(p, q)`` at frame position ``(p rows / by, q cols / bx)``);
 :meth:`Demodulator.upsample` brings any map to the frame grid.
+
+Where the time goes (``benchmarks/bench_demodulation.py --floor``): the frame's FFT,
+then per peak the inverse FFT and the phase
+(:func:`~holoview.processing.fourier.fastmath.angle`), each a few array passes over the
+box; the masks come from ``|field|^2`` (no square root), a map is checked for wraps in
+three passes when its trusted phases stay within pi/2 of zero, and a wrapped map is
+unwrapped in space only around its wraps.
 
 Conventions (docs/design.md):
 
