@@ -63,8 +63,8 @@ INSTALL = (
 class Peer:
     """PyHoloscope's real-FFT path in a child process (``peer_pyholoscope.py``)."""
 
-    def __init__(self, python: str, frame: np.ndarray, peak: Peak, radius: float) -> None:
-        rows, cols = frame.shape
+    def __init__(self, python: str, frames: list[np.ndarray], peak: Peak, radius: float) -> None:
+        rows, cols = frames[0].shape
         fx, fy = peak.carrier
         if fx < 0:  # the real FFT holds the twin with fx > 0
             fx, fy = -fx, -fy
@@ -78,7 +78,7 @@ class Peer:
         mask = radial_window(DEFAULT_WINDOW, rho, radius, taper=DEFAULT_TAPER)
         self._dir = tempfile.TemporaryDirectory(prefix="holoview-peer-")
         folder = Path(self._dir.name)
-        np.save(folder / "frame.npy", frame.astype(np.float32))
+        np.save(folder / "frames.npy", np.array(frames, dtype=np.float32))
         np.save(folder / "mask.npy", mask.astype(np.complex64))
         self._child = subprocess.Popen(
             [python, str(PEER_SCRIPT)],
@@ -88,7 +88,7 @@ class Peer:
             env={**os.environ, "OMP_NUM_THREADS": "1"},
         )
         setup = {
-            "frame": str(folder / "frame.npy"),
+            "frames": str(folder / "frames.npy"),
             "mask": str(folder / "mask.npy"),
             "centre": centre,
             "radius": half,
@@ -185,7 +185,7 @@ def run_floor(
     python, why = peers_python(peers)
     peer = None
     if python is not None:
-        peer = Peer(python, moving[0], peaks[0], rb1.radii[0])
+        peer = Peer(python, moving, peaks[0], rb1.radii[0])
         print(f"PyHoloscope {peer.hello['version']} in {python}: crop {peer.hello['shape']}")
     else:
         print(f"PyHoloscope skipped: {why}")

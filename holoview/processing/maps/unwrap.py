@@ -59,19 +59,6 @@ def _trusted(phase: np.ndarray, mask: np.ndarray | None) -> tuple[np.ndarray, fl
     return trusted, max(-float(trusted.min()), float(trusted.max()))
 
 
-def _wrapped_pairs(phase: np.ndarray, mask: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`_jumps`, from the phase with untrusted pixels at 0 where that is exact.
-
-    With every trusted phase within pi of 0, a pair with an untrusted pixel (at 0) is
-    never more than pi apart: the pairs of the zeroed map are those of the trusted
-    pixels, with no mask to apply.
-    """
-    trusted, extent = _trusted(phase, mask)
-    if extent <= np.pi:
-        return _jumps(trusted, None)
-    return _jumps(phase, mask)
-
-
 def has_wraps(phase: np.ndarray, mask: np.ndarray | None = None) -> bool:
     """Return whether two neighbouring trusted pixels differ by more than pi (rad).
 
@@ -110,12 +97,17 @@ def wrap_bounds(
         inclusive) of the pixels of every pair of trusted neighbours more than pi apart;
         None when there is no such pair.
     """
-    if not has_wraps(phase, mask):
+    trusted, extent = _trusted(phase, mask)
+    if extent < np.pi / 2:
         return None
-    jump_x, jump_y = _wrapped_pairs(phase, mask)
-    rows: np.ndarray = np.array(jump_x.any(axis=1))
-    rows[:-1] |= jump_y.any(axis=1)
-    rows[1:] |= jump_y.any(axis=1)
+    # with every trusted phase within pi of 0, the zeroed map's pairs are the trusted ones
+    jump_x, jump_y = _jumps(trusted, None) if extent <= np.pi else _jumps(phase, mask)
+    along_x, along_y = jump_x.any(axis=1), jump_y.any(axis=1)
+    if not (along_x.any() or along_y.any()):
+        return None
+    rows: np.ndarray = np.array(along_x)
+    rows[:-1] |= along_y
+    rows[1:] |= along_y
     cols: np.ndarray = np.array(jump_y.any(axis=0))
     cols[:-1] |= jump_x.any(axis=0)
     cols[1:] |= jump_x.any(axis=0)
