@@ -236,10 +236,12 @@ def rfft_rows_plan(
 ) -> pyfftw.FFTW:
     """Return the calling thread's plan of the first pass of a 2-D real FFT: each row's.
 
-    Fill ``plan.input_array`` (float32, shape ``shape``) and call ``plan.execute()``:
-    ``plan.output_array`` (complex64, ``(rows, cols // 2 + 1)``) holds the real FFT of
-    every row. An FFT along the columns (:func:`column_fft_plan`) of the columns one
-    needs completes the 2-D half spectrum there, with numpy's sign, unnormalised.
+    Fill ``plan.input_array`` (float32, shape ``shape``), point the output where it
+    should go (``plan.update_arrays(plan.input_array, out)``, ``out`` complex64 of shape
+    ``(rows, cols // 2 + 1)``, C-ordered rows aligned as :func:`pyfftw.empty_aligned`
+    aligns) and call ``plan.execute()``: ``out`` holds the real FFT of every row. An FFT
+    along the columns (:func:`column_fft_plan`) of the columns one needs completes the
+    2-D half spectrum there, with numpy's sign, unnormalised.
     """
     return _plan(
         "rfft_rows", (int(shape[0]), int(shape[1])), int(threads), effort or PLANNER_EFFORT

@@ -10,7 +10,8 @@ apart. One carrier's box at 1024 x 1024 covers about half of the 513 columns: th
 frame's FFT costs about three quarters of a whole one. The bins it gives are those of
 the whole 2-D FFT, up to float32 rounding (the same transforms, in another order).
 
-The frame's mean comes from the row pass (the sum of every row's zero frequency), so
+The first pass runs on :data:`ROW_CHUNK` rows at a time, each converted to float32 just
+before. The frame's mean comes from the row pass (the sum of every row's zero frequency), so
 it does not depend on which columns are transformed.
 """
 
@@ -29,6 +30,12 @@ from holoview.processing.fourier.fftplans import (
 )
 
 __all__ = ["HalfSpectrum", "column_runs"]
+
+#: Rows converted to float32 and transformed at a time (a multiple of 8, so that every
+#: chunk of the half spectrum is aligned as the first). Measured at 1024 x 1024 (AVX2, one
+#: thread): the copy and the row pass in chunks of 128 rows took 1.6 ms, the whole frame
+#: at once 2.1 ms (its 4 MB float32 copy is out of cache when transformed).
+ROW_CHUNK = 128
 
 
 def column_runs(half_cols: int, columns: Iterable[np.ndarray]) -> tuple[tuple[int, int], ...]:
@@ -103,6 +110,7 @@ class HalfSpectrum:
         self._floor_cols = floor_cols
         count = len(range(*floor_cols.indices(self.half_shape[1])))
         self._floor = pyfftw.empty_aligned((self.shape[0], count), "complex64")
+        self._half = pyfftw.empty_aligned(self.half_shape, "complex64")
 
     def transform(self, frame: np.ndarray) -> tuple[np.ndarray | None, float, np.ndarray]:
         """Transform a frame (not modified).
@@ -111,18 +119,23 @@ class HalfSpectrum:
         -------
         half : ndarray of complex64, shape ``(rows, cols // 2 + 1)``, or None
             The half spectrum (unnormalised, numpy's sign), exact in :attr:`runs` only
-            (elsewhere it holds the row pass); a plan's buffer, overwritten by the next
-            call. None for a frame holding NaN or infinity.
+            (elsewhere it holds the row pass); this object's buffer, overwritten by the
+            next call. None for a frame holding NaN or infinity.
         mean : float
             The frame's mean (counts); NaN when ``half`` is None.
         floor : ndarray of complex64
             The spectrum at the floor grid (rows-major), a new array; empty when
             ``half`` is None.
         """
-        rows_plan = rfft_rows_plan(self.shape, threads=self.threads)
-        np.copyto(rows_plan.input_array, frame, casting="unsafe")
-        rows_plan.execute()
-        half = rows_plan.output_array
+        half = self._half
+        rows = self.shape[0]
+        for start in range(0, rows, ROW_CHUNK):
+            # a few rows at a time: the float32 copy is still in cache when transformed
+            stop = min(start + ROW_CHUNK, rows)
+            plan = rfft_rows_plan((stop - start, self.shape[1]), threads=self.threads)
+            np.copyto(plan.input_array, frame[start:stop], casting="unsafe")
+            plan.update_arrays(plan.input_array, half[start:stop])
+            plan.execute()
         total = float(half[:, 0].real.sum(dtype=np.float64))
         if not np.isfinite(total):
             return None, float("nan"), np.empty(0, dtype=np.complex64)
