@@ -100,8 +100,17 @@ def wrap_bounds(
     trusted, extent = _trusted(phase, mask)
     if extent < np.pi / 2:
         return None
-    # with every trusted phase within pi of 0, the zeroed map's pairs are the trusted ones
-    jump_x, jump_y = _jumps(trusted, None) if extent <= np.pi else _jumps(phase, mask)
+    if extent <= np.pi:
+        # the zeroed map's pairs are the trusted ones (has_wraps); most maps have none
+        step_x = np.subtract(trusted[:, 1:], trusted[:, :-1])
+        step_y = np.subtract(trusted[1:, :], trusted[:-1, :])
+        np.abs(step_x, out=step_x)
+        np.abs(step_y, out=step_y)
+        if step_x.max(initial=0.0) <= np.pi and step_y.max(initial=0.0) <= np.pi:
+            return None
+        jump_x, jump_y = step_x > np.pi, step_y > np.pi
+    else:
+        jump_x, jump_y = _jumps(phase, mask)
     along_x, along_y = jump_x.any(axis=1), jump_y.any(axis=1)
     if not (along_x.any() or along_y.any()):
         return None
