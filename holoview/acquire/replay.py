@@ -238,6 +238,11 @@ class ReplaySource(Source):
         """Times the recorded pace."""
         return self._factor
 
+    @property
+    def experiment_problem(self) -> str | None:
+        """Why the file's stored experiment is not carried (damaged), else None."""
+        return self._require_file().experiment_problem
+
     def carried_experiment(self, index: int) -> str | None:
         """The file's experiment (JSON text) in force at frame ``index``; None before any."""
         experiments = self._require_file().experiments

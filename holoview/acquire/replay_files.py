@@ -82,6 +82,8 @@ class FrameFile(ABC):
         self.rate_hz: float | None = None
         self.setup: dict[str, Any] = {}
         self.experiments: list[tuple[int, str]] = []
+        #: Why a recording's stored experiment is not carried (damaged), else None.
+        self.experiment_problem: str | None = None
         self.frame_shape: tuple[int, int] = (0, 0)
         self.dtype = np.dtype(np.uint16)
         self.pixel_format = ""
@@ -198,7 +200,11 @@ class HDF5File(FrameFile):
         self._load_index()
 
     def _load_index(self) -> None:
-        self.experiments = self._reader.experiments()
+        try:
+            self.experiments = self._reader.experiments()
+        except InputError as exc:  # the frames still play; the experiment is not carried
+            self.experiment_problem = str(exc)
+            self.experiments = []
         self._ids = self._reader.frame_ids
         self._times = self._reader.times
         self.rate_hz = self._reader.fps if math.isfinite(self._reader.fps) else None

@@ -204,6 +204,9 @@ def run(args: argparse.Namespace) -> int:
             setup = {k: getattr(experiment, k) for k in OPTICS if getattr(experiment, k)}
         if experiment is not None and source.carried_experiment(0) is not None:
             logger.info("the source's experiment is replaced by %s", args.experiment)
+        problem = getattr(source, "experiment_problem", None)
+        if experiment is None and problem is not None:
+            logger.warning("%s: the copy carries no experiment", problem)
         recorder = Recorder.for_source(
             ring,
             out,
