@@ -240,16 +240,20 @@ def unwrap_maps(maps: Sequence[PhaseMap], peaks: Sequence[Peak], *, always: bool
     always : bool
         Unwrap every live map, not only those with wraps.
     """
-    bounds = [wrap_bounds(m.phase, m.mask) if m.live else None for m in maps]
-    need = [m.live and (always or b is not None) for m, b in zip(maps, bounds, strict=True)]
-    if not any(need):
-        return
     guide = guide_index(maps, peaks)
     if guide is None:
         return  # no trusted pixel anywhere: nothing worth unwrapping
     g = maps[guide]
-    if need[guide] and bounds[guide] is not None:
-        g.phase, g.unwrapped = unwrap_in_space(g.phase, g.mask, bounds=bounds[guide])
+    # where the guide's wraps are (its rectangle is unwrapped), whether the others have any
+    bounds = wrap_bounds(g.phase, g.mask)
+    need = [
+        m.live and (always or (bounds is not None if i == guide else has_wraps(m.phase, m.mask)))
+        for i, m in enumerate(maps)
+    ]
+    if not any(need):
+        return
+    if bounds is not None:
+        g.phase, g.unwrapped = unwrap_in_space(g.phase, g.mask, bounds=bounds)
     guide_alpha = peaks[guide].alpha
     for i, m in enumerate(maps):
         if not need[i] or i == guide or not m.valid:
