@@ -9,12 +9,7 @@ of the box only. The complex field per peak therefore comes at the box resolutio
 (pixel ``(p, q)`` at frame position ``(p rows / by, q cols / bx)``);
 :meth:`Demodulator.upsample` brings any map to the frame grid.
 
-Where the time goes (``benchmarks/bench_demodulation.py --floor``): the frame's FFT,
-then per peak the inverse FFT and the phase
-(:func:`~holoview.processing.fourier.fastmath.angle`), each a few array passes over the
-box; the masks come from ``|field|^2`` (no square root), a map is checked for wraps in
-three passes when its trusted phases stay within pi/2 of zero, and a wrapped map is
-unwrapped in space only around its wraps.
+Where the time goes: ``benchmarks/bench_demodulation.py --floor``.
 
 Conventions (docs/design.md):
 
