@@ -288,7 +288,10 @@ def test_a_box_cut_by_slices_is_the_box_gathered_bin_by_bin(shape: tuple[int, in
             pairs *= geo.weights
             out = np.empty(box, np.complex64)
             np.testing.assert_array_equal(cut_box(half, geo, out), gathered)
-            assert set(geo.columns) == set(geo.index % half_shape[1])
+            # the columns transformed: those where the window is not zero
+            read = (geo.index % half_shape[1]).reshape(box)
+            windowed = (geo.weights[0::2] != 0).reshape(box).any(axis=0)
+            assert set(geo.columns) == set(read[:, windowed].ravel())
 
 
 def test_floor_and_median_helpers_equal_numpy() -> None:

@@ -51,7 +51,7 @@ class BoxGeometry:
 
     index: np.ndarray  # flat indices into the half spectrum, box layout
     blocks: tuple[Block, ...]  # the same bins as rectangles (cut_box)
-    columns: np.ndarray  # the half spectrum's columns the box reads
+    columns: np.ndarray  # the half spectrum's columns where the box's window is not zero
     weights: np.ndarray  # float32 (re, im) pairs per bin: the window, -window on conjugated im
     ramp: np.ndarray  # complex64 unit modulus: the sub-bin plane wave on the box grid
     ramp_conj: np.ndarray  # its conjugate
@@ -177,7 +177,8 @@ def box_geometry(
     return BoxGeometry(
         index=_readonly(index),
         blocks=_blocks(ky, (-ky) % rows, src_cols, direct_x),
-        columns=_readonly(np.unique(src_cols)),
+        # the other columns are multiplied by zero: their row pass alone is enough
+        columns=_readonly(np.unique(src_cols[(w > 0).any(axis=0)])),
         weights=_readonly(weights),
         ramp=_readonly(ramp),
         ramp_conj=_readonly(np.conj(ramp)),

@@ -260,7 +260,6 @@ class Demodulator:
         #: boxes of 256 x 256 bins or more are worth FFTW's threads; smaller ones are not
         self._box_threads = self.threads if n_box >= LARGE_BOX else 1
         self._angle_workspace = AngleWorkspace(self.box_shape)
-        self._product = np.empty(self.box_shape, dtype=np.complex64)
         self._power = np.empty(self.box_shape, dtype=np.float32)
         self._squares = np.empty((self.box_shape[0], 2 * self.box_shape[1]), dtype=np.float32)
         self._weights = np.empty(n_box, dtype=np.float32)
@@ -525,7 +524,8 @@ class Demodulator:
             flags.add("phase_step")
         self._prev_value[i] = value
 
-        product: np.ndarray | None = self._product
+        # the box's spectrum is spent: the product goes where it was (a buffer still in cache)
+        product: np.ndarray | None = box_plan.input_array
         if self.reference == "synthetic":
             np.multiply(field, geo.ramp_conj, out=product)
             if prev is None:

@@ -59,6 +59,11 @@ def _trusted(phase: np.ndarray, mask: np.ndarray | None) -> tuple[np.ndarray, fl
     return trusted, max(-float(trusted.min()), float(trusted.max()))
 
 
+def _beyond_pi(steps: np.ndarray) -> bool:
+    """Whether any step (rad) is more than pi either way (two reductions, no new array)."""
+    return bool(steps.max(initial=0.0) > np.pi or steps.min(initial=0.0) < -np.pi)
+
+
 def has_wraps(phase: np.ndarray, mask: np.ndarray | None = None) -> bool:
     """Return whether two neighbouring trusted pixels differ by more than pi (rad).
 
@@ -76,11 +81,9 @@ def has_wraps(phase: np.ndarray, mask: np.ndarray | None = None) -> bool:
     if extent < np.pi / 2:
         return False
     if extent <= np.pi:  # pairs with an untrusted pixel (0) are within pi: no mask needed
-        d = np.subtract(trusted[:, 1:], trusted[:, :-1])
-        if np.abs(d, out=d).max(initial=0.0) > np.pi:
-            return True
-        d = np.subtract(trusted[1:, :], trusted[:-1, :])
-        return bool(np.abs(d, out=d).max(initial=0.0) > np.pi)
+        return _beyond_pi(np.subtract(trusted[:, 1:], trusted[:, :-1])) or _beyond_pi(
+            np.subtract(trusted[1:, :], trusted[:-1, :])
+        )
     jump_x, jump_y = _jumps(phase, mask)
     return bool(jump_x.any() or jump_y.any())
 
@@ -104,11 +107,10 @@ def wrap_bounds(
         # the zeroed map's pairs are the trusted ones (has_wraps); most maps have none
         step_x = np.subtract(trusted[:, 1:], trusted[:, :-1])
         step_y = np.subtract(trusted[1:, :], trusted[:-1, :])
-        np.abs(step_x, out=step_x)
-        np.abs(step_y, out=step_y)
-        if step_x.max(initial=0.0) <= np.pi and step_y.max(initial=0.0) <= np.pi:
+        if not (_beyond_pi(step_x) or _beyond_pi(step_y)):
             return None
-        jump_x, jump_y = step_x > np.pi, step_y > np.pi
+        jump_x = np.abs(step_x, out=step_x) > np.pi
+        jump_y = np.abs(step_y, out=step_y) > np.pi
     else:
         jump_x, jump_y = _jumps(phase, mask)
     along_x, along_y = jump_x.any(axis=1), jump_y.any(axis=1)
