@@ -53,6 +53,11 @@ class AngleWorkspace:
         self._buffers = [np.empty(self.shape, dtype=np.float32) for _ in range(4)]
         #: the sign bits of the real and imaginary parts, interleaved as in complex64
         self._signs = np.empty((self.shape[0], 2 * self.shape[1]), dtype=np.uint32)
+        #: float32 scratch of the workspace's shape that a caller may use between calls of
+        #: :func:`angle` (each call overwrites it): fewer buffers, more of them in cache
+        self.scratch = self._buffers[0]
+        #: float32 scratch of shape ``(rows, 2 cols)`` (a complex map's (re, im) pairs), the same
+        self.pairs = self._signs.view(np.float32)
 
 
 def angle(

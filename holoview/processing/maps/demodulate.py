@@ -260,9 +260,6 @@ class Demodulator:
         #: boxes of 256 x 256 bins or more are worth FFTW's threads; smaller ones are not
         self._box_threads = self.threads if n_box >= LARGE_BOX else 1
         self._angle_workspace = AngleWorkspace(self.box_shape)
-        self._power = np.empty(self.box_shape, dtype=np.float32)
-        self._squares = np.empty((self.box_shape[0], 2 * self.box_shape[1]), dtype=np.float32)
-        self._weights = np.empty(n_box, dtype=np.float32)
         self.background: np.ndarray | None = None
         self._background: list[tuple[np.ndarray, complex]] | None = None
         self._background_floor: np.ndarray | None = None
@@ -501,11 +498,13 @@ class Demodulator:
         if i in self._overlapping:
             flags.add("overlap")
 
-        # trusted pixels: |field|^2 against the threshold's square (no square roots)
-        power = self._power
+        # trusted pixels: |field|^2 against the threshold's square (no square roots); |f|^2
+        # lives in the phase's scratch, used up before the phase is taken
+        workspace = self._angle_workspace
+        power, squares = workspace.scratch, workspace.pairs
         pairs = field.view(np.float32)
-        np.multiply(pairs, pairs, out=self._squares)
-        np.add(self._squares[:, 0::2], self._squares[:, 1::2], out=power)
+        np.multiply(pairs, pairs, out=squares)
+        np.add(squares[:, 0::2], squares[:, 1::2], out=power)
         expected = peak.amplitude * mean if peak.amplitude > 0 else median_magnitude(power)
         threshold = np.float32(self.min_amplitude * expected)
         mask = np.greater_equal(power, threshold * threshold)
@@ -557,9 +556,9 @@ class Demodulator:
             phase = np.zeros(field.shape, dtype=np.float32)
             noise = 0.0
         else:
-            phase = angle(product, workspace=self._angle_workspace)
             size = self.shape[0] * self.shape[1]
             noise = phase_noise(power, mask, floor, geo.area_fraction, size)
+            phase = angle(product, workspace=workspace)
         return PhaseMap(
             field=field,
             phase=phase,
@@ -582,7 +581,7 @@ class Demodulator:
             if part.valid == phase.size:
                 level = float(phase.sum()) / phase.size
             else:
-                weights = self._weights
+                weights = self._angle_workspace.scratch.reshape(-1)  # free after the phases
                 np.copyto(weights, part.mask.reshape(-1))
                 level = float(np.dot(phase.reshape(-1), weights)) / part.valid
             offset = TWO_PI * round((part.target - level) / TWO_PI)
