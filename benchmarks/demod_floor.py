@@ -38,6 +38,7 @@ from pathlib import Path
 import numpy as np
 
 from holoview.processing.fourier.fftplans import rfft2_plan
+from holoview.processing.fourier.half_spectrum import ROW_CHUNK
 from holoview.processing.fourier.windows import (
     DEFAULT_TAPER,
     DEFAULT_WINDOW,
@@ -172,6 +173,15 @@ def run_floor(
         plan.execute()
 
     cases["one float32 rfft2 (copy included)"] = fft
+
+    def convert(k: int) -> None:  # the copy alone, as the half spectrum makes it
+        frame = moving[k % len(moving)]
+        for start in range(0, SHAPE[0], ROW_CHUNK):
+            rows = slice(start, start + ROW_CHUNK)
+            np.copyto(chunk[: frame[rows].shape[0]], frame[rows], casting="unsafe")
+
+    chunk = np.empty((ROW_CHUNK, SHAPE[1]), dtype=np.float32)
+    cases["frame -> float32 copy alone"] = convert
     for count in (4, 1):
         chosen = peaks[:count]
         for unwrap, sequence in (("auto", moving), ("never", moving), ("auto", wrapped)):
@@ -272,12 +282,15 @@ def run_floor(
 
 #: The functions whose time :func:`profile` reports, by the name cProfile gives them.
 STEPS = (
-    ("half_spectrum.py", "transform", "frame -> float32, FFT (rows, boxes' columns, floor)"),
+    ("half_spectrum.py", "_rows", "conversion to float32 and the rows' FFT"),
+    ("half_spectrum.py", "_floor_samples", "FFT of the noise floor's columns"),
+    ("half_spectrum.py", "_columns", "FFT of the windows' columns"),
     ("phase_maps.py", "floor_power", "noise floor of the spectrum"),
-    ("demodulate.py", "_field", "cut and window the box, inverse FFT"),
-    ("fastmath.py", "angle", "phase"),
-    ("demodulate.py", "_demodulate", "rest of the per-peak step (|f|^2, masks, mean)"),
+    ("demodulate.py", "_field", "cut and window the boxes, inverse FFTs"),
+    ("demodulate.py", "_trusted_pixels", "masks (|f|^2, threshold, border)"),
+    ("fastmath.py", "angle", "phases"),
     ("phase_maps.py", "phase_noise", "noise of each map"),
+    ("demodulate.py", "_demodulate", "rest of the per-peak step (mean, product)"),
     ("phase_maps.py", "unwrap_maps", "wrap checks and unwrapping"),
     ("demodulate.py", "_finish", "2 pi offset, delta-h"),
     ("demodulate.py", "process", "the whole call"),
@@ -299,11 +312,19 @@ def profile(
             demod.process(sequence[k % len(sequence)])
         profiler.disable()
         stats = pstats.Stats(profiler).stats  # type: ignore[attr-defined]
-        print(f"\nwhere the time goes, 4 carriers, defaults, {what} (ms per frame, cProfile):")
+        whole = next(
+            total
+            for (path, _, name), (_, _, _, total, _) in stats.items()
+            if path.endswith("demodulate.py") and name == "process"
+        )
+        print(
+            f"\nwhere the time goes, 4 carriers, defaults, {what} (ms per frame under "
+            "cProfile, which adds its own time to every Python call; share of the call):"
+        )
         for module, function, label in STEPS:
             for (path, _, name), (_, _, own, total, _) in stats.items():
                 if path.endswith(module) and name == function:
                     value = own if function == "_demodulate" else total
-                    print(f"{label:>56}: {1e3 * value / count:6.3f}")
+                    print(f"{label:>56}: {1e3 * value / count:6.3f} {100 * value / whole:5.1f} %")
                     break
         sys.stdout.flush()

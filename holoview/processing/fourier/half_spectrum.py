@@ -129,6 +129,17 @@ class HalfSpectrum:
             ``half`` is None.
         """
         half = self._half
+        self._rows(frame)
+        total = float(half[:, 0].real.sum(dtype=np.float64))
+        if not np.isfinite(total):
+            return None, float("nan"), np.empty(0, dtype=np.complex64)
+        samples = self._floor_samples()
+        self._columns()
+        return half, total / (self.shape[0] * self.shape[1]), samples
+
+    def _rows(self, frame: np.ndarray) -> None:
+        """The first pass: every row's real FFT, converted to float32 a chunk at a time."""
+        half = self._half
         rows = self.shape[0]
         for start in range(0, rows, ROW_CHUNK):
             # a few rows at a time: the float32 copy is still in cache when transformed
@@ -137,15 +148,20 @@ class HalfSpectrum:
             np.copyto(plan.input_array, frame[start:stop], casting="unsafe")
             plan.update_arrays(plan.input_array, half[start:stop])
             plan.execute()
-        total = float(half[:, 0].real.sum(dtype=np.float64))
-        if not np.isfinite(total):
-            return None, float("nan"), np.empty(0, dtype=np.complex64)
+
+    def _floor_samples(self) -> np.ndarray:
+        """The spectrum at the floor grid (a new array), its columns transformed apart."""
         floor = self._floor
         if floor.size:
-            np.copyto(floor, half[:, self._floor_cols])
+            np.copyto(floor, self._half[:, self._floor_cols])
             plan = column_fft_plan(floor.shape, floor.shape[1], threads=self.threads)
             plan.update_arrays(floor, floor)
             plan.execute()
+        return np.array(floor[self._floor_rows]).reshape(-1)  # a copy, kept by callers
+
+    def _columns(self) -> None:
+        """The second pass, in place, over the runs of columns the boxes read."""
+        half = self._half
         for start, stop in self.runs:
             # block by block: one plan serves every block of the shape (only the last
             # block, at the Nyquist column, may be narrower), so new peaks never wait for
@@ -156,5 +172,3 @@ class HalfSpectrum:
                 columns = half[:, block : block + width]
                 plan.update_arrays(columns, columns)
                 plan.execute()
-        samples = np.array(floor[self._floor_rows]).reshape(-1)  # a copy, kept by callers
-        return half, total / (self.shape[0] * self.shape[1]), samples

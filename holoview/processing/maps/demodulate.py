@@ -487,19 +487,17 @@ class Demodulator:
             self._ref_floor = samples
         return 0.0 if reference is None else floor_power(samples, reference)
 
-    def _demodulate(
-        self, i: int, half: np.ndarray, box_plan: pyfftw.FFTW, mean: float, floor: float
-    ) -> PhaseMap:
-        """Cut, window and invert peak ``i``'s box; phase against the reference (wrapped)."""
-        peak = self.peaks[i]
-        geo = self._boxes[i]
-        field = self._field(i, half, box_plan)
-        flags: set[str] = set()
-        if i in self._overlapping:
-            flags.add("overlap")
+    def _trusted_pixels(
+        self, i: int, field: np.ndarray, mean: float
+    ) -> tuple[np.ndarray, np.ndarray, int]:
+        """Peak ``i``'s ``|field|^2`` (counts^2), trusted pixels (a new mask) and their count.
 
-        # trusted pixels: |field|^2 against the threshold's square (no square roots); |f|^2
-        # lives in the phase's scratch, used up before the phase is taken
+        A pixel is trusted where ``|field|^2`` reaches the threshold's square (no square
+        roots) inside the aperture and off the border. ``|field|^2`` lives in the phase's
+        scratch (:attr:`~holoview.processing.fourier.fastmath.AngleWorkspace.scratch`):
+        use it up before the phase is taken.
+        """
+        peak = self.peaks[i]
         workspace = self._angle_workspace
         power, squares = workspace.scratch, workspace.pairs
         pairs = field.view(np.float32)
@@ -511,7 +509,19 @@ class Demodulator:
         if not expected > 0:
             mask[...] = False
         mask &= self._trusted_box[i]
-        valid = int(np.count_nonzero(mask))
+        return power, mask, int(np.count_nonzero(mask))
+
+    def _demodulate(
+        self, i: int, half: np.ndarray, box_plan: pyfftw.FFTW, mean: float, floor: float
+    ) -> PhaseMap:
+        """Cut, window and invert peak ``i``'s box; phase against the reference (wrapped)."""
+        geo = self._boxes[i]
+        field = self._field(i, half, box_plan)
+        flags: set[str] = set()
+        if i in self._overlapping:
+            flags.add("overlap")
+
+        power, mask, valid = self._trusted_pixels(i, field, mean)
         if valid < MIN_VALID_FRACTION * self._trustable[i]:
             flags.add("low_amplitude")
 
@@ -558,7 +568,7 @@ class Demodulator:
         else:
             size = self.shape[0] * self.shape[1]
             noise = phase_noise(power, mask, floor, geo.area_fraction, size)
-            phase = angle(product, workspace=workspace)
+            phase = angle(product, workspace=self._angle_workspace)
         return PhaseMap(
             field=field,
             phase=phase,
