@@ -18,7 +18,8 @@ The cases take turns, a few calls each, round after round, so that a shared mach
 changing load falls on all of them alike; ratios are the median over rounds of the ratio
 of the rounds' medians, by the wall clock and by each thread's CPU time (what the code
 itself took, when other work shares the cores). Then where the time of ``process``
-goes (cProfile, per frame).
+goes (cProfile, per frame), and the rest of the map path (``map_path.py``: trusted maps,
+co-registration, fusion, writing).
 """
 
 from __future__ import annotations
@@ -36,6 +37,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
+from map_path import run_map_path
 
 from holoview.processing.fourier.fftplans import rfft2_plan
 from holoview.processing.fourier.half_spectrum import ROW_CHUNK
@@ -278,6 +280,7 @@ def run_floor(
             )
         )
     profile(peaks, moving, wrapped, wavelength)
+    run_map_path(peaks, moving, wavelength=wavelength, rounds=rounds)
 
 
 #: The functions whose time :func:`profile` reports, by the name cProfile gives them.
