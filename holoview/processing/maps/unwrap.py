@@ -38,10 +38,28 @@ def wrap(phase: np.ndarray | float) -> np.ndarray:
     return p - turns
 
 
+def _steps_x(phase: np.ndarray) -> np.ndarray:
+    """``phase[:, 1:] - phase[:, :-1]`` in the first ``cols - 1`` columns, 0 in the last (rad).
+
+    A new contiguous array of the map's shape, made by one subtraction over the map seen
+    as one row (the 2-D one between strided views took four times as long, and reductions
+    over a strided view twice as long, measured on 240 x 240 float32 maps); the last
+    column, the pairs that straddle two rows, is then set to 0.
+    """
+    p = np.ascontiguousarray(phase)
+    rows, cols = p.shape
+    flat = p.reshape(-1)
+    steps = np.empty((rows, cols), dtype=p.dtype)
+    if flat.size:
+        np.subtract(flat[1:], flat[:-1], out=steps.reshape(-1)[:-1])
+        steps[:, -1] = 0
+    return steps
+
+
 def _jumps(phase: np.ndarray, mask: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
     """Neighbour pairs (along rows, along columns) of trusted pixels more than pi apart."""
     p = np.asarray(phase)
-    jump_x = np.abs(p[:, 1:] - p[:, :-1]) > np.pi
+    jump_x = np.abs(_steps_x(p)[:, :-1]) > np.pi
     jump_y = np.abs(p[1:, :] - p[:-1, :]) > np.pi
     if mask is not None:
         m = np.asarray(mask, dtype=bool)
@@ -81,7 +99,8 @@ def has_wraps(phase: np.ndarray, mask: np.ndarray | None = None) -> bool:
     if extent < np.pi / 2:
         return False
     if extent <= np.pi:  # pairs with an untrusted pixel (0) are within pi: no mask needed
-        return _beyond_pi(np.subtract(trusted[:, 1:], trusted[:, :-1])) or _beyond_pi(
+        # the steps along the rows end in a column of 0: no step beyond pi there
+        return _beyond_pi(_steps_x(trusted)) or _beyond_pi(
             np.subtract(trusted[1:, :], trusted[:-1, :])
         )
     jump_x, jump_y = _jumps(phase, mask)
@@ -105,11 +124,11 @@ def wrap_bounds(
         return None
     if extent <= np.pi:
         # the zeroed map's pairs are the trusted ones (has_wraps); most maps have none
-        step_x = np.subtract(trusted[:, 1:], trusted[:, :-1])
+        step_x = _steps_x(trusted)  # its last column is 0: no step beyond pi there
         step_y = np.subtract(trusted[1:, :], trusted[:-1, :])
         if not (_beyond_pi(step_x) or _beyond_pi(step_y)):
             return None
-        jump_x = np.abs(step_x, out=step_x) > np.pi
+        jump_x = np.abs(step_x[:, :-1]) > np.pi
         jump_y = np.abs(step_y, out=step_y) > np.pi
     else:
         jump_x, jump_y = _jumps(phase, mask)
