@@ -4,12 +4,13 @@ A real 2-D FFT is two passes: a real FFT of every row, then an FFT along every
 column of the result. The demodulator reads the spectrum in a few boxes and at the
 noise-floor bins only, so :class:`HalfSpectrum` runs the first pass whole and the
 second only over the blocks of :data:`~holoview.processing.fourier.fftplans.COLUMN_ALIGN`
-columns its boxes cover (one plan serves every block of a frame shape: measured at
-1024 x 1024, as fast as a plan per run of blocks, and no new peak waits for FFTW to plan
-a new width), and over the floor bins' columns gathered apart. One carrier's box at
-1024 x 1024 covers about half of the 513 columns: the frame's FFT costs about three
-quarters of a whole one. The bins it gives are those of the whole 2-D FFT, up to float32
-rounding (the same transforms, in another order).
+columns where its windows are not zero (one plan serves every block of a frame shape:
+measured at 1024 x 1024, as fast as a plan per run of blocks, and no new peak waits for
+FFTW to plan a new width), and over the floor bins' columns gathered apart. One carrier's
+window at 1024 x 1024 covers about half of the 513 columns: the frame's FFT costs about
+three quarters of a whole one. The bins it gives there are those of the whole 2-D FFT, up
+to float32 rounding (the same transforms, in another order); elsewhere they hold the row
+pass alone, which a box multiplies by its window's zeros.
 
 The first pass runs on :data:`ROW_CHUNK` rows at a time, each converted to float32 just
 before. The frame's mean comes from the row pass (the sum of every row's zero
@@ -81,7 +82,7 @@ class HalfSpectrum:
     shape : tuple of int
         Frame shape ``(rows, cols)``, pixels.
     columns : iterable of ndarray of int
-        The half spectrum's columns that must be exact (each box's).
+        The half spectrum's columns that must be exact (where each box's window is not zero).
     floor_rows, floor_cols : slice
         The noise-floor bins: every ``(row, col)`` of this grid is sampled.
     threads : int, optional
