@@ -12,7 +12,9 @@ Prints, with the machine (CPU model, cores, load average), medians and best over
 0. the map path's floor (issue 23, ``demod_floor.py``): at 1024 x 1024 and one thread,
    ``Demodulator.process`` with 4 and 1 carriers beside one float32 real FFT of the frame
    and beside PyHoloscope 1.1.3's real-FFT path (in a child process with the separate
-   environment's interpreter given by ``--peers``), taking turns, and where the time goes;
+   environment's interpreter given by ``--peers``), taking turns, where the time of
+   ``process`` goes, and the rest of the map path (trusted maps, co-registration, fusion,
+   writing ``results.h5``: ``map_path.py``);
 1. one planned forward real FFT of the frame (pyFFTW) and numpy's, for scale;
 2. frames per second for 1024 x 1024 and 2048 x 2048, 4 and 16 peaks, each reference
    mode, without and with unwrapping (the frames alternate between a flat surface and a
