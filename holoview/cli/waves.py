@@ -57,7 +57,9 @@ def _range(text: str | None, option: str) -> tuple[float | None, float | None]:
     return low, high
 
 
-def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
+def add_parser(
+    subparsers: argparse._SubParsersAction[argparse.ArgumentParser],
+) -> argparse.ArgumentParser:
     """Register ``waves``."""
     from holoview.optics.surfaces import FLUID_MECHANICS
 
