@@ -171,7 +171,8 @@ def run_passes(
                 maps=(spec, record),
             )
         return data, name_peaks(data, run.selection, run.optics)
-    beside = None
+    # typed here: mypy took the None for the name's type and skipped the branch below
+    beside: Callable[[Callable[[int], None]], None] | None = None
     if known and runner is not None and not series_only:
 
         def beside(until: Callable[[int], None]) -> None:
