@@ -2,7 +2,8 @@
 
 Each function mirrors a command and runs the same code: :func:`simulate` is
 ``holoview simulate`` (its options as keywords), :func:`process` is ``holoview process``
-(:func:`holoview.headless.run.process_file`), :func:`export` is ``holoview export``.
+(:func:`holoview.headless.run.process_file`), :func:`waves` is ``holoview waves``,
+:func:`export` is ``holoview export``.
 :func:`open_recording` gives a recording's frames lazily as a dask array, with their
 times and the experiment the recording carries; :func:`open_results` gives a run's
 ``results.h5`` as xarray Datasets with coordinates in s and m and units.
@@ -44,7 +45,7 @@ import math
 from collections.abc import Sequence
 from pathlib import Path
 from types import TracebackType
-from typing import Any, NoReturn, Self
+from typing import TYPE_CHECKING, Any, NoReturn, Self, cast
 
 import numpy as np
 import xarray as xr
@@ -57,6 +58,9 @@ from holoview.headless.results.results_data import open_results as _open_results
 from holoview.headless.run import ProcessOutcome, process_file
 from holoview.headless.settings import PeakChoice, ProcessOptions, ProcessSettings
 
+if TYPE_CHECKING:
+    from holoview.headless.waves.outputs import WavesOutcome
+
 logger = logging.getLogger(__name__)
 
 __all__ = [
@@ -66,6 +70,7 @@ __all__ = [
     "open_results",
     "process",
     "simulate",
+    "waves",
 ]
 
 
@@ -99,14 +104,22 @@ def _argv(options: dict[str, Any]) -> list[str]:
     return argv
 
 
-def _run_command(command: str, positional: list[str], options: dict[str, Any]) -> int:
-    """Parse ``options`` with the command's own parser and run it quietly."""
+def _parse_command(
+    command: str, positional: list[str], options: dict[str, Any]
+) -> tuple[Any, argparse.Namespace]:
+    """The command's module and ``options`` parsed by its own parser (quiet)."""
     parser = _OptionParser(prog="holoview")
     subparsers = parser.add_subparsers(dest="command")
     module = importlib.import_module(f"holoview.cli.{command}")
     module.add_parser(subparsers)
     args = parser.parse_args([command, *positional, *_argv(options)])
     args.quiet, args.verbose = True, 0
+    return module, args
+
+
+def _run_command(command: str, positional: list[str], options: dict[str, Any]) -> int:
+    """Parse ``options`` with the command's own parser and run it quietly."""
+    module, args = _parse_command(command, positional, options)
     return int(module.run(args) or 0)
 
 
@@ -297,6 +310,57 @@ def process(
         scheduler=scheduler,
     )
     return process_file(recording, out, options)
+
+
+def waves(results: str | Path, out: str | Path, **options: Any) -> WavesOutcome:
+    """Analyse a run's maps as a wave field: ``holoview waves RESULTS --out OUT``.
+
+    The same code as the command (:func:`holoview.headless.waves.outputs.run_waves`),
+    the same outputs (``waves.h5``, ``waves.json``, PNG figures): the omega-k spectrum
+    with the capillary-gravity dispersion relation fitted (surface tension, depth and
+    mean flow with standard errors), E(k) and E(f); with ``centre``, the (m, f)
+    spectrum, partial waves and a ringdown; lock-in maps at ``drive_hz``.
+
+    Parameters
+    ----------
+    results : str or Path
+        A ``results.h5`` with maps (``process(..., maps=True)``), or its folder.
+    out : str or Path
+        The output folder.
+    **options
+        The command's options with underscores, units as the command's (mm, mm/s, Hz,
+        rad/m): ``label`` (``"fused"``), ``time="0.02:"``, ``segment`` (frames),
+        ``fluid``, ``sigma`` (N/m), ``depth_mm``, ``flow_mm_per_s="20,10"``,
+        ``hold="depth"``, ``no_fit``, ``k_range="300:1800"``, ``centre="auto"`` or
+        ``"X,Y"``, ``r_range_mm``, ``m_max``, ``modes="0:14,2:22"``, ``ringdown="2,9:15"``,
+        ``drive_hz``, ``harmonics``, ``band_f="10:40"``, ``threads``, ``overwrite``
+        (``holoview waves --help``).
+
+    Returns
+    -------
+    WavesOutcome
+        ``out``, ``results`` (arrays, SI units), ``summary`` (the content of
+        ``waves.json``: values with their standard errors and units) and ``files``.
+
+    Raises
+    ------
+    InputError
+        For anything ``holoview waves`` refuses (one line naming it).
+    OutputError
+        An output could not be written.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> folder = Path(tempfile.mkdtemp())
+    >>> waves(folder / "missing.h5", folder / "waves")  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    holoview.errors.InputError: ...missing.h5: no such file
+    """
+    module, args = _parse_command("waves", [str(results)], {"out": out, **options})
+    return cast("WavesOutcome", module.analyse(args))
 
 
 class _Frames:

@@ -29,7 +29,9 @@ def test_example_notebook_runs(tmp_path: Path) -> None:
     outputs = [o for cell in notebook.cells if cell.cell_type == "code" for o in cell.outputs]
     assert not [o for o in outputs if o.output_type == "error"]
     images = [o for o in outputs if "image/png" in o.get("data", {})]
-    assert len(images) >= 4  # hologram, map and centre series, trends, spectrum
+    assert len(images) >= 4  # hologram, map and centre series, trends, wave analysis
     text = "".join(o.get("text", "") for o in outputs if o.output_type == "stream")
     assert "('time', 'y', 'x') m m" in text
+    assert "surface tension" in text and "mN/m" in text  # the wave analysis
+    assert (tmp_path / "holoview-example" / "travelling-waves" / "omega_k.png").is_file()
     assert (tmp_path / "holoview-example" / "run.nc").is_file()

@@ -30,7 +30,16 @@ from holoview.cli.signals import Stopped, stop_on_signals
 from holoview.errors import HoloviewError, OutputError
 
 #: Subcommand modules, in the order ``holoview --help`` lists them.
-COMMANDS: tuple[str, ...] = ("live", "record", "simulate", "process", "peaks", "export", "info")
+COMMANDS: tuple[str, ...] = (
+    "live",
+    "record",
+    "simulate",
+    "process",
+    "waves",
+    "peaks",
+    "export",
+    "info",
+)
 
 #: The subcommand run when none is given.
 DEFAULT_COMMAND = "live"

@@ -24,6 +24,7 @@ from holoview.cli.options import (
     parse_labels,
 )
 from holoview.cli.signals import emit
+from holoview.cli.waves import add_wave_options, summary_line, wave_options
 from holoview.errors import InputError
 
 if TYPE_CHECKING:
@@ -142,8 +143,15 @@ def add_parser(
         default="png",
         help="the report's format: report.png (default), report.pdf or report.svg",
     )
+    parser.add_argument(
+        "--waves",
+        action="store_true",
+        help="with --maps: then run holoview waves on the fused maps into DIR (its options "
+        "below; --fluid and --threads serve both)",
+    )
     parser.add_argument("--frames", metavar="START:STOP", help="process these frames only")
     parser.add_argument("--area", type=float, metavar="M2", help="basin area, m^2 (volume rates)")
+    add_wave_options(parser)
     return parser
 
 
@@ -175,6 +183,11 @@ def run(args: argparse.Namespace) -> int:
     from holoview.headless.settings import PeakChoice, ProcessOptions, ProcessSettings
     from holoview.processing.fourier.fftplans import usable_cpus
 
+    waves = None
+    if args.waves:
+        if not args.maps:
+            raise InputError("--waves analyses the maps: give --maps too")
+        waves = wave_options(args)
     if args.threads < 1:
         raise InputError(f"--threads must be at least 1, got {args.threads}")
     cores = usable_cpus()
@@ -211,6 +224,8 @@ def run(args: argparse.Namespace) -> int:
     )
     recordings = find_recordings(args.input)
     if recordings is not None:
+        if waves is not None:
+            raise InputError("--waves runs on one recording; run holoview waves on each results.h5")
         return _run_batch(args, recordings, options)
     bar, update = _progress_bar(args.quiet)
     with bar:
@@ -238,6 +253,17 @@ def run(args: argparse.Namespace) -> int:
             f"({', '.join(used) or 'none'}): "
             f"{_rate_text(fit.rate if fit else None, fit.stderr if fit else None)}"
         )
+    if waves is not None:
+        from holoview.headless.run import RESULTS_H5
+        from holoview.headless.waves.outputs import run_waves
+
+        written = [path for path in outcome.files if path.name == RESULTS_H5]
+        if not written:  # an interrupted run returned 130 above: this is a bug
+            raise RuntimeError(f"process --maps wrote no {RESULTS_H5} in {outcome.out}")
+        # the maps step's fused maps, as the run wrote them (results.h5 2.0)
+        analysed = run_waves(written[0], outcome.out, waves, overwrite=args.overwrite)
+        if not args.quiet:
+            emit(summary_line(outcome.out, analysed.summary))
     return 0
 
 

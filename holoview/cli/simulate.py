@@ -32,7 +32,19 @@ attributes
 ``reference_path_m``, ``reference_phase_rad`` (n,) float64
     Reference air-path jitter, m, and the phase it adds to RF and RB_j, rad.
 ``height_m`` (n, rows, cols) float32, gzip
-    The height maps, m (``waves`` only; uniform scenarios have none).
+    The height maps, m (every scenario but the uniform ones; not with
+    ``--no-truth-maps``).
+``waves/`` group (``travelling``, ``partial-waves``, ``ringdown``)
+    Attributes: ``kind``, the fluid (``depth_m``, ``sigma_n_per_m``, ``rho_kg_per_m3``,
+    ``g_m_per_s2``), ``convention``, and per kind ``flow_m_per_s`` (Ux, Uy);
+    ``centre_m`` (x, y on the object plane, 0 at the frame centre), ``centre_frame_px``
+    (x, y in frame pixels), ``core_radius_m``; ``m``, ``frequency_hz``,
+    ``decay_per_s``, ``amplitude_m`` (real, imaginary), ``wavenumber_rad_per_m``;
+    ``start_s`` and ``rise_s`` when the waves start after the first frame.
+    Datasets: travelling ``wavevector_rad_per_m`` (n, 2), ``amplitude_m``,
+    ``phase_rad``, ``omega_rad_per_s``; partial waves ``m``, ``frequency_hz``,
+    ``wavenumber_rad_per_m``, ``incoming_m`` and ``outgoing_m`` (n, 2: real,
+    imaginary parts of the coefficients of H_m^(2) and H_m^(1)). Each with a ``unit``.
 ``families/`` group, one row per predicted family (``max_order`` 4), datasets
     ``label`` and ``kind`` (str), ``carrier_cpp`` (k, 2) cycles/pixel (fx, fy; stored
     twin, unfolded), ``observed_carrier_cpp`` (k, 2) (folded into [-0.5, 0.5)),
@@ -52,6 +64,12 @@ from dataclasses import asdict
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from holoview.cli.simulate_waves import (
+    add_wave_scenario_options,
+    build_waves,
+    warn_aliasing,
+    write_wave_truth,
+)
 from holoview.errors import InputError
 
 if TYPE_CHECKING:
@@ -160,6 +178,14 @@ def add_parser(
     physics.add_argument("--basin-area-cm2", type=float, help="basin area for injection, cm^2")
     physics.add_argument("--wave-rms-nm", type=float, help="rms height of the waves, nm")
     physics.add_argument("--vibration-rms-nm", type=float, help="rms reference air-path jitter, nm")
+    physics.add_argument("--sigma", type=float, metavar="N_PER_M", help="surface tension, N/m")
+    physics.add_argument("--density", type=float, metavar="KG_PER_M3", help="fluid density")
+    add_wave_scenario_options(parser)
+    parser.add_argument(
+        "--no-truth-maps",
+        action="store_true",
+        help="leave the height maps out of /truth (the wave scenarios' parameters define them)",
+    )
     return parser
 
 
@@ -240,6 +266,8 @@ def build_config(args: argparse.Namespace) -> ScenarioConfig:
         basin_area=given("basin_area_cm2", 1e-4, base.basin_area),
         wave_rms=given("wave_rms_nm", 1e-9, base.wave_rms),
         vibration_rms=given("vibration_rms_nm", 1e-9, base.vibration_rms),
+        sigma=given("sigma", 1.0, base.sigma),
+        rho=given("density", 1.0, base.rho),
     )
 
 
@@ -283,7 +311,9 @@ def write_truth(
             ("reference_phase_rad", "rad"),
         ):
             group[name].attrs["unit"] = unit
-        if not getattr(surface, "is_uniform", False):
+        if hasattr(surface, "truth"):
+            write_wave_truth(group, surface, setup)
+        if not (getattr(surface, "is_uniform", False) or args.no_truth_maps):
             rows, cols = setup.shape
             x, y = pixel_coordinates(setup)
             maps = group.create_dataset(
@@ -509,7 +539,10 @@ def run(args: argparse.Namespace) -> int:
     settings = {"frame_rate_hz": float(args.fps), "noise": args.noise}
     truths = []
     figure_frame = None
-    surface = make_surface(setup, args.scenario, config, np.random.default_rng(args.seed))
+    surface = make_surface(
+        setup, args.scenario, config, np.random.default_rng(args.seed), build_waves(args)
+    )
+    warn_aliasing(surface, args.fps)
     sequence = simulate(
         setup,
         args.scenario,

@@ -25,6 +25,8 @@ the pieces:
 - :mod:`~holoview.headless.results`: what a run writes (``trends.csv``,
   ``summary.json``, ``results.h5`` in netCDF-4/CF, ``report.png``), how ``results.h5``
   is read back as xarray, and the exports (NetCDF, Zarr, MATLAB, TIFF stacks);
+- :mod:`~holoview.headless.waves`: the wave analyses of a run's maps (``holoview waves``,
+  ``process --maps --waves``): spectra, dispersion fit, partial waves, ringdown, figures;
 - :mod:`~holoview.headless.batch` processes a folder or a glob of recordings into a
   folder each, with ``index.csv`` of their rates.
 

@@ -1,5 +1,10 @@
 """Simulated recordings with a known truth: waves, evaporation, syringe injection.
 
+The wave-analysis scenarios (:mod:`holoview.optics.wave_fields`): ``travelling``
+(capillary-gravity waves on a uniform flow), ``partial-waves`` (incoming and outgoing
+partial waves around a centre) and ``ringdown`` (a damped mode), their parameters in a
+:class:`~holoview.optics.wave_fields.WaveConfig`.
+
 :func:`simulate` yields ``(frame, truth)`` pairs frame after frame, from the fast
 synthesiser, for a surface built by :func:`make_surface` and a reference arm that
 jitters. The jitter is an Ornstein-Uhlenbeck process on the reference air path
@@ -29,9 +34,16 @@ from holoview.optics.surfaces import (
     random_standing_waves,
 )
 from holoview.optics.synthesis import HologramSynthesizer, pixel_coordinates
+from holoview.optics.wave_fields import (
+    DampedMode,
+    PartialWaves,
+    SwitchedOn,
+    WaveConfig,
+    random_travelling_waves,
+)
 
 #: The scenarios :func:`simulate` knows.
-SCENARIOS = ("waves", "evaporation", "injection")
+SCENARIOS = ("waves", "evaporation", "injection", "travelling", "partial-waves", "ringdown")
 
 
 @dataclass(frozen=True)
@@ -129,7 +141,11 @@ class FrameTruth:
 
 
 def make_surface(
-    setup: Setup, scenario: str, config: ScenarioConfig, rng: np.random.Generator
+    setup: Setup,
+    scenario: str,
+    config: ScenarioConfig,
+    rng: np.random.Generator,
+    waves: WaveConfig | None = None,
 ) -> Callable[[float, np.ndarray, np.ndarray], np.ndarray]:
     """Return the surface ``h(t, x, y)`` (m) of a scenario.
 
@@ -140,10 +156,19 @@ def make_surface(
     scenario : str
         One of :data:`SCENARIOS`.
     config : ScenarioConfig
-        The physical parameters.
+        The physical parameters (``sigma``, ``rho`` and ``wave_rms`` also for the wave
+        scenarios).
     rng : numpy.random.Generator
         Draws the wave modes.
+    waves : WaveConfig, optional
+        The travelling waves, partial waves and damped mode (defaults: WaveConfig()).
     """
+    waves = waves or WaveConfig()
+    surface = _wave_surface(setup, scenario, config, rng, waves)
+    if surface is not None:
+        if waves.start > 0 or waves.rise > 0:
+            return SwitchedOn(surface, waves.start, waves.rise)
+        return surface
     if scenario == "waves":
         return random_standing_waves(
             rng,
@@ -160,6 +185,40 @@ def make_surface(
     if scenario == "injection":
         return injection(config.injection_rate, config.basin_area)
     raise InputError(f"unknown scenario {scenario!r}; choose one of {', '.join(SCENARIOS)}")
+
+
+def _wave_surface(
+    setup: Setup,
+    scenario: str,
+    config: ScenarioConfig,
+    rng: np.random.Generator,
+    waves: WaveConfig,
+) -> Callable[[float, np.ndarray, np.ndarray], np.ndarray] | None:
+    """The surface of a wave-analysis scenario (None for the others)."""
+    fluid = {"depth": setup.depth, "sigma": config.sigma, "rho": config.rho}
+    if scenario == "travelling":
+        return random_travelling_waves(
+            rng,
+            k_range=waves.k_range,
+            components=waves.components,
+            rms=config.wave_rms,
+            flow=waves.flow,
+            **fluid,
+        )
+    if scenario == "partial-waves":
+        return PartialWaves(
+            waves.partial_waves, centre=waves.centre, core_radius=waves.core_radius, **fluid
+        )
+    if scenario == "ringdown":
+        return DampedMode(
+            waves.mode_m,
+            waves.mode_frequency,
+            waves.mode_decay,
+            waves.mode_amplitude,
+            centre=waves.centre,
+            **fluid,
+        )
+    return None
 
 
 def vibration(

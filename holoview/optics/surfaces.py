@@ -24,6 +24,15 @@ WATER_SURFACE_TENSION = 0.0728
 #: Density of water at 20 degC, kg/m^3.
 WATER_DENSITY = 998.2
 
+#: Density (kg/m^3) and surface tension (N/m) of clean liquids at 20 degC, by the names
+#: of :data:`holoview.optics.setup.FLUIDS` (CRC Handbook of Chemistry and Physics).
+FLUID_MECHANICS: dict[str, tuple[float, float]] = {
+    "water": (WATER_DENSITY, WATER_SURFACE_TENSION),
+    "ethanol": (789.3, 0.0223),
+    "isopropanol": (786.0, 0.0230),
+    "glycerol": (1261.0, 0.0634),
+}
+
 
 def dispersion_omega(
     k: float | np.ndarray,
@@ -64,6 +73,41 @@ def dispersion_omega(
         raise InputError("wavenumber k must be finite and non-negative (rad/m)")
     omega = np.sqrt((g * kk + sigma * kk**3 / rho) * np.tanh(kk * depth))
     return float(omega) if omega.ndim == 0 else omega
+
+
+def dispersion_k(
+    omega: float,
+    depth: float,
+    g: float = GRAVITY,
+    sigma: float = WATER_SURFACE_TENSION,
+    rho: float = WATER_DENSITY,
+) -> float:
+    """Return the wavenumber (rad/m) of capillary-gravity waves of angular frequency ``omega``.
+
+    The inverse of :func:`dispersion_omega` (which increases with ``k``), found by
+    bisection to a relative 1e-13.
+
+    Parameters
+    ----------
+    omega : float
+        Angular frequency, rad/s (> 0).
+    depth, g, sigma, rho : float
+        As in :func:`dispersion_omega`.
+    """
+    if not (math.isfinite(omega) and omega > 0):
+        raise InputError(f"omega must be positive and finite, got {omega!r} rad/s")
+    low, high = 0.0, 1.0
+    while dispersion_omega(high, depth, g, sigma, rho) < omega:
+        low, high = high, 2.0 * high
+        if high > 1e12:
+            raise InputError(f"no wavenumber has the angular frequency {omega!r} rad/s")
+    while high - low > 1e-13 * high:
+        middle = 0.5 * (low + high)
+        if dispersion_omega(middle, depth, g, sigma, rho) < omega:
+            low = middle
+        else:
+            high = middle
+    return 0.5 * (low + high)
 
 
 @dataclass(frozen=True)

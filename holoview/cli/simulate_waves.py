@@ -1,0 +1,176 @@
+"""``holoview simulate``'s wave scenarios: their options, their truth, an aliasing warning.
+
+The scenarios ``travelling``, ``partial-waves`` and ``ringdown``
+(:mod:`holoview.optics.wave_fields`): the options that set a
+:class:`~holoview.optics.wave_fields.WaveConfig` (mm, mm/s, rad/m, Hz, nm on the
+command line; SI inside), the ``/truth/waves`` group each surface's ``truth()`` fills
+(layout in :mod:`holoview.cli.simulate`), and a warning when the waves' frequencies pass
+the Nyquist frequency of the frame rate.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import math
+from typing import TYPE_CHECKING
+
+from holoview.errors import InputError
+
+if TYPE_CHECKING:
+    import h5py
+
+    from holoview.optics.setup import Setup
+    from holoview.optics.wave_fields import WaveConfig
+
+logger = logging.getLogger(__name__)
+
+
+def _number(name: str, value: float | None, scale: float = 1.0) -> float | None:
+    if value is None:
+        return None
+    if not math.isfinite(value):
+        raise InputError(f"--{name} must be finite, got {value}")
+    return value * scale
+
+
+def add_wave_scenario_options(parser: argparse.ArgumentParser) -> None:
+    """Add the wave scenarios' options to ``simulate``."""
+    waves = parser.add_argument_group(
+        "wave scenarios (travelling, partial-waves, ringdown; defaults: WaveConfig's)"
+    )
+    waves.add_argument(
+        "--flow-mm-per-s", type=float, nargs=2, metavar=("UX", "UY"), help="uniform mean flow"
+    )
+    waves.add_argument(
+        "--wave-k", type=float, nargs=2, metavar=("K1", "K2"), help="wavenumbers, rad/m"
+    )
+    waves.add_argument("--wave-components", type=int, metavar="N", help="plane waves summed")
+    waves.add_argument(
+        "--partial-wave",
+        action="append",
+        default=[],
+        nargs=4,
+        metavar=("M", "F_HZ", "IN_NM", "OUT_NM"),
+        help="a partial wave: azimuthal number, frequency, incoming and outgoing amplitudes "
+        "(complex allowed: 8+6j) (repeatable)",
+    )
+    waves.add_argument(
+        "--centre-mm",
+        type=float,
+        nargs=2,
+        metavar=("X", "Y"),
+        help="centre of the partial waves or mode, mm from the frame centre",
+    )
+    waves.add_argument("--core-mm", type=float, metavar="R", help="partial waves' core radius")
+    waves.add_argument(
+        "--mode",
+        nargs=4,
+        metavar=("M", "F_HZ", "DECAY_PER_S", "AMP_NM"),
+        help="the damped mode of the ringdown scenario",
+    )
+    waves.add_argument(
+        "--wave-start-s",
+        type=float,
+        metavar="T",
+        help="the waves start at T s (the surface is at rest before; a mode is excited then)",
+    )
+    waves.add_argument(
+        "--wave-rise-s", type=float, metavar="T", help="and reach full height T s later"
+    )
+
+
+def build_waves(args: argparse.Namespace) -> WaveConfig:
+    """Return the wave scenarios' parameters the options describe (SI units inside)."""
+    from holoview.optics.wave_fields import PartialWave, WaveConfig
+
+    changes: dict[str, object] = {}
+    if args.flow_mm_per_s is not None:
+        changes["flow"] = tuple(_number("flow-mm-per-s", v, 1e-3) for v in args.flow_mm_per_s)
+    if args.wave_k is not None:
+        changes["k_range"] = tuple(_number("wave-k", v) for v in args.wave_k)
+    if args.wave_components is not None:
+        changes["components"] = args.wave_components
+    if args.centre_mm is not None:
+        changes["centre"] = tuple(_number("centre-mm", v, 1e-3) for v in args.centre_mm)
+    if args.core_mm is not None:
+        changes["core_radius"] = _number("core-mm", args.core_mm, 1e-3)
+    for option, name in (("wave_start_s", "start"), ("wave_rise_s", "rise")):
+        value = _number(option.replace("_", "-"), getattr(args, option))
+        if value is not None:
+            changes[name] = value
+    partial = []
+    for m, f, incoming, outgoing in args.partial_wave:
+        try:
+            partial.append(
+                PartialWave(int(m), float(f), complex(incoming) * 1e-9, complex(outgoing) * 1e-9)
+            )
+        except ValueError as exc:
+            raise InputError(f"--partial-wave {m} {f} {incoming} {outgoing}: {exc}") from exc
+    if partial:
+        changes["partial_waves"] = tuple(partial)
+    if args.mode is not None:
+        m, f, decay, amplitude = args.mode
+        try:
+            changes.update(
+                mode_m=int(m),
+                mode_frequency=float(f),
+                mode_decay=float(decay),
+                mode_amplitude=float(amplitude) * 1e-9,
+            )
+        except ValueError as exc:
+            raise InputError(f"--mode {m} {f} {decay} {amplitude}: {exc}") from exc
+    return WaveConfig(**changes)  # type: ignore[arg-type]
+
+
+def write_wave_truth(group: h5py.Group, surface: object, setup: Setup) -> None:
+    """Add ``waves/`` (attributes and datasets of the surface's ``truth()``) to ``group``.
+
+    Complex amplitudes are stored as (n, 2) arrays of their real and imaginary parts; a
+    centre also in frame pixels (``centre_frame_px``, x then y).
+    """
+    import numpy as np
+
+    attrs, data = surface.truth()  # type: ignore[attr-defined]
+    waves = group.create_group("waves")
+    for name, value in attrs.items():
+        waves.attrs[name] = value
+    if "centre_m" in attrs:
+        rows, cols = setup.shape
+        x0, y0 = attrs["centre_m"]
+        waves.attrs["centre_frame_px"] = [
+            (cols - 1) / 2 + x0 / setup.pixel_pitch,
+            (rows - 1) / 2 + y0 / setup.pixel_pitch,
+        ]
+    for name, (values, unit) in data.items():
+        array = np.asarray(values)
+        if np.iscomplexobj(array):
+            array = np.stack([array.real, array.imag], axis=-1)
+            waves[name] = array
+            waves[name].attrs["complex"] = "last axis: real part, imaginary part"
+        else:
+            waves[name] = array
+        waves[name].attrs["unit"] = unit
+
+
+def warn_aliasing(surface: object, fps: float) -> None:
+    """Warn when the waves' highest frequency is past the Nyquist frequency of ``fps``."""
+    import numpy as np
+
+    inner = getattr(surface, "surface", surface)  # a SwitchedOn wrapper
+    omegas = getattr(inner, "omegas", None)
+    if omegas is None:
+        frequencies = [w.frequency for w in getattr(inner, "waves", ())]
+        if hasattr(inner, "frequency"):
+            frequencies.append(inner.frequency)
+        top = max(frequencies, default=0.0)
+    else:
+        top = float(np.max(omegas)) / (2 * math.pi)
+    if top > fps / 2:
+        logger.warning(
+            "the waves reach %.4g Hz, past the Nyquist frequency %.4g Hz of %g frames/s: "
+            "they alias in time (raise --fps or lower --wave-k)",
+            top,
+            fps / 2,
+            fps,
+        )

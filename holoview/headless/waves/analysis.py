@@ -1,0 +1,467 @@
+"""The wave analyses of one label's maps, streamed from a ``results.h5`` in a few passes.
+
+:func:`analyse_waves` reads the maps a block at a time (:mod:`~holoview.headless.waves.maps`)
+and runs the Qt-free analyses of :mod:`holoview.processing.waves`, so memory stays a
+segment's whatever the number of frames:
+
+1. every frame into the omega-k accumulator (and, with a drive frequency, the lock-in
+   maps); then E(k), E(omega) and the fit of sigma, d and U to the ridge;
+2. with a centre (given, or ``auto``: found on the lock-in map at the drive frequency,
+   made in pass 1, or else at the strongest peak of E(omega), one more pass): every
+   frame into the azimuthal accumulator, which gives the (m, f) spectrum, lock-ins of
+   every ``m`` at a comb of frequencies around each candidate tone (the strongest peaks
+   of E(omega), the drive's harmonics, or the modes asked for) and the series of the
+   ringdown's ``m``; then per chosen (m, f) the tone's frequency and radial profile
+   (:func:`refine_tone`) and its Hankel fit, and the ringdown fit.
+
+Times are from the first frame analysed (phases of complex amplitudes refer to it).
+Every fit that fails raises :class:`~holoview.errors.InputError` with the reason.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from holoview.errors import InputError
+from holoview.headless.waves.maps import WaveMaps
+from holoview.optics.surfaces import dispersion_k
+from holoview.processing.waves.azimuthal import (
+    CENTRE_TOLERANCE_PX,
+    AzimuthalAccumulator,
+    MFSpectrum,
+    PolarGrid,
+    find_centre,
+    polar_grid,
+)
+from holoview.processing.waves.dispersion import DispersionFit, Fluid, fit_dispersion
+from holoview.processing.waves.filters import Band
+from holoview.processing.waves.lockin import LockIn, LockInMaps
+from holoview.processing.waves.omega_k import OmegaKAccumulator, OmegaKSpectrum
+from holoview.processing.waves.partial_waves import PartialWaveFit, fit_partial_wave, refine_tone
+from holoview.processing.waves.ringdown import Ringdown, fit_ringdown
+
+logger = logging.getLogger(__name__)
+
+__all__ = ["WaveOptions", "WaveResults", "analyse_waves"]
+
+#: Candidate tones taken from E(omega) when no mode is asked for.
+CANDIDATE_TONES = 6
+
+#: Lock-in frequencies per candidate tone, and their spacing in units of 1 / duration.
+COMB_POINTS = 9
+COMB_SPACING = 0.25
+
+
+@dataclass(frozen=True)
+class WaveOptions:
+    """What to analyse and how (SI units).
+
+    Attributes
+    ----------
+    fluid : Fluid
+        Density, gravity, and the starting surface tension.
+    depth : float
+        Starting (or held) depth, m.
+    flow : (float, float)
+        Starting (or held) flow, m/s.
+    hold : tuple of str
+        Parameters of the dispersion fit held (``sigma``, ``depth``, ``flow``).
+    fit : bool
+        Fit the dispersion relation.
+    segment : int
+        Frames per segment of the spectra.
+    k_range : (float or None, float or None)
+        Wavenumbers of the dispersion fit, rad/m.
+    centre : (float, float), "auto" or None
+        Centre of the azimuthal analyses (map coordinates, m), or found, or none.
+    m_max : int
+        Largest ``|m|``.
+    r_range : (float or None, float or None)
+        Ring radii, m.
+    modes : tuple of (int, float)
+        (m, f in Hz) partial waves to fit (default: the strongest of the (m, f) spectrum).
+    n_modes : int
+        How many of the strongest (m, f) peaks to fit when ``modes`` is empty.
+    drive : float or None
+        Drive frequency, Hz (lock-in maps at its harmonics).
+    harmonics : int
+        Harmonics of the drive.
+    ringdown : (int, float, float) or None
+        ``(m, f1, f2)``: the band of a damped mode.
+    ringdown_start : float or None
+        Start of the ringdown fit, s (from the first frame analysed).
+    band : Band or None
+        A band filter whose output is written.
+    block : int
+        Frames read at a time.
+    workers : int
+        FFT threads.
+    """
+
+    fluid: Fluid = field(default_factory=Fluid)
+    depth: float = 5e-3
+    flow: tuple[float, float] = (0.0, 0.0)
+    hold: tuple[str, ...] = ()
+    fit: bool = True
+    segment: int = 128
+    k_range: tuple[float | None, float | None] = (None, None)
+    centre: tuple[float, float] | str | None = None
+    m_max: int = 8
+    r_range: tuple[float | None, float | None] = (None, None)
+    modes: tuple[tuple[int, float], ...] = ()
+    n_modes: int = 4
+    drive: float | None = None
+    harmonics: int = 3
+    ringdown: tuple[int, float, float] | None = None
+    ringdown_start: float | None = None
+    band: Band | None = None
+    block: int = 64
+    workers: int = 1
+
+    @property
+    def azimuthal(self) -> bool:
+        """True when a centre is given or asked for."""
+        return self.centre is not None
+
+
+@dataclass
+class WaveResults:
+    """What :func:`analyse_waves` found (the writers turn it into files and figures)."""
+
+    maps: WaveMaps
+    options: WaveOptions
+    spectrum: OmegaKSpectrum
+    dispersion: DispersionFit | None = None
+    lockin: LockInMaps | None = None
+    centre_lockins: list[LockInMaps] = field(default_factory=list)
+    centre: tuple[float, float] | None = None
+    centre_stderr: tuple[float, float] = (0.0, 0.0)
+    centre_method: str = ""
+    grid: PolarGrid | None = None
+    mf: MFSpectrum | None = None
+    tones: list[tuple[int, float, np.ndarray]] = field(default_factory=list)
+    partial_waves: list[PartialWaveFit] = field(default_factory=list)
+    ringdown: Ringdown | None = None
+    notes: list[str] = field(default_factory=list)
+    timing: dict[str, float] = field(default_factory=dict)
+
+    def wavenumber(self, frequency: float) -> float:
+        """Wavenumber (rad/m) at ``frequency`` (Hz) by the fitted (else the given) fluid."""
+        fluid = self.options.fluid
+        sigma, depth = fluid.surface_tension, self.options.depth
+        if self.dispersion is not None:
+            sigma, depth = self.dispersion.surface_tension, self.dispersion.depth
+        return dispersion_k(2 * math.pi * frequency, depth, fluid.gravity, sigma, fluid.density)
+
+
+def _span(maps: WaveMaps) -> tuple[float, float]:
+    return 0.0, float(maps.clock.times[-1])
+
+
+def _hann_weights(times: np.ndarray, span: tuple[float, float]) -> np.ndarray:
+    phase = (times - span[0]) / (span[1] - span[0])
+    return np.sin(np.pi * np.clip(phase, 0.0, 1.0)) ** 2
+
+
+def _peaks_of(omega: np.ndarray, energy: np.ndarray, count: int, low: int) -> list[float]:
+    """Frequencies (Hz) of the largest local maxima of ``energy`` above bin ``low``."""
+    found = []
+    for i in np.argsort(energy)[::-1]:
+        if i <= max(low, 0) or i >= energy.size - 1:
+            continue
+        if energy[i] < energy[i - 1] or energy[i] < energy[i + 1]:
+            continue
+        logs = np.log(np.maximum(energy[i - 1 : i + 2], np.finfo(float).tiny))
+        curvature = logs[0] - 2 * logs[1] + logs[2]
+        shift = 0.5 * (logs[0] - logs[2]) / curvature if curvature < 0 else 0.0
+        found.append(float((omega[i] + shift * (omega[1] - omega[0])) / (2 * math.pi)))
+        if len(found) >= count:
+            break
+    return found
+
+
+def _check_frames(maps: WaveMaps, segment: int) -> None:
+    longest = max(b - a for a, b in maps.clock.runs)
+    if longest < segment:
+        gaps = f" (its longest run without a gap has {longest})" if maps.clock.gaps else ""
+        raise InputError(
+            f"{maps.path}: maps/{maps.label} have {maps.frames} frames{gaps}, fewer than a "
+            f"segment of {segment}; give a shorter --segment"
+        )
+
+
+def _pass_spectrum(maps: WaveMaps, options: WaveOptions, results: WaveResults) -> None:
+    """Pass 1: the omega-k spectrum and the drive's lock-in maps; E and the fit."""
+    started = time.perf_counter()
+    omega_k = OmegaKAccumulator(
+        maps.shape,
+        maps.pixel_size,
+        maps.clock.interval,
+        segment=options.segment,
+        k_cut=maps.k_cut,
+        workers=options.workers,
+    )
+    lockins: list[LockIn] = []
+    if options.drive is not None:
+        lockins.append(
+            LockIn(
+                maps.shape,
+                options.drive,
+                tuple(range(1, options.harmonics + 1)),
+                span=_span(maps),
+            )
+        )
+        if options.centre == "auto":  # the centre is found at the drive
+            lockins.extend(_centre_lockins(maps, options.drive))
+    finite = 0
+    for times, block in maps.blocks(options.block):
+        finite += int(np.count_nonzero(np.isfinite(block)))
+        omega_k.extend(block, times)
+        for lockin in lockins:
+            lockin.push_block(block, times)
+    if finite == 0:
+        raise InputError(f"{maps.path}: maps/{maps.label} are all NaN (no trusted pixel)")
+    results.spectrum = omega_k.spectrum()
+    if lockins:
+        results.lockin = lockins[0].result()
+        results.centre_lockins = [lockin.result() for lockin in lockins[1:]]
+    results.timing["spectrum_s"] = time.perf_counter() - started
+    if options.fit:
+        started = time.perf_counter()
+        results.dispersion = fit_dispersion(
+            results.spectrum,
+            options.fluid,
+            depth=options.depth,
+            flow=options.flow,
+            hold=options.hold,
+            k_min=options.k_range[0],
+            k_max=options.k_range[1],
+        )
+        results.timing["fit_s"] = time.perf_counter() - started
+
+
+def _halves(maps: WaveMaps) -> tuple[tuple[float, float], tuple[float, float]]:
+    start, stop = _span(maps)
+    middle = 0.5 * (start + stop)
+    return (start, middle), (middle, stop)
+
+
+def _centre_lockins(maps: WaveMaps, frequency: float) -> list[LockIn]:
+    """Lock-ins for the centre: the whole record and its halves, equal weights.
+
+    Equal weights, not Hann's: a ringdown fades, and Hann's weight on the middle of the
+    record would favour the noise.
+    """
+    return [
+        LockIn(maps.shape, frequency, (1,), span=span, window="flat")
+        for span in (_span(maps), *_halves(maps))
+    ]
+
+
+def _auto_centre(maps: WaveMaps, options: WaveOptions, results: WaveResults) -> None:
+    """The centre on the lock-in map at the drive (from pass 1) or at E(omega)'s peak."""
+    frequency = options.drive
+    if frequency is not None and results.centre_lockins:
+        amplitudes = [lockin.amplitude[0] for lockin in results.centre_lockins]
+    else:
+        omega, energy = results.spectrum.energy_omega()
+        peaks = _peaks_of(omega, energy, 1, 2)
+        if not peaks:
+            raise InputError("no centre can be found: E(omega) has no peak")
+        frequency = peaks[0]
+        lockins = _centre_lockins(maps, frequency)
+        for times, block in maps.blocks(options.block):
+            for lockin in lockins:
+                lockin.push_block(block, times)
+        amplitudes = [lockin.result().amplitude[0] for lockin in lockins]
+    dy, dx = maps.pixel_size
+    rows, cols = maps.shape
+    radius = options.r_range[1] or 0.35 * min((rows - 1) * dy, (cols - 1) * dx)
+    centres: list[tuple[float, float]] = []
+    for amplitude in amplitudes:  # the whole record first, then its halves from there
+        centres.append(
+            find_centre(
+                amplitude,
+                maps.pixel_size,
+                radius=radius,
+                r_min=options.r_range[0],
+                m_max=options.m_max,
+                start=centres[0] if centres else None,
+            )
+        )
+    results.centre = centres[0]
+    results.centre_stderr = (  # never below where the search stops
+        max(0.5 * abs(centres[1][0] - centres[2][0]), CENTRE_TOLERANCE_PX * dx),
+        max(0.5 * abs(centres[1][1] - centres[2][1]), CENTRE_TOLERANCE_PX * dy),
+    )
+    results.centre_method = (
+        f"auto: least entropy over m of the lock-in map (equal weights) at "
+        f"{frequency:.4g} Hz, "
+        f"rings to {radius * 1e3:.3g} mm; error: half the difference of the two halves' "
+        f"centres, at least the search's tolerance ({CENTRE_TOLERANCE_PX:g} pixel)"
+    )
+
+
+def _candidates(results: WaveResults, options: WaveOptions) -> list[float]:
+    if options.modes:
+        return sorted({f for _, f in options.modes})
+    found: list[float] = []
+    if options.drive is not None:
+        found = [options.drive * n for n in range(1, options.harmonics + 1)]
+    omega, energy = results.spectrum.energy_omega()
+    for f in _peaks_of(omega, energy, CANDIDATE_TONES, 2):
+        if all(abs(f - g) > 2 * results.spectrum.df for g in found):
+            found.append(f)
+    return found
+
+
+def _pass_azimuthal(maps: WaveMaps, options: WaveOptions, results: WaveResults) -> None:
+    """Pass 2: the (m, f) spectrum, lock-ins around the candidate tones, the ringdown series."""
+    started = time.perf_counter()
+    if options.centre == "auto":
+        _auto_centre(maps, options, results)
+    else:
+        assert isinstance(options.centre, tuple)
+        results.centre = options.centre
+        results.centre_method = "given"
+    assert results.centre is not None
+    grid = polar_grid(
+        maps.shape,
+        maps.pixel_size,
+        results.centre,
+        r_min=options.r_range[0],
+        r_max=options.r_range[1],
+        m_max=options.m_max,
+    )
+    results.grid = grid
+    duration = float(maps.clock.times[-1])
+    candidates = _candidates(results, options)
+    nyquist = 0.5 / maps.clock.interval
+    offsets = (np.arange(COMB_POINTS) - COMB_POINTS // 2) * COMB_SPACING / max(duration, 1e-300)
+    combs = [np.clip(f + offsets, 1e-9, nyquist) for f in candidates]
+    series = () if options.ringdown is None else (options.ringdown[0],)
+    accumulator = AzimuthalAccumulator(
+        grid,
+        maps.clock.interval,
+        segment=options.segment,
+        lock_in=[float(f) for comb in combs for f in comb],
+        span=_span(maps),
+        series=series,
+    )
+    for times, block in maps.blocks(options.block):
+        accumulator.push_block(block, times)
+    results.mf = accumulator.spectrum()
+    profiles = accumulator.profiles()
+    weights = _hann_weights(maps.clock.times, _span(maps))
+    if options.modes:
+        chosen = list(options.modes)
+    else:
+        chosen = results.mf.strongest(options.n_modes, f_min=2 * results.mf.frequency[1])
+    for m, f in chosen:
+        if abs(m) > options.m_max:
+            raise InputError(f"mode m={m} is beyond --m-max {options.m_max}")
+        nearest = int(np.argmin([abs(f - c) for c in candidates])) if candidates else -1
+        if nearest < 0 or abs(candidates[nearest] - f) > 2 * results.mf.frequency[1]:
+            results.notes.append(
+                f"(m, f) = ({m}, {f:.4g} Hz): no candidate tone near it in E(omega); not fitted"
+            )
+            continue
+        block = profiles[nearest * COMB_POINTS : (nearest + 1) * COMB_POINTS, :, m + grid.m_max]
+        frequency, frequency_err, profile = refine_tone(
+            combs[nearest], block, maps.clock.times, weights
+        )
+        results.tones.append((m, frequency, profile))
+        try:
+            results.partial_waves.append(
+                fit_partial_wave(
+                    grid.radii,
+                    profile,
+                    m,
+                    frequency,
+                    results.wavenumber(frequency),
+                    k_cut=maps.k_cut,
+                    frequency_stderr=frequency_err,
+                )
+            )
+        except InputError as exc:
+            if options.modes:
+                raise
+            results.notes.append(str(exc))
+    if options.ringdown is not None:
+        m, f1, f2 = options.ringdown
+        times, values = accumulator.series()
+        results.ringdown = fit_ringdown(
+            times, values[:, :, 0], (f1, f2), m=m, radii=grid.radii, start=options.ringdown_start
+        )
+    results.timing["azimuthal_s"] = time.perf_counter() - started
+
+
+def analyse_waves(maps: WaveMaps, options: WaveOptions) -> WaveResults:
+    """Run the wave analyses on one label's maps (module docstring).
+
+    Raises
+    ------
+    InputError
+        Fewer frames than a segment, all-NaN maps, a centre outside the maps, or a fit
+        that does not converge (the message says which).
+    """
+    _check_frames(maps, options.segment)
+    if options.ringdown is not None and options.centre is None:
+        raise InputError("a ringdown fit needs a centre: give --centre X,Y or --centre auto")
+    if isinstance(options.centre, tuple):  # a centre off the maps is refused before any pass
+        polar_grid(
+            maps.shape,
+            maps.pixel_size,
+            options.centre,
+            r_min=options.r_range[0],
+            r_max=options.r_range[1],
+            m_max=options.m_max,
+        )
+    started = time.perf_counter()
+    results = WaveResults(maps=maps, options=options, spectrum=None)  # type: ignore[arg-type]
+    _pass_spectrum(maps, options, results)
+    if options.azimuthal:
+        _pass_azimuthal(maps, options, results)
+    results.timing["analysis_s"] = time.perf_counter() - started
+    return results
+
+
+def summary_values(results: WaveResults) -> dict[str, Any]:
+    """The analyses' values with their errors, for ``waves.json``."""
+    spectrum = results.spectrum
+    out: dict[str, Any] = {
+        "omega_k": {
+            "segments": spectrum.segments,
+            "frames": spectrum.frames,
+            "frequency_resolution_hz": spectrum.df,
+            "k_resolution_rad_per_m": list(spectrum.dk),
+            "k_cut_rad_per_m": spectrum.k_cut,
+            "relative_stderr": spectrum.relative_stderr,
+        },
+        "dispersion": None if results.dispersion is None else results.dispersion.as_dict(),
+        "centre_m": None if results.centre is None else list(results.centre),
+        "centre_stderr_m": None if results.centre is None else list(results.centre_stderr),
+        "centre_method": results.centre_method or None,
+        "partial_waves": [fit.as_dict() for fit in results.partial_waves],
+        "ringdown": None if results.ringdown is None else results.ringdown.as_dict(),
+    }
+    if results.mf is not None:
+        out["mf_spectrum"] = {
+            "segments": results.mf.segments,
+            "strongest": [{"m": m, "frequency_hz": f} for m, f in results.mf.strongest(8)],
+        }
+    if results.lockin is not None:
+        lockin = results.lockin
+        out["lockin"] = {
+            "frequency_hz": lockin.frequency,
+            "harmonics": list(lockin.harmonics),
+            "median_amplitude_m": [float(np.nanmedian(a)) for a in lockin.magnitude],
+            "median_amplitude_stderr_m": [float(np.nanmedian(e)) for e in lockin.stderr],
+        }
+    return out

@@ -1,0 +1,542 @@
+"""Azimuthal decomposition around a centre: ``h = sum_m h_m(r, t) exp(i m theta)``.
+
+Map coordinates: ``x = col dx``, ``y = row dy`` (m, from the centre of the first
+pixel), ``theta = atan2(y - y0, x - x0)`` (with rows growing downwards, ``theta``
+grows clockwise on the screen). A :class:`PolarGrid` samples a map on rings of radius
+``r_min .. r_max`` one pixel apart, with enough angles that neighbouring samples of
+the outer ring are at most a pixel apart (a power of two), by Keys' cubic convolution
+(third-order accurate: a wave of ``k dx = 1`` loses far less of its amplitude than
+under bilinear interpolation; one sparse matrix product per map); the FFT over the
+angle gives ``h_m(r)`` for ``|m| <= m_max``. A ring touching an untrusted (NaN) pixel
+in a frame is NaN in that frame. The rings must lie inside the map.
+
+:class:`AzimuthalAccumulator` takes maps one at a time and gives
+
+- the (m, f) spectrum (Welch over segments that span no gap, as the omega-k
+  spectrum): the power of ``exp(i (m theta - omega t))`` per Hz, mean over the
+  annulus weighted by ``r`` (summed over ``m`` and ``f`` it is the mean square height
+  there); rings NaN anywhere in a segment are left out of it;
+- radial profiles at chosen frequencies (lock-in on the true times, Hann-weighted over
+  the record: no gap needs closing): ``A_m(r, f)`` with ``h = Re(sum A_m(r)
+  exp(i (m theta - omega t)))``;
+- the series ``h_m(r, t)`` of chosen ``m`` (for a ringdown fit).
+
+:func:`find_centre` finds a centre from a complex amplitude map (a lock-in at the
+strongest frequency): the point around which that map's power is spread over the
+fewest azimuthal numbers (the least entropy of its ``|A_m|^2`` over ``m``, on rings two
+pixels apart sampled bilinearly), searched by Nelder-Mead from the best of the
+power-weighted centroid and a coarse grid over the maps (the entropy has local minima).
+A field of partial waves around one centre puts its power in a few ``m``; seen from
+another point, each spreads over ``m +- n`` with weights ``J_n(k delta)^2`` (Graf's
+addition theorem). The map's mean is removed first: a uniform part (the reference arm's
+vibration in the RF and RB maps) is ``m = 0`` around every point.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from scipy import ndimage, sparse
+from scipy.optimize import minimize
+
+from holoview.errors import InputError
+from holoview.processing.waves.clock import GAP_TOLERANCE
+from holoview.processing.waves.omega_k import SEGMENT, hann, pixel_pair
+
+logger = logging.getLogger(__name__)
+
+__all__ = [
+    "CENTRE_TOLERANCE_PX",
+    "AzimuthalAccumulator",
+    "MFSpectrum",
+    "PolarGrid",
+    "find_centre",
+    "polar_grid",
+]
+
+
+#: Points per side of the coarse grid a centre search starts from.
+CENTRE_GRID = 7
+
+#: Where the centre search stops: its steps below this, map pixels.
+CENTRE_TOLERANCE_PX = 0.05
+
+#: Frames whose ring samples are made at once (a few MB: reused, not mapped afresh).
+MODES_CHUNK = 16
+
+
+def _keys(t: np.ndarray) -> np.ndarray:
+    """Keys' cubic convolution weights (a = -0.5) of the samples at -1, 0, 1, 2 from ``t``."""
+    t = t[:, np.newaxis]
+    d = np.abs(np.array([-1.0, 0.0, 1.0, 2.0]) - t)
+    near = 1.5 * d**3 - 2.5 * d**2 + 1.0
+    far = -0.5 * d**3 + 2.5 * d**2 - 4.0 * d + 2.0
+    return np.where(d <= 1.0, near, np.where(d < 2.0, far, 0.0))
+
+
+@dataclass(frozen=True)
+class PolarGrid:
+    """Rings around a centre and the sparse matrix that samples a map on them.
+
+    Attributes
+    ----------
+    centre : (float, float)
+        ``(x0, y0)``, m, map coordinates.
+    radii : ndarray of float, shape (R,)
+        Ring radii, m.
+    n_theta : int
+        Angles per ring.
+    m_max : int
+        Largest ``|m|`` kept.
+    shape : (int, int)
+        The map's shape.
+    matrix : scipy.sparse.csr_matrix, shape (R n_theta, rows cols)
+        Interpolation weights (16 per sample), float32.
+    dft : ndarray of float32, shape (n_theta, 2 (m_max + 1))
+        ``cos(m theta) / n_theta`` then ``-sin(m theta) / n_theta``, ``m = 0 .. m_max``.
+    """
+
+    centre: tuple[float, float]
+    radii: NDArray[np.float64]
+    n_theta: int
+    m_max: int
+    shape: tuple[int, int]
+    matrix: sparse.csr_matrix
+    dft: NDArray[np.float32]
+
+    @property
+    def m(self) -> NDArray[np.int64]:
+        """Azimuthal numbers kept, ``-m_max .. m_max``."""
+        return np.arange(-self.m_max, self.m_max + 1)
+
+    def modes(self, frames: ArrayLike) -> NDArray[np.complex128]:
+        """Return ``h_m(r)`` (m) of maps (rows, cols) or (N, rows, cols): (R, M) or (N, R, M).
+
+        The samples on the rings (one sparse product) times the cosines and sines of
+        ``m = 0 .. m_max`` (one matrix product); ``h_-m`` is the conjugate of ``h_m``
+        (the maps are real).
+        """
+        block = np.asarray(frames, dtype=np.float32)
+        single = block.ndim == 2
+        block = block.reshape(-1, self.shape[0] * self.shape[1])
+        n = block.shape[0]
+        parts = np.empty((self.radii.size, self.dft.shape[1], n), np.float32)
+        for a in range(0, n, MODES_CHUNK):  # the samples of a few frames at a time
+            b = min(a + MODES_CHUNK, n)
+            samples = np.asarray(self.matrix @ block[a:b].T)
+            samples = samples.reshape(self.radii.size, self.n_theta, b - a)
+            parts[:, :, a:b] = np.matmul(self.dft.T, samples)  # (R, 2 (m_max + 1), n)
+        half = self.m_max + 1
+        positive = (parts[:, :half] + 1j * parts[:, half:]).transpose(2, 0, 1)  # (N, R, M+)
+        out = np.concatenate([positive[:, :, :0:-1].conj(), positive], axis=2)
+        out = out.astype(np.complex128)
+        return out[0] if single else out
+
+
+def polar_grid(
+    shape: tuple[int, int],
+    pixel_size: float | ArrayLike,
+    centre: tuple[float, float],
+    *,
+    r_min: float | None = None,
+    r_max: float | None = None,
+    m_max: int = 8,
+) -> PolarGrid:
+    """Return rings one pixel apart around ``centre`` (m) inside a map of ``shape``.
+
+    Parameters
+    ----------
+    shape : (int, int)
+        Map shape (rows, cols).
+    pixel_size : float or (float, float)
+        m (one value or (dy, dx)).
+    centre : (float, float)
+        ``(x0, y0)``, m, map coordinates.
+    r_min, r_max : float, optional
+        Ring radii, m (defaults: two pixels; the distance to the nearest edge less two
+        pixels).
+    m_max : int
+        Largest ``|m|`` kept.
+
+    Raises
+    ------
+    InputError
+        A centre outside the map, ``r_max`` beyond the nearest edge, or fewer than
+        four rings.
+    """
+    rows, cols = shape
+    dy, dx = pixel_pair(pixel_size)
+    x0, y0 = (float(c) for c in centre)
+    width, height = (cols - 1) * dx, (rows - 1) * dy
+    if not (math.isfinite(x0) and math.isfinite(y0) and 0 <= x0 <= width and 0 <= y0 <= height):
+        raise InputError(
+            f"the centre ({x0 * 1e3:.3g}, {y0 * 1e3:.3g}) mm is outside the maps "
+            f"(0 to {width * 1e3:.3g} mm along x, 0 to {height * 1e3:.3g} mm along y)"
+        )
+    step = min(dx, dy)
+    room = min(x0, width - x0, y0, height - y0) - 2.0 * step
+    low = 2.0 * step if r_min is None else float(r_min)
+    high = room if r_max is None else float(r_max)
+    if high > room + 1e-9 * step:
+        raise InputError(
+            f"rings up to {high * 1e3:.3g} mm around ({x0 * 1e3:.3g}, {y0 * 1e3:.3g}) mm leave "
+            f"the maps (the nearest edge is {(room + step) * 1e3:.3g} mm away)"
+        )
+    if not (low >= 0 and high >= low + 3 * step):
+        raise InputError(
+            f"no room for rings from {low * 1e3:.3g} to {high * 1e3:.3g} mm around "
+            f"({x0 * 1e3:.3g}, {y0 * 1e3:.3g}) mm (at least four, a pixel apart)"
+        )
+    if m_max < 0:
+        raise InputError(f"m_max must be >= 0, got {m_max}")
+    radii = np.arange(low, high + 1e-9 * step, step)
+    n_theta = max(8, 2 * m_max + 2, 1 << math.ceil(math.log2(2 * math.pi * high / step)))
+    theta = 2.0 * np.pi * np.arange(n_theta) / n_theta
+    col = ((x0 + radii[:, np.newaxis] * np.cos(theta)) / dx).ravel()
+    row = ((y0 + radii[:, np.newaxis] * np.sin(theta)) / dy).ravel()
+    c0, r0 = np.floor(col).astype(np.int64), np.floor(row).astype(np.int64)
+    wc, wr = _keys(col - c0), _keys(row - r0)  # (S, 4) weights of offsets -1, 0, 1, 2
+    offsets = np.arange(-1, 3)
+    rows_of = np.clip(r0[:, None] + offsets, 0, rows - 1)  # (S, 4)
+    cols_of = np.clip(c0[:, None] + offsets, 0, cols - 1)
+    pixels = (rows_of[:, :, None] * cols + cols_of[:, None, :]).reshape(-1)
+    weights = (wr[:, :, None] * wc[:, None, :]).reshape(-1)
+    sample = np.arange(col.size).repeat(16)
+    matrix = sparse.csr_matrix(
+        (weights.astype(np.float32), (sample, pixels)), shape=(col.size, rows * cols)
+    )
+    turns = np.outer(theta, np.arange(m_max + 1))
+    dft = (np.concatenate([np.cos(turns), -np.sin(turns)], axis=1) / n_theta).astype(np.float32)
+    return PolarGrid((x0, y0), radii, int(n_theta), int(m_max), (rows, cols), matrix, dft)
+
+
+@dataclass(frozen=True)
+class MFSpectrum:
+    """Power of ``exp(i (m theta - omega t))`` against ``m`` and ``f`` around a centre.
+
+    Attributes
+    ----------
+    m : ndarray of int, shape (M,)
+    frequency : ndarray of float, shape (F,)
+        Hz, ``f >= 0`` (``exp(-i omega t)``).
+    power : ndarray of float, shape (M, F)
+        One-sided density, m^2/Hz, mean over the rings weighted by ``r``.
+    radii : ndarray of float
+        The rings, m.
+    segments : int
+        Segments averaged.
+    """
+
+    m: NDArray[np.int64]
+    frequency: NDArray[np.float64]
+    power: NDArray[np.float64]
+    radii: NDArray[np.float64]
+    segments: int
+
+    def strongest(self, count: int, *, f_min: float = 0.0) -> list[tuple[int, float]]:
+        """Return up to ``count`` ``(m, f)`` local maxima of the power, strongest first.
+
+        ``f`` is refined between bins by the vertex of a parabola on the log-power.
+        """
+        p = self.power
+        order = np.argsort(p, axis=None)[::-1]
+        found: list[tuple[int, float]] = []
+        for flat in order:
+            i, j = np.unravel_index(flat, p.shape)
+            if self.frequency[j] <= f_min or j == 0 or j >= p.shape[1] - 1:
+                continue
+            block = p[max(i - 1, 0) : i + 2, j - 1 : j + 2]
+            if p[i, j] < block.max():
+                continue
+            logs = np.log(np.maximum(p[i, j - 1 : j + 2], np.finfo(float).tiny))
+            curvature = logs[0] - 2 * logs[1] + logs[2]
+            shift = 0.5 * (logs[0] - logs[2]) / curvature if curvature < 0 else 0.0
+            df = self.frequency[1] - self.frequency[0]
+            found.append((int(self.m[i]), float(self.frequency[j] + shift * df)))
+            if len(found) >= count:
+                break
+        return found
+
+
+class AzimuthalAccumulator:
+    """The azimuthal decomposition of maps pushed one at a time (module docstring).
+
+    Parameters
+    ----------
+    grid : PolarGrid
+    interval : float
+        Nominal time between frames, s (gaps as in :mod:`~holoview.processing.waves.clock`).
+    segment : int
+        Frames per segment of the (m, f) spectrum.
+    lock_in : sequence of float
+        Frequencies (Hz) of the radial profiles.
+    span : (float, float), optional
+        First and last time of the record, s: the lock-in's Hann weights run over it
+        (without it, equal weights).
+    series : sequence of int
+        Azimuthal numbers whose ``h_m(r, t)`` are kept, every frame.
+    """
+
+    def __init__(
+        self,
+        grid: PolarGrid,
+        interval: float,
+        *,
+        segment: int = SEGMENT,
+        lock_in: Sequence[float] = (),
+        span: tuple[float, float] | None = None,
+        series: Sequence[int] = (),
+    ) -> None:
+        if not (math.isfinite(interval) and interval > 0):
+            raise InputError(f"the frame interval must be positive, got {interval!r} s")
+        if segment < 8:
+            raise InputError(f"a segment needs at least 8 frames, got {segment}")
+        for m in series:
+            if abs(m) > grid.m_max:
+                raise InputError(f"m = {m} is beyond the decomposition's |m| <= {grid.m_max}")
+        self.grid = grid
+        self.interval = float(interval)
+        self.segment = int(segment)
+        self.hop = self.segment // 2
+        n_r, n_m = grid.radii.size, grid.m.size
+        self._ring = np.empty((self.segment, n_r, n_m), np.complex128)
+        self._next = 0
+        self._run = 0
+        self._last_time: float | None = None
+        self._sum = np.zeros((n_m, self.segment // 2 + 1))
+        self.segments = 0
+        self.frames = 0
+        self.frequencies = np.asarray(lock_in, dtype=np.float64)
+        self.span = span
+        self._lock = np.zeros((self.frequencies.size, n_r, n_m), np.complex128)
+        self._lock_weight = np.zeros(n_r)
+        self.series_m = tuple(int(m) for m in series)
+        self._series: list[np.ndarray] = []
+        self._times: list[float] = []
+        self._taper = hann(self.segment)
+
+    def push_block(self, frames: ArrayLike, times: ArrayLike) -> None:
+        """Add maps ``(N, rows, cols)`` (m) taken at ``times`` (N,) (s), in order."""
+        stamps = np.asarray(times, dtype=np.float64).ravel()
+        modes = self.grid.modes(frames)
+        if modes.shape[0] != stamps.size:
+            raise InputError(f"{modes.shape[0]} maps and {stamps.size} times do not match")
+        self._lock_in(modes, stamps)
+        if self.series_m:
+            columns = [m + self.grid.m_max for m in self.series_m]
+            self._series.append(modes[:, :, columns])
+            self._times.extend(stamps.tolist())
+        for item, t in zip(modes, stamps, strict=True):
+            self._push_modes(item, float(t))
+
+    def _lock_in(self, modes: np.ndarray, times: np.ndarray) -> None:
+        if self.frequencies.size == 0:
+            return
+        if self.span is None:
+            weights = np.ones(times.size)
+        else:
+            start, stop = self.span
+            phase = (times - start) / max(stop - start, 1e-300)
+            weights = np.where((phase >= 0) & (phase <= 1), np.sin(np.pi * phase) ** 2, 0.0)
+        finite = np.all(np.isfinite(modes), axis=2)  # (N, R)
+        w = weights[:, np.newaxis] * finite  # (N, R)
+        weighted = np.where(finite[:, :, np.newaxis], modes, 0.0) * w[:, :, np.newaxis]
+        self._lock_weight += w.sum(axis=0)
+        turns = np.exp(2j * np.pi * np.outer(self.frequencies, times))  # (F, N)
+        n = times.size
+        self._lock += (turns @ weighted.reshape(n, -1)).reshape(self._lock.shape)
+
+    def _push_modes(self, modes: np.ndarray, t: float) -> None:
+        if self._last_time is not None:
+            step = t - self._last_time
+            if step <= 0:
+                raise InputError(f"frame {self.frames}: times must increase ({t!r} s)")
+            if step > (1.0 + GAP_TOLERANCE) * self.interval:
+                self._run = 0
+        self._last_time = t
+        self._ring[self._next] = modes
+        self._next = (self._next + 1) % self.segment
+        self._run += 1
+        self.frames += 1
+        if self._run >= self.segment and (self._run - self.segment) % self.hop == 0:
+            self._add_segment()
+
+    def _add_segment(self) -> None:
+        block = np.concatenate([self._ring[self._next :], self._ring[: self._next]])
+        rings = np.all(np.isfinite(block), axis=(0, 2))
+        if not np.any(rings):
+            return
+        data = block[:, rings]
+        n = self.segment
+        ramp = np.linspace(-1.0, 1.0, n)
+        data = data - data.mean(axis=0)
+        data -= ramp[:, None, None] * (np.tensordot(ramp, data, axes=(0, 0)) / np.sum(ramp**2))
+        spectrum = np.fft.fft(data * self._taper[:, None, None], axis=0)
+        # exp(-i omega t) sits at numpy's frequency -f: bins 0, -1, ..., -n/2.
+        negative = spectrum[(-np.arange(n // 2 + 1)) % n]
+        power = np.abs(negative) ** 2  # (F, R, M)
+        r = self.grid.radii[rings]
+        per_m = np.tensordot(r, power, axes=(0, 1)) / np.sum(r)  # (F, M)
+        per_m *= self.interval / float(np.sum(self._taper**2))
+        per_m[1 : (n + 1) // 2] *= 2.0
+        self._sum += per_m.T
+        self.segments += 1
+
+    def spectrum(self) -> MFSpectrum:
+        """Return the (m, f) spectrum (InputError without a complete segment)."""
+        if self.segments == 0:
+            raise InputError(
+                f"no (m, f) spectrum: {self.frames} frames hold no run of {self.segment} "
+                "without a gap whose rings are finite"
+            )
+        return MFSpectrum(
+            m=self.grid.m,
+            frequency=np.arange(self.segment // 2 + 1) / (self.segment * self.interval),
+            power=self._sum / self.segments,
+            radii=self.grid.radii,
+            segments=self.segments,
+        )
+
+    def profiles(self) -> NDArray[np.complex128]:
+        """Return ``A_m(r, f)`` (m), shape (F, R, M): NaN on rings with no data."""
+        has = self._lock_weight > 0
+        weight = np.where(has, self._lock_weight, 1.0)[np.newaxis, :, np.newaxis]
+        return np.where(has[np.newaxis, :, np.newaxis], 2.0 * self._lock / weight, np.nan)
+
+    def series(self) -> tuple[NDArray[np.float64], NDArray[np.complex128]]:
+        """Return the times (N,) (s) and ``h_m(r, t)`` (N, R, len(series_m)) kept (m)."""
+        if not self._series:
+            shape = (0, self.grid.radii.size, len(self.series_m))
+            return np.zeros(0), np.zeros(shape, np.complex128)
+        return np.asarray(self._times), np.concatenate(self._series)
+
+
+def _entropy(
+    field: np.ndarray, centre: np.ndarray, radii: np.ndarray, n_theta: int, m_max: int
+) -> float:
+    """Entropy over ``m`` of the ring-summed ``|A_m|^2`` around ``centre`` (pixels).
+
+    ``field`` is (2, rows, cols): the real and imaginary parts; the rings (radii in
+    pixels) are sampled bilinearly, and rings touching a NaN are left out.
+    """
+    theta = 2.0 * np.pi * np.arange(n_theta) / n_theta
+    rows = centre[1] + radii[:, np.newaxis] * np.sin(theta)
+    cols = centre[0] + radii[:, np.newaxis] * np.cos(theta)
+    parts = [ndimage.map_coordinates(part, [rows, cols], order=1, mode="nearest") for part in field]
+    spectrum = np.fft.fft(parts[0] + 1j * parts[1], axis=1) / n_theta
+    modes = spectrum[:, np.arange(-m_max, m_max + 1) % n_theta]
+    rings = np.all(np.isfinite(modes), axis=1)
+    if np.count_nonzero(rings) < 4:
+        return math.inf
+    power = np.sum(np.abs(modes[rings]) ** 2 * radii[rings, None], axis=0)
+    total = float(power.sum())
+    if total <= 0:
+        return math.inf
+    share = power / total
+    share = share[share > 0]
+    return float(-np.sum(share * np.log(share)))
+
+
+def find_centre(
+    amplitude: ArrayLike,
+    pixel_size: float | ArrayLike,
+    *,
+    radius: float,
+    r_min: float | None = None,
+    m_max: int = 8,
+    start: tuple[float, float] | None = None,
+) -> tuple[float, float]:
+    """Return the centre ``(x0, y0)`` (m) of a field of partial waves (module docstring).
+
+    Parameters
+    ----------
+    amplitude : array_like of complex, shape (rows, cols)
+        Complex amplitude of the field at one frequency (m; NaN where untrusted).
+    pixel_size : float or (float, float)
+        m.
+    radius : float
+        Outer radius of the rings scored, m (the centre is sought where they fit).
+    r_min : float, optional
+        Inner radius, m (default two pixels).
+    m_max : int
+        Largest ``|m|`` scored.
+    start : (float, float), optional
+        Where the search starts, m (default: the power-weighted centroid).
+
+    Raises
+    ------
+    InputError
+        The map is all NaN, or no centre leaves room for the rings.
+    """
+    field = np.asarray(amplitude, dtype=np.complex128)
+    rows, cols = field.shape
+    dy, dx = pixel_pair(pixel_size)
+    finite = np.isfinite(field)
+    if not np.any(finite):
+        raise InputError("no centre can be found: the amplitude map is all NaN")
+    field = field - field[finite].mean()  # a uniform part is m = 0 around any point
+    power = np.abs(field) ** 2
+    yy, xx = np.mgrid[0:rows, 0:cols]
+    weight = np.where(finite, power, 0.0)
+    total = float(weight.sum())
+    if total <= 0:
+        raise InputError("no centre can be found: the amplitude map is zero")
+    first = (
+        np.array([np.sum(weight * xx) * dx / total, np.sum(weight * yy) * dy / total])
+        if start is None
+        else np.asarray(start, dtype=np.float64)
+    )
+    margin = radius + 2.0 * min(dx, dy)
+    low = np.array([margin, margin])
+    high = np.array([(cols - 1) * dx - margin, (rows - 1) * dy - margin])
+    if np.any(high < low):
+        raise InputError(
+            f"rings of {radius * 1e3:.3g} mm do not fit in maps of "
+            f"{(cols - 1) * dx * 1e3:.3g} x {(rows - 1) * dy * 1e3:.3g} mm"
+        )
+    first = np.clip(first, low, high)
+    parts = np.stack([np.where(finite, field.real, np.nan), np.where(finite, field.imag, np.nan)])
+    ring_step = 2.0 * min(dx, dy)  # m
+    inner = 2.0 * ring_step if r_min is None else float(r_min)
+    radii_px = np.arange(inner, radius + 1e-12, ring_step) / min(dx, dy)
+    n_theta = max(16, 1 << math.ceil(math.log2(2 * math.pi * radii_px[-1])))
+    scale = np.array([dx, dy])
+
+    def score(point: np.ndarray) -> float:
+        if np.any(point < low) or np.any(point > high):
+            return math.inf
+        return _entropy(parts, point / scale, radii_px, n_theta, m_max)
+
+    step = 0.5 * min(dx, dy)  # a given start is close already
+    if start is None:  # the entropy has local minima: start from the best of a coarse grid
+        xs = np.linspace(low[0], high[0], CENTRE_GRID)
+        ys = np.linspace(low[1], high[1], CENTRE_GRID)
+        candidates = [first] + [np.array([x, y]) for y in ys for x in xs]
+        scores = [score(point) for point in candidates]
+        first = candidates[int(np.argmin(scores))]
+        step = max(0.5 * float(min(xs[1] - xs[0], ys[1] - ys[0])), min(dx, dy))
+    simplex = np.array([first, first + np.array([step, 0.0]), first + np.array([0.0, step])])
+    result = minimize(
+        score,
+        first,
+        method="Nelder-Mead",
+        options={
+            "initial_simplex": simplex,
+            "xatol": CENTRE_TOLERANCE_PX * min(dx, dy),
+            "fatol": 1e-7,
+        },
+    )
+    if not np.isfinite(result.fun):
+        raise InputError("no centre can be found: the rings meet untrusted pixels everywhere")
+    logger.info(
+        "centre found at (%.4g, %.4g) mm (entropy over m %.3g)",
+        result.x[0] * 1e3,
+        result.x[1] * 1e3,
+        result.fun,
+    )
+    return float(result.x[0]), float(result.x[1])

@@ -1,0 +1,125 @@
+"""Frame times: the nominal interval, the gaps left by lost frames, the segments between them.
+
+Every wave analysis takes the true time of each map. Maps are evenly spaced in time
+except where frames were lost: a step between two frames longer than
+``(1 + GAP_TOLERANCE)`` nominal intervals is a **gap**. Gaps are never closed:
+
+- Spectra (omega-k, E(omega), the (m, f) spectrum) average segments of consecutive
+  frames that do not span a gap (Welch's method); frames of a run shorter than a
+  segment are not used, and the analyses say how many frames that left out.
+- Lock-in maps, radial profiles and ringdown fits are least-squares estimates on the
+  true times, which need no even spacing; the ringdown's band-pass filter runs within
+  each gap-free run.
+
+Within a run the frames are taken to be evenly spaced at the nominal interval (the
+median step); the largest departure from it is reported (:attr:`FrameClock.jitter`).
+"""
+
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from holoview.errors import InputError
+
+__all__ = ["GAP_TOLERANCE", "FrameClock", "frame_clock"]
+
+#: A step longer than ``1 + GAP_TOLERANCE`` nominal intervals is a gap (lost frames).
+GAP_TOLERANCE = 0.5
+
+
+@dataclass(frozen=True)
+class FrameClock:
+    """The timing of a sequence of maps.
+
+    Attributes
+    ----------
+    times : ndarray of float, shape (N,)
+        The frame times, s.
+    interval : float
+        Nominal time between frames, s (the median step).
+    runs : tuple of (int, int)
+        ``[start, stop)`` frame indices of the gap-free runs, in order.
+    lost : int
+        Frames missing in the gaps (each gap's step in intervals, less one, rounded).
+    jitter : float
+        Largest departure of a step within a run from the nominal interval, s.
+    """
+
+    times: np.ndarray
+    interval: float
+    runs: tuple[tuple[int, int], ...]
+    lost: int
+    jitter: float
+
+    @property
+    def frames(self) -> int:
+        """Number of frames."""
+        return int(self.times.size)
+
+    @property
+    def gaps(self) -> int:
+        """Number of gaps (runs less one)."""
+        return len(self.runs) - 1
+
+    @property
+    def rate(self) -> float:
+        """Nominal frame rate, frames/s."""
+        return 1.0 / self.interval
+
+    @property
+    def duration(self) -> float:
+        """Time from the first frame to the last, s."""
+        return float(self.times[-1] - self.times[0])
+
+
+def frame_clock(times: ArrayLike) -> FrameClock:
+    """Return the clock of maps taken at ``times`` (s).
+
+    Parameters
+    ----------
+    times : array_like of float, shape (N,)
+        Time of each map, s, strictly increasing (N >= 2).
+
+    Returns
+    -------
+    FrameClock
+
+    Raises
+    ------
+    InputError
+        Fewer than two times, a time that is not finite, or times that do not increase
+        (the message names the first such frame).
+
+    Examples
+    --------
+    >>> clock = frame_clock([0.0, 0.01, 0.02, 0.05, 0.06])
+    >>> clock.runs, clock.lost
+    (((0, 3), (3, 5)), 2)
+    """
+    t = np.asarray(times, dtype=np.float64).ravel()
+    if t.size < 2:
+        raise InputError(f"the maps need at least two frame times, got {t.size}")
+    bad = np.flatnonzero(~np.isfinite(t))
+    if bad.size:
+        raise InputError(f"the time of frame {int(bad[0])} is not finite ({t[bad[0]]})")
+    steps = np.diff(t)
+    back = np.flatnonzero(steps <= 0)
+    if back.size:
+        i = int(back[0]) + 1
+        raise InputError(
+            f"frame times must increase: frame {i} at {float(t[i])!r} s follows "
+            f"{float(t[i - 1])!r} s"
+        )
+    interval = float(np.median(steps))
+    gap = steps > (1.0 + GAP_TOLERANCE) * interval
+    cuts = np.flatnonzero(gap) + 1
+    edges = [0, *cuts.tolist(), t.size]
+    runs = tuple((int(a), int(b)) for a, b in itertools.pairwise(edges))
+    lost = int(np.sum(np.rint(steps[gap] / interval) - 1))
+    inside = steps[~gap]
+    jitter = float(np.max(np.abs(inside - interval))) if inside.size else 0.0
+    return FrameClock(t, interval, runs, lost, jitter)

@@ -1,0 +1,343 @@
+"""``holoview waves`` and ``process --maps --waves``: files, figures, values against the truth, and
+one-line errors for bad input."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+import xarray
+from headless_sim import run_cli
+
+from holoview.optics.wave_fields import DampedMode, PartialWave, PartialWaves
+
+#: The simulated bench of these tests: carriers far apart, few mirror passes.
+OPTICS = [
+    "--size",
+    "256",
+    "--pixel-pitch-um",
+    "160",
+    "--m-r-mrad",
+    "0.4",
+    "0.025",
+    "--m-b-mrad",
+    "0.025",
+    "0.3",
+    "--reflectivity",
+    "0.1",
+    "--depth-mm",
+    "3",
+]
+TRAVELLING = [
+    "--scenario",
+    "travelling",
+    "--frames",
+    "140",
+    "--fps",
+    "250",
+    "--seed",
+    "5",
+    "--wave-k",
+    "250",
+    "1500",
+    "--wave-components",
+    "120",
+    "--flow-mm-per-s",
+    "20",
+    "10",
+    "--wave-start-s",
+    "0.002",
+    "--wave-rise-s",
+    "0.01",
+    "--no-truth-maps",
+]
+
+
+@pytest.fixture(scope="module")
+def travelling(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
+    """A recording of travelling waves and its results.h5 with maps (process --maps)."""
+    folder = tmp_path_factory.mktemp("waves")
+    recording, out = folder / "travelling.h5", folder / "processed"
+    assert run_cli_plain(["-q", "simulate", str(recording), *OPTICS, *TRAVELLING]) == 0
+    argv = ["-q", "process", str(recording), "--out", str(out), "--maps", "--reference", "absolute"]
+    assert run_cli_plain(argv) == 0
+    return recording, out / "results.h5"
+
+
+def run_cli_plain(argv: list[str]) -> int:
+    from holoview.cli import main
+
+    return main(argv)
+
+
+@pytest.mark.slow
+def test_waves_writes_spectra_fits_and_figures_close_to_the_truth(
+    travelling: tuple[Path, Path], tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    recording, results = travelling
+    out = tmp_path / "waves"
+    argv = ["waves", str(results), "--out", str(out), "--segment", "64", "--time", "0.02:"]
+    # a 41 mm field holds too few long waves to fix the depth: held at the truth
+    status, stdout, err = run_cli([*argv, "--depth-mm", "3", "--hold", "depth"], capsys)
+    assert status == 0, err
+    assert "sigma" in stdout and "±" in stdout
+    with h5py.File(recording, "r") as f:
+        truth = dict(f["truth/waves"].attrs)
+    summary = json.loads((out / "waves.json").read_text())
+    fit = summary["dispersion"]
+    assert fit["surface_tension_n_per_m"] == pytest.approx(truth["sigma_n_per_m"], rel=0.05)
+    assert fit["surface_tension_stderr_n_per_m"] > 0
+    assert fit["depth_m"] == truth["depth_m"] and fit["held"] == ["depth"]
+    for axis in (0, 1):
+        error = abs(fit["flow_m_per_s"][axis] - truth["flow_m_per_s"][axis])
+        assert error < max(3 * fit["flow_stderr_m_per_s"][axis], 2e-3)
+    assert "travels along +k" in summary["sign_convention"]
+    assert summary["input"]["frames"] == 135 and summary["input"]["gaps"] == 0
+    for name in ("waves.h5", "waves.json", "omega_k.png", "energy.png"):
+        assert (out / name).is_file()
+    assert (out / "omega_k.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    with h5py.File(out / "waves.h5", "r") as f:
+        assert f.attrs["format"] == "holoview-waves"
+        power = f["omega_k/power"]
+        assert power.attrs["unit"] == "m^2 Hz^-1 (rad/m)^-2"
+        assert [d[0].name for d in power.dims] == [
+            "/omega_k/frequency",
+            "/omega_k/ky",
+            "/omega_k/kx",
+        ]
+
+        def has_unit(name: str, item: object) -> None:
+            if isinstance(item, h5py.Dataset):
+                assert "unit" in item.attrs, name
+
+        f.visititems(has_unit)
+        assert f["dispersion"].attrs["surface_tension_n_per_m"] == pytest.approx(
+            fit["surface_tension_n_per_m"]
+        )
+    assert not list(out.glob(".*partial*"))
+    for group in ("omega_k", "energy", "dispersion"):  # netCDF-readable: coordinates attached
+        with xarray.open_dataset(out / "waves.h5", group=group, engine="h5netcdf") as ds:
+            assert all(not name.startswith("phony") for name in ds.sizes)
+
+
+@pytest.mark.slow
+def test_process_maps_waves_in_one_run(
+    travelling: tuple[Path, Path], tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    recording, _ = travelling
+    out = tmp_path / "both"
+    argv = ["process", str(recording), "--out", str(out), "--maps", "--reference", "absolute"]
+    status, stdout, err = run_cli(
+        [
+            *argv,
+            "--waves",
+            "--segment",
+            "64",
+            "--depth-mm",
+            "3",
+            "--hold",
+            "depth",
+            "--band-f",
+            "10:40",
+        ],
+        capsys,
+    )
+    assert status == 0, err
+    assert (out / "results.h5").is_file() and (out / "waves.json").is_file()
+    assert stdout.count(str(out)) == 2  # one line each
+    with h5py.File(out / "waves.h5", "r") as f:
+        filtered = f["filtered/height"]
+        assert filtered.shape[0] == 140 and filtered.attrs["unit"] == "m"
+        assert f["filtered"].attrs["f_min"] == 10.0
+    status, _, err = run_cli(["process", str(recording), "--out", str(out), "--waves"], capsys)
+    assert status == 2 and "--maps" in err
+
+
+def results_file(
+    path: Path,
+    maps: np.ndarray,
+    times: np.ndarray | None,
+    pixel: float | None,
+    *,
+    version: str = "2.0",
+) -> Path:
+    """A results.h5 with one fused map stack, as process --maps writes it (the parts read).
+
+    Version 2.0: ``units`` and the maps' ``time`` dimension scale; 1.0: ``unit`` and
+    ``/trends/time_s``.
+    """
+    with h5py.File(path, "w") as f:
+        dataset = f.create_dataset("maps/fused", data=maps.astype(np.float32))
+        unit = "units" if version == "2.0" else "unit"
+        dataset.attrs.update({unit: "m", "quantity": "delta_h", "reference": "absolute"})
+        if pixel is not None:
+            dataset.attrs["pixel_size_m"] = [pixel, pixel]
+        if times is not None and version == "2.0":
+            f["maps/time"] = times
+            f["maps/time"].make_scale("time")
+            dataset.dims[0].attach_scale(f["maps/time"])
+        elif times is not None:
+            f["trends/time_s"] = times
+    return path
+
+
+def field_maps(surface, frames: int, fps: float, size: int, pixel: float, *, noise: float = 0.3e-9):
+    x = (np.arange(size) * pixel)[np.newaxis, :]
+    y = (np.arange(size) * pixel)[:, np.newaxis]
+    rng = np.random.default_rng(0)
+    times = np.arange(frames) / fps
+    return np.array([surface(t, x, y) + rng.normal(0, noise, (size, size)) for t in times]), times
+
+
+@pytest.mark.slow
+def test_partial_waves_and_ringdown_through_the_command(
+    tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    size, pixel, fps = 72, 0.6e-3, 100.0
+    centre = (21.5e-3, 20.2e-3)
+    waves = (PartialWave(0, 14.3, 20e-9, 12e-9), PartialWave(2, 22.1, 8e-9 + 6e-9j, 15e-9))
+    surface = PartialWaves(waves, centre=centre, core_radius=3e-3, depth=5e-3)
+    mode = DampedMode(1, 31.0, 1.2, 30e-9, centre=centre, depth=5e-3)
+    maps, times = field_maps(
+        lambda t, x, y: surface(t, x, y) + mode(t, x, y), 384, fps, size, pixel
+    )
+    r = np.hypot(
+        np.arange(size)[None, :] * pixel - centre[0], np.arange(size)[:, None] * pixel - centre[1]
+    )
+    maps[:, r < 4e-3] = np.nan
+    path = results_file(tmp_path / "results.h5", maps, times, pixel)
+    out = tmp_path / "out"
+    argv = [
+        "waves",
+        str(path),
+        "--out",
+        str(out),
+        "--no-fit",
+        "--segment",
+        "128",
+        "--centre",
+        "auto",
+        "--r-range-mm",
+        "5:19",
+        "--m-max",
+        "4",
+        "--n-modes",
+        "2",
+        "--ringdown",
+        "1,28:34",
+        "--drive-hz",
+        "14.3",
+        "--depth-mm",
+        "5",
+    ]
+    status, _, err = run_cli(argv, capsys)
+    assert status == 0, err
+    summary = json.loads((out / "waves.json").read_text())
+    found = summary["centre_m"]
+    assert np.hypot(found[0] - centre[0], found[1] - centre[1]) < 0.2 * pixel
+    assert all(0 <= e < 0.2 * pixel for e in summary["centre_stderr_m"])
+    fits = {p["m"]: p for p in summary["partial_waves"]}
+    assert set(fits) == {0, 2}
+    for wave in waves:
+        fit = fits[wave.m]
+        assert fit["frequency_hz"] == pytest.approx(wave.frequency, abs=0.01)
+        assert fit["incoming_amplitude_m"] == pytest.approx(abs(wave.incoming), rel=0.03)
+        assert fit["outgoing_amplitude_m"] == pytest.approx(abs(wave.outgoing), rel=0.03)
+        ratio = abs(wave.incoming) / abs(wave.outgoing)
+        assert fit["incoming_over_outgoing"] == pytest.approx(ratio, rel=0.03)
+    ring = summary["ringdown"]
+    assert ring["frequency_hz"] == pytest.approx(31.0, rel=0.005)
+    assert ring["decay_per_s"] == pytest.approx(1.2, rel=0.05)
+    for name in ("m_f.png", "partial_waves.png", "ringdown.png", "lockin.png"):
+        assert (out / name).is_file(), name
+    with h5py.File(out / "waves.h5", "r") as f:
+        assert f["lockin/amplitude"].shape == (3, size, size)
+        assert f["partial_waves/incoming_real_m"].attrs["unit"] == "m"
+
+
+@pytest.mark.parametrize(
+    ("case", "message"),
+    [
+        ("no pixel size", "carry no pixel size"),
+        ("no times", "no frame times"),
+        ("short", "fewer than a segment"),
+        ("all nan", "all NaN"),
+        ("centre outside", "outside the maps"),
+        ("noise", "no waves there"),
+        ("no label", "has no maps of 'RB7'"),
+        ("hold depth", "--hold depth needs --depth-mm"),
+        ("no file", "no such file"),
+    ],
+)
+def test_bad_input_is_one_line_exit_2_and_writes_nothing(
+    tmp_path: Path, capsys: pytest.CaptureFixture, case: str, message: str
+) -> None:
+    rng = np.random.default_rng(1)
+    frames = 40 if case == "short" else 96
+    maps = rng.normal(0, 1e-9, (frames, 24, 24))
+    if case == "all nan":
+        maps[:] = np.nan
+    path = results_file(
+        tmp_path / "results.h5",
+        maps,
+        None if case == "no times" else np.arange(frames) / 100.0,
+        None if case == "no pixel size" else 1e-3,
+    )
+    out = tmp_path / "out"
+    argv = ["waves", str(path), "--out", str(out), "--segment", "64"]
+    extra = {
+        "centre outside": ["--centre", "100,5"],
+        "no label": ["--label", "RB7"],
+        "hold depth": ["--hold", "depth"],
+    }.get(case, [])
+    if case == "no file":
+        argv[1] = str(tmp_path / "missing.h5")
+    status, _, err = run_cli([*argv, *extra], capsys)
+    assert status == 2
+    assert message in err
+    assert err.count("\n") == 1 and "Traceback" not in err
+    assert not out.exists() or not any(out.iterdir())
+
+
+def test_phase_maps_are_refused_and_a_1_0_file_reads_as_2_0(
+    tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    x = np.arange(24)[None, :] * 1e-3
+    times = np.arange(128) / 100.0
+    maps = np.array([1e-8 * np.cos(800 * x - 2 * np.pi * 20 * t) + 0 * x.T for t in times])
+    argv = ["--segment", "64", "--no-fit"]
+    summaries = []
+    for version in ("2.0", "1.0"):
+        path = results_file(tmp_path / f"{version}.h5", maps, times, 1e-3, version=version)
+        out = tmp_path / f"out{version}"
+        assert run_cli(["waves", str(path), "--out", str(out), *argv], capsys)[0] == 0
+        summaries.append(json.loads((out / "waves.json").read_text()))
+    assert summaries[0]["omega_k"] == summaries[1]["omega_k"]
+    assert summaries[0]["input"]["frames"] == 128
+    path = results_file(tmp_path / "phase.h5", maps, times, 1e-3)
+    with h5py.File(path, "r+") as f:
+        f["maps/fused"].attrs.update({"units": "rad", "quantity": "phase"})
+    status, _, err = run_cli(["waves", str(path), "--out", str(tmp_path / "p"), *argv], capsys)
+    assert status == 2 and "not heights" in err and err.count("\n") == 1
+
+
+def test_earlier_outputs_are_kept_without_overwrite(
+    tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    x = np.arange(24)[None, :] * 1e-3
+    times = np.arange(128) / 100.0
+    maps = np.array([1e-8 * np.cos(800 * x - 2 * np.pi * 20 * t) + 0 * x.T for t in times])
+    path = results_file(tmp_path / "results.h5", maps, times, 1e-3)
+    out = tmp_path / "out"
+    argv = ["waves", str(path), "--out", str(out), "--segment", "64", "--no-fit"]
+    assert run_cli(argv, capsys)[0] == 0
+    before = (out / "waves.json").read_bytes()
+    status, _, err = run_cli(argv, capsys)
+    assert status == 2 and "--overwrite" in err
+    assert (out / "waves.json").read_bytes() == before
+    assert run_cli([*argv, "--overwrite"], capsys)[0] == 0
+    shutil.rmtree(out)

@@ -1,0 +1,123 @@
+"""The dispersion relation with a flow, and its fit to the simulator's travelling waves."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from waves_synth import sample, travelling
+
+from holoview.errors import InputError
+from holoview.optics.surfaces import dispersion_omega
+from holoview.processing.waves.dispersion import Fluid, fit_dispersion, wave_omega
+from holoview.processing.waves.omega_k import OmegaKAccumulator
+
+SIZE, PIXEL, FPS, FRAMES = 64, 1e-3, 250.0, 384
+
+
+def spectrum_of(surface, *, frames=FRAMES, noise=0.3e-9, seed=0, segment=128):
+    maps = sample(surface, np.arange(frames) / FPS, SIZE, PIXEL, noise=noise, seed=seed)
+    acc = OmegaKAccumulator((SIZE, SIZE), PIXEL, 1 / FPS, segment=segment)
+    acc.extend(maps, np.arange(frames) / FPS)
+    return acc.spectrum()
+
+
+@pytest.fixture(scope="module")
+def waves():
+    return travelling(seed=3)
+
+
+@pytest.fixture(scope="module")
+def spectrum(waves):
+    return spectrum_of(waves)
+
+
+def test_the_doppler_shift_is_k_dot_u():
+    k = np.array([500.0, 800.0])
+    plain = dispersion_omega(k, 3e-3, sigma=0.07, rho=998.0)
+    shifted = wave_omega(
+        k, 0 * k, surface_tension=0.07, depth=3e-3, flow=(0.02, 0.5), fluid=Fluid(998.0, 0.07)
+    )
+    np.testing.assert_allclose(shifted, plain + k * 0.02)
+    against = wave_omega(
+        -k, 0 * k, surface_tension=0.07, depth=3e-3, flow=(0.02, 0.0), fluid=Fluid(998.0, 0.07)
+    )
+    np.testing.assert_allclose(against, plain - k * 0.02)
+
+
+def test_sigma_depth_and_flow_come_back_within_their_errors(waves, spectrum):
+    fit = fit_dispersion(spectrum, Fluid(waves.rho, 0.06), depth=5e-3)
+    assert fit.surface_tension == pytest.approx(waves.sigma, rel=0.03)
+    assert fit.depth == pytest.approx(waves.depth, rel=0.1)
+    for axis in (0, 1):
+        assert fit.flow[axis] == pytest.approx(waves.flow[axis], abs=1e-3)
+    # within three standard errors (which are not vanishingly small)
+    assert abs(fit.surface_tension - waves.sigma) < 3 * fit.surface_tension_stderr + 1e-4
+    assert abs(fit.depth - waves.depth) < 3 * fit.depth_stderr + 1e-5
+    assert 0 < fit.surface_tension_stderr < 0.01 * waves.sigma
+    assert fit.ridge.omega.size >= 20
+    assert set(fit.free) == {"sigma", "depth", "flow_x", "flow_y"}
+    assert fit.as_dict()["held"] == []
+
+
+def test_the_ridge_sits_on_the_true_relation(waves, spectrum):
+    fit = fit_dispersion(spectrum, Fluid(waves.rho, waves.sigma), depth=waves.depth)
+    truth = wave_omega(
+        fit.ridge.kx,
+        fit.ridge.ky,
+        surface_tension=waves.sigma,
+        depth=waves.depth,
+        flow=waves.flow,
+        fluid=Fluid(waves.rho, waves.sigma),
+    )
+    assert np.median(np.abs(fit.ridge.omega / truth - 1)) < 0.01
+
+
+def test_held_parameters_stay_and_have_no_error(waves, spectrum):
+    fit = fit_dispersion(
+        spectrum, Fluid(waves.rho, 0.06), depth=waves.depth, flow=(0.0, 0.0), hold=["depth"]
+    )
+    assert fit.depth == waves.depth and fit.depth_stderr == 0.0
+    assert fit.surface_tension == pytest.approx(waves.sigma, rel=0.03)
+    wrong = fit_dispersion(
+        spectrum, Fluid(waves.rho, 0.06), hold=["flow", "depth"], depth=waves.depth
+    )
+    assert wrong.flow == (0.0, 0.0)
+    assert wrong.rms_residual > 2 * fit.rms_residual  # a flow left out shows
+
+
+def test_noise_alone_has_no_waves_to_fit():
+    rng = np.random.default_rng(5)
+    acc = OmegaKAccumulator((SIZE, SIZE), PIXEL, 1 / FPS, segment=64)
+    acc.extend(rng.normal(0, 1e-9, (128, SIZE, SIZE)), np.arange(128) / FPS)
+    with pytest.raises(InputError, match="no waves there"):
+        fit_dispersion(acc.spectrum())
+
+
+def test_deep_water_does_not_fix_the_depth():
+    deep = travelling(seed=4, depth=0.05, k_range=(600.0, 1600.0), flow=(0.0, 0.0))
+    spectrum = spectrum_of(deep, frames=256)
+    with pytest.raises(InputError, match=r"the depth is not determined.*hold it"):
+        fit_dispersion(spectrum, Fluid(deep.rho, deep.sigma), depth=0.05)
+    held = fit_dispersion(spectrum, Fluid(deep.rho, 0.05), depth=0.05, hold=["depth"])
+    assert held.surface_tension == pytest.approx(deep.sigma, rel=0.03)
+
+
+@pytest.mark.parametrize(
+    ("hold", "message"), [(["mass"], "cannot hold mass"), (["sigma", "depth", "flow"], "nothing")]
+)
+def test_bad_holds_are_refused(spectrum, hold, message):
+    with pytest.raises(InputError, match=message):
+        fit_dispersion(spectrum, hold=hold)
+
+
+def test_fluids_by_name():
+    water = Fluid.named("water")
+    assert water.density == pytest.approx(998.2) and water.surface_tension == pytest.approx(0.0728)
+    assert Fluid.named("ethanol").surface_tension < 0.03
+    with pytest.raises(InputError, match="unknown fluid"):
+        Fluid.named("mercury")
+    with pytest.raises(InputError, match="density"):
+        Fluid(density=-1.0)
+    assert math.isfinite(Fluid().gravity)
