@@ -52,6 +52,9 @@ DC_FRACTION = 0.5
 #: Largest radius :func:`auto_radius` returns (cycles/pixel).
 MAX_AUTO_RADIUS = 0.2
 
+#: Carriers ``(fx, fy)``, cycles/pixel: a sequence of pairs or an array of shape (n, 2).
+Carriers = Sequence[tuple[float, float]] | np.ndarray
+
 
 def check_kind(kind: str) -> str:
     """Return ``kind`` if it names a window, else raise :class:`InputError` listing the kinds."""
@@ -108,13 +111,13 @@ def _distances(points: np.ndarray, others: np.ndarray) -> np.ndarray:
     return np.hypot(delta[..., 0], delta[..., 1])
 
 
-def _points(carriers: Sequence[tuple[float, float]] | np.ndarray) -> np.ndarray:
+def _points(carriers: Carriers) -> np.ndarray:
     return np.asarray(carriers, dtype=np.float64).reshape(-1, 2)
 
 
 def spacing(
-    carriers: Sequence[tuple[float, float]],
-    neighbours: Sequence[tuple[float, float]] = (),
+    carriers: Carriers,
+    neighbours: Carriers = (),
 ) -> np.ndarray:
     """Return, per carrier, its distance to the nearest other carrier or twin (cycles/pixel).
 
@@ -145,9 +148,9 @@ def spacing(
 
 
 def auto_radii(
-    carriers: Sequence[tuple[float, float]],
+    carriers: Carriers,
     *,
-    neighbours: Sequence[tuple[float, float]] = (),
+    neighbours: Carriers = (),
     min_radius: float = 0.0,
     max_radius: float = MAX_AUTO_RADIUS,
 ) -> np.ndarray:
@@ -190,9 +193,9 @@ def auto_radii(
 
 
 def auto_radius(
-    carriers: Sequence[tuple[float, float]],
+    carriers: Carriers,
     *,
-    neighbours: Sequence[tuple[float, float]] = (),
+    neighbours: Carriers = (),
     min_radius: float = 0.0,
     max_radius: float = MAX_AUTO_RADIUS,
 ) -> float:
