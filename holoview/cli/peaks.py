@@ -117,7 +117,7 @@ def run(args: argparse.Namespace) -> int:
     if problem is not None:
         raise InputError(f"{args.input} frame {args.frame} {problem}; choose another with --frame")
     check_not_background_subtracted(frame, f"{args.input} frame {args.frame}")
-    detected = find_peaks(frame, radius=experiment.radius)
+    detected = find_peaks(frame, radius=experiment.fixed_radius)
     if experiment.peaks and not detected:
         raise InputError(f"no significant peak in frame {args.frame}: nothing to label")
     resolution = resolve_peaks(experiment, detected, shape)

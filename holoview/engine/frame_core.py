@@ -9,7 +9,8 @@ the same numbers on the same frames:
   separable DFT at the exact carriers, a quarter of a full FFT's time;
 - :class:`FrameCore` keeps one :class:`~holoview.processing.maps.demodulate.Demodulator`
   for a set of peaks and an experiment's settings (window, radius, reference,
-  unwrapping), rebuilt only when they change: the maps;
+  unwrapping), rebuilt only when they change: the maps; its windows are matched to
+  the spectrum it was given (:meth:`FrameCore.match`), or at the bound, or given;
 - :func:`trusted_maps`: each peak's map, NaN where untrusted (delta-h in m where the
   peak has alpha, else phase in rad);
 - :class:`Coregistration`: the maps' displacements against the first peak's, measured
@@ -39,6 +40,7 @@ from holoview.processing.maps.coregister import (
 from holoview.processing.maps.demod_results import DemodResult
 from holoview.processing.maps.demodulate import Demodulator
 from holoview.processing.peaks.detection import Peak
+from holoview.processing.peaks.matched import SurfaceSpectrum, Window
 from holoview.processing.peaks.radii import distinct_neighbours, peak_radii
 from holoview.processing.series.carrier_probe import CarrierProbe, CarrierValues
 
@@ -145,15 +147,21 @@ class FrameCore:
         the maps are taken against it rather than against the first frame
         (:meth:`~holoview.processing.maps.demodulate.Demodulator.set_background`).
     neighbours : sequence of (fx, fy)
-        Every detected peak's carrier, cycles/pixel: the automatic windows reach none
-        (the demodulated ones among them are recognised and dropped).
+        The detected peaks that bound windows, cycles/pixel
+        (:func:`~holoview.processing.peaks.radii.window_neighbours`): the automatic
+        windows reach none (the demodulated ones among them are recognised and dropped).
+    spectrum : SurfaceSpectrum, optional
+        The spectrum the windows are matched to (:meth:`match`).
+    windows : sequence of Window, optional
+        The windows of the peaks, decided elsewhere (a run's, in its workers): used as
+        they are while the peaks are these.
 
     Notes
     -----
     The demodulator is rebuilt (which restarts the absolute and relative reference)
     when a label or alpha appears, goes or changes, a carrier moves by a whole FFT bin,
-    a neighbour moves an automatic window's radius by a whole bin, or the window,
-    radius, reference, unwrapping or wavelength change.
+    a neighbour moves a window's bound by a whole bin, the windows are matched to
+    another spectrum, or the window, radius, reference, unwrapping or wavelength change.
     """
 
     def __init__(
@@ -166,6 +174,8 @@ class FrameCore:
         threads: int = FFT_THREADS,
         background: np.ndarray | None = None,
         neighbours: Sequence[tuple[float, float]] = (),
+        spectrum: SurfaceSpectrum | None = None,
+        windows: Sequence[Window] | None = None,
     ) -> None:
         self.frame_shape = (int(frame_shape[0]), int(frame_shape[1]))
         self.saturation = saturation
@@ -174,6 +184,9 @@ class FrameCore:
         self.experiment = experiment
         self.peaks: tuple[Peak, ...] = tuple(peaks)
         self.neighbours = tuple(neighbours)
+        #: the spectrum the windows are matched to (None: not measured)
+        self.spectrum = spectrum
+        self._fixed = None if windows is None else (self.peaks, tuple(windows))
         self._demod: Demodulator | None = None
 
     def configure(
@@ -191,6 +204,10 @@ class FrameCore:
         if neighbours is not None:
             self.neighbours = tuple(neighbours)
 
+    def match(self, spectrum: SurfaceSpectrum | None) -> None:
+        """Match the windows to ``spectrum`` from the next frame (the maps restart)."""
+        self.spectrum = spectrum
+
     @property
     def demodulator(self) -> Demodulator | None:
         """The demodulator for the current peaks (None before a frame or with no peak)."""
@@ -199,14 +216,23 @@ class FrameCore:
     @property
     def radius(self) -> float | None:
         """The window radius in use, cycles/pixel (the experiment's before the first frame)."""
-        return self.experiment.radius if self._demod is None else self._demod.radius
+        return self.experiment.fixed_radius if self._demod is None else self._demod.radius
 
     def radii(self) -> dict[str, float]:
         """Each labelled peak's window radius in use, cycles/pixel (empty before a frame)."""
+        return {label: w.radius for label, w in self.windows().items()}
+
+    def windows(self) -> dict[str, Window]:
+        """Each labelled peak's window in use (empty before a frame)."""
         demod = self._demod
         if demod is None:
             return {}
-        return {p.label: r for p, r in zip(demod.peaks, demod.radii, strict=True) if p.label}
+        return {p.label: w for p, w in zip(demod.peaks, demod.windows, strict=True) if p.label}
+
+    @property
+    def notes(self) -> tuple[str, ...]:
+        """What the user should know about the windows in use (a given radius reaching a peak)."""
+        return () if self._demod is None else self._demod.notes
 
     def _settings(self) -> tuple:
         e = self.experiment
@@ -225,14 +251,23 @@ class FrameCore:
             for p, q in zip(self.peaks, demod.peaks, strict=True)
         ):
             return True
-        if self.experiment.radius is not None:
+        if self._fixed_windows() is not None:
             return False
+        if demod.spectrum is not self.spectrum:
+            return True
         carriers = np.array([p.carrier for p in demod.peaks], dtype=np.float64)
         others = distinct_neighbours(self.frame_shape, carriers, self.neighbours)
-        radii = peak_radii(self.frame_shape, carriers, None, others)
+        bounds = peak_radii(self.frame_shape, carriers, None, others)
         return any(
-            abs(a - b) * min(rows, cols) > 1.0 for a, b in zip(radii, demod.radii, strict=True)
+            abs(a - w.bound) * min(rows, cols) > 1.0
+            for a, w in zip(bounds, demod.windows, strict=True)
         )
+
+    def _fixed_windows(self) -> tuple[Window, ...] | None:
+        """The windows given at construction, while the peaks are the ones they were for."""
+        if self._fixed is None or self._fixed[0] != self.peaks:
+            return None
+        return self._fixed[1]
 
     def build(self) -> Demodulator | None:
         """Return the demodulator for the current settings, rebuilding it when stale.
@@ -260,6 +295,8 @@ class FrameCore:
                 threads=self.threads,
                 background=self.background if e.reference == "absolute" else None,
                 neighbours=self.neighbours,
+                spectrum=self.spectrum,
+                windows=self._fixed_windows(),
             )
             self._settings_key = self._settings()
         return self._demod

@@ -45,8 +45,17 @@ Carrier = tuple[float, float]
 def snap_peak(
     carrier: Carrier, detected: Sequence[Peak], shape: tuple[int, int]
 ) -> tuple[int, Peak] | None:
-    """Return ``(index, peak)``: the detected peak :func:`snap` names, on ``carrier``'s twin."""
-    found = snap(carrier, [p.carrier for p in detected], shape)
+    """Return ``(index, peak)``: the detected peak :func:`snap` names, on ``carrier``'s twin.
+
+    A peak of its own is named before a surface sideband (flag ``"surface"``) within
+    reach: a label names a carrier, not the surface's content around it.
+    """
+    own = [i for i, p in enumerate(detected) if "surface" not in p.flags]
+    found = snap(carrier, [detected[i].carrier for i in own], shape)
+    if found is not None:
+        found = (own[found[0]], found[1])
+    else:
+        found = snap(carrier, [p.carrier for p in detected], shape)
     if found is None:
         return None
     index, twin = found

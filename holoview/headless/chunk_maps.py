@@ -34,6 +34,7 @@ from holoview.headless.pipeline import FrameMaps
 from holoview.processing.fourier.fastmath import TWO_PI
 from holoview.processing.fourier.frames import frame_damage
 from holoview.processing.peaks.detection import Peak
+from holoview.processing.peaks.matched import Window
 
 #: Most frames in one chunk of a run with ``--maps``: a chunk's maps travel back whole
 #: (about 0.8 MB a 1024 x 1024 frame with six peaks), and the parent writes them in order.
@@ -56,6 +57,8 @@ class MapsSpec:
         FFTW threads per frame.
     background : ndarray or None
         The background hologram of absolute phases, counts.
+    windows : tuple of Window
+        Each peak's window, as the parent chose it (matched to the run's first frame).
     """
 
     experiment: Experiment
@@ -63,16 +66,20 @@ class MapsSpec:
     neighbours: tuple[tuple[float, float], ...]
     threads: int
     background: np.ndarray | None
+    windows: tuple[Window, ...]
 
     @classmethod
     def of(cls, core: FrameCore) -> MapsSpec:
         """The spec of a run's core (built)."""
+        demodulator = core.build()
+        assert demodulator is not None
         return cls(
             experiment=core.experiment,
             peaks=core.peaks,
             neighbours=core.neighbours,
             threads=core.threads,
             background=core.background,
+            windows=demodulator.windows,
         )
 
     def core(self, frame_shape: tuple[int, int], saturation: float | None) -> FrameCore:
@@ -85,6 +92,7 @@ class MapsSpec:
             threads=self.threads,
             background=self.background,
             neighbours=self.neighbours,
+            windows=self.windows,
         )
         core.build()
         return core

@@ -13,7 +13,8 @@
     Root attributes: ``format``, ``format_version``, ``uuid``, ``holoview_version``,
     ``created_utc``, ``input``, ``interrupted`` (the run was stopped: the frames
     done only), and the parameters (``wavelength_m``, ``n1``, ``n2``,
-    ``pixel_pitch_m``, ``reference``, ``window``, ``radius_cpp``, ``unwrap``).
+    ``pixel_pitch_m``, ``reference``, ``window``, ``radius``: ``"matched"``, ``"bound"``
+    or the radius given in cycles/pixel, ``unwrap``).
     ``/trends``: ``frame`` (N,), ``time_s`` (N,), ``label`` (M,), ``alpha`` (M,),
     ``mean_phase_rad`` (N, M), ``mean_height_m`` (N, M), ``carrier_value`` (N, M,
     complex, counts), ``phase_noise_rad`` (N, M, the maps' per-pixel noise where a
@@ -23,17 +24,21 @@
     and ``ambiguity_flagged`` (N,); each with a ``unit`` attribute. ``/peaks``:
     ``label``, ``carrier_cpp`` (M, 2), ``alpha``, ``amplitude``, ``snr``,
     ``rate_m_per_s``, ``rate_stderr_m_per_s``, ``used_in_fused``, ``flags``
-    (comma-separated).
+    (comma-separated), each peak's window: ``radius_cpp``, ``window_taper``,
+    ``window_rule`` (``matched``, ``bound``, ``given``), ``window_reason``.
     With maps, ``/maps/<label>`` and ``/maps/fused``: float32, metres, shape
     ``(frames, rows, cols)`` at the demodulation box's resolution (pixel ``(p, q)`` at
     frame position ``(p * pixel_step_px[0], q * pixel_step_px[1])``), NaN where not
     trusted; attributes ``unit``, ``quantity`` (``delta_h``), ``reference`` and
     ``reference_description``, ``label``, ``alpha``, ``carrier_cpp``, ``frame_shape_px``,
     ``pixel_step_px``, ``pixel_size_m`` (when the pixel pitch is known), ``window``,
-    ``radius_cpp``, per peak its measured shift against the first peak
-    (``displacement_px``, ``displacement_stderr_px``, ``displacement_measured``), and
-    for ``fused`` its ``labels`` and ``grid_of`` (the maps are moved onto that peak's
-    grid before fusing). A peak without alpha keeps its phase map (``unit`` ``rad``,
+    per peak the window it was demodulated with (``radius_cpp``, its cut-off in
+    cycles/pixel; ``window_taper``, ``window_rule``, ``window_bound_cpp``,
+    ``window_content_cpp`` where matched, ``window_reason``) and its measured shift
+    against the first peak (``displacement_px``, ``displacement_stderr_px``,
+    ``displacement_measured``), and for ``fused`` its ``labels``, their radii
+    ``radius_cpp`` (one per label) and ``grid_of`` (the maps are moved onto that
+    peak's grid before fusing). A peak without alpha keeps its phase map (``unit`` ``rad``,
     ``quantity`` ``phase``).
 
 Each writer writes the path it is given: a run gives them temporary names and
@@ -64,6 +69,7 @@ from holoview.errors import OutputError, os_error_text
 from holoview.headless.analysis import Analysis, PeakOutcome
 from holoview.headless.inputs import Optics
 from holoview.headless.pipeline import ProcessSettings, RunData, fuse_frame
+from holoview.processing.peaks.matched import Window
 
 logger = logging.getLogger(__name__)
 
@@ -141,6 +147,11 @@ def _clean(value: Any) -> Any:
     return value
 
 
+def radius_setting(radius: float | str | None) -> float | str:
+    """The radius a run was asked for: ``"matched"`` (None), ``"bound"`` or the number."""
+    return "matched" if radius is None else radius
+
+
 def _peak_entry(peak: PeakOutcome) -> dict[str, Any]:
     return {
         "carrier": list(peak.carrier),
@@ -204,8 +215,11 @@ def summary_document(
     ``frames`` as ``[start, stop]``, ``interrupted``, and a recording's uuid, source,
     creation time);
     ``parameters`` (``wavelength_m``, ``pixel_pitch_m``, ``n1``, ``n2`` and where each
-    came from, ``fps_hz`` (mean), ``reference``, ``window``, ``radius_cpp``,
-    ``unwrap``, ``maps``, ``area_m2``, ``peaks_from``); ``peaks`` (per label:
+    came from, ``fps_hz`` (mean), ``reference``, ``window``, ``radius`` (``"matched"``,
+    ``"bound"`` or the number given, cycles/pixel), ``unwrap``, ``maps``, ``area_m2``,
+    ``peaks_from``); ``peaks`` (per label: ``window``, the one it was demodulated
+    with: ``radius_cpp``, ``kind``, ``taper``, ``rule``, ``bound_cpp``,
+    ``content_cpp`` and ``reason``;
     ``carrier`` [fx, fy] cycles/pixel, ``alpha``, ``amplitude``, ``snr``,
     ``rate_m_per_s``, ``rate_stderr_m_per_s``, ``noise_m`` (of the depth series),
     ``map_noise_rad`` and ``map_noise_m`` (per map pixel, median), ``used_in_fused``,
@@ -261,7 +275,7 @@ def summary_document(
             "reference": settings.reference,
             "background": settings.background,
             "window": settings.window,
-            "radius_cpp": data.radius,
+            "radius": radius_setting(settings.radius),
             "unwrap": settings.unwrap,
             "maps": settings.maps,
             "area_m2": settings.area_m2,
@@ -270,6 +284,7 @@ def summary_document(
         "peaks": {
             p.label: {
                 **_peak_entry(p),
+                "window": data.windows[j].to_dict() if data.windows else None,
                 "displacement": _displacement_entry(data, j, frame_shape, optics.pixel_pitch_m),
             }
             for j, p in enumerate(analysis.peaks)
@@ -290,6 +305,18 @@ def summary_document(
         "notes": list(analysis.notes),
     }
     return _clean(document)
+
+
+def _window_attributes(window: Window) -> dict[str, Any]:
+    """A map's attributes saying the window it was demodulated with (its cut-off)."""
+    return {
+        "radius_cpp": window.radius,
+        "window_taper": window.taper,
+        "window_rule": window.rule,
+        "window_bound_cpp": window.bound,
+        "window_content_cpp": math.nan if window.content is None else window.content,
+        "window_reason": window.reason,
+    }
 
 
 def write_summary_json(path: Path, document: dict[str, Any]) -> None:
@@ -476,12 +503,12 @@ class ResultsFile:
                 "n2": optics.n2 or math.nan,
                 "reference": settings.reference,
                 "window": settings.window,
-                "radius_cpp": data.radius,
+                "radius": radius_setting(settings.radius),
                 "unwrap": settings.unwrap,
             }
         )
         self._write_trends(data, analysis, settings)
-        self._write_peaks(analysis)
+        self._write_peaks(analysis, data)
         if self._maps:
             fused_labels = self._finish_maps(data, analysis, converted)
             self._name_maps(
@@ -521,8 +548,16 @@ class ResultsFile:
             group[name] = values
             group[name].attrs["unit"] = unit
 
-    def _write_peaks(self, analysis: Analysis) -> None:
+    def _write_peaks(self, analysis: Analysis, data: RunData) -> None:
         group = self._file.create_group("peaks")
+        if data.windows:
+            windows = data.windows
+            group["radius_cpp"] = np.array([w.radius for w in windows], dtype=np.float64)
+            group["window_taper"] = np.array([w.taper for w in windows], dtype=np.float64)
+            group["window_rule"] = np.array([w.rule for w in windows], dtype=h5py.string_dtype())
+            group["window_reason"] = np.array(
+                [w.reason for w in windows], dtype=h5py.string_dtype()
+            )
         peaks = analysis.peaks
         group["label"] = np.array([p.label for p in peaks], dtype=h5py.string_dtype())
         group["carrier_cpp"] = np.array([p.carrier for p in peaks], dtype=np.float64)
@@ -560,7 +595,6 @@ class ResultsFile:
             "frame_shape_px": list(frame_shape),
             "pixel_step_px": list(step),
             "window": settings.window,
-            "radius_cpp": data.radius,
             "untrusted": "NaN",
         }
         if optics.pixel_pitch_m is not None:
@@ -580,6 +614,7 @@ class ResultsFile:
                     "quantity": "delta_h" if height else "phase",
                     "alpha": peak.alpha or math.nan,
                     "carrier_cpp": list(peak.carrier),
+                    **(_window_attributes(data.windows[j]) if data.windows else {}),
                 }
             )
             if data.displacements:
@@ -599,6 +634,11 @@ class ResultsFile:
                     "unit": "m",
                     "quantity": "delta_h",
                     "labels": ",".join(fused_labels),
+                    "radius_cpp": [
+                        data.windows[j].radius if data.windows else data.radius
+                        for j, p in enumerate(analysis.peaks)
+                        if p.label in fused_labels
+                    ],
                     "grid_of": analysis.peaks[0].label,
                 }
             )

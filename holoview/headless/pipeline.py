@@ -47,6 +47,8 @@ from holoview.headless.reader import DEFAULT_DEPTH, FrameReader
 from holoview.processing.maps.coregister import Displacement
 from holoview.processing.maps.heights import phase_to_height
 from holoview.processing.peaks.detection import Peak
+from holoview.processing.peaks.matched import SurfaceSpectrum, Window
+from holoview.processing.peaks.radii import window_neighbours
 
 logger = logging.getLogger(__name__)
 
@@ -68,9 +70,9 @@ class ProcessSettings:
         first frame). None: the experiment's.
     window : {"raised-cosine", "top-hat", "tukey"} or None
         None: the experiment's.
-    radius : float or None
-        Window radius, cycles/pixel (None: the experiment's, else automatic from the
-        carriers).
+    radius : float, str or None
+        Window radius, cycles/pixel, or ``"matched"`` or ``"bound"``
+        (:func:`~holoview.processing.peaks.radii.peak_windows`); None: the experiment's.
     unwrap : {"auto", "always", "never"} or None
         Spatial unwrapping of the maps. None: the experiment's.
     maps : bool
@@ -90,7 +92,7 @@ class ProcessSettings:
 
     reference: str | None = None
     window: str | None = None
-    radius: float | None = None
+    radius: float | str | None = None
     unwrap: str | None = None
     maps: bool = False
     area_m2: float | None = None
@@ -128,7 +130,9 @@ class RunData:
     box_shape : tuple of int
         Shape of every map, ``(by, bx)``.
     radius : float
-        Window radius used, cycles/pixel.
+        The largest window radius used, cycles/pixel (it sets ``box_shape``).
+    windows : tuple of Window
+        Each peak's window: radius, shape, the rule that chose it and why.
     last_maps : list of (ndarray or None)
         Each peak's map of the last demodulated frame (m, or rad in auto mode).
     last_frame : int
@@ -162,6 +166,7 @@ class RunData:
     map_flags: list[dict[str, int]]
     box_shape: tuple[int, int]
     radius: float
+    windows: tuple[Window, ...] = ()
     last_maps: list[np.ndarray | None] = field(default_factory=list)
     last_frame: int = -1
     displacements: list[Displacement] = field(default_factory=list)
@@ -256,11 +261,14 @@ def make_core(
     *,
     detected: Sequence[Peak] = (),
     background: np.ndarray | None = None,
+    spectrum: SurfaceSpectrum | None = None,
 ) -> FrameCore:
     """Return the per-frame core of a run, its demodulator built (InputError if it cannot work).
 
-    ``detected``: every peak found in the first frame; no automatic window reaches one.
+    ``detected``: every peak found in the first frame; no automatic window reaches one
+    (the surface's sidebands are not peaks: :func:`window_neighbours`).
     ``background``: the object-free hologram absolute phases are taken against.
+    ``spectrum``: the spectrum the windows are matched to.
     """
     core = FrameCore(
         shape,
@@ -268,8 +276,9 @@ def make_core(
         peaks,
         saturation=saturation,
         threads=settings.threads,
-        neighbours=[p.carrier for p in detected],
+        neighbours=window_neighbours(detected),
         background=background,
+        spectrum=spectrum,
     )
     core.build()
     return core
@@ -444,6 +453,7 @@ def new_run_data(core: FrameCore, n: int) -> RunData:
         map_flags=[dict.fromkeys(MAP_PEAK_FLAGS, 0) for _ in range(m)],
         box_shape=demodulator.box_shape,
         radius=demodulator.radius,
+        windows=demodulator.windows,
         last_maps=[None] * m,
         maps_in_metres=all(p.alpha is not None for p in demodulator.peaks),
     )

@@ -70,7 +70,7 @@ def _spectrum_panel(
     *,
     detected: Sequence[Peak],
     analysis: Analysis,
-    radius: float,
+    radii: Sequence[float],
     origin: tuple[int, int],
 ) -> None:
     left, top = origin
@@ -101,6 +101,7 @@ def _spectrum_panel(
             px, py = axes.to_px(*carrier)
             cv2.circle(image, (int(px), int(py)), 4, GREY, 1, cv2.LINE_AA)
     for j, peak in enumerate(analysis.peaks):
+        radius = radii[j]
         colour = PALETTE[j % len(PALETTE)]
         px, py = axes.to_px(*peak.carrier)
         centre = (round(float(px)), round(float(py)))
@@ -119,7 +120,8 @@ def _spectrum_panel(
         text(image, peak.label, label_at, scale=0.5, colour=WHITE, thickness=1)
     text(
         image,
-        f"circles: window radius {radius:.3g} cycles/pixel; dots: twins; grey: other peaks",
+        f"circles: each peak's window ({min(radii):.3g} to {max(radii):.3g} cycles/pixel); "
+        "dots: twins; grey: other peaks",
         (left, top + SPECTRUM_SIDE + 62),
         scale=0.42,
     )
@@ -290,7 +292,7 @@ def write_report(
         spectrum,
         detected=detected,
         analysis=analysis,
-        radius=data.radius,
+        radii=[w.radius for w in data.windows] or [data.radius] * len(analysis.peaks),
         origin=(100, 100),
     )
     _trend_panel(image, data, analysis, (720, 100, 540, SPECTRUM_SIDE))

@@ -56,6 +56,7 @@ from holoview.headless.selection import (
 from holoview.headless.stitch import demodulate_chunks
 from holoview.processing.fourier.spectrum import display_spectrum
 from holoview.processing.peaks.detection import Peak, find_peaks
+from holoview.processing.peaks.matched import measure_spectrum
 
 logger = logging.getLogger(__name__)
 
@@ -324,7 +325,7 @@ def process_file(
         )
         _, first = first_good_frame(source, selected)
         background = read_background(settings.background, source)
-        detected = find_peaks(first, radius=experiment.radius, threads=settings.threads)
+        detected = find_peaks(first, radius=experiment.fixed_radius, threads=settings.threads)
         selection = choose_peaks(
             choice,
             mode=mode,
@@ -336,6 +337,7 @@ def process_file(
         selection = replace(selection, notes=(*notes, *selection.notes))
         for note in notes:
             logger.warning("%s", note)
+        matched = experiment.radius_rule == "matched"
         core = make_core(
             source.frame_shape,
             experiment,
@@ -344,6 +346,7 @@ def process_file(
             source.saturation,
             detected=detected,
             background=background,
+            spectrum=measure_spectrum(first, threads=settings.threads) if matched else None,
         )
         demodulator = core.demodulator
         assert demodulator is not None

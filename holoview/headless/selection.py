@@ -139,11 +139,14 @@ def select_auto(
 ) -> Selection:
     """The ``count`` strongest detected peaks, named ``P0``, ``P1``, ... for the PCA.
 
+    The surface's sidebands (flag ``"surface"``) are not peaks: they are left out.
+
     With an anchor ``(label, carrier)``, the detected peak nearest the carrier (on the
     twin given) is the PCA's reference with that label, and is kept among the peaks.
     """
     if count < 2:
         raise InputError(f"--auto needs at least 2 peaks for the PCA, got {count}")
+    detected = [p for p in detected if "surface" not in p.flags]  # sidebands: not peaks
     if len(detected) < 2:
         raise InputError(
             f"--auto {count}: only {len(detected)} significant peak detected; the PCA needs two"

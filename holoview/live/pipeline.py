@@ -36,6 +36,7 @@ from holoview.live.continuity import Continuity
 from holoview.processing.fourier.spectrum import display_spectrum
 from holoview.processing.maps.demodulate import Demodulator
 from holoview.processing.peaks.detection import Peak, find_peaks
+from holoview.processing.peaks.radii import window_neighbours
 
 logger = logging.getLogger(__name__)
 
@@ -203,7 +204,7 @@ class LivePipeline:
 
     def _detect(self, frame: np.ndarray) -> None:
         tick = time.perf_counter()
-        self.set_peaks(find_peaks(frame, radius=self.experiment.radius, threads=FFT_THREADS))
+        self.set_peaks(find_peaks(frame, radius=self.experiment.fixed_radius, threads=FFT_THREADS))
         self.peaks_done(time.perf_counter() - tick)
 
     def resolution(self) -> Resolution:
@@ -239,7 +240,7 @@ class LivePipeline:
             self._detect(frame)
         resolution = self.resolution()
         self._core.configure(
-            self.experiment, resolution.peaks, [p.carrier for p in self._peaks or []]
+            self.experiment, resolution.peaks, window_neighbours(self._peaks or [])
         )
         demod = self._core.process(frame)
         heights: dict[str, np.ndarray] = {}

@@ -73,7 +73,7 @@ class PeakWorker:
 
     def __init__(self) -> None:
         self._cond = threading.Condition()
-        self._job: tuple[np.ndarray, float] | None = None
+        self._job: tuple[np.ndarray, float | None] | None = None
         self._result: tuple[list[Peak], float] | None = None
         self._error: str | None = None
         self._busy = False
@@ -92,7 +92,7 @@ class PeakWorker:
         if self._thread.ident is not None:
             self._thread.join(timeout)
 
-    def submit(self, frame: np.ndarray, radius: float) -> bool:
+    def submit(self, frame: np.ndarray, radius: float | None) -> bool:
         """Detect the peaks of ``frame`` (not modified) with window radius ``radius``.
 
         Returns False, doing nothing, while a detection is under way.
@@ -332,7 +332,7 @@ class DemodWorker(RingWorker):
             self.pipeline.set_peaks(found[0])
             self.pipeline.peaks_done(found[1])
         due = self.pipeline.peaks_due()
-        if due and self.peaks.submit(pixels, self.pipeline.experiment.radius):
+        if due and self.peaks.submit(pixels, self.pipeline.experiment.fixed_radius):
             self.pipeline.peaks_started()
 
     def _step(self, pixels: np.ndarray, meta: FrameMeta) -> None:

@@ -155,7 +155,7 @@ class MainWindow(ExperimentActions, QMainWindow):
         self._connect()
         self.surface.set_reference(self.experiment.reference)
         self.spectrum.set_model(
-            {p.label: (p.fx, p.fy) for p in self.experiment.peaks}, {}, self.experiment.radius
+            {p.label: (p.fx, p.fy) for p in self.experiment.peaks}, {}, self.experiment.fixed_radius
         )
         self._restore_layout()
 

@@ -247,7 +247,7 @@ def test_peaks_file_and_auto_maps_agree(
     assert status == 0
     fx, fy = evaporation.carriers["RB1"]
     with h5py.File(tmp_path / "file" / "results.h5", "r") as a:
-        radius = str(a.attrs["radius_cpp"])  # the same windows: the same maps
+        radius = str(a["maps/RB1"].attrs["radius_cpp"])  # the same windows: the same maps
     status, _, _ = run_cli(
         [
             "process",
