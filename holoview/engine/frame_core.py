@@ -41,17 +41,19 @@ from holoview.processing.maps.demod_results import DemodResult
 from holoview.processing.maps.demodulate import Demodulator
 from holoview.processing.peaks.detection import Peak
 from holoview.processing.peaks.matched import SurfaceSpectrum, Window
-from holoview.processing.peaks.radii import distinct_neighbours, peak_radii
+from holoview.processing.peaks.radii import distinct_neighbours, peak_radii, peak_windows
 from holoview.processing.series.carrier_probe import CarrierProbe, CarrierValues
 
 logger = logging.getLogger(__name__)
 
 __all__ = [
     "FFT_THREADS",
+    "MATCHING_FRAMES",
     "CarrierCore",
     "Coregistration",
     "FrameCore",
     "fuse_maps",
+    "matching_positions",
     "series_key",
     "trusted_maps",
 ]
@@ -60,6 +62,26 @@ __all__ = [
 #: runs the GUI), and a two-thread FFT whose second thread waits for a busy core took
 #: 450 ms instead of 10 ms per 1024 x 1024 frame.
 FFT_THREADS = 1
+
+
+#: Frames of a run after its first that its windows are matched to (absolute maps).
+MATCHING_FRAMES = 3
+
+
+def matching_positions(reference: str, n: int) -> list[int]:
+    """Positions in a run of ``n`` frames whose maps its windows are matched to.
+
+    Against the run's first frame (position 0): synthetic phases, none (the first frame
+    alone); relative maps, the second frame; absolute maps, :data:`MATCHING_FRAMES`
+    frames spread over the run (a third, two thirds, the last), the changes of the
+    surface from the reference that its maps show.
+    """
+    if reference == "synthetic" or n < 2:
+        return []
+    if reference == "relative":
+        return [1]
+    positions = {max(1, n * k // MATCHING_FRAMES) for k in range(1, MATCHING_FRAMES)}
+    return sorted(positions | {n - 1})
 
 
 def series_key(peaks: Sequence[Peak]) -> tuple:
@@ -207,6 +229,24 @@ class FrameCore:
     def match(self, spectrum: SurfaceSpectrum | None) -> None:
         """Match the windows to ``spectrum`` from the next frame (the maps restart)."""
         self.spectrum = spectrum
+
+    def windows_for(self, spectrum: SurfaceSpectrum) -> tuple[Window, ...] | None:
+        """The windows ``spectrum`` would give the peaks in use (None before a frame)."""
+        demod = self._demod
+        if demod is None:
+            return None
+        carriers = np.array([p.carrier for p in demod.peaks], dtype=np.float64)
+        others = distinct_neighbours(self.frame_shape, carriers, self.neighbours)
+        e = self.experiment
+        return peak_windows(
+            self.frame_shape,
+            carriers,
+            e.radius,
+            others,
+            kind=demod.window,
+            taper=demod.taper,
+            spectrum=spectrum,
+        )
 
     @property
     def demodulator(self) -> Demodulator | None:

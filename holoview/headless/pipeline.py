@@ -246,10 +246,22 @@ def fuse_frame(
     """
     chosen = [maps[j] if s is not None else None for j, s in enumerate(scales)]
     noise = [
-        None if s is None else float(data.noise_rad[position, j]) * abs(s)
+        None if s is None else _expected_error(data, position, j) * abs(s)
         for j, s in enumerate(scales)
     ]
     return fuse_maps(chosen, noise, list(data.phase_steps[position]), data.displacements or None)
+
+
+def _expected_error(data: RunData, position: int, j: int) -> float:
+    """Peak ``j``'s expected map error (rad) at a frame: its noise and its window's cut.
+
+    As :attr:`~holoview.processing.maps.demod_results.PeakResult.error_height`; 0 on a
+    reference frame (plain means).
+    """
+    noise = float(data.noise_rad[position, j])
+    if not noise > 0 or not data.windows:
+        return noise
+    return float(np.hypot(noise, data.windows[j].cut))
 
 
 def make_core(

@@ -26,6 +26,7 @@ from typing import Any
 import numpy as np
 
 from holoview.engine.experiment import Experiment, LabelledPeak
+from holoview.engine.frame_core import matching_positions
 from holoview.errors import InputError
 from holoview.headless.analysis import Analysis, analyse, known_joint
 from holoview.headless.chunks import plan_jobs
@@ -35,6 +36,7 @@ from holoview.headless.inputs import (
     OpticsOptions,
     check_run_settings,
     first_good_frame,
+    frame_problem,
     parse_frame_range,
     resolve_optics,
 )
@@ -56,7 +58,8 @@ from holoview.headless.selection import (
 from holoview.headless.stitch import demodulate_chunks
 from holoview.processing.fourier.spectrum import display_spectrum
 from holoview.processing.peaks.detection import Peak, find_peaks
-from holoview.processing.peaks.matched import measure_spectrum
+from holoview.processing.peaks.matched import SurfaceSpectrum, measure_spectrum
+from holoview.processing.peaks.radii import surface_band
 
 logger = logging.getLogger(__name__)
 
@@ -178,6 +181,36 @@ def _settle(
         radius=experiment.radius,
     )
     return experiment, settings
+
+
+def _matching_spectrum(
+    source: InputFile,
+    frames: range,
+    *,
+    first_index: int,
+    first: np.ndarray,
+    reference: str,
+    background: np.ndarray | None,
+    band: float,
+) -> SurfaceSpectrum:
+    """What a run's windows are matched to: the changes its maps show, the waves detected.
+
+    Against the background, the first frame; else the frames
+    :func:`~holoview.engine.frame_core.matching_positions` names after the first good
+    one, against it. Frames that cannot be used are left out (the first alone when none
+    is left, as for synthetic phases).
+    """
+    if reference != "synthetic" and background is not None:
+        return measure_spectrum(first, background, band=band)
+    start = frames.index(first_index)
+    later = []
+    for position in matching_positions(reference, len(frames) - start):
+        frame = source.read(frames[start + position])
+        if frame_problem(frame) is None:
+            later.append(frame)
+    if not later:
+        return measure_spectrum(first, band=band)
+    return measure_spectrum(later, first, band=band)
 
 
 def choose_peaks(
@@ -323,7 +356,7 @@ def process_file(
         check_run_settings(
             area_m2=settings.area_m2, radius=settings.radius, frame_shape=source.frame_shape
         )
-        _, first = first_good_frame(source, selected)
+        first_index, first = first_good_frame(source, selected)
         background = read_background(settings.background, source)
         detected = find_peaks(first, radius=experiment.fixed_radius, threads=settings.threads)
         selection = choose_peaks(
@@ -346,10 +379,21 @@ def process_file(
             source.saturation,
             detected=detected,
             background=background,
-            spectrum=measure_spectrum(first, threads=settings.threads) if matched else None,
+            spectrum=_matching_spectrum(
+                source,
+                selected,
+                first_index=first_index,
+                first=first,
+                reference=experiment.reference,
+                background=background,
+                band=surface_band(detected),
+            )
+            if matched
+            else None,
         )
         demodulator = core.demodulator
         assert demodulator is not None
+        selection = replace(selection, notes=(*selection.notes, *core.notes))
         logger.info(
             "%s: %d frames, peaks %s (from the %s), window radius %.4f cycles/pixel, maps %s",
             source.path,

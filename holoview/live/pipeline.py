@@ -5,7 +5,10 @@ Per frame: the display spectrum (at most :data:`SPECTRUM_HZ`), peak detection (a
 of the worker's time), the experiment's labels snapped to the detected peaks and the
 model's families added (:func:`holoview.engine.resolve.resolve_peaks`), the
 demodulated map of every peak (:class:`holoview.engine.frame_core.FrameCore`), their
-displacements (measured at most :data:`COREGISTER_HZ`) and the fused map. The
+displacements (measured at most :data:`COREGISTER_HZ`) and the fused map; at each
+detection the windows' match to the surface is checked
+(:class:`holoview.engine.window_matching.WindowMatcher`: matched again when the operator
+asks or the surface's bandwidth changed, with a note shown for :data:`NOTE_SECONDS`). The
 demodulator's peaks (:attr:`LivePipeline.peaks`) go to the series worker, which takes
 every frame (:mod:`holoview.live.trends`). Every number comes from the engine, the same
 code ``holoview process`` runs; this module only decides when to call what, and packs
@@ -31,12 +34,13 @@ from holoview.engine.frame_core import (
     trusted_maps,
 )
 from holoview.engine.resolve import Resolution, resolve_peaks
+from holoview.engine.window_matching import WindowMatcher
 from holoview.errors import InputError
 from holoview.live.continuity import Continuity
 from holoview.processing.fourier.spectrum import display_spectrum
 from holoview.processing.maps.demodulate import Demodulator
 from holoview.processing.peaks.detection import Peak, find_peaks
-from holoview.processing.peaks.radii import window_neighbours
+from holoview.processing.peaks.radii import surface_band, window_neighbours
 
 logger = logging.getLogger(__name__)
 
@@ -53,6 +57,8 @@ SIDE_SHARE = 0.1
 SPECTRUM_DISPLAY_MAX = 512
 #: Highest rate at which maps are added to the displacement estimate, Hz.
 COREGISTER_HZ = 2.0
+#: How long a note that the windows changed stays shown, seconds.
+NOTE_SECONDS = 10.0
 
 Carrier = tuple[float, float]
 
@@ -62,7 +68,8 @@ class LiveResult:
     """Everything the window draws for one processed frame.
 
     Arrays are shared, never modified after publication. Heights in metres, phases
-    in radians, carriers, the largest window radius and each labelled peak's
+    in radians, carriers (``peaks``: the detected peaks that bound windows, not the
+    surface's sidebands), the largest window radius and each labelled peak's
     (``radii``) in cycles per pixel, times in seconds.
     ``shifts_px`` holds the measured displacements ``(dy, dx)`` of the maps against
     the map ``grid_of``, in camera pixels; the fused map is on that map's grid.
@@ -152,10 +159,14 @@ class LivePipeline:
         self._resolution_key: tuple | None = None
         self._resolution = Resolution(peaks=())
         self._continuity = Continuity()
+        self._matcher = WindowMatcher()
+        self._measure_due = False
+        self._window_note: tuple[str, float] | None = None
 
     # ---- commands ----------------------------------------------------------
     def apply(self, name: str, value: object) -> None:
-        """Apply a command: ``experiment`` (new settings) or ``reset``."""
+        """Apply a command: ``experiment`` (new settings), ``reset`` or ``match`` (the
+        windows matched to the surface again at the next frame)."""
         if name == "experiment":
             if not isinstance(value, Experiment):
                 raise InputError(f"experiment command needs an Experiment, not {value!r}")
@@ -165,6 +176,9 @@ class LivePipeline:
                 self._peaks_at = -math.inf  # detect again with the new radius
         elif name == "reset":
             self._core.reset_reference()
+        elif name == "match":
+            self._matcher.request()
+            self._measure_due = True
         else:
             raise InputError(f"unknown command {name!r}")
 
@@ -199,8 +213,9 @@ class LivePipeline:
         self._peaks_cost = cost_s
 
     def set_peaks(self, peaks: list[Peak]) -> None:
-        """Use newly detected peaks from the next frame on."""
+        """Use newly detected peaks from the next frame on (and check the windows' match)."""
         self._peaks = list(peaks)
+        self._measure_due = True
 
     def _detect(self, frame: np.ndarray) -> None:
         tick = time.perf_counter()
@@ -217,6 +232,12 @@ class LivePipeline:
             )
             self._resolution_key = key
         return self._resolution
+
+    def _recent_note(self, now: float) -> tuple[str, ...]:
+        """The note that the windows changed, while it is recent."""
+        if self._window_note is None or now - self._window_note[1] > NOTE_SECONDS:
+            return ()
+        return (self._window_note[0],)
 
     # ---- one frame ---------------------------------------------------------
     def process(self, frame: np.ndarray, meta: FrameMeta) -> LiveResult:
@@ -242,6 +263,12 @@ class LivePipeline:
         self._core.configure(
             self.experiment, resolution.peaks, window_neighbours(self._peaks or [])
         )
+        if self._measure_due:
+            self._measure_due = False
+            note = self._matcher.measure(self._core, frame, surface_band(self._peaks or []))
+            if note is not None:
+                logger.info("%s", note)
+                self._window_note = (note, now)
         demod = self._core.process(frame)
         heights: dict[str, np.ndarray] = {}
         phases: dict[str, np.ndarray] = {}
@@ -263,7 +290,7 @@ class LivePipeline:
                     m if r.delta_h is not None else None
                     for m, r in zip(maps, demod.peaks, strict=True)
                 ],
-                [r.noise_height for r in demod.peaks],
+                [r.error_height for r in demod.peaks],
                 ["phase_step" in r.flags for r in demod.peaks],
                 displacements,
                 method="cubic",
@@ -285,7 +312,7 @@ class LivePipeline:
             t_host=meta.t_host,
             processing_s=time.perf_counter() - start,
             spectrum=self._spectrum,
-            peaks=[p.carrier for p in self._peaks or []],
+            peaks=window_neighbours(self._peaks or []),
             labelled=resolution.labelled,
             predicted=resolution.predicted,
             radius=self._core.radius,
@@ -295,7 +322,7 @@ class LivePipeline:
             phases_rad=phases,
             shifts_px=shifts,
             grid_of=grid_of,
-            notes=resolution.notes,
+            notes=(*resolution.notes, *self._core.notes, *self._recent_note(now)),
             frame_index=meta.index,
             segment=meta.segment,
         )

@@ -148,15 +148,15 @@ def test_bad_sources_show_a_message_and_the_window_stays(qtbot, open_windows, tm
     assert window.session is None and "missing.h5" in window.banner_text
 
 
-def test_radius_that_swallows_a_neighbour_is_refused_in_the_window(
+def test_radius_that_reaches_zero_frequency_is_refused_in_the_window(
     qtbot, open_windows, tmp_path, hologram_file
 ):
     window = _window(qtbot, open_windows, tmp_path, f"replay:{hologram_file}")
     _wait_frames(qtbot, window)
     window.label_peak("RB1", *RB1)
     qtbot.waitUntil(lambda: "RB1" in window.spectrum.labelled, timeout=5000)
-    assert not window.spectrum.request_radius("RB1", 0.3)
-    assert "swallow" in window.banner_text
+    assert not window.spectrum.request_radius("RB1", 0.5)
+    assert "zero frequency" in window.banner_text
     assert window.experiment.radius == 0.05
     _wait_frames(qtbot, window)
 

@@ -68,7 +68,9 @@ from holoview.processing.peaks.radii import (
     check_peaks,
     check_radii,
     distinct_neighbours,
+    peak_name,
     peak_windows,
+    radius_rule,
 )
 
 logger = logging.getLogger(__name__)
@@ -229,8 +231,14 @@ class Demodulator:
         #: each peak's window radius, cycles/pixel
         self.radii = tuple(w.radius for w in self.windows)
         self._overlapping, warnings = check_radii(self.peaks, self.radii, others)
-        #: what the user should know about the windows (a given radius reaching a peak)
-        self.notes: tuple[str, ...] = warnings
+        fallbacks = tuple(
+            f"{peak_name(self.peaks, i)}: {w.reason} ({w.radius:.4g} cycles/pixel)"
+            for i, w in enumerate(self.windows)
+            if spectrum is not None and w.rule == "bound" and radius_rule(radius) == "matched"
+        )
+        #: what the user should know about the windows: a given radius reaching a peak,
+        #: a matched window at the bound for want of measurable surface power
+        self.notes: tuple[str, ...] = warnings + fallbacks
         for line in warnings:
             logger.warning("%s", line)
         #: the largest window radius (cycles/pixel): it sets the box shape
@@ -610,6 +618,7 @@ class Demodulator:
             if offset:
                 phase += np.float32(offset)
         noise = part.noise
+        error = float(np.hypot(noise, self.windows[i].cut)) if noise > 0 else noise
         to_height = None
         if peak.alpha is not None and self.wavelength is not None:
             to_height = self.wavelength / (4 * np.pi * peak.alpha)
@@ -627,4 +636,5 @@ class Demodulator:
             noise_height=None if to_height is None else abs(noise * to_height),
             unwrapped=part.unwrapped,
             flags=frozenset(part.flags),
+            error_height=None if to_height is None else abs(error * to_height),
         )

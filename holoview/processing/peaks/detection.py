@@ -35,7 +35,7 @@ number of peaks.
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -111,6 +111,10 @@ class Peak:
     sideband_of : tuple of float or None
         For a surface sideband (flag ``"surface"``), the carrier it surrounds,
         ``(fx, fy)`` cycles/pixel, on the twin nearest it; else None.
+    sideband_order : int
+        For a surface sideband, 1 at a wave's ``+-q``, 2 at a sum of two, 3 elsewhere
+        in the surface's band (:class:`~holoview.processing.peaks.sidebands.Sideband`);
+        else 0.
     """
 
     carrier: tuple[float, float]
@@ -121,6 +125,7 @@ class Peak:
     alpha: float | None = None
     carrier_error: float | None = None
     sideband_of: tuple[float, float] | None = None
+    sideband_order: int = 0
 
     @property
     def surface_offset(self) -> tuple[float, float] | None:
@@ -442,7 +447,16 @@ def find_peaks(
         amplitude = float(magnitude[ky, kx]) / (gain * dc) if dc > 0 else float("inf")
         found.append(Peak(carrier, amplitude, snr, frozenset(flags)))
     found.sort(key=lambda p: p.amplitude, reverse=True)
-    found = _mark_sidebands(found, (rows, cols))
+
+    def level(point: np.ndarray) -> float:
+        """The amplitude at (x, y), bins: the largest of its 3 x 3 bins, if significant."""
+        kx, ky = int(np.rint(point[0])), int(np.rint(point[1]))
+        near = magnitude[np.ix_(np.arange(ky - 1, ky + 2) % rows, np.arange(kx - 1, kx + 2) % cols)]
+        top = float(near.max())
+        significant = top > 0.5 * threshold * float(background[ky % rows, kx % cols])
+        return top / dc if significant and dc > 0 else 0.0
+
+    found = _mark_sidebands(found, (rows, cols), level)
     if max_peaks is not None:
         found = found[:max_peaks]
     if refine and found:
@@ -452,18 +466,21 @@ def find_peaks(
     return flag_relations(found, (rows, cols), radius=radius)
 
 
-def _mark_sidebands(peaks: list[Peak], shape: tuple[int, int]) -> list[Peak]:
+def _mark_sidebands(
+    peaks: list[Peak], shape: tuple[int, int], level: Callable[[np.ndarray], float]
+) -> list[Peak]:
     """The peaks, those that are the surface's sidebands flagged ``"surface"``."""
     carriers = np.array([p.carrier for p in peaks], dtype=np.float64).reshape(-1, 2)
     amplitudes = np.array([p.amplitude for p in peaks], dtype=np.float64)
     out = list(peaks)
-    for i, sideband in enumerate(surface_sidebands(carriers, amplitudes, shape)):
+    for i, sideband in enumerate(surface_sidebands(carriers, amplitudes, shape, level)):
         if sideband is not None:
             parent = carriers[sideband.parent] * sideband.sign
             out[i] = dataclasses.replace(
                 peaks[i],
                 flags=peaks[i].flags | {"surface"},
                 sideband_of=(float(parent[0]), float(parent[1])),
+                sideband_order=sideband.order,
             )
     return out
 

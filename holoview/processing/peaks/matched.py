@@ -1,42 +1,45 @@
 """A window matched to the surface: per peak, the radius that minimises the expected map error.
 
-The demodulated field of a peak is the spectrum around its carrier times the window
-``W``: a bin of surface power ``P_s`` (its sideband content) costs ``(1 - W)^2 P_s`` of
-map error when the window cuts it, and a bin of noise power ``N`` costs ``W^2 N`` when
-the window passes it (Parseval; the phase is linear in the field for small
-modulations). :func:`matched_window` measures both from one frame's spectrum
-(:func:`measure_spectrum`) and takes, between :data:`MIN_RADIUS_BINS` FFT bins and the
-bound (half the distance to the nearest other term:
-:func:`~holoview.processing.fourier.windows.auto_radii`), the radius of least
-``sum (1 - W)^2 (P - N) + W^2 N`` over the bins within the bound. A bin whose surface
-power stands above the noise is therefore passed: the window never cuts a wave field
-that the spectrum shows above its noise floor.
+A peak's map is the phase of the spectrum around its carrier times the window ``W``,
+against a reference. A window too narrow cuts what the map must show (the change of the
+surface between the frame and the reference, and the surface's discontinuity across
+the frame's periodic seam, which rings into the map when cut); a window too wide passes
+noise (per pixel ``sum W^2`` times the spectrum's noise floor). :func:`matched_window`
+makes the maps of one frame against its reference at a dozen radii from
+:data:`MIN_RADIUS_BINS` FFT bins to the bound (half the distance to the nearest other
+term: :func:`~holoview.processing.fourier.windows.auto_radii`), as the demodulator makes
+them, and estimates each one's error from how it differs from the widest
+(:func:`map_errors`): the cut content is what remains of the difference once the noise
+the widest passes in addition is taken off. It keeps the radius of least error, then
+looks again around it. A change whose power stands above the noise is therefore
+passed: the window never cuts a wave field that the maps show above their noise. What
+a window cuts weighs :data:`CUT_WEIGHT` times its error: it is the same surface content
+missing from every peak's map, which the fused map does not average down as it does
+their noise.
 
-The spectrum is taken through a 4-term Blackman-Harris apodisation (sidelobes 92 dB
-down, main lobe :data:`LOBE_BINS` bins wide): the carrier's own leakage stays inside its
-main lobe instead of spreading as a cross along the axes (a plain FFT's edge
-discontinuity), so what remains around the carrier is the surface's content. Both the
-surface power and the noise are scaled alike by the apodisation: their ratio is the
-frame's.
-
-Without measurable surface power around a carrier (a flat surface: the excess power
-outside the main lobe within :data:`MEASURABLE_SIGMAS` standard errors of zero), the
-radius is the bound, with a note: nothing says how narrow the surface's spectrum is.
+What the map must show is measured on the frames the demodulator itself sees
+(:func:`measure_spectrum`): a frame and the reference the maps are taken against (the
+change), or a frame alone for synthetic phases. Without measurable change around a
+carrier (a flat surface: the excess power of the change outside the carrier's central
+bins within :data:`MEASURABLE_SIGMAS` standard errors of zero), the radius is the
+bound, with a note: nothing says how narrow the surface's spectrum is.
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
+import pyfftw
 
 from holoview.errors import InputError
-from holoview.processing.fourier.fftplans import DEFAULT_THREADS, rfft2_plan
+from holoview.processing.fourier.boxes import BoxGeometry, border_mask, box_geometry, box_shape_for
+from holoview.processing.fourier.fftplans import DEFAULT_THREADS, ifft2_plan, rfft2_plan
 from holoview.processing.fourier.frames import check_frame
-from holoview.processing.fourier.windows import radial_window
 
 __all__ = [
-    "LOBE_BINS",
+    "CENTRE_BINS",
     "MEASURABLE_SIGMAS",
     "SurfaceSpectrum",
     "Window",
@@ -44,21 +47,42 @@ __all__ = [
     "measure_spectrum",
 ]
 
-#: Half width (FFT bins) of the apodisation's main lobe: a carrier's own power.
-LOBE_BINS = 4.0
+#: Radius (FFT bins) of a carrier's central bins: its own power (the peak of a sub-bin
+#: carrier spreads over the bins next to it), and its mean phase change.
+CENTRE_BINS = 2.0
 
 #: Surface power counts as measured when the excess over the noise outside the carrier's
 #: main lobe is this many standard errors of the noise above zero.
 MEASURABLE_SIGMAS = 5.0
 
-#: Step (FFT bins) of the radii tried and of the radial profile.
+#: Step (FFT bins) of the radial profile of the change (the content the reason names).
 STEP_BINS = 0.25
+
+#: Radii tried per peak, twice: spaced in log up to the bound, then around the best.
+CANDIDATES = 12
+
+#: Radii whose expected squared error is within this fraction of the least are as good:
+#: the narrowest of them is kept (chosen by ``benchmarks/bench_windows.py``).
+NEAR_BEST = 0.1
+
+#: What a window cuts counts this many times its squared error when the radius is chosen:
+#: the cut is the same surface content missing from every peak's map, which fusing them
+#: does not average down, as it does their noise.
+CUT_WEIGHT = 2.0
+
+#: A Tukey window passes at least 90 % of the power (``W >= 0.95``) out to ``1 - WAVE_EDGE
+#: taper`` of its radius: the matched radius of a surface with waves seen at ``|q|`` is at
+#: least ``|q| / (1 - WAVE_EDGE taper)``.
+WAVE_EDGE = 0.856
+
+#: Likewise for the other shapes: the fraction of the radius where ``W`` falls to 0.95.
+PASS_FRACTION = {"raised-cosine": 0.144, "top-hat": 1.0}
+
+#: A map pixel is trusted from this fraction of the median amplitude (as the demodulator's).
+MIN_AMPLITUDE = 0.25
 
 #: Smallest matched radius, FFT bins (as the automatic radii's floor).
 MIN_RADIUS_BINS = 4.0
-
-#: Coefficients of the 4-term Blackman-Harris window.
-_BLACKMAN_HARRIS = (0.35875, 0.48829, 0.14128, 0.01168)
 
 #: The rules a window radius is chosen by.
 RULES = ("matched", "bound", "given")
@@ -84,8 +108,11 @@ class Window:
     reason : str
         One line saying why this radius.
     content : float or None
-        Matched: how far from the carrier the surface's power stands above the noise
+        Matched: how far from the carrier the surface's change stands above the noise
         floor (cycles/pixel, in whole annuli); else None.
+    cut : float
+        Matched: the map error (rad rms per trusted pixel) expected of what the window
+        cuts of the change it was matched to; else 0 (not measured).
     """
 
     radius: float
@@ -95,6 +122,7 @@ class Window:
     bound: float
     reason: str
     content: float | None = None
+    cut: float = 0.0
 
     def to_dict(self) -> dict[str, object]:
         """The window as JSON-ready values (``radius_cpp``, ``kind``, ``taper``, ...)."""
@@ -105,43 +133,46 @@ class Window:
             "rule": self.rule,
             "bound_cpp": self.bound,
             "content_cpp": self.content,
+            "cut_rad": self.cut,
             "reason": self.reason,
         }
 
 
-def _apodisation(n: int) -> np.ndarray:
-    phase = 2 * np.pi * np.arange(n) / n
-    a0, a1, a2, a3 = _BLACKMAN_HARRIS
-    return (a0 - a1 * np.cos(phase) + a2 * np.cos(2 * phase) - a3 * np.cos(3 * phase)).astype(
-        np.float32
-    )
-
-
 @dataclass(frozen=True)
 class SurfaceSpectrum:
-    """One frame's apodised power spectrum and noise floor, what windows are matched to.
+    """What windows are matched to: frames' half spectra, their reference's, the noise floor.
 
     Attributes
     ----------
     shape : tuple of int
         Frame shape ``(rows, cols)``.
-    power : ndarray of float32, shape (rows, cols // 2 + 1)
-        ``|S|^2`` of the apodised frame, half spectrum (``rfft2`` layout), counts^2.
+    frames : tuple of ndarray of complex64, shape (rows, cols // 2 + 1)
+        The frames' half spectra (``rfft2`` layout), counts: a run's maps are made of
+        frames like them.
+    reference : ndarray of complex64 or None
+        The reference's (the frame the maps are taken against), same layout; None for
+        synthetic phases.
     floor : float
-        Noise power per bin, counts^2 (the median over the spectrum over ln 2: noise
-        power is exponentially distributed, and peaks cover a few percent of it).
+        Noise power per bin of what a map shows (the change, or the frame), counts^2:
+        the median over the spectrum over ln 2 (noise power is exponentially
+        distributed, and peaks cover a few percent of it).
+    band : float
+        The surface's waves as peak detection saw them, cycles/pixel: the largest
+        offset of a wave's sidebands (:func:`~holoview.processing.peaks.radii.surface_band`;
+        0 when none was seen). Every matched window passes them.
     """
 
     shape: tuple[int, int]
-    power: np.ndarray
+    frames: tuple[np.ndarray, ...]
+    reference: np.ndarray | None
     floor: float
+    band: float = 0.0
 
-    def around(self, carrier: tuple[float, float], radius: float) -> tuple[np.ndarray, np.ndarray]:
-        """Distances (cycles/pixel) and powers of the bins within ``radius`` of ``carrier``.
-
-        The full spectrum's bins, periodic; those of the other half are read from the
-        twin (a real frame's spectrum is Hermitian).
-        """
+    def _bins(
+        self, carrier: tuple[float, float], radius: float
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Distances (cycles/pixel), half-spectrum rows, columns and conjugation of the bins
+        within ``radius`` of ``carrier`` (the other half read from the twin)."""
         rows, cols = self.shape
         fx, fy = float(carrier[0]), float(carrier[1])
         kx = np.arange(int(np.floor((fx - radius) * cols)), int(np.ceil((fx + radius) * cols)) + 1)
@@ -152,33 +183,162 @@ class SurfaceSpectrum:
         mirrored = xx > cols // 2
         yy = np.where(mirrored, (-yy) % rows, yy)
         xx = np.where(mirrored, cols - xx, xx)
-        return rho[inside], self.power[yy[inside], xx[inside]].astype(np.float64)
+        return rho[inside], yy[inside], xx[inside], mirrored[inside]
+
+    def around(self, carrier: tuple[float, float], radius: float) -> tuple[np.ndarray, np.ndarray]:
+        """Distances (cycles/pixel) and powers (counts^2) of the maps' content near a carrier.
+
+        The bins within ``radius`` of ``carrier``: ``|S - exp(i phi) S_ref|^2`` with the
+        carrier's mean phase change ``phi`` (module documentation), or ``|S|^2``,
+        averaged over the frames.
+        """
+        rho, yy, xx, mirrored = self._bins(carrier, radius)
+        rows, cols = self.shape
+        centre = rho <= CENTRE_BINS / max(rows, cols)
+        ref = None
+        if self.reference is not None:
+            ref = self.reference[yy, xx].astype(np.complex128)
+            ref = np.where(mirrored, np.conj(ref), ref)
+        power = np.zeros(rho.shape)
+        for frame in self.frames:
+            value = frame[yy, xx].astype(np.complex128)
+            value = np.where(mirrored, np.conj(value), value)
+            if ref is not None:
+                turn = np.sum(value[centre] * np.conj(ref[centre]))
+                value = value - (turn / abs(turn) if abs(turn) > 0 else 1.0) * ref
+            power += value.real**2 + value.imag**2
+        return rho, power / len(self.frames)
 
 
-def measure_spectrum(frame: np.ndarray, *, threads: int | None = None) -> SurfaceSpectrum:
-    """Return the apodised power spectrum and noise floor of one frame (module documentation).
+def _half_spectrum(frame: np.ndarray, threads: int | None) -> np.ndarray:
+    array = check_frame(frame)
+    plan = rfft2_plan(array.shape, threads=threads or DEFAULT_THREADS)
+    np.copyto(plan.input_array, array, casting="unsafe")
+    plan()
+    return plan.output_array.copy()
+
+
+def measure_spectrum(
+    frames: np.ndarray | Sequence[np.ndarray],
+    reference: np.ndarray | None = None,
+    *,
+    band: float = 0.0,
+    threads: int | None = None,
+) -> SurfaceSpectrum:
+    """Return what windows are matched to (module documentation).
 
     Parameters
     ----------
-    frame : ndarray, shape (rows, cols)
-        A hologram (counts); not modified.
+    frames : ndarray, shape (rows, cols), or sequence of them
+        Holograms (counts; not modified) whose maps the windows are to serve: for a run
+        against its first frame, a few frames spread over it.
+    reference : ndarray, optional
+        The hologram the maps are taken against (the run's first frame, the background),
+        same shape; None for synthetic phases.
+    band : float
+        The surface's waves seen by peak detection, cycles/pixel
+        (:attr:`SurfaceSpectrum.band`).
     threads : int, optional
         FFTW threads.
+
+    Raises
+    ------
+    InputError
+        For no frame, frames of different shapes, or spectra without a noise floor.
     """
-    array = check_frame(frame)
-    rows, cols = array.shape
-    plan = rfft2_plan(array.shape, threads=threads or DEFAULT_THREADS)
-    buffer = plan.input_array
-    mean = float(np.mean(array, dtype=np.float64))
-    np.subtract(array, np.float32(mean), out=buffer, casting="unsafe")
-    buffer *= np.outer(_apodisation(rows), _apodisation(cols))
-    plan()
-    half = plan.output_array
-    power = (half.real * half.real + half.imag * half.imag).astype(np.float32)
-    floor = float(np.median(power[::2, 1::2])) / np.log(2)
+    arrays = [frames] if isinstance(frames, np.ndarray) else list(frames)
+    if not arrays:
+        raise InputError("no frame to match the windows to")
+    shape = (int(np.shape(arrays[0])[0]), int(np.shape(arrays[0])[1]))
+    if any(np.shape(a) != shape for a in arrays) or (
+        reference is not None and np.shape(reference) != shape
+    ):
+        raise InputError("the frames the windows are matched to differ in shape")
+    halves = tuple(_half_spectrum(a, threads) for a in arrays)
+    other = None if reference is None else _half_spectrum(reference, threads)
+    change = halves[0] if other is None else halves[0] - other
+    sample = change[::2, 1::2]
+    floor = float(np.median(sample.real**2 + sample.imag**2)) / np.log(2)
     if not (np.isfinite(floor) and floor > 0):
-        raise InputError("the frame's spectrum has no noise floor (a constant or non-finite frame)")
-    return SurfaceSpectrum((rows, cols), power, floor)
+        raise InputError("the spectrum has no noise floor (constant, equal or non-finite frames)")
+    return SurfaceSpectrum(shape, halves, other, floor, float(band))
+
+
+def _field(flat: np.ndarray, geo: BoxGeometry, plan: pyfftw.FFTW) -> np.ndarray:
+    """A peak's field (counts, box resolution) from a half spectrum: cut, window, invert."""
+    box = plan.input_array.reshape(-1)
+    np.take(flat, geo.index, out=box)
+    pairs = box.view(np.float32)
+    np.multiply(pairs, geo.weights, out=pairs)
+    plan.execute()
+    return plan.output_array.astype(np.complex128)
+
+
+def map_errors(
+    spectrum: SurfaceSpectrum,
+    carrier: tuple[float, float],
+    radii: np.ndarray,
+    *,
+    kind: str,
+    taper: float,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Expected squared map error and its noise (rad^2 per trusted pixel) at each radius.
+
+    The last radius is the largest. The maps of every frame at every radius are made
+    as the demodulator makes them (on the box of the largest radius), each on its own
+    trusted pixels (amplitude, border). Against the map of the largest radius ``B``,
+    the map of radius ``r`` differs by what ``r`` cuts and by the noise of the bins
+    ``B`` passes and ``r`` does not: ``D_r = c_r^2 + n^2 sum (W_B - W_r)^2``; its error
+    is ``c_r^2 + n^2 sum W_r^2``, ``n^2`` the phase noise per unit of window from the
+    spectrum's noise floor; averaged over the frames. What the largest radius cuts is
+    not seen (it is the same for all).
+    """
+    rows, cols = spectrum.shape
+    size = float(rows * cols)
+    box_shape = box_shape_for(spectrum.shape, float(radii[-1]))
+    plan = ifft2_plan(box_shape)
+    geos = [
+        box_geometry(
+            spectrum.shape, box_shape, carrier=carrier, kind=kind, radius=float(r), taper=taper
+        )
+        for r in radii
+    ]
+    weights = [np.abs(geo.weights[0::2]).astype(np.float64) * size for geo in geos]
+    passed = np.array([float(np.sum(w * w)) for w in weights])
+    extra = np.array([float(np.sum((weights[-1] - w) ** 2)) for w in weights])
+    borders = [border_mask(box_shape, spectrum.shape, float(r)) for r in radii]
+    reference = None if spectrum.reference is None else spectrum.reference.reshape(-1)
+    references = (
+        [np.conj(_field(reference, geo, plan)) for geo in geos] if reference is not None else None
+    )
+    total = np.zeros(len(radii))
+    noise = np.zeros(len(radii))
+    for half in spectrum.frames:
+        flat = half.reshape(-1)
+        products = [_field(flat, geo, plan) for geo in geos]
+        magnitude = np.abs(products[-1])
+        valid = magnitude >= MIN_AMPLITUDE * float(np.median(magnitude))
+        if not valid.any():
+            continue
+        if references is not None:
+            products = [p * ref for p, ref in zip(products, references, strict=True)]
+        # phase noise per unit of sum W^2: floor / (2 size^2 |f|^2), averaged over pixels
+        unit = spectrum.floor * float(np.mean(1.0 / magnitude[valid] ** 2)) / (2.0 * size * size)
+        noise += unit * passed
+        for j, product in enumerate(products):
+            trusted = valid & borders[j]
+            if not trusted.any():
+                total[j] = np.inf
+                continue
+            step = np.angle(product[trusted] * np.conj(products[-1][trusted]))
+            total[j] += max(float(np.var(step)) - unit * extra[j], 0.0) + unit * passed[j]
+    count = len(spectrum.frames)
+    return total / count, noise / count
+
+
+def _weighed(errors: np.ndarray, noise: np.ndarray) -> np.ndarray:
+    """What a radius is chosen by: the noise, and :data:`CUT_WEIGHT` times what it cuts."""
+    return noise + CUT_WEIGHT * (errors - noise)
 
 
 def matched_window(
@@ -194,7 +354,7 @@ def matched_window(
     Parameters
     ----------
     spectrum : SurfaceSpectrum
-        The frame's apodised power spectrum (:func:`measure_spectrum`).
+        The spectra the map is made of (:func:`measure_spectrum`).
     carrier : tuple of float
         ``(fx, fy)``, cycles/pixel.
     bound : float
@@ -205,8 +365,11 @@ def matched_window(
     Returns
     -------
     Window
-        Rule ``"matched"``; the bound (rule ``"bound"``, with the reason) where the
-        spectrum shows no measurable surface power around the carrier.
+        Rule ``"matched"``: the radius of least :func:`map_errors` (what it cuts weighed
+        :data:`CUT_WEIGHT` times) among :data:`CANDIDATES` radii spaced evenly in log
+        between :data:`MIN_RADIUS_BINS` bins and the bound, then as many around the best,
+        the narrowest within :data:`NEAR_BEST` of the least; the bound (rule ``"bound"``, with
+        the reason) where the spectra show no measurable change around the carrier.
     """
     rows, cols = spectrum.shape
     per_bin = 1.0 / max(rows, cols)  # cycles/pixel of one bin along the finer axis
@@ -216,9 +379,9 @@ def matched_window(
     rho, power = spectrum.around(carrier, bound)
     noise = spectrum.floor
     excess = power - noise
-    lobe = rho > LOBE_BINS * per_bin
-    outside = int(np.count_nonzero(lobe))
-    measured = float(excess[lobe].sum())
+    beyond = rho > CENTRE_BINS * per_bin
+    outside = int(np.count_nonzero(beyond))
+    measured = float(excess[beyond].sum())
     if outside == 0 or measured <= MEASURABLE_SIGMAS * noise * np.sqrt(outside):
         return Window(
             bound,
@@ -226,24 +389,37 @@ def matched_window(
             taper,
             "bound",
             bound,
-            "no measurable surface power around the carrier: the bound",
+            "no measurable change of the surface around the carrier: the bound",
         )
+    coarse = np.geomspace(smallest, bound, CANDIDATES)
+    errors, errors_noise = map_errors(spectrum, carrier, coarse, kind=kind, taper=taper)
+    best = int(np.argmin(_weighed(errors, errors_noise)))
+    low, high = coarse[max(best - 1, 0)], coarse[min(best + 1, len(coarse) - 1)]
+    fine = np.append(np.linspace(low, high, CANDIDATES), bound)
+    fine_errors, fine_noise = map_errors(spectrum, carrier, fine, kind=kind, taper=taper)
+    weighed = _weighed(fine_errors, fine_noise)
+    # the narrowest of the radii as good as the best: the estimate of what a radius cuts
+    # is measured against the widest map, whose own errors it takes for cuts of the
+    # narrower ones (a flat minimum drifts wide)
+    least = float(np.min(weighed))
+    chosen = int(np.flatnonzero(weighed <= least + NEAR_BEST * abs(least)).min())
+    radius = float(fine[chosen])
+    cut = float(np.sqrt(max(fine_errors[chosen] - fine_noise[chosen], 0.0)))
+    waves = min(bound, spectrum.band / (1.0 - WAVE_EDGE * taper)) if kind == "tukey" else 0.0
+    if spectrum.band > 0 and kind != "tukey":
+        waves = min(bound, spectrum.band / PASS_FRACTION[kind])
+    radius = max(radius, waves)
     step = STEP_BINS * per_bin
     edges = np.arange(0.0, bound + step, step)
     which = np.minimum(np.searchsorted(edges, rho, side="right") - 1, len(edges) - 2)
     signal = np.bincount(which, weights=excess, minlength=len(edges) - 1)
     count = np.bincount(which, minlength=len(edges) - 1).astype(np.float64)
-    centres = edges[:-1] + step / 2
-    radii = np.arange(smallest, bound, step)
-    radii = np.append(radii, bound)
-    w = np.stack([radial_window(kind, centres, r, taper=taper) for r in radii])
-    error = ((1.0 - w) ** 2 * signal + w**2 * count * noise).sum(axis=1)
-    best = int(np.argmin(error))
     above = np.flatnonzero(signal > count * noise)
     content = float(edges[above[-1] + 1]) if above.size else 0.0
-    radius = float(radii[best])
     reason = (
-        f"matched: the surface's power stands above the noise out to {content:.4f} "
-        f"cycles/pixel; the bound is {bound:.4f}"
+        f"matched: least expected map error; the surface's change stands above the noise "
+        f"out to {content:.4f} cycles/pixel, the bound is {bound:.4f}"
     )
-    return Window(radius, kind, taper, "matched", bound, reason, content)
+    if waves and radius == waves:
+        reason += f"; widened to pass the waves detected (|q| up to {spectrum.band:.4f})"
+    return Window(radius, kind, taper, "matched", bound, reason, content, cut)

@@ -37,6 +37,7 @@ __all__ = [
     "peak_radii",
     "peak_windows",
     "radius_rule",
+    "surface_band",
     "window_neighbours",
 ]
 
@@ -74,6 +75,16 @@ def radius_rule(radius: Radius) -> str:
     if not (np.isfinite(radius) and radius > 0):
         raise InputError(f"window radius must be > 0 cycles/pixel, got {radius}")
     return "given"
+
+
+def surface_band(detected: Sequence[Peak]) -> float:
+    """The surface's waves as detection saw them: the largest first-order sideband offset.
+
+    Returns ``max |q|`` (cycles/pixel) over the detected sidebands at a wave's ``+-q``
+    (:attr:`~holoview.processing.peaks.detection.Peak.sideband_order` 1); 0 without.
+    """
+    offsets = [p.surface_offset for p in detected if p.sideband_order == 1]
+    return max((float(np.hypot(*q)) for q in offsets if q is not None), default=0.0)
 
 
 def window_neighbours(detected: Sequence[Peak]) -> list[tuple[float, float]]:

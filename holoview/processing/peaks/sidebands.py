@@ -10,8 +10,9 @@ passed by the carrier's window: never a neighbour that shrinks it, never a peak 
 :func:`surface_sidebands` recognises them among detected peaks, from positions and
 amplitudes alone (one frame):
 
-1. a *pair*: a peak ``b`` at ``a + q`` and another ``b'`` at ``a - q`` around a
-   brighter peak ``a`` (either twin), both at most :data:`MAX_SIDEBAND_RATIO` of ``a``,
+1. a *pair*: a peak ``b`` at ``a + q`` and another ``b'`` at ``a - q`` (detected, or
+   significant in the spectrum there) around a brighter peak ``a`` (either twin), both
+   at most :data:`MAX_SIDEBAND_RATIO` of ``a``,
    their amplitudes within :data:`PAIR_RATIO` of each other, ``|q|`` at least
    :data:`MIN_OFFSET_BINS` bins and not itself a detected carrier (lattice offsets are:
    ``f_FB1``, ``f_RF``, ...);
@@ -21,7 +22,11 @@ amplitudes alone (one frame):
    lattice line ``-RF, RB1, RB2`` is the same pattern, spaced a whole lattice vector);
 3. then every peak at ``c + q``, ``c - q`` or ``c +- (q1 +- q2)`` (second order) of a
    carrier ``c`` that is not itself a sideband, at most :data:`MAX_SIDEBAND_RATIO` of
-   ``c``, is a sideband of ``c``.
+   ``c``, is a sideband of ``c``;
+4. and so is every other peak weaker than ``c`` within the surface's band around it,
+   :data:`BAND_FACTOR` times the largest offset found: a strongly modulated carrier
+   has sidebands at sums of offsets, some too close to it to be told apart, and
+   beyond a modulation of 1.4 rad they outshine it (``J1 > J0``).
 
 A lattice point is never a sideband: naming (:mod:`holoview.processing.naming`) overrules
 this by position when it places a peak on the lattice.
@@ -29,6 +34,7 @@ this by position when it places a peak on the lattice.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -65,8 +71,14 @@ SPAN = 0.5
 #: Largest ``|q|`` of an offset seen around one carrier only, likewise.
 SINGLE_SPAN = 0.25
 
+#: The surface's band around a carrier: this many times its largest offset found.
+BAND_FACTOR = 2.0
+
 #: The brightest peaks that may be carriers of sidebands.
 MAX_PARENTS = 32
+
+#: The spectrum's amplitude at a point ``(x, y)`` in FFT bins (0: nothing significant).
+Level = Callable[[np.ndarray], float]
 
 
 @dataclass(frozen=True)
@@ -82,7 +94,8 @@ class Sideband:
     offset : tuple of float
         ``q = carrier - sign * parent carrier``, cycles/pixel (wrapped).
     order : int
-        1 for ``+-q``, 2 for a sum or difference of two offsets.
+        1 for ``+-q``, 2 for a sum or difference of two offsets, 3 for another peak
+        inside the surface's band.
     """
 
     parent: int
@@ -131,7 +144,10 @@ class _Pair:
 
 
 def surface_sidebands(
-    carriers: np.ndarray, amplitudes: np.ndarray, shape: tuple[int, int]
+    carriers: np.ndarray,
+    amplitudes: np.ndarray,
+    shape: tuple[int, int],
+    level: Level | None = None,
 ) -> list[Sideband | None]:
     """Return, per peak, the :class:`Sideband` it is, or None for a peak of its own.
 
@@ -143,6 +159,10 @@ def surface_sidebands(
         Their amplitudes (relative to the mean intensity).
     shape : tuple of int
         Frame shape ``(rows, cols)``.
+    level : callable, optional
+        The spectrum's amplitude (as ``amplitudes``) at a point ``(x, y)`` in FFT bins,
+        0 where nothing significant is there: a pair's other sideband that the
+        detection missed (its neighbourhood raised its background) still counts.
 
     Returns
     -------
@@ -157,7 +177,7 @@ def surface_sidebands(
     box = np.array([shape[1], shape[0]], dtype=np.float64)
     where = _Points(points * box, box)
     parents = np.argsort(-amp, kind="stable")[:MAX_PARENTS]
-    groups = _groups(_pairs(where, amp, parents))
+    groups = _groups(_pairs(where, amp, parents, level))
     offsets: list[np.ndarray] = []
     while True:  # a confirmed offset's sidebands no longer hem in the others
         explained = np.array([s is not None for s in _classify(where, amp, parents, offsets)])
@@ -168,7 +188,35 @@ def surface_sidebands(
         groups = [g for g in groups if not any(g[0].q is q for q in found)]
     if not offsets:
         return out
-    return _classify(where, amp, parents, offsets, second_order=True)
+    out = _classify(where, amp, parents, offsets, second_order=True)
+    return _in_band(where, amp, parents, offsets, out)
+
+
+def _in_band(
+    where: _Points,
+    amp: np.ndarray,
+    parents: np.ndarray,
+    offsets: list[np.ndarray],
+    out: list[Sideband | None],
+) -> list[Sideband | None]:
+    """Rule 4 of the module documentation: weak peaks inside the surface's band of a carrier."""
+    band = BAND_FACTOR * max(float(np.hypot(*q)) for q in offsets) + TOLERANCE_BINS
+    box = where.box
+    for a in parents:
+        if out[a] is not None:
+            continue
+        for sign in (1, -1):
+            delta = _wrap(where.signed - sign * where.bins[a], box)
+            distance = np.hypot(delta[:, 0], delta[:, 1])
+            for k in np.flatnonzero((distance <= band) & (distance >= MIN_OFFSET_BINS)):
+                b, twin = where.peak(int(k))
+                if b == a or out[b] is not None or amp[b] > amp[a]:
+                    continue
+                q = _wrap(where.bins[b] - twin * sign * where.bins[a], box)
+                out[b] = Sideband(
+                    int(a), twin * sign, (float(q[0] / box[0]), float(q[1] / box[1])), 3
+                )
+    return out
 
 
 def _classify(
@@ -212,9 +260,11 @@ def _classify(
     return out
 
 
-def _pairs(where: _Points, amp: np.ndarray, parents: np.ndarray) -> list[_Pair]:
+def _pairs(
+    where: _Points, amp: np.ndarray, parents: np.ndarray, level: Level | None
+) -> list[_Pair]:
     """Every sideband pair around a parent (rule 1 of the module documentation)."""
-    box, n = where.box, where.n
+    box = where.box
     found = []
     for a in parents:
         limit = MAX_SIDEBAND_RATIO * amp[a]
@@ -231,16 +281,16 @@ def _pairs(where: _Points, amp: np.ndarray, parents: np.ndarray) -> list[_Pair]:
                 b = int(members[j])
                 if not far[j]:
                     continue
-                for k in near:
-                    mirror = k % n
-                    if mirror in (a, b) or amp[mirror] > limit:
-                        continue
-                    if max(amp[mirror], amp[b]) > PAIR_RATIO * min(amp[mirror], amp[b]):
-                        continue
-                    if where.near(q[j])[0] or where.near(-q[j])[0]:
-                        break  # q is a detected peak's carrier: a lattice offset
-                    found.append(_Pair(int(a), sign, q[j], float(max(amp[b], amp[mirror]))))
-                    break
+                mirror = next((amp[k % where.n] for k in near if k % where.n not in (a, b)), None)
+                if mirror is None and level is not None:  # not detected: the spectrum there
+                    mirror = level(centre - q[j]) or None
+                if mirror is None or mirror > limit:
+                    continue
+                if max(mirror, amp[b]) > PAIR_RATIO * min(mirror, amp[b]):
+                    continue
+                if where.near(q[j])[0] or where.near(-q[j])[0]:
+                    continue  # q is a detected peak's carrier: a lattice offset
+                found.append(_Pair(int(a), sign, q[j], float(max(amp[b], mirror))))
     return found
 
 
