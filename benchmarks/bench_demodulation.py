@@ -15,7 +15,7 @@ Prints, with the machine (CPU model, cores, load average), medians and best over
    inverse FFT per peak, ``np.angle``) and the ratio;
 4. unwrapping with 4 peaks on 256 x 256 boxes, milliseconds per frame;
 5. the rms error of RB1's delta-h and of the fused map on simulated frames, beside the
-   shot-noise bound of DESIGN.md;
+   shot-noise bound of docs/design.md;
 6. co-registration on the optics simulator (each family images the surface shifted,
    paper section 2): the displacements measured from the maps beside the model's, and
    the fused map's error with and without co-registration, beside RB1's alone;
@@ -477,9 +477,7 @@ def main(argv: list[str] | None = None) -> int:
             estimates[r.peak.label].append(r.noise_height)
         fused, _ = fuse(maps, noises)
         fused_errors.append(float(np.sqrt(np.mean((fused - sign * truth) ** 2))))
-    print(
-        "(bound: sqrt(2) x sqrt(eta / (2 N)) / A in phase, two frames per relative map, DESIGN.md)"
-    )
+    print("(bound: sqrt(2) x sqrt(eta / (2 N)) / A in phase, two frames a map, docs/design.md)")
     for label, errs in errors.items():
         rms = float(np.sqrt(np.mean(np.square(errs))))
         bound = bounds[label]

@@ -11,6 +11,9 @@ acquire
     Camera sources, the frame ring, the HDF5 recording format and recorder.
 ui
     The Qt interface (the only package that imports Qt).
+api
+    The commands as Python functions: simulate, open a recording (lazy frames), process,
+    open results as xarray, export (no Qt).
 """
 
 __version__ = "0.1.0"

@@ -12,7 +12,9 @@ outright (SIGKILL, a power cut) can leave a temporary file behind, and its name 
 what it is.
 
 :func:`atomic_path` does this for one file; :class:`OutputSet` for the files of one
-run, renamed one after the other once every one of them is complete.
+run, renamed one after the other once every one of them is complete;
+:func:`atomic_folder` for an output that is a folder (``export``'s Zarr stores and
+TIFF stacks).
 
 Recordings are not written this way: they stay at their own path, readable while
 they are written (:mod:`holoview.acquire.recording`).
@@ -24,6 +26,7 @@ import contextlib
 import logging
 import os
 import secrets
+import shutil
 from collections.abc import Iterator
 from pathlib import Path
 from types import TracebackType
@@ -102,8 +105,12 @@ def atomic_path(target: str | os.PathLike[str]) -> Iterator[Path]:
 
     Examples
     --------
-    >>> with atomic_path(folder / "figure.png") as path:  # doctest: +SKIP
-    ...     cv2.imwrite(str(path), image)
+    >>> import tempfile
+    >>> folder = Path(tempfile.mkdtemp())
+    >>> with atomic_path(folder / "notes.txt") as path:
+    ...     _ = path.write_text("done")
+    >>> sorted(p.name for p in folder.iterdir())  # the temporary is gone
+    ['notes.txt']
     """
     final = Path(target)
     temporary = temporary_path(final)
@@ -178,3 +185,50 @@ class OutputSet:
         tb: TracebackType | None,
     ) -> None:
         self.discard()
+
+
+@contextlib.contextmanager
+def atomic_folder(target: str | os.PathLike[str], *, replace: bool = False) -> Iterator[Path]:
+    """Yield a temporary folder to fill; rename it to ``target`` when the block completes.
+
+    For outputs that are folders (a Zarr store, a set of TIFF stacks). If the block
+    raises (or is interrupted), the temporary folder is removed and ``target`` stays as
+    it was. With ``replace``, an existing ``target`` is moved aside, the new folder
+    renamed in, and the old one removed: between the two renames ``target`` is briefly
+    absent (folders cannot be swapped in one step), never half-written.
+
+    Raises
+    ------
+    OutputError
+        ``target`` exists and ``replace`` is False, or a rename failed.
+    """
+    final = Path(target)
+    if final.exists() and not replace:
+        raise OutputError(f"cannot write {final}: it exists")
+    temporary = temporary_path(final)
+    try:
+        temporary.mkdir()
+    except OSError as exc:
+        raise OutputError(f"cannot write {final}: {os_error_text(exc)}") from exc
+    try:
+        yield temporary
+    except BaseException:
+        shutil.rmtree(temporary, ignore_errors=True)
+        raise
+    old = temporary_path(final) if final.exists() else None
+    try:
+        for path in sorted(temporary.rglob("*")):
+            if path.is_file():
+                _sync_file(path)
+        _sync_folder(temporary)
+        if old is not None:
+            os.replace(final, old)
+        os.replace(temporary, final)
+    except OSError as exc:
+        if old is not None and old.exists() and not final.exists():
+            os.replace(old, final)
+        shutil.rmtree(temporary, ignore_errors=True)
+        raise OutputError(f"cannot write {final}: {os_error_text(exc)}") from exc
+    _sync_folder(final.parent)
+    if old is not None:
+        shutil.rmtree(old, ignore_errors=True)

@@ -88,7 +88,7 @@ def finite_number(name: str, value: Any) -> float:
     """
     try:
         number = float(value)
-    except (TypeError, ValueError) as exc:
+    except (TypeError, ValueError, OverflowError) as exc:
         raise InputError(f"{name} must be a number, got {value!r}") from exc
     if not math.isfinite(number):
         raise InputError(f"{name} must be finite, got {value!r}")

@@ -44,7 +44,7 @@ def test_waves_recording_with_truth_and_figure(tmp_path: Path) -> None:
         np.testing.assert_allclose(truth["families/carrier_cpp"][row], families["RB1"].carrier)
         assert truth["families/alpha"][row] == pytest.approx(1.377 - setup.n1)
     image = cv2.imread(str(png))
-    assert image is not None and image.shape[0] == 512 and image.shape[1] == 2 * 512 + 8
+    assert image is not None and image.shape[1] == 1366 and image.shape[0] == 640
 
 
 def test_uniform_scenarios_have_no_height_maps(tmp_path: Path) -> None:

@@ -226,7 +226,7 @@ class AravisSource(Source):
         except _glib_error() as exc:
             if self._control_lost.is_set():
                 raise CameraDisconnectedError(f"{self.name} stopped answering: {exc}") from exc
-            raise UnsupportedFeatureError(f"{self.name}: {exc.message}") from exc
+            raise UnsupportedFeatureError(f"{self.name}: {getattr(exc, 'message', exc)}") from exc
 
     def _read_format(self) -> None:
         region = self._camera.get_region()

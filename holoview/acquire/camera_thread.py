@@ -16,7 +16,7 @@ import threading
 import time
 
 from holoview.acquire.ring import FrameRing
-from holoview.acquire.source import EndOfStream, Source
+from holoview.acquire.source import AcquisitionError, EndOfStream, Source
 from holoview.errors import HoloviewError, InputError
 
 logger = logging.getLogger(__name__)
@@ -126,6 +126,12 @@ class CameraThread:
                 self._pass_on_losses()
                 if frame is None:
                     continue
+                if frame.data.shape != ring.frame_shape or frame.data.dtype != ring.dtype:
+                    raise AcquisitionError(
+                        f"{source.name} delivered a {frame.data.shape} {frame.data.dtype} frame "
+                        f"where the stream began with {ring.frame_shape} {ring.dtype}: "
+                        "restart the stream after changing the region or pixel format"
+                    )
                 ring.put(frame.data, frame.meta)
                 self._frames += 1
                 self._times.append(time.monotonic())

@@ -72,17 +72,20 @@ def write_attributes(group: h5py.Group, values: Mapping[str, object] | None) -> 
         units_group.attrs[name] = unit
 
 
-def read_attributes(group: h5py.Group | None) -> tuple[dict[str, Any], dict[str, str]]:
-    """Return (values, units) from a group written by :func:`_write_attributes`."""
+def read_attributes(
+    group: h5py.Group | None, units_group: h5py.Group | None
+) -> tuple[dict[str, Any], dict[str, str]]:
+    """Return (values, units) from a group written by :func:`write_attributes`.
+
+    ``units_group`` is its ``units`` subgroup (None where it has none), opened by the
+    caller (:func:`holoview.acquire.hdf5_members.open_member`).
+    """
     if group is None:
         return {}, {}
     values = {name: plain_value(value) for name, value in group.attrs.items()}
-    units_group = group.get("units")
-    units = (
-        {name: str(plain_value(unit)) for name, unit in units_group.attrs.items()}
-        if isinstance(units_group, h5py.Group)
-        else {}
-    )
+    units = {}
+    if units_group is not None:
+        units = {name: str(plain_value(unit)) for name, unit in units_group.attrs.items()}
     return values, units
 
 

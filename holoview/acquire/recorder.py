@@ -4,7 +4,9 @@ It reads the ring as an ``"every"`` consumer, so it gets every frame in order an
 counts exactly the frames the ring overwrote before it could write them. It
 flushes the file at least every ``flush_interval_s`` of the writer, also when no
 frame comes. It stops when the ring closes (after writing what remains), once it
-has written ``max_frames``, on :meth:`Recorder.stop`, or on a write error (kept in
+has written ``max_frames`` or ``max_seconds`` have passed since it started (frames
+that arrived before are written, whenever the thread gets to them; no caller needs
+to poll), on :meth:`Recorder.stop`, or on a write error (kept in
 :attr:`Recorder.error`: a full disk, an I/O error); in every case it closes the
 file, so everything written stays readable, also by plain h5py. After a write
 error :meth:`Recorder.accounting` counts the frames the camera went on acquiring
@@ -14,9 +16,11 @@ as lost to the disk: every frame acquired is recorded, dropped or lost.
 from __future__ import annotations
 
 import logging
+import math
 import os
 import queue
 import threading
+import time
 from collections.abc import Mapping
 from typing import NamedTuple
 
@@ -24,7 +28,7 @@ import numpy as np
 
 from holoview.acquire.pixel_formats import PIXEL_FORMATS
 from holoview.acquire.recording import RecordingWriteError, RecordingWriter
-from holoview.acquire.ring import CLOSED, FrameRing, RingStatus
+from holoview.acquire.ring import FrameRing, RingStatus
 from holoview.acquire.source import Source
 from holoview.errors import InputError
 
@@ -78,14 +82,25 @@ class Recorder:
         An open writer whose frame shape and dtype are the ring's.
     max_frames : int, optional
         Stop after writing this many frames (None: until stopped or the ring closes).
+    max_seconds : float, optional
+        Record the frames that arrive within this many seconds of :meth:`start` (by
+        their host arrival time), then stop (None: no time limit).
     """
 
     def __init__(
-        self, ring: FrameRing, writer: RecordingWriter, *, max_frames: int | None = None
+        self,
+        ring: FrameRing,
+        writer: RecordingWriter,
+        *,
+        max_frames: int | None = None,
+        max_seconds: float | None = None,
     ) -> None:
         if max_frames is not None and max_frames < 1:
             writer.close()
             raise InputError(f"max_frames must be at least 1, got {max_frames}")
+        if max_seconds is not None and not (math.isfinite(max_seconds) and max_seconds > 0):
+            writer.close()
+            raise InputError(f"max_seconds must be positive, got {max_seconds}")
         if writer.frame_shape != ring.frame_shape or writer.dtype != ring.dtype:
             writer.close()
             raise InputError(
@@ -95,10 +110,14 @@ class Recorder:
         self.ring = ring
         self.writer = writer
         self.max_frames = max_frames
+        self.max_seconds = max_seconds
+        self._deadline = math.inf  # host time (UNIX epoch, s) past which frames are not recorded
         self._consumer = ring.consumer("recorder", mode="every")
         #: The error that ended recording early, or None.
         self.error: BaseException | None = None
         self._dropped_at_end: int | None = None
+        self._acquired_at_limit: int | None = None  # a limit ended it: later frames not counted
+        self._span = [math.nan, math.nan]  # monotonic start and end of the thread, s
         self._stop = threading.Event()
         self._stop_at = 0  # with drain, the ring position to record up to before stopping
         self._experiments: queue.SimpleQueue[str] = queue.SimpleQueue()
@@ -113,6 +132,7 @@ class Recorder:
         *,
         setup: Mapping[str, object] | None = None,
         max_frames: int | None = None,
+        max_seconds: float | None = None,
         experiment: str | None = None,
     ) -> Recorder:
         """Return a recorder to a new file at ``path`` that describes ``source``.
@@ -121,7 +141,7 @@ class Recorder:
         its unit (a value HDF5 cannot hold as an attribute is left out, with a
         warning), the source's pixel format, the setup: the source's own
         (:attr:`Source.setup`) updated with ``setup``, and the ``experiment`` in force
-        (JSON text). ``max_frames`` as for :class:`Recorder`.
+        (JSON text). ``max_frames`` and ``max_seconds`` as for :class:`Recorder`.
         """
         infos = source.describe_settings()
         settings = {}
@@ -142,12 +162,20 @@ class Recorder:
             significant_bits=_significant_bits(pixel_format),
             experiment=experiment,
         )
-        return cls(ring, writer, max_frames=max_frames)
+        return cls(ring, writer, max_frames=max_frames, max_seconds=max_seconds)
 
     @property
     def written(self) -> int:
         """Frames written to the file so far."""
         return len(self.writer)
+
+    @property
+    def elapsed_s(self) -> float:
+        """Seconds from :meth:`start` to the end of recording (to now while running)."""
+        start, end = self._span
+        if math.isnan(start):
+            return 0.0
+        return (time.monotonic() if math.isnan(end) else end) - start
 
     @property
     def running(self) -> bool:
@@ -164,13 +192,15 @@ class Recorder:
         recorded = len(self.writer)
         if self._dropped_at_end is None:  # running: what waits in the ring is not lost yet
             return Accounting(status.acquired, recorded, status.dropped, 0, status.transport_lost)
-        lost = max(0, status.acquired - recorded - self._dropped_at_end)
-        return Accounting(
-            status.acquired, recorded, self._dropped_at_end, lost, status.transport_lost
-        )
+        acquired = status.acquired if self._acquired_at_limit is None else self._acquired_at_limit
+        lost = max(0, acquired - recorded - self._dropped_at_end)
+        return Accounting(acquired, recorded, self._dropped_at_end, lost, status.transport_lost)
 
     def start(self) -> None:
-        """Start the thread."""
+        """Start the thread (and the clock of ``max_seconds``)."""
+        if self.max_seconds is not None:
+            self._deadline = time.time() + self.max_seconds
+        self._span[0] = time.monotonic()
         self._thread.start()
 
     def note_experiment(self, text: str) -> None:
@@ -198,22 +228,33 @@ class Recorder:
             self._thread.join(timeout)
         return not self._thread.is_alive()
 
+    def _end_at_limit(self) -> None:
+        """A limit ends the recording: frames acquired from now on were not asked for."""
+        self._acquired_at_limit = len(self.writer) + self._consumer.status().dropped
+
     def _run(self) -> None:
         writer = self.writer
         buffer = np.empty(self.ring.frame_shape, self.ring.dtype)
         try:
             while not self._stop.is_set() or self._consumer.position < self._stop_at:
                 item = self._consumer.get(timeout=min(0.2, writer.flush_interval_s), out=buffer)
-                if item is CLOSED:
-                    break
                 if item is None:
                     writer.flush_if_due()
+                    if time.time() >= self._deadline:  # the time is up and no frame waits
+                        self._end_at_limit()
+                        break
                     continue
+                if not isinstance(item, tuple):  # CLOSED
+                    break
                 pixels, meta = item
+                if meta.t_host >= self._deadline:  # this frame and the later ones are not asked for
+                    self._end_at_limit()
+                    break
                 while not self._experiments.empty():
                     writer.note_experiment(self._experiments.get())
                 writer.append(pixels, meta.frame_id, meta.t_device, meta.t_host)
                 if self.max_frames is not None and len(writer) >= self.max_frames:
+                    self._end_at_limit()
                     break
         except RecordingWriteError as exc:  # a full disk, an I/O error: the file is closed below
             self.error = exc
@@ -222,6 +263,7 @@ class Recorder:
             self.error = exc
             logger.exception("recorder failed on %s", writer.path)
         finally:
+            self._span[1] = time.monotonic()
             self._dropped_at_end = self._consumer.status().dropped
             try:
                 writer.close()

@@ -71,7 +71,7 @@ import uuid as _uuid
 from collections.abc import Iterator, Mapping
 from pathlib import Path
 from types import TracebackType
-from typing import Self
+from typing import Any, Self
 
 import h5py
 import numpy as np
@@ -83,7 +83,9 @@ from holoview.acquire.durability import (
     free_bytes,
     open_hdf5_for_reading,
 )
+from holoview.acquire.frame_times import FrameClock, choose_clock
 from holoview.acquire.hdf5_attributes import plain_value, read_attributes, write_attributes
+from holoview.acquire.hdf5_members import open_member
 from holoview.errors import InputError, OutputError, os_error_text
 
 logger = logging.getLogger(__name__)
@@ -99,6 +101,14 @@ LIBVER = ("v110", "latest")
 
 #: Pixel format assumed for a dtype when the writer is given none.
 _DEFAULT_PIXEL_FORMAT = {np.dtype(np.uint8): ("Mono8", 8), np.dtype(np.uint16): ("Mono16", 16)}
+
+
+def _is_number(dataset: h5py.Dataset) -> bool:
+    return dataset.dtype.kind in "iuf"
+
+
+def _layout(dataset: h5py.Dataset) -> str:
+    return f"{dataset.name} is {dataset.dtype} of shape {dataset.shape}"
 
 
 class RecordingWriteError(OutputError):
@@ -510,16 +520,19 @@ class RecordingReader:
             raise InputError(
                 f"{self.path}: recording format version {self.format_version!r} is not supported"
             )
-        frames = f.get("frames")
-        if not isinstance(frames, h5py.Dataset) or frames.ndim != 3:
+        frames = open_member(f, "frames", h5py.Dataset, self.path)
+        if frames is None or frames.ndim != 3:
             raise InputError(f"{self.path}: holds no frames dataset (/frames, 3-D)")
+        columns = []
         for name in ("frame_id", "t_device_s", "t_host_s"):
-            if not isinstance(f.get(name), h5py.Dataset):
+            column = open_member(f, name, h5py.Dataset, self.path)
+            if column is None:
                 raise InputError(f"{self.path}: /{name} is missing")
+            columns.append(column)
         self._frames = frames
-        self._ids = f["frame_id"]
-        self._t_device = f["t_device_s"]
-        self._t_host = f["t_host_s"]
+        self._ids, self._t_device, self._t_host = columns
+        if self._ids.ndim != 1 or self._ids.dtype.kind not in "iu":
+            raise InputError(f"{self.path}: {_layout(self._ids)}, not one integer per frame")
         self.uuid = str(plain_value(f.attrs.get("uuid", "")))
         self.created_utc = str(plain_value(f.attrs.get("created_utc", "")))
         self.source = str(plain_value(f.attrs.get("source", "")))
@@ -527,9 +540,15 @@ class RecordingReader:
         self.significant_bits = int(
             plain_value(frames.attrs.get("significant_bits", frames.dtype.itemsize * 8))
         )
-        self.setup, self.setup_units = read_attributes(f.get("setup"))
-        self.settings, self.settings_units = read_attributes(f.get("settings"))
+        self.setup, self.setup_units = self._attributes("setup")
+        self.settings, self.settings_units = self._attributes("settings")
         self._n = self._complete_count()
+
+    def _attributes(self, name: str) -> tuple[dict[str, Any], dict[str, str]]:
+        """The values and units of the group ``name`` (``/setup``, ``/settings``)."""
+        group = open_member(self._file, name, h5py.Group, self.path)
+        units = None if group is None else open_member(group, "units", h5py.Group, self.path)
+        return read_attributes(group, units)
 
     def experiments(self) -> list[tuple[int, str]]:
         """Every experiment the recording carries: ``(from_frame, JSON text)``, in order.
@@ -537,30 +556,78 @@ class RecordingReader:
         Empty for recordings written without one (format 1.0 included). A text that
         cannot be decoded is returned as it decodes with replacement characters; the
         experiment parser then says what is wrong.
+
+        Raises
+        ------
+        InputError
+            ``/experiment`` is not laid out as the format says (``json`` not 1-D
+            ``uint8``, ``changes`` not ``(n, 3)`` integers, a text outside ``json``) or
+            lies outside the file (:func:`~holoview.acquire.hdf5_members.open_member`).
         """
-        group = self._file.get("experiment")
-        if not isinstance(group, h5py.Group) or "json" not in group or "changes" not in group:
+        group = open_member(self._file, "experiment", h5py.Group, self.path)
+        if group is None:
             return []
-        blob, changes = group["json"], group["changes"]
+        blob = open_member(group, "json", h5py.Dataset, self.path)
+        changes = open_member(group, "changes", h5py.Dataset, self.path)
+        if blob is None or changes is None:
+            return []
+        where = f"{self.path}: the stored experiment"
+        if blob.ndim != 1 or blob.dtype != np.uint8:
+            raise InputError(
+                f"{where} is damaged: /experiment/json is {blob.dtype} of shape {blob.shape}, "
+                "not the 1-D uint8 texts of the format"
+            )
+        if changes.ndim != 2 or changes.shape[1] != 3 or changes.dtype.kind not in "iu":
+            raise InputError(
+                f"{where} is damaged: /experiment/changes is {changes.dtype} of shape "
+                f"{changes.shape}, not (n, 3) integers"
+            )
+        changes.refresh()  # first: the texts a change names are written before it
         blob.refresh()
-        changes.refresh()
+        rows = np.asarray(changes[()], dtype=np.int64)
         raw = blob[()].tobytes()
         out = []
-        for start, offset, length in np.asarray(changes[()], dtype=np.int64).reshape(-1, 3):
+        for start, offset, length in rows:
+            if start < 0 or offset < 0 or length < 0 or offset + length > len(raw):
+                raise InputError(
+                    f"{where} is damaged: a change from frame {start} names bytes "
+                    f"{offset} to {offset + length} of the {len(raw)} stored"
+                )
             text = raw[offset : offset + length]
             out.append((int(start), text.decode("utf-8", errors="replace")))
         return out
 
     def _complete_count(self) -> int:
-        """Frames whose frame data, id and both timestamps are all present."""
-        return int(
-            min(
-                self._frames.shape[0],
-                self._ids.shape[0],
-                self._t_device.shape[0],
-                self._t_host.shape[0],
-            )
+        """Frames whose frame data, id and both timestamps are all present.
+
+        A time column of the wrong layout (:meth:`clock` says so) does not count.
+        """
+        columns = [self._frames, self._ids, self._t_device, self._t_host]
+        return int(min(c.shape[0] for c in columns if c.ndim >= 1 and _is_number(c)))
+
+    @property
+    def stored_frames(self) -> int:
+        """Frames ``/frames`` holds, complete or not (see :meth:`incomplete`)."""
+        return int(self._frames.shape[0])
+
+    def incomplete(self) -> str | None:
+        """Why frames stored are left out (a column shorter than ``/frames``), or None."""
+        if self._n >= self.stored_frames:
+            return None
+        short = [
+            f"{c.name} holds {c.shape[0]}"
+            for c in (self._ids, self._t_device, self._t_host)
+            if c.ndim == 1 and c.shape[0] < self.stored_frames
+        ]
+        return (
+            f"{self.path}: only the first {self._n} of the {self.stored_frames} frames stored "
+            f"are complete ({', '.join(short)} rows); frames {self._n} and later are left out"
         )
+
+    @property
+    def being_written(self) -> bool:
+        """True when a writer had the file open when it was opened (or was killed)."""
+        return bool(self._file.swmr_mode)
 
     def refresh(self) -> int:
         """See frames a live writer has flushed since the last call; return the new count."""
@@ -584,28 +651,46 @@ class RecordingReader:
         """The camera frame counter of every frame, int64."""
         return self._ids[: self._n]
 
+    def _time_column(self, dataset: h5py.Dataset) -> tuple[np.ndarray, str | None]:
+        """A time column's values, float64 (NaN where unusable), and why it is unusable."""
+        if dataset.ndim != 1 or not _is_number(dataset):
+            return np.full(self._n, math.nan), f"{_layout(dataset)}, not one number per frame"
+        return np.asarray(dataset[: self._n], dtype=np.float64), None
+
     @property
     def t_device(self) -> np.ndarray:
         """Device timestamps, seconds on the camera's clock (NaN where unknown)."""
-        return self._t_device[: self._n]
+        return self._time_column(self._t_device)[0]
 
     @property
     def t_host(self) -> np.ndarray:
-        """Host arrival times, seconds since the UNIX epoch."""
-        return self._t_host[: self._n]
+        """Host arrival times, seconds since the UNIX epoch (NaN where unknown)."""
+        return self._time_column(self._t_host)[0]
+
+    def clock(self, frames: range | None = None) -> FrameClock:
+        """The clock that times ``frames`` (default all), by the one rule, and why.
+
+        The camera's where it times every frame, runs forward and jumps nowhere; else
+        the host's arrival times (which hold when frames arrived or were written, not
+        when the camera took them); else none (:mod:`holoview.acquire.frame_times`).
+        """
+        chosen = range(self._n) if frames is None else frames
+        index = np.asarray(chosen, dtype=np.int64)
+        device, device_problem = self._time_column(self._t_device)
+        host, host_problem = self._time_column(self._t_host)
+        unusable = {"camera": device_problem, "host": host_problem}
+        return choose_clock(
+            device[index],
+            host[index],
+            chosen,
+            np.asarray(self._ids[: self._n], dtype=np.int64)[index],
+            unusable={k: v for k, v in unusable.items() if v is not None},
+        )
 
     @property
     def times(self) -> np.ndarray:
-        """The frames' times, seconds, on the best clock the recording has.
-
-        The camera's where it timed every frame and runs forward, else the host's
-        arrival times (which hold when frames arrived or were written, not when the
-        camera took them).
-        """
-        t_device = self.t_device
-        if np.isfinite(t_device).all() and (np.diff(t_device) > 0).all():
-            return t_device
-        return self.t_host
+        """The frames' times, seconds, by the one rule of :meth:`clock` (NaN: no clock)."""
+        return self.clock().times
 
     @property
     def fps(self) -> float:

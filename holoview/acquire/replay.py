@@ -2,8 +2,9 @@
 
 Three speeds (the ``speed`` setting):
 
-- ``"recorded"``: a holoview recording at the pace of its timestamps (device
-  clock where every frame has one, else host arrival times); other files at
+- ``"recorded"``: a holoview recording at the pace of its timestamps (the clock
+  rule of :mod:`holoview.acquire.frame_times`: the camera's clock where it is finite,
+  forward and free of jumps, else host arrival times); other files at
   ``rate_hz`` (default: the video's own rate, or 30 frames/s for images); the
   ``speed_factor`` setting plays faster or slower than that (0.25 to 8 times);
 - ``"fast"``: as fast as frames can be read;
@@ -13,7 +14,7 @@ The replay can be steered while it streams, from any thread (a transport bar):
 :meth:`~ReplaySource.pause` and :meth:`~ReplaySource.resume`,
 :meth:`~ReplaySource.step` (one frame either way, pausing), :meth:`~ReplaySource.seek`
 (a frame index; one past the end is a one-line :class:`~holoview.errors.InputError`).
-Each frame's :class:`~holoview.acquire.source.FrameMeta` carries its ``index`` in
+Each frame's :class:`~holoview.acquire.source.FrameMeta` carries its ``file_index`` in
 the file and its ``segment``: a frame that is not the one after the previous frame
 delivered (a seek, a step back, the loop starting over) opens a new segment, so
 processing never pairs frames across a jump.
@@ -80,10 +81,19 @@ class ReplaySource(Source):
 
     Examples
     --------
-    >>> source = ReplaySource("run.h5", hold=True)  # doctest: +SKIP
-    >>> source.open(); source.start()  # doctest: +SKIP
-    >>> source.pause(); source.seek(120); source.step(-1)  # doctest: +SKIP
-    119
+    A recording of 200 frames, then its replay steered by hand:
+
+    >>> import tempfile
+    >>> from holoview.acquire.recording import RecordingWriter
+    >>> path = Path(tempfile.mkdtemp()) / "run.h5"
+    >>> with RecordingWriter(path, (8, 8), np.uint8) as writer:
+    ...     for i in range(200):
+    ...         writer.append(np.full((8, 8), i, np.uint8), i, i / 60, i / 60)
+    >>> with ReplaySource(path, hold=True) as source:
+    ...     source.start()
+    ...     source.pause()
+    ...     (source.seek(120), source.step(-1), source.fetch(1.0).meta.file_index)
+    (120, 119, 119)
     """
 
     def __init__(
@@ -386,7 +396,7 @@ class ReplaySource(Source):
             t_device=file.t_device(index) + t_offset,
             t_host=time.time(),
             pixel_format=file.pixel_format,
-            index=index,
+            file_index=index,
             segment=segment,
         )
         return Frame(data, meta)

@@ -26,14 +26,18 @@ import re
 import struct
 import zipfile
 from abc import ABC, abstractmethod
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import IO, Any
 
 import numpy as np
 
+from holoview.acquire.frame_times import FrameClock, choose_clock
 from holoview.acquire.recording import RecordingReader
 from holoview.acquire.source import CameraNotFoundError
 from holoview.errors import InputError
+from holoview.file_kinds import special_file
 
 logger = logging.getLogger(__name__)
 
@@ -105,9 +109,23 @@ class FrameFile(ABC):
         """Time of frame ``index`` since frame 0, seconds (NaN where the file has none)."""
         return self.t_device(index) - self.t_device(0)
 
+    def clock(self, frames: range) -> FrameClock:
+        """The clock that times ``frames`` (the rule of :mod:`~holoview.acquire.frame_times`)."""
+        times = np.array([self.t_device(i) for i in frames], dtype=np.float64)
+        return choose_clock(times, None, frames, camera_name=self.clock_name)
+
+    @property
+    def clock_name(self) -> str:
+        """What the file's own times are called in notes."""
+        return "the file's own times"
+
     def refresh(self) -> int:
         """See frames appended since opening (live recordings); return the frame count."""
         return len(self)
+
+    def notes(self) -> list[str]:
+        """What a reader of results should know about the file's frames (none by default)."""
+        return []
 
     def check(self, index: int) -> None:
         """Check that the file is still whole before frame ``index`` is read.
@@ -200,6 +218,22 @@ class HDF5File(FrameFile):
         dt = float(self._times[index] - self._times[0])
         return dt if math.isfinite(dt) else math.nan
 
+    def clock(self, frames: range) -> FrameClock:
+        return self._reader.clock(frames)
+
+    def notes(self) -> list[str]:
+        notes = []
+        incomplete = self._reader.incomplete()
+        if incomplete is not None:
+            notes.append(incomplete)
+        if self._reader.being_written:
+            notes.append(
+                f"{self.path} was open for writing when it was read (a recording under way, "
+                f"or one whose writer was killed): the {len(self)} frames flushed by then are "
+                "read, as a snapshot"
+            )
+        return notes
+
     def interval_s(self, index: int) -> float | None:
         """Recorded time between frame ``index - 1`` and ``index``, seconds, where known."""
         if index <= 0 or index >= len(self._times):
@@ -227,25 +261,23 @@ class TiffStack(FrameFile):
         import tifffile
 
         size = path.stat().st_size
-        try:
-            self._tif = tifffile.TiffFile(path)
-        except (tifffile.TiffFileError, ValueError, OSError, struct.error) as exc:
-            raise InputError(f"{path}: not a readable TIFF ({exc})") from exc
-        try:
+        with _tifffile_messages(path):
             try:
-                pages = list(self._tif.pages)
+                self._tif = tifffile.TiffFile(path)
             except (tifffile.TiffFileError, ValueError, OSError, struct.error) as exc:
                 raise InputError(f"{path}: not a readable TIFF ({exc})") from exc
+            try:
+                pages = list(self._tif.pages)
+                _ = self._tif.series  # parsed here, where tifffile's messages are collected
+            except (tifffile.TiffFileError, ValueError, OSError, struct.error) as exc:
+                self._tif.close()
+                raise InputError(f"{path}: not a readable TIFF ({exc})") from exc
+        try:
             if not pages:
                 raise InputError(f"{path}: the TIFF holds no images")
             first = pages[0]
             self._check_channels(path)
-            declared = self._tif.series[0].shape if self._tif.series else ()
-            if first.ndim == 2 and len(declared) == 3 and declared[0] > len(pages):
-                raise InputError(
-                    f"{path}: truncated TIFF: it declares {declared[0]} frames, "
-                    f"the file holds {len(pages)}"
-                )
+            self._check_count(path, first, len(pages), size)
             for i, page in enumerate(pages):
                 if page.shape != first.shape or page.dtype != first.dtype:
                     raise InputError(
@@ -268,6 +300,34 @@ class TiffStack(FrameFile):
             self._tif.close()
             raise
         self._set_format(sample.shape, sample.dtype)
+
+    def _check_count(self, path: Path, first: Any, pages: int, size: int) -> None:
+        """Refuse a stack that declares more frames than it has page directories for.
+
+        The count declared is the series' (tifffile's shaped files) or ImageJ's
+        ``images``. Where the pages' data run out (an interrupted copy), the line says
+        how many whole frames the file holds; a file that holds them all behind one
+        directory (ImageJ over 4 GB) is refused too, since frames are read page by page.
+        """
+        series = self._tif.series[0].shape if self._tif.series else ()
+        declared = series[0] if first.ndim == 2 and len(series) == 3 else 1
+        if self._tif.is_imagej:
+            declared = max(declared, int((self._tif.imagej_metadata or {}).get("images", 1)))
+        if declared <= pages:
+            return
+        start = min(first.dataoffsets, default=0)
+        frame_bytes = sum(first.databytecounts)
+        whole = min(declared, (size - start) // frame_bytes) if frame_bytes else pages
+        if whole >= declared:
+            raise InputError(
+                f"{path}: {declared} frames behind {pages} page directories (an ImageJ file "
+                "over 4 GB?): holoview reads TIFF stacks page by page; save it as an image "
+                "sequence or a holoview recording"
+            )
+        raise InputError(
+            f"{path}: truncated TIFF: it declares {declared} frames, the file ends after "
+            f"{max(whole, pages)} whole ones ({size} bytes): an interrupted copy? copy it again"
+        )
 
     def _check_channels(self, path: Path) -> None:
         """Refuse a stack of several channels (ImageJ ``TCYX``, OME): its pages interleave."""
@@ -299,6 +359,32 @@ class TiffStack(FrameFile):
 
     def close(self) -> None:
         self._tif.close()
+
+
+@contextmanager
+def _tifffile_messages(path: Path) -> Iterator[list[str]]:
+    """Collect what tifffile logs while ``path`` opens, instead of lines on stderr.
+
+    tifffile logs a damaged file's errors ("invalid page offset") and reads on; the
+    reader decides what they mean and says it in one line (debug log otherwise).
+    """
+    log = logging.getLogger("tifffile")
+    said: list[str] = []
+
+    class Collect(logging.Handler):
+        def emit(self, record: logging.LogRecord) -> None:
+            said.append(record.getMessage())
+
+    handler, propagate = Collect(), log.propagate
+    log.addHandler(handler)
+    log.propagate = False
+    try:
+        yield said
+    finally:
+        log.removeHandler(handler)
+        log.propagate = propagate
+        for message in said:
+            logger.debug("%s: tifffile: %s", path, message)
 
 
 def _png_header(path: Path) -> tuple[tuple[int, int], int, int]:
@@ -333,7 +419,8 @@ class ImageFolder(FrameFile):
 
     def __init__(self, path: Path) -> None:
         super().__init__(path)
-        names = [p for p in path.iterdir() if p.is_file()]
+        entries = list(path.iterdir())
+        names = [p for p in entries if p.is_file()]
         files = sorted(
             (p for p in names if p.suffix.lower() in IMAGE_SUFFIXES and not p.name.startswith(".")),
             key=lambda p: natural_key(p.name),
@@ -341,6 +428,20 @@ class ImageFolder(FrameFile):
         hidden = [p.name for p in names if p.name.startswith(".")]
         if hidden:
             logger.info("%s: %d hidden files skipped (%s, ...)", path, len(hidden), hidden[0])
+        special = [
+            f"{p.name} ({what})"
+            for p in entries
+            if p.suffix.lower() in IMAGE_SUFFIXES and not p.name.startswith(".")
+            for what in [special_file(p, folder_ok=False)]
+            if what is not None
+        ]
+        if special:
+            logger.warning(
+                "%s: %d entries that are not image files skipped: %s",
+                path,
+                len(special),
+                ", ".join(sorted(special, key=natural_key)),
+            )
         if not files:
             raise InputError(f"{path}: the folder holds no TIFF or PNG images")
         first_shape, first_dtype = _image_format(files[0])
@@ -580,6 +681,10 @@ class VideoFile(FrameFile):
     def t_device(self, index: int) -> float:
         return index / self.rate_hz if self.rate_hz else math.nan
 
+    @property
+    def clock_name(self) -> str:
+        return f"the video's frame rate ({self.rate_hz or math.nan:g} frames/s)"
+
     def close(self) -> None:
         self._capture.release()
 
@@ -595,6 +700,9 @@ def open_frame_file(path: str | Path) -> FrameFile:
         The file is of an unknown kind, damaged, truncated, empty, or of mixed sizes.
     """
     p = Path(path).expanduser()
+    special = special_file(p)
+    if special is not None:  # never opened: a FIFO would wait for a writer
+        raise InputError(f"replay: {p}: {special}, not a file or folder of frames")
     if not p.exists():
         raise CameraNotFoundError(f"replay: {p}: no such file or folder")
     if p.is_dir():

@@ -132,17 +132,19 @@ class FrameRing:
 
         Raises
         ------
-        InputError
-            The frame's shape or dtype is not the ring's, or the ring is closed.
+        ValueError
+            The frame's shape or dtype is not the ring's (the producer must check).
+        RuntimeError
+            The ring is closed.
         """
         if data.shape != self.frame_shape or data.dtype != self.dtype:
-            raise InputError(
+            raise ValueError(
                 f"frame {data.shape} {data.dtype} does not fit a ring of "
                 f"{self.frame_shape} {self.dtype}"
             )
         with self._cond:
             if self._closed:
-                raise InputError("the frame ring is closed")
+                raise RuntimeError("the frame ring is closed")
             seq = self._reserved
             self._reserved = seq + 1
         slot = seq % self.capacity
@@ -194,7 +196,7 @@ class FrameRing:
             ``"every"``: every frame in order (drops counted); ``"newest"``: the newest.
         """
         if mode not in ("every", "newest"):
-            raise InputError(f"consumer mode must be 'every' or 'newest', got {mode!r}")
+            raise ValueError(f"consumer mode must be 'every' or 'newest', got {mode!r}")
         with self._cond:
             consumer = RingConsumer(self, name, mode, start=self._published)
             self._consumers.append(consumer)

@@ -31,6 +31,7 @@ counted in ``injected_corrupt``).
 
 from __future__ import annotations
 
+import functools
 import logging
 import math
 import threading
@@ -161,8 +162,8 @@ class SimulatedSource(Source):
                 Setting(
                     name,
                     "float",
-                    lambda name=name: self._faults[name],
-                    lambda v, name=name: self._faults.__setitem__(name, float(v)),
+                    functools.partial(self._faults.__getitem__, name),
+                    functools.partial(self._set_fault, name),
                     limits=(0.0, 1.0),
                     doc="injected fault probability per frame",
                 )
@@ -173,6 +174,10 @@ class SimulatedSource(Source):
         self.add_setting(Setting("scenario", "enum", lambda: self.scenario, choices=SCENARIOS))
         self.add_setting(Setting("noise", "enum", lambda: self.noise, choices=NOISE_MODELS))
         self.add_setting(Setting("render_mode", "str", lambda: self._mode))
+
+    def _set_fault(self, name: str, value: float) -> None:
+        """Set the probability per frame of the injected fault ``name``."""
+        self._faults[name] = float(value)
 
     def _set_rate(self, rate: float) -> None:
         self._rate = float(rate)

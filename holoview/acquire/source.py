@@ -87,7 +87,7 @@ class FrameMeta(NamedTuple):
         Gain in the unit of the source's ``gain`` setting (NaN when unknown).
     pixel_format : str
         GenICam pixel format name of the raw values (``Mono8``, ``Mono12``, ...).
-    index : int
+    file_index : int
         The frame's index in the file a replay plays (-1 for a camera).
     segment : int
         Which unbroken run of frames the frame belongs to: a replay starts a new
@@ -101,7 +101,7 @@ class FrameMeta(NamedTuple):
     exposure_s: float = math.nan
     gain: float = math.nan
     pixel_format: str = "Mono16"
-    index: int = -1
+    file_index: int = -1
     segment: int = 0
 
 

@@ -20,6 +20,7 @@ Colour frames are converted to grey (OpenCV's luma weights); 16-bit grey
 
 from __future__ import annotations
 
+import functools
 import logging
 import math
 import time
@@ -80,6 +81,16 @@ def set_checked(capture: Any, prop: int, value: float, what: str, tolerance: flo
             f"the V4L2 driver did not honour {what} = {value:g} (it reads back {readback:g})"
         )
     return readback
+
+
+def _get_scaled(capture: Any, prop: int, scale: float) -> float:
+    """A control's value in SI units: the driver's value times ``scale``."""
+    return float(capture.get(prop)) * scale
+
+
+def _set_scaled(capture: Any, prop: int, scale: float, what: str, value: float) -> None:
+    """Set a control from SI units (``value / scale`` in the driver's), checked."""
+    set_checked(capture, prop, value / scale, what, tolerance=0.5)
 
 
 class V4L2Source(Source):
@@ -155,10 +166,8 @@ class V4L2Source(Source):
                 Setting(
                     name,
                     "float",
-                    lambda prop=prop, scale=scale: float(capture.get(prop)) * scale,
-                    lambda v, prop=prop, scale=scale, name=name: set_checked(
-                        capture, prop, v / scale, name, tolerance=0.5
-                    ),
+                    functools.partial(_get_scaled, capture, prop, scale),
+                    functools.partial(_set_scaled, capture, prop, scale, name),
                     unit={"exposure_s": "s", "frame_rate_hz": "Hz"}.get(name, ""),
                     locked_while_streaming=name == "frame_rate_hz",
                 )

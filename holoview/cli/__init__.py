@@ -29,7 +29,7 @@ from holoview.cli.signals import Stopped, stop_on_signals
 from holoview.errors import HoloviewError, OutputError
 
 #: Subcommand modules, in the order ``holoview --help`` lists them.
-COMMANDS: tuple[str, ...] = ("live", "record", "simulate", "process", "peaks", "info")
+COMMANDS: tuple[str, ...] = ("live", "record", "simulate", "process", "peaks", "export", "info")
 
 #: The subcommand run when none is given.
 DEFAULT_COMMAND = "live"

@@ -38,7 +38,11 @@ def aravis_status() -> tuple[bool, str]:
     try:
         import gi
     except ImportError as exc:
-        return False, f"PyGObject is not installed ({exc}); run scripts/setup.sh"
+        return False, (
+            f"PyGObject is not installed ({exc}); GenICam cameras need Aravis 0.8 and "
+            "GObject introspection from the system, then pip install 'holoview[genicam]' "
+            "(on Debian 12 as root: scripts/setup.sh)"
+        )
     try:
         gi.require_version("Aravis", "0.8")
         from gi.repository import Aravis
@@ -83,6 +87,7 @@ def run(args: argparse.Namespace) -> int:
         ("OpenCV", cv2_version),
         ("scikit-image", _module_version("skimage")),
         ("tifffile", _module_version("tifffile")),
+        ("matplotlib", _module_version("matplotlib")),
         ("GenICam (Aravis)", ("yes: " if usable else "no: ") + aravis),
     ]
     width = max(len(name) for name, _ in rows)

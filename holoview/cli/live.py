@@ -53,7 +53,11 @@ def run(args: argparse.Namespace) -> int:
     if not has_display():
         print(f"holoview live: {NO_DISPLAY_HELP}", file=sys.stderr)
         return 2
+    from holoview.file_kinds import check_regular_file
     from holoview.ui.app import run_live
+
+    if args.experiment is not None:  # the window reads it, and saves every change to it
+        check_regular_file(args.experiment, f"experiment file {args.experiment}")
 
     return run_live(
         source=args.source,

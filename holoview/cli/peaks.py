@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import logging
 from pathlib import Path
 from typing import Any
 
@@ -24,6 +25,8 @@ from holoview.cli.options import (
 )
 from holoview.cli.signals import emit
 from holoview.errors import InputError
+
+logger = logging.getLogger(__name__)
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
@@ -99,7 +102,10 @@ def run(args: argparse.Namespace) -> int:
     with InputFile(args.input) as source:
         if not 0 <= args.frame < len(source):
             raise InputError(f"--frame must be in 0..{len(source) - 1}, got {args.frame}")
-        stored, _ = source.experiment_at(args.frame)
+        stored, notes = source.experiment_at(args.frame)
+        if not labels and given is None:
+            for note in notes:
+                logger.warning("%s", note)
         optics = resolve_optics(source.setup, optics_options(args), given)
         frame = source.read(args.frame)
         shape = source.frame_shape
@@ -121,8 +127,15 @@ def run(args: argparse.Namespace) -> int:
     if experiment.peaks and not detected:
         raise InputError(f"no significant peak in frame {args.frame}: nothing to label")
     resolution = resolve_peaks(experiment, detected, shape)
-    if labels or given is not None:
-        resolution.strict()
+    try:
+        resolution.strict(unmatched=bool(labels) or given is not None)
+    except InputError as exc:
+        if labels or given is not None:
+            raise
+        raise InputError(
+            f"the experiment the recording carries: {exc}; name the peaks with --label or "
+            "--experiment"
+        ) from exc
     named = tuple(LabelledPeak(p.label, p.carrier) for p in resolution.peaks if p.label)
     document = replace(experiment, peaks=named).to_dict()
     labelling = resolution.labelling

@@ -1,6 +1,6 @@
 """``holoview process``: headless processing of a recording into results files and a figure.
 
-The offline replay and test mode of DESIGN.md: the same processing as the GUI, no
+The offline replay and test mode of docs/design.md: the same processing as the GUI, no
 display (:mod:`holoview.headless`). Output files and their layout are documented in
 :mod:`holoview.headless.outputs` and the README. ``--jobs`` and ``--scheduler`` spread
 the frames over processes or a Dask cluster (:mod:`holoview.headless.parallel`); a
@@ -24,6 +24,7 @@ from holoview.cli.options import (
 )
 from holoview.cli.signals import emit
 from holoview.errors import InputError
+from holoview.headless.figures import FORMATS
 
 logger = logging.getLogger(__name__)
 
@@ -42,9 +43,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
         help="process a recording headless: trends, rates, maps, report",
         description="Demodulate every frame of INPUT (a holoview recording, a multi-page "
         "TIFF, a folder of images or a video) at the chosen peaks and write trends.csv, "
-        "summary.json, results.h5 and report.png into DIR. INPUT may also be a folder of "
-        "recordings or a quoted glob ('runs/*.h5'): then DIR/NAME per recording and "
-        "DIR/index.csv of every run's rates.",
+        "summary.json, results.h5 and report.png (or --report-format) into DIR. INPUT may "
+        "also be a folder of recordings or a quoted glob ('runs/*.h5'): then DIR/NAME per "
+        "recording and DIR/index.csv of every run's rates.",
     )
     parser.add_argument(
         "input",
@@ -132,6 +133,12 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
         "local Dask cluster",
     )
     parser.add_argument("--maps", action="store_true", help="also write the delta-h maps")
+    parser.add_argument(
+        "--report-format",
+        choices=FORMATS,
+        default="png",
+        help="the report's format: report.png (default), report.pdf or report.svg",
+    )
     parser.add_argument("--frames", metavar="START:STOP", help="process these frames only")
     parser.add_argument("--area", type=float, metavar="M2", help="basin area, m^2 (volume rates)")
     return parser
@@ -195,6 +202,7 @@ def run(args: argparse.Namespace) -> int:
         "optics_options": optics_options(args, args.fps),
         "settings": settings,
         "frames": args.frames,
+        "report": args.report_format,
     }
     recordings = find_recordings(args.input)
     if recordings is not None:

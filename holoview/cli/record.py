@@ -200,20 +200,20 @@ def run(args: argparse.Namespace) -> int:
             out,
             source,
             setup=setup,
+            max_seconds=args.seconds,
             experiment=None if experiment is None else experiment.to_json(),
         )
         camera = CameraThread(source, ring, max_frames=args.frames)
         recorder.start()
-        t0 = time.monotonic()
         interrupted = False
         try:
             camera.start()
-            _follow(camera, recorder, args, t0)
+            _follow(camera, recorder, args)
         except KeyboardInterrupt:
             interrupted = True
         finally:
             _finish(camera, ring, recorder, out)
-        elapsed = time.monotonic() - t0
+        elapsed = recorder.elapsed_s
     count = recorder.accounting()
     mb = count.recorded * frame_bytes / 1e6
     lost = f", lost {count.lost_to_disk} to the disk" if count.lost_to_disk else ""
@@ -253,8 +253,8 @@ def _finish(camera: CameraThread, ring: FrameRing, recorder: Recorder, out: Path
                 recorder.stop(timeout=0.0, drain=False)
 
 
-def _follow(camera: CameraThread, recorder: Recorder, args: argparse.Namespace, t0: float) -> None:
-    """Show progress until the camera ends, the recorder stops or the time is up (5 Hz)."""
+def _follow(camera: CameraThread, recorder: Recorder, args: argparse.Namespace) -> None:
+    """Show progress until the camera ends or the recorder stops (5 Hz)."""
     from tqdm import tqdm
 
     with tqdm(
@@ -270,8 +270,6 @@ def _follow(camera: CameraThread, recorder: Recorder, args: argparse.Namespace, 
             bar.update(recorder.written - bar.n)
             status = recorder.status()
             bar.set_postfix(dropped=status.dropped, lost=status.transport_lost, refresh=False)
-            if not recorder.running:  # a full disk or a write error: stop the camera now
-                break
-            if args.seconds is not None and time.monotonic() - t0 >= args.seconds:
+            if not recorder.running:  # the time is up, or a write error: stop the camera now
                 break
         bar.update(recorder.written - bar.n)

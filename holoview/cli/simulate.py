@@ -47,12 +47,13 @@ from dataclasses import asdict
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from holoview.errors import InputError, OutputError, os_error_text
+from holoview.errors import InputError
 
 if TYPE_CHECKING:
     from collections.abc import Callable
 
     import numpy as np
+    from matplotlib.figure import Figure
 
     from holoview.optics.families import Family
     from holoview.optics.scenarios import FrameTruth, ScenarioConfig
@@ -93,7 +94,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
 
     parser = subparsers.add_parser(
         "simulate",
-        help="write a simulated recording with its truth (and a PNG figure)",
+        help="write a simulated recording with its truth (and a figure)",
         description="Simulate a multiplexed off-axis hologram sequence of a fluid surface "
         "(paper's forward model) into a new holoview recording, with a /truth group.",
     )
@@ -114,7 +115,12 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
     parser.add_argument(
         "--noise", choices=NOISE_MODELS, default="poisson", help="shot noise (default poisson)"
     )
-    parser.add_argument("--png", type=Path, metavar="PATH", help="save a frame and its spectrum")
+    parser.add_argument(
+        "--png",
+        type=Path,
+        metavar="PATH",
+        help="save a frame and its spectrum as a figure (.png, .pdf or .svg)",
+    )
     parser.add_argument("--png-frame", type=int, default=0, metavar="I", help="frame for --png")
     setup = parser.add_argument_group("setup (defaults: holoview.optics.setup.Setup)")
     setup.add_argument("--fluid", choices=sorted(FLUIDS), help="sets n2 from a preset")
@@ -305,63 +311,137 @@ def write_truth(
 def spectrum_figure(
     frame: np.ndarray,
     families: list[Family],
-    size: int = 512,
+    *,
+    pixel_pitch_m: float,
+    title: str,
     amplitudes: dict[str, float] | None = None,
-) -> np.ndarray:
-    """Return a BGR image: the frame beside its log spectrum, predicted carriers marked.
+) -> Figure:
+    """Return a figure: the frame beside its log spectrum, predicted carriers marked.
 
-    Each family whose peak (``amplitudes[label]``, default its own amplitude) is at
-    least 1e-3 gets a circle at its observed carrier (stored
-    twin) labelled with its name (red: aliased, yellow: second order, green: the rest),
-    and a small dot at its conjugate twin.
+    The frame's axes are in mm on the object side (``pixel_pitch_m`` a pixel), the
+    spectrum's in cycles/pixel (cycles/mm on the opposite axes). Each family whose
+    peak (``amplitudes[label]``, default its own amplitude) is at least
+    :data:`~holoview.engine.true_labels.VISIBLE_AMPLITUDE` gets a circle at its
+    observed carrier (stored twin) labelled with its name (families on one carrier
+    share a circle), and a dot at its conjugate twin: red where the carrier is past
+    Nyquist (drawn folded), orange for a second order, green for the rest.
+
+    Parameters
+    ----------
+    frame : ndarray, shape (rows, cols)
+        Raw camera values.
+    families : list of Family
+        The setup's predicted families (:func:`holoview.optics.families.predict_families`).
+    pixel_pitch_m : float
+        Object-side pixel pitch, m.
+    title : str
+        The figure's first line.
+    amplitudes : dict of str to float, optional
+        Each family's visible peak amplitude.
     """
-    import cv2
     import numpy as np
+    from matplotlib import patheffects
 
     from holoview.engine.true_labels import VISIBLE_AMPLITUDE
+    from holoview.headless.figures import new_figure
 
     data = frame.astype(np.float64)
-    low, high = np.percentile(data, (0.5, 99.5))
-    image = np.clip((data - low) / max(high - low, 1e-12) * 255, 0, 255).astype(np.uint8)
     rows, cols = frame.shape
     hann = np.outer(np.hanning(rows), np.hanning(cols))
-    power = np.log1p(np.abs(np.fft.fftshift(np.fft.fft2((data - data.mean()) * hann))))
-    low, high = np.percentile(power, (1, 99.99))
-    spec = np.clip((power - low) / max(high - low, 1e-12) * 255, 0, 255).astype(np.uint8)
-    scale = size / max(rows, cols)
-    target = (round(cols * scale), round(rows * scale))
-    image = cv2.cvtColor(
-        cv2.resize(image, target, interpolation=cv2.INTER_AREA), cv2.COLOR_GRAY2BGR
+    power = np.log10(np.abs(np.fft.fftshift(np.fft.fft2((data - data.mean()) * hann))) + 1e-12)
+    figure = new_figure(13.66, 6.4)
+    image_axes = figure.add_axes((0.045, 0.09, 0.34, 0.74))
+    spectrum_axes = figure.add_axes((0.55, 0.09, 0.32, 0.74))
+    mm = pixel_pitch_m * 1e3
+    low, high = np.percentile(data, (0.5, 99.5))
+    extent = (0, cols * mm, rows * mm, 0)
+    shown = image_axes.imshow(data, cmap="gray", vmin=low, vmax=high, extent=extent)
+    # the fringes alias at this scale: the centre's, pixel for pixel, in an inset
+    side = min(48, rows, cols)
+    top_row, left_col = (rows - side) // 2, (cols - side) // 2
+    inset = image_axes.inset_axes((0.62, 0.62, 0.36, 0.36))
+    inset.imshow(
+        data[top_row : top_row + side, left_col : left_col + side],
+        cmap="gray",
+        vmin=low,
+        vmax=high,
+        interpolation="nearest",
     )
-    spec = cv2.cvtColor(cv2.resize(spec, target, interpolation=cv2.INTER_AREA), cv2.COLOR_GRAY2BGR)
-    width, height = target
-    marks: dict[tuple[int, int], list[Family]] = {}
+    inset.set_xticks([])
+    inset.set_yticks([])
+    inset.set_title(
+        f"centre, {side} x {side} pixels",
+        fontsize=8,
+        pad=2,
+        bbox={"facecolor": "white", "edgecolor": "none", "pad": 1},
+    )
+    figure.colorbar(shown, ax=image_axes, fraction=0.046, pad=0.03, label="camera counts")
+    image_axes.set_xlabel("x (mm)")
+    image_axes.set_ylabel("y (mm)")
+    image_axes.set_title("hologram (raw camera values)", fontsize=11)
+    x0, x1 = -(cols // 2) / cols - 0.5 / cols, (cols - cols // 2) / cols - 0.5 / cols
+    y0, y1 = -(rows // 2) / rows - 0.5 / rows, (rows - rows // 2) / rows - 0.5 / rows
+    low, high = np.percentile(power, (1.0, 99.99))
+    spectrum_axes.imshow(
+        power,
+        cmap="gray",
+        vmin=low,
+        vmax=high,
+        extent=(x0, x1, y1, y0),
+        interpolation="antialiased",
+    )
+    marks: dict[tuple[float, float], list[Family]] = {}
     for family in families:
         size_of_peak = family.amplitude if amplitudes is None else amplitudes[family.label]
         if size_of_peak >= VISIBLE_AMPLITUDE:
-            fx, fy = family.observed_carrier
-            marks.setdefault((round((0.5 + fx) * width), round((0.5 + fy) * height)), []).append(
-                family
-            )
-    for (x, y), group in marks.items():
+            key = (round(family.observed_carrier[0], 4), round(family.observed_carrier[1], 4))
+            marks.setdefault(key, []).append(family)
+    outline = [patheffects.withStroke(linewidth=2.5, foreground="black")]
+    kinds = {
+        "#E03030": "past Nyquist (folded)",
+        "#FFA000": "second order",
+        "#30D030": "first order",
+    }
+    for (fx, fy), group in marks.items():
         first = group[0]
         colour = (
-            (0, 0, 255)
-            if first.aliased
-            else (0, 220, 255)
-            if first.kind == "second-order"
-            else (0, 220, 0)
+            "#E03030" if first.aliased else "#FFA000" if first.kind == "second-order" else "#30D030"
         )
-        label = "/".join(f.label for f in group)
-        cv2.circle(spec, (x, y), 9, colour, 1, cv2.LINE_AA)
-        cv2.putText(spec, label, (x + 10, y - 6), cv2.FONT_HERSHEY_SIMPLEX, 0.4, colour, 1)
-        cv2.circle(spec, ((width - x) % width, (height - y) % height), 2, colour, -1)
-    return np.hstack([image, np.full((height, 8, 3), 255, np.uint8), spec])
+        spectrum_axes.plot([fx], [fy], "o", ms=13, mfc="none", mec=colour, mew=1.4)
+        spectrum_axes.plot([-fx], [-fy], "o", ms=3, color=colour)
+        spectrum_axes.annotate(
+            "/".join(f.label for f in group),
+            (fx, fy),
+            xytext=(8, 6),
+            textcoords="offset points",
+            color=colour,
+            fontsize=9,
+            path_effects=outline,
+        )
+    for colour, kind in kinds.items():
+        spectrum_axes.plot([], [], "o", ms=8, mfc="none", mec=colour, mew=1.4, label=kind)
+    spectrum_axes.legend(
+        loc="lower right", fontsize=8, facecolor="0.1", edgecolor="0.5", labelcolor="white"
+    )
+    spectrum_axes.set_xlim(x0, x1)
+    spectrum_axes.set_ylim(y1, y0)
+    spectrum_axes.set_xlabel("$f_x$ (cycles/pixel)")
+    spectrum_axes.set_ylabel("$f_y$ (cycles/pixel)")
+    per_mm = 1.0 / mm
+    top = spectrum_axes.secondary_xaxis(
+        "top", functions=(lambda f: np.asarray(f) * per_mm, lambda k: np.asarray(k) / per_mm)
+    )
+    top.set_xlabel("cycles/mm (object side)")
+    spectrum_axes.set_title(
+        "spectrum (log magnitude, Hann window): predicted carriers; dots: twins", fontsize=11
+    )
+    figure.text(0.01, 0.98, title, fontsize=13, fontweight="bold", va="top")
+    return figure
 
 
 def check_outputs(args: argparse.Namespace) -> None:
     """Refuse, before simulating, outputs that exist or cannot be written (InputError)."""
-    import cv2
+    from holoview.headless.figures import figure_format
 
     if args.out.exists():
         raise InputError(f"{args.out} exists; holoview does not overwrite recordings")
@@ -377,15 +457,13 @@ def check_outputs(args: argparse.Namespace) -> None:
         raise InputError(f"--png {args.png} exists; holoview does not overwrite it")
     if not args.png.parent.is_dir():
         raise InputError(f"folder {args.png.parent} does not exist")
-    if not cv2.haveImageWriter(str(args.png)):
-        raise InputError(f"--png {args.png}: no image writer for that suffix (use .png)")
+    figure_format(args.png, "--png")
 
 
 def run(args: argparse.Namespace) -> int:
     """Simulate, write the recording and its truth, and the figure if asked."""
     import dataclasses
 
-    import cv2
     import numpy as np
     from tqdm import tqdm
 
@@ -460,14 +538,17 @@ def run(args: argparse.Namespace) -> int:
             surface=surface,
         )
     if args.png is not None and figure_frame is not None:
-        figure = spectrum_figure(figure_frame, families, amplitudes=visible)
-        encoded, image = cv2.imencode(args.png.suffix, figure)  # libpng prints nothing
-        if not encoded:
-            raise OutputError(f"cannot encode {args.png}")
+        from holoview.headless.figures import save_figure
+
+        figure = spectrum_figure(
+            figure_frame,
+            families,
+            pixel_pitch_m=setup.pixel_pitch,
+            title=f"{args.out.name}: simulated {args.scenario}, frame {args.png_frame} "
+            f"at {args.png_frame / args.fps:.3g} s, {setup.shape[1]} x {setup.shape[0]} pixels",
+            amplitudes=visible,
+        )
         with atomic_path(args.png) as partial_png:
-            try:
-                partial_png.write_bytes(image.tobytes())
-            except OSError as exc:
-                raise OutputError(f"cannot write {args.png}: {os_error_text(exc)}") from exc
+            save_figure(figure, partial_png, name=str(args.png))
     logger.info("wrote %d frames to %s", len(truths), args.out)
     return 0

@@ -2,7 +2,7 @@
 
 An experiment is what an operator sets at alignment and what every later replay needs:
 the optics (wavelength, pixel pitch, refractive indices), the labelled peaks on the
-twin where the phase grows with the height (DESIGN.md), the window, its radius, the
+twin where the phase grows with the height (docs/design.md), the window, its radius, the
 reference mode and the unwrapping policy. The GUI saves and loads it, ``holoview peaks
 --json`` writes it, ``holoview process --experiment`` and ``holoview live --experiment``
 read it, and every recording carries the one in force
@@ -41,6 +41,7 @@ from pathlib import Path
 from typing import Any
 
 from holoview.errors import InputError, finite_number
+from holoview.file_kinds import read_regular_file
 from holoview.optics.families import alpha_of
 from holoview.optics.setup import check_optics
 from holoview.processing.fourier.windows import DEFAULT_WINDOW, WINDOW_KINDS
@@ -70,18 +71,21 @@ NUMERIC_RADIUS_VERSION = 2
 #: Labels offered when an operator names a peak (any other usable name is allowed).
 PEAK_LABELS: tuple[str, ...] = ("RB1", "FB1", "RF", "RB2", "FB2")
 
-#: A label usable as a CSV value and an HDF5 name (``fused`` is reserved).
+#: A label usable as a CSV value and an HDF5 name.
 LABEL_PATTERN = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.+~-]{0,31}")
+
+#: Names a label cannot take: the fused map's, and the dimensions of ``results.h5``'s maps.
+RESERVED_LABELS = ("fused", "time", "frame", "y", "x")
 
 Carrier = tuple[float, float]
 
 
 def check_label(label: object, where: str) -> str:
     """Return ``label`` if it can name a series, a CSV row and an HDF5 dataset."""
-    if not isinstance(label, str) or not LABEL_PATTERN.fullmatch(label) or label == "fused":
+    if not isinstance(label, str) or not LABEL_PATTERN.fullmatch(label) or label in RESERVED_LABELS:
         raise InputError(
             f"{where}: label {label!r} is not usable (a letter or digit, then letters, "
-            "digits and _.+~-, at most 32 characters, not 'fused')"
+            f"digits and _.+~-, at most 32 characters, not {', '.join(RESERVED_LABELS)})"
         )
     return label
 
@@ -90,7 +94,7 @@ def check_carrier(carrier: object, where: str) -> Carrier:
     """Return a carrier ``(fx, fy)`` in cycles/pixel, or raise naming what is wrong."""
     try:
         fx, fy = (float(v) for v in carrier)  # type: ignore[union-attr]
-    except (TypeError, ValueError) as exc:
+    except (TypeError, ValueError, OverflowError) as exc:
         raise InputError(
             f"{where}: carrier must be [fx, fy] in cycles/pixel, got {carrier!r}"
         ) from exc
@@ -140,8 +144,9 @@ class LabelledPeak:
         if self.alpha is not None:
             if isinstance(self.alpha, bool) or not isinstance(self.alpha, int | float):
                 raise InputError(f"{where}: alpha must be a number, got {self.alpha!r}")
-            if not (math.isfinite(self.alpha) and self.alpha != 0):
-                raise InputError(f"{where}: alpha must be finite and nonzero, got {self.alpha}")
+            object.__setattr__(self, "alpha", finite_number(f"{where}: alpha", self.alpha))
+            if self.alpha == 0:
+                raise InputError(f"{where}: alpha must be nonzero, got {self.alpha}")
 
     @property
     def fx(self) -> float:
@@ -190,7 +195,7 @@ class Experiment:
         spectrum (``"matched"`` is read as None); ``"bound"``: per peak, the widest
         reaching no other peak (:func:`~holoview.processing.peaks.radii.peak_windows`).
     reference : {"relative", "absolute", "synthetic"}
-        Reference mode of the maps (DESIGN.md).
+        Reference mode of the maps (docs/design.md).
     unwrap : {"auto", "always", "never"}
         Spatial unwrapping of the maps.
     peaks : tuple of LabelledPeak
@@ -350,9 +355,13 @@ class Experiment:
     def from_json(cls, text: str, where: str = "experiment") -> Experiment:
         """Parse JSON text written by :meth:`to_json`; InputError naming what is wrong."""
         try:
-            data = json.loads(text)
+            data = json.loads(text, parse_int=_json_int)
         except json.JSONDecodeError as exc:
             raise InputError(f"{where}: not valid JSON ({exc.msg}, line {exc.lineno})") from exc
+        except RecursionError:
+            raise InputError(
+                f"{where}: not an experiment (its JSON is nested too deeply to read)"
+            ) from None
         return cls.from_dict(data, where)
 
     def save(self, path: Path) -> None:
@@ -370,12 +379,7 @@ class Experiment:
     def load(cls, path: str | os.PathLike[str]) -> Experiment:
         """Read an experiment file; InputError when it is missing, unreadable or malformed."""
         p = Path(path)
-        try:
-            raw = p.read_bytes()
-        except OSError as exc:
-            raise InputError(
-                f"experiment file {p}: cannot be read ({exc.strerror or exc})"
-            ) from exc
+        raw = read_regular_file(p, f"experiment file {p}")
         # PowerShell's ">" writes UTF-16 with a byte-order mark; read it as what it is
         encoding = "utf-16" if raw[:2] in (b"\xff\xfe", b"\xfe\xff") else "utf-8-sig"
         try:
@@ -385,6 +389,16 @@ class Experiment:
                 f"experiment file {p}: not text (a binary file? save it as UTF-8 JSON)"
             ) from None
         return cls.from_json(text, f"experiment file {p}")
+
+
+#: Digits beyond which a JSON integer is read as a float (inf past 1e308): Python refuses
+#: to convert integers of more than 4300 digits, and no experiment value needs 20.
+_INT_DIGITS = 20
+
+
+def _json_int(text: str) -> int | float:
+    """A JSON integer: an int, or a float where it is too long to be a sensible one."""
+    return int(text) if len(text) <= _INT_DIGITS else float(text)
 
 
 def _peak_from_dict(item: object, version: int, where: str) -> LabelledPeak:

@@ -5,13 +5,17 @@ One rule, used by the live window (a click, a label following a drifting peak) a
 experiment): a carrier names the detected peak nearest it on either twin, within
 :data:`~holoview.processing.peaks.snapping.SNAP_BINS` FFT bins on the periodic spectrum
 (:func:`holoview.processing.peaks.snapping.snap`). The detected peak is taken on the twin the
-carrier points at, so a label keeps the twin it was given (DESIGN.md: the twin where
+carrier points at, so a label keeps the twin it was given (docs/design.md: the twin where
 the phase grows with the height).
 
 With two or more labels of the model's families (RB1 and FB1, say), the model
 (:func:`holoview.processing.naming.labelling.label_peaks`) places every first-order family up
 to :data:`MAX_ORDER`, and the detected peaks it lands on are demodulated too, with the
-model's alpha (:func:`resolve_peaks`).
+model's alpha (:func:`resolve_peaks`). Labels the lattice contradicts (a label on
+another family's peak, on the wrong twin, two labels for one family:
+:class:`~holoview.processing.naming.lattice_labels.LabelContradictionError`) are a problem
+naming the label, first among the notes live and an error headless
+(:meth:`Resolution.strict`), never a quiet note.
 """
 
 from __future__ import annotations
@@ -28,6 +32,7 @@ from holoview.errors import InputError
 from holoview.processing.fourier.windows import wrap_frequency
 from holoview.processing.naming.labelling import ModelLabelling, label_peaks
 from holoview.processing.naming.lattice_geometry import LatticePeak
+from holoview.processing.naming.lattice_labels import LabelContradictionError
 from holoview.processing.peaks.detection import Peak
 from holoview.processing.peaks.snapping import SNAP_BINS, bin_distance, snap
 
@@ -82,7 +87,9 @@ class Resolution:
     unmatched : tuple of str
         Labels whose carrier lies on no detected peak (or on one another label named).
     problems : tuple of str
-        One line per unmatched label (also in ``notes``).
+        One line per unmatched label, and the contradiction (also in ``notes``).
+    contradiction : str or None
+        The line naming a label the carrier lattice contradicts (None: none).
     notes : tuple of str
         One line per thing to know (unmatched labels, a label on the probable wrong
         twin, a family past Nyquist, a model that cannot place the families).
@@ -99,6 +106,7 @@ class Resolution:
     problems: tuple[str, ...] = ()
     notes: tuple[str, ...] = ()
     labelling: ModelLabelling | None = None
+    contradiction: str | None = None
     lattice: tuple[LatticePeak | None, ...] = ()
 
     @property
@@ -106,10 +114,16 @@ class Resolution:
         """Each demodulated peak's carrier by label."""
         return {p.label: p.carrier for p in self.peaks if p.label}
 
-    def strict(self) -> Resolution:
-        """Return self, or raise InputError when a label lies on no detected peak."""
-        if self.problems:
+    def strict(self, *, unmatched: bool = True) -> Resolution:
+        """Return self, or raise InputError naming the labels that are wrong.
+
+        A label the lattice contradicts is always an error; with ``unmatched``, so is a
+        label on no detected peak (a recording's own experiment may have drifted).
+        """
+        if unmatched and self.problems:
             raise InputError("; ".join(self.problems))
+        if self.contradiction is not None:
+            raise InputError(self.contradiction)
         return self
 
 
@@ -172,11 +186,12 @@ def resolve_peaks(
             taken[found[0]] = lp.label
             peak = found[1]
         chosen.append(peak.relabelled(lp.label, alpha))
-    notes = list(problems)
     predicted: dict[str, Carrier] = {}
     labelling = None
+    contradiction = None
     anchors = {p.label: p.carrier for p in chosen if p.label not in unmatched}
     family_anchors = {k: c for k, c in anchors.items() if experiment.alpha_of_label(k)}
+    cannot = ""
     if len(family_anchors) >= 2 and detected and experiment.n1 and experiment.n2:
         try:
             labelling = label_peaks(
@@ -187,8 +202,14 @@ def resolve_peaks(
                 shape,
                 max_order=max_order,
             )
+        except LabelContradictionError as exc:
+            contradiction = str(exc)
+            problems.append(contradiction)
         except InputError as exc:
-            notes.append(f"the model cannot place the other families: {exc}")
+            cannot = f"the model cannot place the other families: {exc}"
+    notes = list(problems)
+    if cannot:
+        notes.append(cannot)
     if labelling is not None:
         notes += [
             f"{k} is probably on the wrong twin: label its twin instead"
@@ -232,4 +253,5 @@ def resolve_peaks(
         notes=tuple(notes),
         labelling=labelling,
         lattice=tuple(on_lattice.get(p.label or "") for p in chosen),
+        contradiction=contradiction,
     )

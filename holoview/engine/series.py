@@ -48,7 +48,7 @@ _ARRAYS = ("_t", "_frames", "_values", "_noise", "_steps", "_jphase", "_jfused",
 def coupling_of(label: str | None, n1: float | None, n2: float | None) -> int | None:
     """How many times the reference-arm phase enters a peak: its lattice ``rf`` coordinate.
 
-    RF +1, every RB_j -1, every FB_j 0, 2RB1 -2 (DESIGN.md, "The lattice"); None for a
+    RF +1, every RB_j -1, every FB_j 0, 2RB1 -2 (docs/design.md, "The lattice"); None for a
     label the lattice does not place (a custom name, a ghost) or unknown indices.
     """
     if label is None or n1 is None or n2 is None:

@@ -320,7 +320,7 @@ def analyse(data: RunData, selection: Selection, optics: Optics) -> Analysis:
     else:
         naming = _given_names(selection)
     labels, signed = naming.labels, naming.signed
-    # a peak with a negative prefactor is stored on its other twin (DESIGN.md)
+    # a peak with a negative prefactor is stored on its other twin (docs/design.md)
     signs = [-1.0 if (a is not None and a < 0) else 1.0 for a in signed]
     alphas = [abs(a) if a is not None else None for a in signed]
     joint = _joint_setup(naming, optics, wavelength)

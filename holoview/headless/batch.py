@@ -39,10 +39,11 @@ from holoview.acquire.replay_files import (
 )
 from holoview.atomic import atomic_path
 from holoview.errors import HoloviewError, InputError, OutputError, os_error_text
+from holoview.file_kinds import special_file
 from holoview.headless.chunks import plan_jobs
 from holoview.headless.output_folder import OutputFolder
 from holoview.headless.parallel import ChunkRunner, open_runner
-from holoview.headless.run import REPORT_PNG, RESULTS_H5, SUMMARY_JSON, TRENDS_CSV, process_file
+from holoview.headless.run import OUTPUT_NAMES, process_file
 
 logger = logging.getLogger(__name__)
 
@@ -63,8 +64,16 @@ def _natural(path: Path) -> tuple[list[object], str]:
     return natural_key(path.stem), path.suffix.lower()
 
 
+def _is_entry(path: Path) -> bool:
+    """A file a batch takes: a regular file, or a FIFO, device or broken link (a failed row)."""
+    return path.is_file() or special_file(path, folder_ok=False) not in (None, "a folder")
+
+
 def find_recordings(spec: str | Path) -> list[Path] | None:
     """The recordings ``spec`` names, or None when it names one input.
+
+    Entries that are no regular file (a broken symbolic link, a FIFO, a device) are
+    named too: each becomes a failed row of the batch, never opened, never dropped.
 
     Raises
     ------
@@ -73,8 +82,8 @@ def find_recordings(spec: str | Path) -> list[Path] | None:
     """
     text = str(spec)
     path = Path(text)
-    if not path.exists() and _GLOB.search(text):
-        found = sorted((Path(p) for p in glob.glob(text) if Path(p).is_file()), key=_natural)
+    if not path.exists() and not path.is_symlink() and _GLOB.search(text):
+        found = sorted((Path(p) for p in glob.glob(text) if _is_entry(Path(p))), key=_natural)
         if not found:
             raise InputError(f"{text}: no file matches")
         return found
@@ -82,7 +91,9 @@ def find_recordings(spec: str | Path) -> list[Path] | None:
         found = [
             p
             for p in path.iterdir()
-            if p.is_file() and not p.name.startswith(".") and p.suffix.lower() in RECORDING_SUFFIXES
+            if not p.name.startswith(".")
+            and p.suffix.lower() in RECORDING_SUFFIXES
+            and _is_entry(p)
         ]
         return sorted(found, key=_natural) or None
     return None
@@ -191,9 +202,8 @@ def _check_folders(out: Path, rows: list[BatchRow], overwrite: bool) -> None:
             f"--out {out} holds the index of an earlier batch ({INDEX_CSV}); give "
             "--overwrite to replace it when this batch completes, or another folder"
         )
-    names = (TRENDS_CSV, SUMMARY_JSON, RESULTS_H5, REPORT_PNG)
     for row in rows:
-        OutputFolder(row.out, names, overwrite=overwrite)
+        OutputFolder(row.out, OUTPUT_NAMES, overwrite=overwrite)
 
 
 def process_batch(

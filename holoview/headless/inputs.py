@@ -3,10 +3,13 @@
 Physical parameters come from a holoview recording's ``/setup`` attributes when it
 has them, else from the user's options. An option given explicitly overrides the
 recording (with a warning naming both values): a recording made with a wrong setting
-can still be processed right. Frame times come from the file's own timestamps (the
-camera clock, else host arrival times, or a video's frame rate); ``fps_hz`` replaces
-them with ``index / fps_hz``, and files without times (TIFF stacks, image folders)
-need it.
+can still be processed right. Frame times come from the file's own timestamps by the
+one clock rule (:mod:`holoview.acquire.frame_times`: the camera clock where it is
+finite, forward and free of jumps, else host arrival times; a video's frame rate);
+``fps_hz`` replaces them with ``index / fps_hz``, and files without usable times (TIFF
+stacks, image folders, a recording whose clocks are both damaged) need it. The rule
+used, and what a recording's frames lack (a recording still being written, time
+stamps missing for frames stored), are notes for the results.
 
 The frames are checked where a user's mistake would otherwise pass unseen: values
 beyond the recording's pixel format (a "Mono12" file holding 16-bit data) stop the
@@ -30,6 +33,7 @@ from holoview.acquire.recording import RecordingReader
 from holoview.acquire.replay_files import FrameFile, open_frame_file
 from holoview.engine.experiment import Experiment
 from holoview.errors import InputError
+from holoview.file_kinds import special_file
 from holoview.optics.setup import FLUIDS, check_optics
 from holoview.processing.fourier.frames import check_frame, check_frame_content, frame_damage
 
@@ -321,7 +325,7 @@ def first_good_frame(source: InputFile, frames: range) -> tuple[int, np.ndarray]
         None of the first frames is usable (naming the file, the frame and why), or
         the frames are background-subtracted.
     """
-    problems = []
+    problems: list[str] = []
     for index in list(frames)[:FIRST_FRAME_TRIES]:
         frame = source.read(index)
         problem = frame_problem(frame)
@@ -337,8 +341,23 @@ def first_good_frame(source: InputFile, frames: range) -> tuple[int, np.ndarray]
     raise InputError(f"{source.path}: no peaks can be detected on {span}: frame {problems[0]}")
 
 
-def _increasing(times: np.ndarray) -> bool:
-    return bool(np.all(np.isfinite(times)) and np.all(np.diff(times) > 0))
+@dataclass(frozen=True)
+class FrameTimes:
+    """The times of a run's frames and the rule that gave them.
+
+    Attributes
+    ----------
+    times : ndarray
+        Seconds from 0 at the run's first frame.
+    note : str
+        Which clock (or ``--fps``) timed which frames, and why not the camera's.
+    warning : bool
+        True when the camera's clock was damaged and another was used.
+    """
+
+    times: np.ndarray
+    note: str
+    warning: bool = False
 
 
 class InputFile:
@@ -365,6 +384,9 @@ class InputFile:
     saturation : float or None
         The largest value the camera gives (counts), from the recording's significant
         bits or the integer dtype; None for real-valued frames.
+    notes : list of str
+        What a reader of the results should know about the frames (a recording still
+        being written, frames left out because their time stamps are missing).
     info : dict
         What ``summary.json`` says of the input (path, kind, frames, shape, dtype and,
         for a recording, its uuid, source and creation time).
@@ -377,18 +399,23 @@ class InputFile:
 
     def __init__(self, path: str | Path) -> None:
         self.path = Path(path)
+        special = special_file(self.path)
+        if special is not None:  # never opened: a FIFO would wait for a writer
+            raise InputError(f"{self.path}: {special}, not a file or folder of frames")
         if not self.path.exists():
             raise InputError(f"{self.path}: no such file or folder")
         self.setup: dict[str, Any] = {}
         self.experiments: list[tuple[int, str]] = []
-        self._host_times: np.ndarray | None = None
+        self._experiment_problem: str | None = None
         self.info: dict[str, Any] = {"path": str(self.path)}
         bits: int | None = None
         if self.path.is_file() and self.path.suffix.lower() in (".h5", ".hdf5"):
             with RecordingReader(self.path) as reader:
                 self.setup = dict(reader.setup)
-                self.experiments = reader.experiments()
-                self._host_times = np.asarray(reader.t_host, dtype=np.float64)
+                try:
+                    self.experiments = reader.experiments()
+                except InputError as exc:
+                    self._experiment_problem = str(exc)
                 bits = reader.significant_bits
                 self.info.update(
                     uuid=reader.uuid, source=reader.source, created_utc=reader.created_utc
@@ -406,6 +433,7 @@ class InputFile:
             self.saturation: float | None = float(2**bits - 1)
         else:
             self.saturation = None
+        self.notes = self._file.notes()
         self.info.update(
             kind=self.kind,
             frames_in_file=len(self),
@@ -420,10 +448,13 @@ class InputFile:
         """The experiment the recording carries for ``frame``, and notes about it.
 
         Returns the last one stored from ``frame`` or before (None when there is none,
-        or it cannot be read: a note says why). A change stored after ``frame`` gets a
-        note naming the frame it holds from: one run uses one experiment.
+        or it cannot be read, its layout in the file included: a note says why). A change
+        stored after ``frame`` gets a note naming the frame it holds from: one run uses
+        one experiment.
         """
         notes: list[str] = []
+        if self._experiment_problem is not None:
+            return None, [f"{self._experiment_problem}; ignored"]
         in_force = [(start, text) for start, text in self.experiments if start <= frame]
         later = [start for start, _ in self.experiments if start > frame]
         if later:
@@ -461,18 +492,21 @@ class InputFile:
                 )
         return frame
 
-    def times(self, frames: range, fps_hz: float | None = None) -> np.ndarray:
-        """Return the times of ``frames`` in s, from 0 at the first of them.
+    def times(self, frames: range, fps_hz: float | None = None) -> FrameTimes:
+        """Return the times of ``frames`` in s, from 0 at the first of them, and their rule.
 
         With ``fps_hz`` the times are ``(index - first) / fps_hz``; otherwise the file's
-        camera timestamps, else a recording's host arrival times, are used.
+        clock by the one rule (:meth:`~holoview.acquire.replay_files.FrameFile.clock`:
+        a recording's camera clock, else its host arrival times; a video's frame rate).
 
         Raises
         ------
         InputError
-            When the file has no usable times and ``fps_hz`` is not given.
+            When the file has no usable times and ``fps_hz`` is not given (the line
+            says why each clock is not usable).
         """
         indices = np.asarray(frames, dtype=np.int64)
+        span = f"frames {frames[0]}..{frames[-1]}" if len(frames) > 1 else f"frame {frames[0]}"
         if fps_hz is not None:
             if not (math.isfinite(fps_hz) and fps_hz > 0):
                 raise InputError(f"--fps must be a positive number, got {fps_hz}")
@@ -481,18 +515,14 @@ class InputFile:
                     f"--fps {fps_hz:g} is not a plausible frame rate "
                     f"({FPS_RANGE[0]:g} to {FPS_RANGE[1]:g} frames/s)"
                 )
-            return (indices - indices[0]) / float(fps_hz)
-        device = np.array([self._file.t_device(int(i)) for i in indices], dtype=np.float64)
-        if _increasing(device):
-            return device - device[0]
-        if self._host_times is not None:
-            host = self._host_times[indices]
-            if _increasing(host):
-                logger.info("%s: no camera timestamps; using host arrival times", self.path)
-                return host - host[0]
+            note = f"frame times of {span}: --fps {fps_hz:g} (the file's own times not used)"
+            return FrameTimes((indices - indices[0]) / float(fps_hz), note)
         if indices.size == 1:
-            return np.zeros(1)
-        raise InputError(f"{self.path} carries no usable frame times: give --fps")
+            return FrameTimes(np.zeros(1), f"{span}: one frame, no times needed")
+        clock = self._file.clock(frames)
+        if not clock.usable:
+            raise InputError(f"{self.path}: {clock.note}: give --fps (frames per second)")
+        return FrameTimes(clock.times - clock.times[0], clock.note, warning=clock.fallback)
 
     def close(self) -> None:
         """Release the file."""

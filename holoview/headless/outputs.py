@@ -9,37 +9,11 @@
     known (a frame that could not be demodulated, a peak without alpha).
 ``summary.json``
     See :func:`summary_document`.
-``results.h5`` (format ``holoview-results`` 1.0)
-    Root attributes: ``format``, ``format_version``, ``uuid``, ``holoview_version``,
-    ``created_utc``, ``input``, ``interrupted`` (the run was stopped: the frames
-    done only), and the parameters (``wavelength_m``, ``n1``, ``n2``,
-    ``pixel_pitch_m``, ``reference``, ``window``, ``radius``: ``"matched"``, ``"bound"``
-    or the radius given in cycles/pixel, ``unwrap``).
-    ``/trends``: ``frame`` (N,), ``time_s`` (N,), ``label`` (M,), ``alpha`` (M,),
-    ``mean_phase_rad`` (N, M), ``mean_height_m`` (N, M), ``carrier_value`` (N, M,
-    complex, counts), ``phase_noise_rad`` (N, M, the maps' per-pixel noise where a
-    frame was demodulated), ``fused_height_m`` (N,), ``fused_spread_m`` (N,), with
-    ``--area`` ``fused_volume_m3`` (N,), and with the joint estimate ``vibration_rad``
-    (N,: the reference-arm phase), ``ambiguity_margin`` (N,: noise standard deviations)
-    and ``ambiguity_flagged`` (N,); each with a ``unit`` attribute. ``/peaks``:
-    ``label``, ``carrier_cpp`` (M, 2), ``alpha``, ``amplitude``, ``snr``,
-    ``rate_m_per_s``, ``rate_stderr_m_per_s``, ``used_in_fused``, ``flags``
-    (comma-separated), each peak's window: ``radius_cpp``, ``window_taper``,
-    ``window_rule`` (``matched``, ``bound``, ``given``), ``window_reason``.
-    With maps, ``/maps/<label>`` and ``/maps/fused``: float32, metres, shape
-    ``(frames, rows, cols)`` at the demodulation box's resolution (pixel ``(p, q)`` at
-    frame position ``(p * pixel_step_px[0], q * pixel_step_px[1])``), NaN where not
-    trusted; attributes ``unit``, ``quantity`` (``delta_h``), ``reference`` and
-    ``reference_description``, ``label``, ``alpha``, ``carrier_cpp``, ``frame_shape_px``,
-    ``pixel_step_px``, ``pixel_size_m`` (when the pixel pitch is known), ``window``,
-    per peak the window it was demodulated with (``radius_cpp``, its cut-off in
-    cycles/pixel; ``window_taper``, ``window_rule``, ``window_bound_cpp``,
-    ``window_content_cpp`` where matched, ``window_reason``) and its measured shift
-    against the first peak (``displacement_px``, ``displacement_stderr_px``,
-    ``displacement_measured``), and for ``fused`` its ``labels``, their radii
-    ``radius_cpp`` (one per label) and ``grid_of`` (the maps are moved onto that
-    peak's grid before fusing). A peak without alpha keeps its phase map (``unit`` ``rad``,
-    ``quantity`` ``phase``).
+``results.h5``
+    Format ``holoview-results`` 2.0, netCDF-4 in the CF manner: its layout is
+    documented in :mod:`holoview.headless.results_layout`, which writes its series and
+    peaks tables and the maps' dimensions; :class:`ResultsFile` writes the maps as they
+    come and the rest at the end.
 
 Each writer writes the path it is given: a run gives them temporary names and
 renames the files when it completes (:mod:`holoview.headless.output_folder`). A
@@ -66,9 +40,17 @@ import numpy as np
 from holoview import __version__
 from holoview.acquire.durability import CLOSE_MARGIN_BYTES, DiskReserve, free_bytes
 from holoview.errors import OutputError, os_error_text
+from holoview.headless import cf
 from holoview.headless.analysis import Analysis, PeakOutcome
 from holoview.headless.inputs import Optics
 from holoview.headless.pipeline import ProcessSettings, RunData, fuse_frame
+from holoview.headless.results_layout import (
+    RESULTS_FORMAT,
+    RESULTS_VERSION,
+    map_dimensions,
+    write_peaks,
+    write_trends,
+)
 from holoview.processing.peaks.matched import Window
 
 logger = logging.getLogger(__name__)
@@ -76,8 +58,7 @@ logger = logging.getLogger(__name__)
 #: The header of ``trends.csv``, exactly.
 TRENDS_HEADER = ("frame", "time_s", "label", "alpha", "mean_phase_rad", "mean_height_m")
 
-#: Format name and version of ``results.h5`` and ``summary.json``.
-RESULTS_FORMAT = "holoview-results"
+#: Format name and version of ``summary.json`` (``results.h5``'s: results_layout).
 SUMMARY_FORMAT = "holoview-process-summary"
 FORMAT_VERSION = "1.0"
 
@@ -491,7 +472,8 @@ class ResultsFile:
         f.attrs.update(
             {
                 "format": RESULTS_FORMAT,
-                "format_version": FORMAT_VERSION,
+                "format_version": RESULTS_VERSION,
+                "Conventions": cf.CONVENTIONS,
                 "uuid": str(uuid.uuid4()),
                 "holoview_version": __version__,
                 "created_utc": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
@@ -521,56 +503,10 @@ class ResultsFile:
             )
 
     def _write_trends(self, data: RunData, analysis: Analysis, settings: ProcessSettings) -> None:
-        group = self._file.create_group("trends")
-        labels = [p.label for p in analysis.peaks]
-        series: dict[str, tuple[Any, str]] = {
-            "frame": (data.frames, ""),
-            "time_s": (data.times, "s"),
-            "label": (np.array(labels, dtype=h5py.string_dtype()), ""),
-            "alpha": (np.array([p.alpha or math.nan for p in analysis.peaks]), ""),
-            "mean_phase_rad": (analysis.phases, "rad"),
-            "mean_height_m": (analysis.heights, "m"),
-            "carrier_value": (data.values.astype(np.complex64), "counts"),
-            "phase_noise_rad": (data.noise_rad, "rad"),
-        }
-        if analysis.fused is not None:
-            series["fused_height_m"] = (analysis.fused, "m")
-            if analysis.fused_spread is not None:
-                series["fused_spread_m"] = (analysis.fused_spread, "m")
-            if settings.area_m2 is not None:
-                series["fused_volume_m3"] = (analysis.fused * settings.area_m2, "m^3")
-        if analysis.margins is not None:
-            series["ambiguity_margin"] = (analysis.margins, "")
-            series["ambiguity_flagged"] = (analysis.flagged, "")
-        if analysis.vibration is not None:
-            series["vibration_rad"] = (analysis.vibration, "rad")
-        for name, (values, unit) in series.items():
-            group[name] = values
-            group[name].attrs["unit"] = unit
+        write_trends(self._file.create_group("trends"), data, analysis, settings)
 
     def _write_peaks(self, analysis: Analysis, data: RunData) -> None:
-        group = self._file.create_group("peaks")
-        if data.windows:
-            windows = data.windows
-            group["radius_cpp"] = np.array([w.radius for w in windows], dtype=np.float64)
-            group["window_taper"] = np.array([w.taper for w in windows], dtype=np.float64)
-            group["window_rule"] = np.array([w.rule for w in windows], dtype=h5py.string_dtype())
-            group["window_reason"] = np.array(
-                [w.reason for w in windows], dtype=h5py.string_dtype()
-            )
-        peaks = analysis.peaks
-        group["label"] = np.array([p.label for p in peaks], dtype=h5py.string_dtype())
-        group["carrier_cpp"] = np.array([p.carrier for p in peaks], dtype=np.float64)
-        for name, values in (
-            ("alpha", [p.alpha for p in peaks]),
-            ("amplitude", [p.amplitude for p in peaks]),
-            ("snr", [p.snr for p in peaks]),
-            ("rate_m_per_s", [p.rate for p in peaks]),
-            ("rate_stderr_m_per_s", [p.rate_stderr for p in peaks]),
-        ):
-            group[name] = np.array([math.nan if v is None else v for v in values])
-        group["used_in_fused"] = np.array([p.used_in_fused for p in peaks], dtype=bool)
-        group["flags"] = np.array([",".join(p.flags) for p in peaks], dtype=h5py.string_dtype())
+        write_peaks(self._file.create_group("peaks"), analysis, data.windows)
 
     def _name_maps(
         self,
@@ -610,7 +546,8 @@ class ResultsFile:
             attrs.update(
                 {
                     "label": peak.label,
-                    "unit": "m" if height else "rad",
+                    "units": "m" if height else "rad",
+                    "long_name": f"{'height' if height else 'phase'} change from {peak.label}",
                     "quantity": "delta_h" if height else "phase",
                     "alpha": peak.alpha or math.nan,
                     "carrier_cpp": list(peak.carrier),
@@ -631,7 +568,8 @@ class ResultsFile:
             group["fused"].attrs.update(
                 {
                     "label": "fused",
-                    "unit": "m",
+                    "units": "m",
+                    "long_name": "height change fused from " + ", ".join(fused_labels),
                     "quantity": "delta_h",
                     "labels": ",".join(fused_labels),
                     "radius_cpp": [
@@ -642,6 +580,18 @@ class ResultsFile:
                     "grid_of": analysis.peaks[0].label,
                 }
             )
+        pitch = optics.pixel_pitch_m
+        scales = map_dimensions(
+            group,
+            frames=data.frames,
+            times=data.times,
+            box_shape=data.box_shape,
+            step_px=step,
+            pixel_pitch_m=pitch,
+        )
+        for name in [p.label for p in analysis.peaks] + (["fused"] if "fused" in group else []):
+            cf.attach(group[name], scales)
+            group[name].attrs["coordinates"] = "frame"
 
     def _ensure_room(self, nbytes: int) -> None:
         """Raise OutputError, before HDF5 tries, when ``nbytes`` more would not fit.

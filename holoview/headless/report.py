@@ -1,16 +1,21 @@
-"""``report.png``: what a person looks at first after a headless run.
+"""The report of a headless run (``report.png``, or PDF or SVG): what a person looks at first.
 
-Three parts, drawn with OpenCV (:mod:`holoview.headless.plotting`):
+Drawn with matplotlib on its Agg canvas (:mod:`holoview.headless.figures`), 1366
+pixels wide as a PNG, in three parts:
 
 1. the spatial-frequency spectrum of the first processed frame (log magnitude,
-   ``fx`` along columns, ``fy`` down the rows, cycles/pixel) with every processed
-   peak circled at its window radius and labelled, its twin dotted, and the other
-   detected peaks in grey;
-2. the mean height change of each peak and the fused estimate over time, in nm, with
-   the fitted line of the fused depth; the legend gives each peak's alpha and rate
-   (um/min, with its standard error) and why a peak was left out of the fusion;
-3. the delta-h map of every peak and the fused map of the last frame (nm, colour
-   bar; grey where not trusted), titled with the reference mode.
+   ``fx`` along columns, ``fy`` down the rows, cycles/pixel; cycles/mm on the
+   opposite axes when the pixel pitch is known) with every processed peak circled at
+   its window radius and labelled, its twin dotted, and the other detected peaks in
+   grey;
+2. the mean height change of each peak and the fused estimate against time, in nm
+   (um past 5 um), with the fitted line of the fused depth; the legend gives each
+   peak's alpha and rate (um/min, with its standard error) and why a peak was left
+   out of the fusion;
+3. the delta-h map of every peak and the fused map of the last frame, in nm (each
+   with its colour bar, from its 1st to 99th percentile), axes in mm on the object side
+   (camera pixels without a pixel pitch), grey where not trusted, titled with the
+   reference mode.
 
 Under them, in red, the run's notes (``summary.json``'s ``notes``): the caveats a
 reader must not miss, such as an automatic identification whose global sign is
@@ -19,162 +24,160 @@ a guess.
 
 from __future__ import annotations
 
+import textwrap
 from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
-import cv2
 import numpy as np
+from matplotlib import colormaps, patheffects
+from matplotlib.axes import Axes
+from matplotlib.colors import Normalize
+from matplotlib.figure import Figure
+from matplotlib.patches import Circle
 
-from holoview.errors import OutputError, os_error_text
 from holoview.headless.analysis import Analysis
+from holoview.headless.figures import new_figure, save_figure
 from holoview.headless.inputs import Optics
 from holoview.headless.pipeline import ProcessSettings, RunData, fuse_frame
-from holoview.headless.plotting import (
-    BLACK,
-    GREY,
-    PALETTE,
-    WHITE,
-    Axes,
-    colour_bar,
-    colour_image,
-    dashed_segment,
-    legend,
-    padded_limits,
-    text,
-)
 from holoview.processing.peaks.detection import Peak
 from holoview.processing.series.rate_fits import format_rate
 
-#: Canvas width, pixels.
-WIDTH = 1700
-#: Side of the spectrum panel and of each map, pixels.
-SPECTRUM_SIDE = 470
-MAP_SIDE = 230
-#: Width of one map cell (map, colour bar, margins), pixels.
-MAP_CELL = 320
-#: Height of one line of the notes under the maps, pixels.
-NOTE_LINE = 26
-#: Colour of the notes (BGR): the caveats a reader must not miss.
-NOTE_RED = (30, 30, 200)
+#: Figure width, inches (1366 pixels in a PNG).
+WIDTH_IN = 13.66
+#: Height of the header (title and the run's line), inches.
+HEADER_IN = 0.95
+#: Side of the spectrum and trends panels, inches.
+PANEL_IN = 4.1
+#: Side of one map, inches, and the maps in a row.
+MAP_IN = 2.05
+MAPS_PER_ROW = 4
+#: Height of one line of notes, inches.
+NOTE_IN = 0.24
+#: Characters in a line of notes before it wraps.
+NOTE_WIDTH = 150
+
+#: Line colours, colour-blind friendly (Okabe and Ito, 2008).
+PALETTE = (
+    "#0072B2",  # blue
+    "#D55E00",  # vermilion
+    "#009E73",  # bluish green
+    "#CC79A7",  # reddish purple
+    "#E69F00",  # orange
+    "#56B4E9",  # sky blue
+    "#F0E442",  # yellow
+    "#3C3C3C",  # dark grey
+)
+FIT_COLOUR = "#C00000"
+NOTE_COLOUR = "#B00000"
 
 REFERENCE_TITLES = {
     "relative": "against the previous frame",
     "absolute": "against the first frame",
-    "synthetic": "against a plane wave (up to 2 pi)",
+    "synthetic": "against a plane wave (up to 2\u03c0)",
 }
+
+#: A white outline under text drawn over an image.
+OUTLINE = [patheffects.withStroke(linewidth=2.5, foreground="black")]
+
+
+@dataclass(frozen=True)
+class MapPanel:
+    """One map of the last frame: title, values (nm, or rad) and their unit."""
+
+    title: str
+    values: np.ndarray
+    unit: str
+
+
+class _Layout:
+    """Axes placed in inches from the figure's top-left corner."""
+
+    def __init__(self, figure: Figure, height_in: float) -> None:
+        self.figure = figure
+        self.height_in = height_in
+
+    def axes(self, left: float, top: float, width: float, height: float) -> Axes:
+        rect = (
+            left / WIDTH_IN,
+            1 - (top + height) / self.height_in,
+            width / WIDTH_IN,
+            height / self.height_in,
+        )
+        return self.figure.add_axes(rect)
+
+    def text(self, left: float, top: float, content: str, **style: Any) -> None:
+        self.figure.text(
+            left / WIDTH_IN, 1 - top / self.height_in, content, va="top", ha="left", **style
+        )
 
 
 def _spectrum_panel(
-    image: np.ndarray,
+    axes: Axes,
     spectrum: np.ndarray,
     *,
     detected: Sequence[Peak],
     analysis: Analysis,
     radii: Sequence[float],
-    origin: tuple[int, int],
+    pixel_pitch_m: float | None,
 ) -> None:
-    left, top = origin
     rows, cols = spectrum.shape
     low, high = np.percentile(spectrum, (5.0, 99.99))
-    grey = np.clip((spectrum - low) / max(high - low, 1e-12) * 255, 0, 255).astype(np.uint8)
-    grey = cv2.resize(grey, (SPECTRUM_SIDE, SPECTRUM_SIDE), interpolation=cv2.INTER_AREA)
-    image[top : top + SPECTRUM_SIDE, left : left + SPECTRUM_SIDE] = cv2.cvtColor(
-        grey, cv2.COLOR_GRAY2BGR
-    )
     # bin centres: column k (centred) is fx = (k - cols // 2) / cols
     x0, x1 = -(cols // 2) / cols - 0.5 / cols, (cols - cols // 2) / cols - 0.5 / cols
     y0, y1 = -(rows // 2) / rows - 0.5 / rows, (rows - rows // 2) / rows - 0.5 / rows
-    axes = Axes(image, (left, top, SPECTRUM_SIDE, SPECTRUM_SIDE), (x0, x1), (y1, y0))
-    axes.frame(
-        xlabel="fx (cycles/pixel)",
-        ylabel="fy (cycles/pixel)",
-        title="spectrum of the first frame (log magnitude)",
-        grid=False,
+    axes.imshow(
+        spectrum,
+        cmap="gray",
+        vmin=low,
+        vmax=high,
+        extent=(x0, x1, y1, y0),
+        origin="upper",
+        interpolation="antialiased",
     )
-    scale = SPECTRUM_SIDE / (x1 - x0)
+    axes.set_xlabel("$f_x$ (cycles/pixel)")
+    axes.set_ylabel("$f_y$ (cycles/pixel)")
     processed = {tuple(np.round(p.carrier, 6)) for p in analysis.peaks}
-    for peak in detected:
-        for sign in (1, -1):
-            carrier = (sign * peak.carrier[0], sign * peak.carrier[1])
-            if tuple(np.round(carrier, 6)) in processed:
-                continue
-            px, py = axes.to_px(*carrier)
-            cv2.circle(image, (int(px), int(py)), 4, GREY, 1, cv2.LINE_AA)
+    others = [
+        (sign * p.carrier[0], sign * p.carrier[1])
+        for p in detected
+        for sign in (1, -1)
+        if tuple(np.round((sign * p.carrier[0], sign * p.carrier[1]), 6)) not in processed
+    ]
+    if others:
+        fx, fy = np.array(others).T
+        axes.plot(fx, fy, "o", ms=6, mfc="none", mec="0.6", mew=1)
     for j, peak in enumerate(analysis.peaks):
         radius = radii[j]
         colour = PALETTE[j % len(PALETTE)]
-        px, py = axes.to_px(*peak.carrier)
-        centre = (round(float(px)), round(float(py)))
-        cv2.circle(image, centre, max(3, int(radius * scale)), colour, 2, cv2.LINE_AA)
-        tx, ty = axes.to_px(-peak.carrier[0], -peak.carrier[1])
-        cv2.circle(image, (int(tx), int(ty)), 3, colour, -1, cv2.LINE_AA)
-        label_at = (centre[0] + int(radius * scale) + 4, centre[1] - 4)
-        text(
-            image,
+        fx, fy = peak.carrier
+        axes.add_patch(Circle((fx, fy), radius, fill=False, ec=colour, lw=1.8))
+        axes.plot([-fx], [-fy], "o", ms=4, color=colour)
+        axes.text(
+            fx + radius * 0.75,
+            fy - radius * 0.75,
             peak.label,
-            (label_at[0] + 1, label_at[1] + 1),
-            scale=0.5,
-            colour=BLACK,
-            thickness=2,
+            color="white",
+            fontsize=10,
+            fontweight="bold",
+            path_effects=OUTLINE,
         )
-        text(image, peak.label, label_at, scale=0.5, colour=WHITE, thickness=1)
-    text(
-        image,
+    axes.set_xlim(x0, x1)
+    axes.set_ylim(y1, y0)
+    if pixel_pitch_m is not None:
+        per_mm = 1e-3 / pixel_pitch_m  # cycles/pixel to cycles/mm
+
+        top = axes.secondary_xaxis(
+            "top", functions=(lambda f: np.asarray(f) * per_mm, lambda k: np.asarray(k) / per_mm)
+        )
+        top.set_xlabel("cycles/mm (object side)")
+    axes.set_title(
+        f"spectrum of the first frame (log magnitude)\n"
         f"circles: each peak's window ({min(radii):.3g} to {max(radii):.3g} cycles/pixel); "
         "dots: twins; grey: other peaks",
-        (left, top + SPECTRUM_SIDE + 62),
-        scale=0.42,
+        fontsize=10,
     )
-
-
-def _trend_panel(
-    image: np.ndarray, data: RunData, analysis: Analysis, box: tuple[int, int, int, int]
-) -> None:
-    left, top, width, _height = box
-    times = data.times
-    shown = [j for j, p in enumerate(analysis.peaks) if p.used_in_fused] or list(
-        range(len(analysis.peaks))
-    )
-    limits = [analysis.heights[:, j] for j in shown]
-    if analysis.fused is not None:
-        limits.append(analysis.fused)
-    span_m = float(np.nanmax(np.abs(np.concatenate(limits)))) if limits else 0.0
-    unit, factor = ("um", 1e6) if span_m > 5e-6 else ("nm", 1e9)
-    ylim = padded_limits(np.concatenate(limits) * factor if limits else np.zeros(1))
-    xlim = padded_limits(times, 0.0) if times.size > 1 else (-0.5, 0.5)
-    axes = Axes(image, box, xlim, ylim)
-    axes.frame(
-        xlabel="time (s)",
-        ylabel=f"mean height change ({unit})",
-        title="depth trends (relative to the first frame)",
-    )
-    entries: list[tuple[str, tuple[int, int, int], int]] = []
-    for j, peak in enumerate(analysis.peaks):
-        colour = PALETTE[j % len(PALETTE)]
-        axes.line(times, analysis.heights[:, j] * factor, colour, thickness=1)
-        alpha = f"{peak.alpha:.4g}" if peak.alpha is not None else "?"
-        rate = format_rate(peak.rate, peak.rate_stderr, ascii=True)
-        entries.append((f"{peak.label} (alpha {alpha}): {rate}", colour, 1))
-        if not peak.used_in_fused:
-            reasons = [f for f in ("aliased_in_time", "weak", "unexplained") if f in peak.flags]
-            entries.append((f"   not fused: {', '.join(reasons) or 'excluded'}", WHITE, 0))
-    if analysis.fused is not None:
-        axes.line(times, analysis.fused * factor, BLACK, thickness=2)
-        entries.append((f"fused: {format_rate(*_fit(analysis), ascii=True)}", BLACK, 2))
-        if analysis.fit is not None:
-            ends = (float(times[0]), float(times[-1]))
-            fit = analysis.fit
-            dashed_segment(
-                axes,
-                ends,
-                tuple((fit.intercept + fit.rate * t) * factor for t in ends),  # type: ignore[arg-type]
-                (0, 0, 200),
-                thickness=2,
-            )
-            entries.append(("fitted line of the fused depth", (0, 0, 200), 2))
-    legend(image, (left + width + 20, top + 10), entries)
-    if times.size < 3:
-        text(image, "fewer than three frames: no trend", (left + 20, top + 30), scale=0.55)
 
 
 def _fit(analysis: Analysis) -> tuple[float | None, float | None]:
@@ -182,8 +185,78 @@ def _fit(analysis: Analysis) -> tuple[float | None, float | None]:
     return (fit.rate, fit.stderr) if fit is not None else (None, None)
 
 
-def _last_maps(data: RunData, analysis: Analysis) -> list[tuple[str, np.ndarray, str]]:
-    """``(title, values, unit)`` of each peak's last map, converted to nm, and the fused one."""
+def _trend_panel(axes: Axes, data: RunData, analysis: Analysis) -> None:
+    times = data.times
+    shown = [j for j, p in enumerate(analysis.peaks) if p.used_in_fused] or list(
+        range(len(analysis.peaks))
+    )
+    limits = [analysis.heights[:, j] for j in shown]
+    if analysis.fused is not None:
+        limits.append(analysis.fused)
+    values = np.concatenate(limits) if limits else np.zeros(1)
+    finite = values[np.isfinite(values)]
+    span_m = float(np.max(np.abs(finite))) if finite.size else 0.0
+    unit, factor = ("\u00b5m", 1e6) if span_m > 5e-6 else ("nm", 1e9)
+    for j, peak in enumerate(analysis.peaks):
+        alpha = f"{peak.alpha:.4g}" if peak.alpha is not None else "?"
+        label = f"{peak.label} (\u03b1 {alpha}): {format_rate(peak.rate, peak.rate_stderr)}"
+        if not peak.used_in_fused:
+            reasons = [f for f in ("aliased_in_time", "weak", "unexplained") if f in peak.flags]
+            label += f"\n    not fused: {', '.join(reasons) or 'excluded'}"
+        axes.plot(
+            times,
+            analysis.heights[:, j] * factor,
+            color=PALETTE[j % len(PALETTE)],
+            lw=1,
+            ls="-" if peak.used_in_fused else ":",
+            label=label,
+        )
+    if analysis.fused is not None:
+        axes.plot(
+            times,
+            analysis.fused * factor,
+            color="black",
+            lw=2,
+            label=f"fused: {format_rate(*_fit(analysis))}",
+        )
+        fit = analysis.fit
+        if fit is not None and times.size:
+            ends = np.array([times[0], times[-1]])
+            axes.plot(
+                ends,
+                (fit.intercept + fit.rate * ends) * factor,
+                color=FIT_COLOUR,
+                lw=1.6,
+                ls="--",
+                label="fitted line of the fused depth",
+            )
+    if finite.size and np.ptp(finite) > 0:
+        low, high = float(finite.min()) * factor, float(finite.max()) * factor
+        pad = (high - low) * 0.06
+        axes.set_ylim(low - pad, high + pad)
+    else:
+        axes.set_ylim(-1.0, 1.0)
+    axes.ticklabel_format(axis="both", useOffset=False)
+    if times.size > 1:
+        axes.set_xlim(float(times[0]), float(times[-1]))
+    if times.size < 3:
+        axes.text(0.05, 0.9, "fewer than three frames: no trend", transform=axes.transAxes)
+    axes.grid(True, color="0.9")
+    axes.set_xlabel("time (s)")
+    axes.set_ylabel(f"mean height change ({unit})")
+    axes.set_title("depth trends (relative to the first frame)", fontsize=10)
+    axes.legend(
+        loc="upper left",
+        bbox_to_anchor=(1.02, 1.0),
+        fontsize=9,
+        frameon=False,
+        borderaxespad=0.0,
+        handlelength=2.2,
+    )
+
+
+def _last_maps(data: RunData, analysis: Analysis) -> list[MapPanel]:
+    """Each peak's last map, converted to nm (else its phase in rad), and the fused one."""
     panels = []
     heights: list[np.ndarray | None] = []
     for peak, values in zip(analysis.peaks, data.last_maps, strict=True):
@@ -195,9 +268,9 @@ def _last_maps(data: RunData, analysis: Analysis) -> list[tuple[str, np.ndarray,
         heights.append(metres)
         if metres is not None:
             title = peak.label if peak.used_in_fused else f"{peak.label} (not fused)"
-            panels.append((title, metres * 1e9, "nm"))
+            panels.append(MapPanel(title, metres * 1e9, "nm"))
         elif values is not None:
-            panels.append((f"{peak.label} phase", values, "rad"))
+            panels.append(MapPanel(f"{peak.label} phase", values, "rad"))
     found = np.flatnonzero(data.frames == data.last_frame)
     fused = None
     if found.size:
@@ -205,40 +278,58 @@ def _last_maps(data: RunData, analysis: Analysis) -> list[tuple[str, np.ndarray,
     if fused is not None:
         moved = any(d.measured and d.shift != (0.0, 0.0) for d in data.displacements)
         title = f"fused (on {analysis.peaks[0].label}'s grid)" if moved else "fused"
-        panels.append((title, fused * 1e9, "nm"))
+        panels.append(MapPanel(title, fused * 1e9, "nm"))
     return panels
 
 
+def _limits(values: Sequence[np.ndarray]) -> tuple[float, float]:
+    """The 1st and 99th percentiles of the finite values, (-1, 1) if none."""
+    pooled = np.concatenate([v[np.isfinite(v)].ravel() for v in values] or [np.zeros(0)])
+    if pooled.size == 0:
+        return -1.0, 1.0
+    low, high = (float(x) for x in np.percentile(pooled, (1.0, 99.0)))
+    if high <= low:
+        low, high = low - 1.0, high + 1.0
+    return low, high
+
+
 def _map_panels(
-    image: np.ndarray,
-    panels: list[tuple[str, np.ndarray, str]],
-    top: int,
+    layout: _Layout,
+    panels: list[MapPanel],
+    top: float,
     frame_shape: tuple[int, int],
-    caption: str,
+    pixel_pitch_m: float | None,
 ) -> None:
     rows, cols = frame_shape
-    h = int(MAP_SIDE * rows / max(rows, cols))
-    w = int(MAP_SIDE * cols / max(rows, cols))
-    per_row = max(1, (WIDTH - 60) // MAP_CELL)
-    for k, (title, values, unit) in enumerate(panels):
-        left = 60 + (k % per_row) * MAP_CELL
-        y = top + (k // per_row) * (MAP_SIDE + 70)
-        finite = values[np.isfinite(values)]
-        low, high = (
-            (float(np.percentile(finite, 1)), float(np.percentile(finite, 99)))
-            if finite.size
-            else (-1.0, 1.0)
+    scale, unit = (pixel_pitch_m * 1e3, "mm") if pixel_pitch_m is not None else (1.0, "pixels")
+    extent = (0.0, cols * scale, rows * scale, 0.0)
+    side = max(rows, cols)
+    width, height = MAP_IN * cols / side, MAP_IN * rows / side
+    step = (WIDTH_IN - 0.75) / MAPS_PER_ROW
+    for k, panel in enumerate(panels):
+        left = 0.75 + (k % MAPS_PER_ROW) * step
+        y = top + (k // MAPS_PER_ROW) * (MAP_IN + 0.75)
+        axes = layout.axes(left, y, width, height)
+        if panel.unit == "nm":
+            cmap, norm, label = "viridis", Normalize(*_limits([panel.values])), "\u0394h (nm)"
+        else:
+            cmap, norm, label = "twilight", Normalize(-np.pi, np.pi), "phase (rad)"
+        shown = axes.imshow(
+            np.ma.masked_invalid(panel.values),
+            cmap=colormaps[cmap].with_extremes(bad="0.6"),
+            norm=norm,
+            extent=extent,
+            interpolation="nearest",
         )
-        if high <= low:
-            low, high = low - 1.0, high + 1.0
-        picture = cv2.resize(
-            colour_image(values, low, high), (w, h), interpolation=cv2.INTER_NEAREST
-        )
-        image[y : y + h, left : left + w] = picture
-        cv2.rectangle(image, (left, y), (left + w, y + h), BLACK, 1)
-        text(image, title, (left, y - 8), scale=0.55)
-        colour_bar(image, (left + w + 10, y, 14, h), low, high, label=unit)
-    text(image, caption, (60, top - 34), scale=0.5)
+        bar = layout.axes(left + width + 0.08, y, 0.1, height)
+        layout.figure.colorbar(shown, cax=bar, extend="both" if panel.unit == "nm" else "neither")
+        bar.tick_params(labelsize=8)
+        bar.set_ylabel(label, fontsize=9)
+        axes.set_title(panel.title, fontsize=10)
+        axes.set_xlabel(f"x ({unit})", fontsize=9)
+        if k % MAPS_PER_ROW == 0:
+            axes.set_ylabel(f"y ({unit})", fontsize=9)
+        axes.tick_params(labelsize=8)
 
 
 def write_report(
@@ -252,12 +343,12 @@ def write_report(
     optics: Optics,
     title: str,
 ) -> None:
-    """Draw the report (module docstring) and write it as a PNG.
+    """Draw the report (module docstring) and write it in the format of ``path``'s suffix.
 
     Parameters
     ----------
     path : Path
-        The PNG to write.
+        The file to write, ``.png``, ``.pdf`` or ``.svg``.
     spectrum : ndarray, shape (rows, cols)
         Centred log-magnitude spectrum of the first frame
         (:func:`holoview.processing.fourier.spectrum.display_spectrum`).
@@ -267,62 +358,63 @@ def write_report(
         The run's series and results.
     settings : ProcessSettings
     optics : Optics
+        The optics used (wavelength, indices, pixel pitch).
     title : str
         First line of the figure (the input and its frames).
+
+    Raises
+    ------
+    OutputError
+        The file could not be written.
     """
     panels = _last_maps(data, analysis)
-    per_row = max(1, (WIDTH - 60) // MAP_CELL)
-    map_rows = -(-len(panels) // per_row)
-    maps_top = 100 + SPECTRUM_SIDE + 150
-    notes_top = maps_top + map_rows * (MAP_SIDE + 70)
-    height = notes_top + NOTE_LINE * len(analysis.notes) + 20
-    image = np.full((height, WIDTH, 3), 255, np.uint8)
-    text(image, title, (20, 32), scale=0.7, thickness=2)
-    fit_text = format_rate(*_fit(analysis), ascii=True)
+    map_rows = -(-len(panels) // MAPS_PER_ROW)
+    maps_top = HEADER_IN + PANEL_IN + 1.75
+    notes = [
+        line
+        for note in analysis.notes
+        for line in textwrap.wrap(f"note: {note}", NOTE_WIDTH, subsequent_indent="    ")
+    ]
+    notes_top = maps_top + map_rows * (MAP_IN + 0.75) + 0.2
+    height_in = notes_top + NOTE_IN * len(notes) + 0.2
+    figure = new_figure(WIDTH_IN, height_in)
+    layout = _Layout(figure, height_in)
+    layout.text(0.2, 0.18, title, fontsize=14, fontweight="bold")
     n2 = f"{optics.n2:.4g}" if optics.n2 is not None else "?"
-    text(
-        image,
-        f"fused depth rate: {fit_text}   |   wavelength {(optics.wavelength_m or 0) * 1e9:.1f} nm, "
-        f"n1 {optics.n1:.4g}, n2 {n2}, window {settings.window}, reference {settings.reference}",
-        (20, 62),
-        scale=0.55,
+    wavelength = f"{optics.wavelength_m * 1e9:.1f} nm" if optics.wavelength_m else "?"
+    layout.text(
+        0.2,
+        0.5,
+        f"fused depth rate: {format_rate(*_fit(analysis))}    |    wavelength {wavelength}, "
+        f"n1 {optics.n1:.4g}, n2 {n2}, window {settings.window}, "
+        f"reference {settings.reference}",
+        fontsize=11,
     )
     _spectrum_panel(
-        image,
+        layout.axes(0.8, HEADER_IN + 0.55, PANEL_IN, PANEL_IN),
         spectrum,
         detected=detected,
         analysis=analysis,
         radii=[w.radius for w in data.windows] or [data.radius] * len(analysis.peaks),
-        origin=(100, 100),
+        pixel_pitch_m=optics.pixel_pitch_m,
     )
-    _trend_panel(image, data, analysis, (720, 100, 540, SPECTRUM_SIDE))
+    _trend_panel(layout.axes(5.75, HEADER_IN + 0.55, 3.7, PANEL_IN), data, analysis)
     rows, cols = spectrum.shape
-    field_text = ""
+    field = ""
     if optics.pixel_pitch_m is not None:
-        field_text = (
-            f", field {cols * optics.pixel_pitch_m * 1e3:.3g} x "
+        field = (
+            f", field {cols * optics.pixel_pitch_m * 1e3:.3g} \u00d7 "
             f"{rows * optics.pixel_pitch_m * 1e3:.3g} mm"
         )
-    _map_panels(
-        image,
-        panels,
-        maps_top,
-        (rows, cols),
-        f"delta-h maps of frame {data.last_frame}, {REFERENCE_TITLES[settings.reference]}"
-        f"{field_text}; grey: untrusted",
-    )
-    for i, note in enumerate(analysis.notes):
-        text(
-            image,
-            f"note: {note}",
-            (20, notes_top + NOTE_LINE * (i + 1)),
-            scale=0.55,
-            colour=NOTE_RED,
+    reference = REFERENCE_TITLES.get(str(settings.reference), str(settings.reference))
+    if panels:
+        layout.text(
+            0.2,
+            maps_top - 0.62,
+            f"\u0394h maps of frame {data.last_frame}, {reference}{field}; grey: untrusted",
+            fontsize=11,
         )
-    encoded, png = cv2.imencode(".png", image)  # in memory: libpng prints nothing
-    if not encoded:
-        raise OutputError("cannot encode report.png")
-    try:
-        path.write_bytes(png.tobytes())
-    except OSError as exc:
-        raise OutputError(f"cannot write report.png: {os_error_text(exc)}") from exc
+    _map_panels(layout, panels, maps_top, (rows, cols), optics.pixel_pitch_m)
+    for i, line in enumerate(notes):
+        layout.text(0.2, notes_top + NOTE_IN * i, line, fontsize=10, color=NOTE_COLOUR)
+    save_figure(figure, path, name=f"report{path.suffix}")

@@ -6,8 +6,8 @@ choose those to demodulate (:mod:`~holoview.headless.selection`); stream every f
 through the demodulator, maps to ``results.h5`` as they come
 (:mod:`~holoview.headless.pipeline`); name the peaks, fuse and fit
 (:mod:`~holoview.headless.analysis`); write ``trends.csv``, ``summary.json``,
-``results.h5`` (:mod:`~holoview.headless.outputs`) and ``report.png``
-(:mod:`~holoview.headless.report`). Every user mistake is an
+``results.h5`` (:mod:`~holoview.headless.outputs`) and ``report.png`` (or PDF, SVG:
+:mod:`~holoview.headless.report`). Every user mistake is an
 :class:`~holoview.errors.InputError` raised before the output folder is touched where
 it can be known that early. The outputs are written under temporary names and put in
 place when the run completes; what an earlier run left in the folder is replaced only
@@ -30,10 +30,12 @@ from holoview.engine.frame_core import matching_positions
 from holoview.errors import InputError
 from holoview.headless.analysis import Analysis, analyse, known_joint
 from holoview.headless.chunks import plan_jobs
+from holoview.headless.figures import FORMATS, figure_format
 from holoview.headless.inputs import (
     InputFile,
     Optics,
     OpticsOptions,
+    check_not_background_subtracted,
     check_run_settings,
     first_good_frame,
     frame_problem,
@@ -67,7 +69,10 @@ logger = logging.getLogger(__name__)
 TRENDS_CSV = "trends.csv"
 SUMMARY_JSON = "summary.json"
 RESULTS_H5 = "results.h5"
-REPORT_PNG = "report.png"
+#: The report in each format (a run writes one; an earlier run's, any).
+REPORT_FILES = tuple(f"report.{kind}" for kind in FORMATS)
+#: Every file a run may write: a folder holding any of them holds an earlier run.
+OUTPUT_NAMES = (TRENDS_CSV, SUMMARY_JSON, RESULTS_H5, *REPORT_FILES)
 
 
 #: Peaks identified by PCA when nothing names them (no options, no experiment stored).
@@ -235,8 +240,9 @@ def read_background(spec: str | None, source: InputFile) -> np.ndarray | None:
     Raises
     ------
     InputError
-        For an index outside the input, a file that cannot be read, or a frame of
-        another shape than the input's.
+        For an index outside the input, a file that cannot be read, a frame of another
+        shape than the input's, or one that is no hologram: constant (all zero),
+        non-finite, damaged, or negative (:func:`check_background`).
     """
     if spec is None:
         return None
@@ -246,15 +252,36 @@ def read_background(spec: str | None, source: InputFile) -> np.ndarray | None:
             raise InputError(
                 f"--background {spec}: {source.path} has frames 0 to {len(source) - 1}"
             )
-        return source.read(index)
-    with InputFile(spec) as other:
-        frame = other.read(0)
-    if frame.shape != source.frame_shape:
-        raise InputError(
-            f"--background {spec}: frames of {frame.shape[0]} x {frame.shape[1]} pixels, "
-            f"the input's are {source.frame_shape[0]} x {source.frame_shape[1]}"
-        )
+        frame = source.read(index)
+    else:
+        with InputFile(spec) as other:
+            frame = other.read(0)
+        if frame.shape != source.frame_shape:
+            raise InputError(
+                f"--background {spec}: frames of {frame.shape[0]} x {frame.shape[1]} pixels, "
+                f"the input's are {source.frame_shape[0]} x {source.frame_shape[1]}"
+            )
+    check_background(frame, f"--background {spec}")
     return frame
+
+
+def check_background(frame: np.ndarray, where: str) -> None:
+    """Refuse a background that is no hologram: absolute phases against it would be noise.
+
+    A background is an object-free hologram: an intensity with fringes. A constant
+    frame (all zero), one with NaN, one damaged in transfer, and one of negative or
+    zero mean intensity (a negated or background-subtracted frame) are refused.
+    """
+    problem = frame_problem(frame)
+    if problem is not None:
+        raise InputError(f"{where}: the frame {problem}; give an object-free hologram")
+    mean = float(np.mean(frame, dtype=np.float64))
+    if mean <= 0:
+        raise InputError(
+            f"{where}: the frame's mean intensity is {mean:.3g} (values {frame.min():.3g} to "
+            f"{frame.max():.3g}): a hologram is an intensity; give an object-free hologram"
+        )
+    check_not_background_subtracted(frame, where)
 
 
 def process_file(
@@ -265,7 +292,7 @@ def process_file(
     optics_options: OpticsOptions | None = None,
     settings: ProcessSettings | None = None,
     frames: str | None = None,
-    report: bool = True,
+    report: str | bool | None = "png",
     progress: Callable[[int, int], None] | None = None,
     overwrite: bool = False,
     jobs: int | None = 1,
@@ -290,8 +317,9 @@ def process_file(
         basin area.
     frames : str, optional
         ``START:STOP`` of the input's frames (all by default).
-    report : bool
-        Draw ``report.png``.
+    report : str or bool or None
+        The report's format: ``"png"``, ``"pdf"`` or ``"svg"`` (``report.png`` ...);
+        True is ``"png"``; None or False: no report.
     progress : callable, optional
         ``progress(done, total)`` after each frame.
     overwrite : bool
@@ -323,6 +351,10 @@ def process_file(
         An output could not be written (the folder keeps what it held).
     """
     settings = settings or ProcessSettings()
+    if report is True:
+        report = "png"
+    if report:
+        figure_format(f"report.{report}", "--report-format")
     if settings.background is not None:
         if settings.reference not in (None, "absolute"):
             raise InputError(
@@ -332,9 +364,8 @@ def process_file(
         settings = replace(settings, reference="absolute")
     options = optics_options or OpticsOptions()
     out_dir = Path(out)
-    names = (TRENDS_CSV, SUMMARY_JSON, RESULTS_H5, REPORT_PNG)
     with (
-        OutputFolder(out_dir, names, overwrite=overwrite) as outputs,
+        OutputFolder(out_dir, OUTPUT_NAMES, overwrite=overwrite) as outputs,
         InputFile(input_path) as source,
         contextlib.ExitStack() as stack,
     ):
@@ -352,7 +383,8 @@ def process_file(
         optics = resolve_optics(source.setup, options, from_file)
         optics.require("wavelength_m")
         experiment, settings = _settle(base, settings, optics)
-        times = source.times(selected, options.fps_hz)
+        frame_times = source.times(selected, options.fps_hz)
+        times = frame_times.times
         check_run_settings(
             area_m2=settings.area_m2, radius=settings.radius, frame_shape=source.frame_shape
         )
@@ -367,9 +399,12 @@ def process_file(
             shape=source.frame_shape,
             optics=optics,
         )
-        selection = replace(selection, notes=(*notes, *selection.notes))
-        for note in notes:
+        for note in (*notes, *source.notes):
             logger.warning("%s", note)
+        level = logging.WARNING if frame_times.warning else logging.INFO
+        logger.log(level, "%s: %s", source.path, frame_times.note)
+        notes += [*source.notes, frame_times.note]
+        selection = replace(selection, notes=(*notes, *selection.notes))
         matched = experiment.radius_rule == "matched"
         core = make_core(
             source.frame_shape,
@@ -464,7 +499,7 @@ def process_file(
             from holoview.headless.report import write_report
 
             write_report(
-                outputs.path(REPORT_PNG),
+                outputs.path(f"report.{report}"),
                 spectrum=display_spectrum(first, threads=settings.threads),
                 detected=detected,
                 data=data,

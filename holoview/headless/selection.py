@@ -1,6 +1,6 @@
 """Which peaks a headless run demodulates, and what each is called.
 
-Two ways, as the operator would at the bench (DESIGN.md, paper section 4):
+Two ways, as the operator would at the bench (docs/design.md, paper section 4):
 
 - an **experiment** (:mod:`holoview.engine.experiment`: the one a recording carries,
   a file given with ``--experiment``, or ``--label``): its labels snap to the peaks
@@ -100,17 +100,25 @@ def select_from_experiment(
     Raises
     ------
     InputError
-        When the experiment names no peak, a label (of a file or ``--label``; not of the
-        recording's own experiment) lies on no detected peak, or a label that is not one
-        of the model's families comes without an alpha.
+        When the experiment names no peak, the carrier lattice contradicts a label (any
+        source), a label (of a file or ``--label``; not of the recording's own
+        experiment, which may have drifted) lies on no detected peak, or a label that is
+        not one of the model's families comes without an alpha.
     """
     from holoview.engine.resolve import resolve_peaks
 
     if not experiment.peaks:
         raise InputError(f"the {source} names no peak to process")
     resolution = resolve_peaks(experiment, detected, shape)
-    if source != "recording":
-        resolution.strict()
+    try:
+        resolution.strict(unmatched=source != "recording")
+    except InputError as exc:
+        if source == "recording":
+            raise InputError(
+                f"the experiment the recording carries: {exc}; name the peaks with --label, "
+                "--experiment or --auto N"
+            ) from exc
+        raise InputError(f"the {source}: {exc}") from exc
     for peak in resolution.peaks:
         if peak.alpha is None and is_model_label(peak.label or ""):
             experiment.require("n1", "n2")

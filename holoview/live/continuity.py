@@ -24,7 +24,7 @@ class Continuity:
     --------
     >>> from holoview.acquire.source import FrameMeta
     >>> c = Continuity()
-    >>> [c.breaks(FrameMeta(i, 0.0, 0.0, index=i, segment=s)) for i, s in enumerate([0, 0, 1])]
+    >>> [c.breaks(FrameMeta(i, 0.0, 0.0, file_index=i, segment=s)) for i, s in enumerate([0, 0, 1])]
     [False, False, True]
     """
 

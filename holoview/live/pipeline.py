@@ -35,7 +35,6 @@ from holoview.engine.frame_core import (
 )
 from holoview.engine.resolve import Resolution, resolve_peaks
 from holoview.engine.window_matching import WindowMatcher
-from holoview.errors import InputError
 from holoview.live.continuity import Continuity
 from holoview.processing.fourier.spectrum import display_spectrum
 from holoview.processing.maps.demodulate import Demodulator
@@ -75,6 +74,8 @@ class LiveResult:
     the map ``grid_of``, in camera pixels; the fused map is on that map's grid.
     ``frame_index`` is the frame's index in a replayed file (-1 for a camera) and
     ``segment`` its unbroken run of frames (:mod:`holoview.live.continuity`).
+    ``contradiction`` names a label the carrier lattice contradicts (the engine's rule,
+    :func:`holoview.engine.resolve.resolve_peaks`; an error headless), None when none.
     """
 
     seq: int
@@ -96,6 +97,7 @@ class LiveResult:
     notes: tuple[str, ...] = ()
     frame_index: int = -1
     segment: int = 0
+    contradiction: str | None = None
 
 
 def block_max(image: np.ndarray, limit: int) -> np.ndarray:
@@ -169,7 +171,7 @@ class LivePipeline:
         windows matched to the surface again at the next frame)."""
         if name == "experiment":
             if not isinstance(value, Experiment):
-                raise InputError(f"experiment command needs an Experiment, not {value!r}")
+                raise TypeError(f"experiment command needs an Experiment, not {value!r}")
             radius_changed = value.radius != self.experiment.radius
             self.experiment = value
             if radius_changed:
@@ -180,7 +182,7 @@ class LivePipeline:
             self._matcher.request()
             self._measure_due = True
         else:
-            raise InputError(f"unknown command {name!r}")
+            raise ValueError(f"unknown command {name!r}")
 
     @property
     def demodulator(self) -> Demodulator | None:
@@ -323,6 +325,7 @@ class LivePipeline:
             shifts_px=shifts,
             grid_of=grid_of,
             notes=(*resolution.notes, *self._core.notes, *self._recent_note(now)),
-            frame_index=meta.index,
+            frame_index=meta.file_index,
             segment=meta.segment,
+            contradiction=resolution.contradiction,
         )

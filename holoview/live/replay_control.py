@@ -80,9 +80,22 @@ class ReplayControl:
 
     Examples
     --------
-    >>> control = ReplayControl.of(session.source)  # doctest: +SKIP
-    >>> control.pause(); control.seek(120); control.step(-1); control.state().text  # doctest: +SKIP
-    'frame 119 / 299 · 3.967 s'
+    A replay of 300 frames at 60 frames/s, steered (a window's transport bar does this):
+
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> import numpy as np
+    >>> from holoview.acquire.recording import RecordingWriter
+    >>> path = Path(tempfile.mkdtemp()) / "run.h5"
+    >>> with RecordingWriter(path, (8, 8), np.uint8) as writer:
+    ...     for i in range(300):
+    ...         writer.append(np.full((8, 8), i % 256, np.uint8), i, i / 60, i / 60)
+    >>> with ReplaySource(path, hold=True) as source:
+    ...     source.start()
+    ...     control = ReplayControl.of(source)
+    ...     _ = control.pause(), control.seek(120), control.step(-1), source.fetch(1.0)
+    ...     control.state().text
+    'frame 119 / 299 · 1.983 s'
     """
 
     def __init__(self, source: ReplaySource) -> None:

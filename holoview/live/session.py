@@ -11,7 +11,6 @@ ring closes, or a stop flag) and are joined by :meth:`LiveSession.close`.
 from __future__ import annotations
 
 import logging
-import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -134,8 +133,6 @@ class LiveSession:
         self.replay: ReplayControl | None = ReplayControl.of(self.source)
         self.recorder: Recorder | None = None
         self._request: RecordRequest | None = None
-        self._recording_started = 0.0
-        self._recording_elapsed = 0.0
         self._error_shown = False
         self._messages: list[str] = []
         self._closed = False
@@ -384,45 +381,39 @@ class LiveSession:
             self.source,
             setup={k: v for k, v in setup.items() if v is not None},
             max_frames=request.frames,
+            max_seconds=request.duration_s,
             experiment=e.to_json(),
         )
         self.recorder.start()
         self._error_shown = False
         self._request = request
-        self._recording_started = time.monotonic()
-        self._recording_elapsed = 0.0
         logger.info("recording to %s", request.path)
 
     def stop_recording(self) -> None:
         """Stop the recording and close its file."""
         if self.recorder is not None and self.recorder.running:
             self.recorder.stop()
-            self._recording_elapsed = time.monotonic() - self._recording_started
             if self.recorder.error is not None:
                 self._messages.append(str(self.recorder.error))
                 self._error_shown = True
 
     def recording_progress(self) -> RecordingProgress | None:
-        """The recording's progress; stops it once its duration is reached.
+        """The recording's progress.
 
-        A frame-count recording stops by itself (the recorder's ``max_frames``).
+        A recording stops by itself at its duration or frame count (the recorder keeps
+        both), when the camera ends, or on a write error: nobody needs to call this.
         """
         recorder, request = self.recorder, self._request
         if recorder is None or request is None:
             return None
-        if recorder.running:
-            self._recording_elapsed = time.monotonic() - self._recording_started
-            limit_s = request.duration_s
-            done_time = limit_s is not None and self._recording_elapsed >= limit_s
-            if done_time or not self.camera.running:
-                self.stop_recording()
-        elif recorder.error is not None and not self._error_shown:  # a full disk: say it once
+        if not recorder.running and recorder.error is not None and not self._error_shown:
+            # a full disk, an I/O error: say it once
             self._messages.append(str(recorder.error))
             self._error_shown = True
         return RecordingProgress(
             path=request.path,
             frames=recorder.written,
-            elapsed_s=self._recording_elapsed,
+            elapsed_s=recorder.elapsed_s,
             dropped=recorder.status().dropped,
             active=recorder.running,
         )

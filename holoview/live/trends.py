@@ -29,7 +29,7 @@ from holoview.engine.depth import DepthSummary, pca_check, summarise
 from holoview.engine.experiment import Experiment
 from holoview.engine.frame_core import CarrierCore
 from holoview.engine.series import LIVE_LENGTH, PhaseSeries, coupling_of, frame_time
-from holoview.errors import HoloviewError, InputError
+from holoview.errors import HoloviewError
 from holoview.live.continuity import Continuity
 from holoview.processing.peaks.detection import Peak
 
@@ -124,7 +124,7 @@ class SeriesPipeline:
         elif name == "reset":
             self.series = None
         else:
-            raise InputError(f"unknown series command {name!r}")
+            raise ValueError(f"unknown series command {name!r}")
 
     def set_peaks(self, peaks: tuple[Peak, ...], experiment: Experiment) -> None:
         """Measure ``peaks`` from the next frame (a new series when they or the optics changed)."""

@@ -33,7 +33,7 @@ from holoview.acquire.ring import CLOSED, FrameRing, RingConsumer, RingStatus
 from holoview.acquire.source import FrameMeta
 from holoview.engine.experiment import Experiment
 from holoview.engine.frame_core import FFT_THREADS
-from holoview.errors import HoloviewError, InputError
+from holoview.errors import HoloviewError
 from holoview.live.pipeline import LivePipeline, LiveResult
 from holoview.live.trends import SeriesPipeline, TrendSummary
 from holoview.processing.peaks.detection import Peak, find_peaks
@@ -227,7 +227,7 @@ class RingWorker:
             self.listener()
 
     def _apply(self, name: str, value: Any) -> None:
-        raise InputError(f"unknown command {name!r}")
+        raise ValueError(f"unknown command {name!r}")
 
     def _apply_commands(self) -> None:
         while True:

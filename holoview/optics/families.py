@@ -1,7 +1,7 @@
 """Hologram families: carriers, amplitudes, prefactors and displacements, from the model.
 
 Every pair of beams (A, B) of :mod:`holoview.optics.beams` makes an off-axis hologram.
-A family is stored on the twin whose phase grows with the surface height (DESIGN.md):
+A family is stored on the twin whose phase grows with the surface height (docs/design.md):
 A is the beam with the larger height coefficient, so ``alpha = kappa_A - kappa_B > 0``
 and the carrier is ``2 (g_A - g_B) pixel_pitch / wavelength`` cycles/pixel (``fx``
 along columns, ``fy`` along rows, numpy's FFT sign). This gives the paper's eq. 6:

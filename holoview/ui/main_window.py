@@ -108,6 +108,7 @@ class MainWindow(ExperimentActions, QMainWindow):
         self.display_rate = RateMeter()
         self.last_latency_s: float | None = None
         self._banner_until = 0.0
+        self._contradiction: str | None = None
         self._known: tuple[Experiment, str] | None = None
         self.experiment_path = experiment_path or default_experiment_path()
         self.experiment = Experiment()
@@ -529,6 +530,10 @@ class MainWindow(ExperimentActions, QMainWindow):
             self.spectrum.set_peaks(result.peaks, result.frame.shape)
         self.spectrum.set_model(result.labelled, result.predicted, result.radius, result.radii)
         self.spectrum.set_notes(result.notes)
+        if result.contradiction != self._contradiction:
+            self._contradiction = result.contradiction
+            if result.contradiction is not None:  # an error headless: said aloud here
+                self.show_message(f"{result.contradiction}: the heights of these labels are wrong")
         if result.heights_m or result.phases_rad:
             self.surface.set_maps(
                 result.heights_m,

@@ -38,7 +38,7 @@ def test_frames_carry_their_index_and_one_segment_while_played_in_order(tmp_path
         source.start()
         frames = [fetch(source) for _ in range(5)]
         source.stop()
-    assert [f.meta.index for f in frames] == [0, 1, 2, 3, 4]
+    assert [f.meta.file_index for f in frames] == [0, 1, 2, 3, 4]
     assert [int(f.data[0, 0]) for f in frames] == [0, 1, 2, 3, 4]
     assert {f.meta.segment for f in frames} == {0}
 
@@ -46,13 +46,13 @@ def test_frames_carry_their_index_and_one_segment_while_played_in_order(tmp_path
 def test_pause_stops_frames_and_resume_plays_on_from_the_next(tmp_path: Path) -> None:
     with ReplaySource(write_h5(tmp_path / "r.h5"), speed="fast") as source:
         source.start()
-        assert fetch(source).meta.index == 0
+        assert fetch(source).meta.file_index == 0
         source.pause()
         assert source.paused
         assert source.fetch(timeout=0.1) is None
         source.resume()
         assert not source.paused
-        assert fetch(source).meta.index == 1
+        assert fetch(source).meta.file_index == 1
         source.stop()
 
 
@@ -65,13 +65,13 @@ def test_steps_move_one_frame_either_way_and_pause(tmp_path: Path) -> None:
         assert source.step(-1) == 2
         assert source.paused
         back = fetch(source)
-        assert (back.meta.index, int(back.data[0, 0])) == (2, 2)
+        assert (back.meta.file_index, int(back.data[0, 0])) == (2, 2)
         assert source.fetch(timeout=0.1) is None  # paused after a step
         assert source.step(1) == 3
         forward = fetch(source)
-        assert forward.meta.index == 3
+        assert forward.meta.file_index == 3
         assert source.step(-10) == 0  # clamped to the first frame
-        assert fetch(source).meta.index == 0
+        assert fetch(source).meta.file_index == 0
         source.stop()
 
 
@@ -88,9 +88,9 @@ def test_a_jump_starts_a_new_segment_a_step_forward_does_not(tmp_path: Path) -> 
         back = fetch(source)
         source.stop()
     assert [f.meta.segment for f in first] == [0, 0, 0]
-    assert (sought.meta.index, sought.meta.segment) == (7, 1)
-    assert (after.meta.index, after.meta.segment) == (8, 1)
-    assert (back.meta.index, back.meta.segment) == (7, 2)
+    assert (sought.meta.file_index, sought.meta.segment) == (7, 1)
+    assert (after.meta.file_index, after.meta.segment) == (8, 1)
+    assert (back.meta.file_index, back.meta.segment) == (7, 2)
 
 
 def test_seek_while_playing_goes_on_from_the_frame_sought(tmp_path: Path) -> None:
@@ -98,7 +98,7 @@ def test_seek_while_playing_goes_on_from_the_frame_sought(tmp_path: Path) -> Non
         source.start()
         fetch(source)
         assert source.seek(6) == 6
-        assert [fetch(source).meta.index for _ in range(3)] == [6, 7, 8]
+        assert [fetch(source).meta.file_index for _ in range(3)] == [6, 7, 8]
         source.stop()
 
 
@@ -111,7 +111,7 @@ def test_seek_outside_the_file_is_a_one_line_error(tmp_path: Path, index: int) -
             InputError, match=r"frame -?\d+ is outside r\.h5: it has 10 frames, 0 to 9"
         ):
             source.seek(index)
-        assert fetch(source).meta.index == 1  # the replay goes on untouched
+        assert fetch(source).meta.file_index == 1  # the replay goes on untouched
         source.stop()
 
 
@@ -137,12 +137,12 @@ def test_speed_factor_scales_the_recorded_pace(tmp_path: Path) -> None:
 def test_hold_pauses_on_the_last_frame_and_resume_starts_over(tmp_path: Path) -> None:
     with ReplaySource(write_h5(tmp_path / "r.h5", 3), speed="fast", hold=True) as source:
         source.start()
-        assert [fetch(source).meta.index for _ in range(3)] == [0, 1, 2]
+        assert [fetch(source).meta.file_index for _ in range(3)] == [0, 1, 2]
         assert source.fetch(timeout=0.1) is None  # held, not ended
         assert source.held and source.paused and source.shown == 2
         source.resume()
         again = fetch(source)
-        assert (again.meta.index, again.meta.segment) == (0, 1)
+        assert (again.meta.file_index, again.meta.segment) == (0, 1)
         source.stop()
 
 
@@ -161,7 +161,7 @@ def test_loop_starts_a_new_segment_at_the_start(tmp_path: Path) -> None:
         frames = [fetch(source) for _ in range(5)]
         source.set("loop", False)
         source.stop()
-    assert [f.meta.index for f in frames] == [0, 1, 2, 0, 1]
+    assert [f.meta.file_index for f in frames] == [0, 1, 2, 0, 1]
     assert [f.meta.segment for f in frames] == [0, 0, 0, 1, 1]
 
 
@@ -238,6 +238,8 @@ def test_a_paused_replay_reads_as_no_frames_per_second(
             time.sleep(0.01)
         assert camera.rate_hz() > 0
         source.pause()
-        time.sleep(0.4)
+        deadline = time.monotonic() + 10
+        while camera.rate_hz() != 0.0 and time.monotonic() < deadline:
+            time.sleep(0.02)
         assert camera.rate_hz() == 0.0
         camera.stop()

@@ -96,6 +96,60 @@ def test_camera_thread_rejects_a_ring_of_another_shape() -> None:
         CameraThread(source, FrameRing(4, (3, 3), np.uint16))
 
 
+def test_a_camera_that_changes_its_frame_size_ends_the_stream_keeping_what_was_recorded(
+    tmp_path: Path,
+) -> None:
+    """A device delivering frames of another size mid-stream is its error, not a bug."""
+
+    class Resizing(CountingSource):
+        def _do_fetch(self, timeout: float | None):  # type: ignore[no-untyped-def]
+            frame = super()._do_fetch(timeout)
+            if frame is not None and self._sent > 12:
+                return frame._replace(data=np.zeros((8, 8), np.uint16))
+            return frame
+
+    with Resizing() as source:
+        recorder = record(source, tmp_path / "r.h5")
+    error = recorder.camera.error  # type: ignore[attr-defined]
+    assert isinstance(error, AcquisitionError), error
+    assert "(8, 8)" in str(error) and "restart the stream" in str(error)
+    with RecordingReader(tmp_path / "r.h5") as reader:
+        assert len(reader) == 12
+
+
+def test_recorder_stops_itself_after_max_seconds_counting_only_what_was_asked(
+    tmp_path: Path,
+) -> None:
+    """The duration is the recorder's: the camera goes on, nobody polls, it stops."""
+    with CountingSource(rate_hz=200.0) as source:
+        ring = FrameRing(64, source.frame_shape, source.dtype)
+        writer = RecordingWriter(tmp_path / "r.h5", source.frame_shape, source.dtype)
+        recorder = Recorder(ring, writer, max_seconds=0.5)
+        camera = CameraThread(source, ring)
+        recorder.start()
+        camera.start()
+        try:
+            assert recorder.join(timeout=30)  # ended by itself while the camera streams
+            assert camera.running
+            count = recorder.accounting()
+        finally:
+            camera.stop()
+    assert 0.5 <= recorder.elapsed_s < 30
+    assert count.recorded > 0 and count.lost_to_disk == 0
+    assert count.acquired == count.recorded + count.dropped  # later frames not counted
+    with RecordingReader(tmp_path / "r.h5") as reader:
+        assert len(reader) == count.recorded
+        assert float(reader.t_host[-1] - reader.t_host[0]) < 0.5  # frames within the time
+
+
+def test_recorder_refuses_a_duration_that_is_not_positive(tmp_path: Path) -> None:
+    ring = FrameRing(4, (4, 4), np.uint16)
+    for bad in (0.0, -1.0, math.nan, math.inf):
+        writer = RecordingWriter(tmp_path / f"{bad}.h5", (4, 4), np.uint16)
+        with pytest.raises(InputError, match="max_seconds"):
+            Recorder(ring, writer, max_seconds=bad)
+
+
 def test_settings_describe_themselves_snap_and_read_back() -> None:
     source = CountingSource()
     with pytest.raises(AcquisitionError, match="not open"):

@@ -109,6 +109,22 @@ def wait_for(condition, timeout: float = 30.0, what: str = "a condition") -> Non
         time.sleep(0.02)
 
 
+def cpu_seconds(*pids: int) -> float:
+    """CPU time (user and system, s) the processes ``pids`` have used so far (0 once gone).
+
+    A condition on work done, not on the wall clock: it holds the same on a loaded machine.
+    """
+    tick = os.sysconf("SC_CLK_TCK")
+    total = 0.0
+    for pid in pids:
+        try:
+            fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+        except OSError:
+            continue
+        total += (int(fields[11]) + int(fields[12])) / tick  # utime, stime
+    return total
+
+
 def one_line_error(done: Done, status: int, *words: str) -> str:
     """Assert exit ``status``, one stderr line of holoview's own, no traceback; return it."""
     assert done.status == status, done.err

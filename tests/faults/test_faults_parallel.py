@@ -5,11 +5,10 @@ from __future__ import annotations
 import json
 import os
 import signal
-import time
 from pathlib import Path
 
 import pytest
-from faults_helpers import finish, start_holoview, wait_for
+from faults_helpers import cpu_seconds, finish, start_holoview, wait_for
 
 
 def _descendants(pid: int) -> set[int]:
@@ -52,7 +51,8 @@ def test_sigterm_stops_the_workers_and_keeps_the_frames_done(
     wait_for(lambda: out.is_dir() and any(out.glob(".results.*.partial.h5")), what="the run")
     wait_for(lambda: len(_descendants(child.pid)) >= 3, what="the workers")
     workers = _descendants(child.pid)
-    time.sleep(0.5)
+    start = cpu_seconds(*workers)  # the forkserver's import, the workers' start
+    wait_for(lambda: cpu_seconds(*workers) > start + 1.0, what="the workers at work")
     child.send_signal(signal.SIGTERM)
     done = finish(child, timeout=60)
     assert done.status == 130, done.err

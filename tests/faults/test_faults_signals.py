@@ -13,6 +13,7 @@ import h5py
 import numpy as np
 import pytest
 from faults_helpers import (
+    cpu_seconds,
     finish,
     plain_h5py_frames,
     run_holoview,
@@ -100,7 +101,8 @@ def interrupt_process(long_stack: Path, out: Path, *extra: str):
         *extra,
     )
     wait_for(lambda: out.is_dir() and any(out.glob(".results.*.partial.h5")), what="the run")
-    time.sleep(1.0)  # frames done (0.5 s was too short once on a loaded machine)
+    start = cpu_seconds(child.pid)
+    wait_for(lambda: cpu_seconds(child.pid) > start + 0.5, what="frames done")
     child.send_signal(signal.SIGTERM)
     return finish(child, timeout=60)
 

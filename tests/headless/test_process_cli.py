@@ -102,7 +102,7 @@ def test_labels_mode_trends_rates_and_summary(
     assert summary["frames"]["processed"] == evaporation.frames
     with h5py.File(out / "results.h5", "r") as f:
         assert f["trends/mean_height_m"].shape == (evaporation.frames, len(labels))
-        assert f["trends/mean_height_m"].attrs["unit"] == "m"
+        assert f["trends/mean_height_m"].attrs["units"] == "m"
         assert [s.decode() for s in f["peaks/label"][:]] == labels
         np.testing.assert_allclose(f["trends/fused_height_m"][:], fused, rtol=1e-6, atol=1e-15)
     assert summary["input"]["kind"] == "hdf5"
@@ -148,7 +148,7 @@ def test_maps_against_the_truth(
             maps = f["maps"][name]
             assert maps.dtype == np.float32
             assert maps.ndim == 3 and maps.shape[0] == 40
-            assert maps.attrs["unit"] == "m"
+            assert maps.attrs["units"] == "m"
             assert maps.attrs["reference"] == "absolute"
         fused = f["maps/fused"][:]
         step = f["maps/fused"].attrs["pixel_step_px"]
@@ -271,7 +271,7 @@ def test_peaks_file_and_auto_maps_agree(
     ):
         # the model adds the other families to two labels, as the live window does
         assert set(a["maps"]) >= FIRST_ORDER | {"fused"}
-        assert set(b["maps"]) == {"RB1", "RF", "fused"}
+        assert set(b["maps"]) == {"RB1", "RF", "fused", "time", "frame", "y", "x"}
         np.testing.assert_array_equal(a["trends/frame"][:], np.arange(10, 50))
         step = evaporation.rate / evaporation.fps
         heights = a["trends/mean_height_m"][:]
@@ -316,7 +316,7 @@ def test_image_files_with_options_and_volume(
         np.testing.assert_allclose(
             f["trends/fused_volume_m3"][:], 0.01 * f["trends/fused_height_m"][:]
         )
-        assert f["trends/fused_volume_m3"].attrs["unit"] == "m^3"
+        assert f["trends/fused_volume_m3"].attrs["units"] == "m3"
         assert "maps" not in f
 
 

@@ -63,14 +63,21 @@ def test_a_click_near_a_peak_snaps_to_it(detected):
 
 def test_a_label_on_the_wrong_twin_is_an_error_naming_it(detected):
     """With FB1 on its other twin the labels' lattice would swap RF and RB2; the lattice
-    that explains the most peaks says which label is on the wrong twin."""
+    that explains the most peaks says the twins disagree. Of two labels it cannot say
+    which one is wrong (the whole lattice and its negative explain the same peaks), so it
+    names both: blaming the second would have the operator flip the right one, and every
+    height would come out negated. A third label settles it."""
     carriers, truth = detected
     fb1 = truth["FB1"].observed_carrier
     anchors = {"RB1": truth["RB1"].observed_carrier, "FB1": (-fb1[0], -fb1[1])}
     with pytest.raises(
         InputError,
-        match="label FB1 contradicts the lattice: it is given on the other twin than RB1",
+        match="labels RB1 and FB1 contradict the lattice: they are given on opposite twins; "
+        "label RB1 or FB1 on its other twin",
     ):
+        label_peaks(carriers, anchors, SETUP.n1, SETUP.n2, SETUP.shape, max_order=3)
+    anchors["RF"] = truth["RF"].observed_carrier
+    with pytest.raises(InputError, match="label FB1 contradicts the lattice of the other labels"):
         label_peaks(carriers, anchors, SETUP.n1, SETUP.n2, SETUP.shape, max_order=3)
 
 

@@ -46,7 +46,7 @@ def _frames(path: Path) -> np.ndarray:
 def _play(pipeline: LivePipeline, frames: np.ndarray, plan: list[tuple[int, int]]) -> list:
     """Process ``(index, segment)`` in order, as a replay would deliver them."""
     return [
-        pipeline.process(frames[i], FrameMeta(i, i * 0.05, 100 + i * 0.05, index=i, segment=s))
+        pipeline.process(frames[i], FrameMeta(i, i * 0.05, 100 + i * 0.05, file_index=i, segment=s))
         for i, s in plan
     ]
 

@@ -3,7 +3,7 @@
 ``frame = Poisson(photons * (1 + sum_m 2 A_m cos(2 pi (fx x + fy y) + phi_m(y, x))))``:
 each carrier ``m`` is a complex exponential of relative amplitude ``A_m`` plus its
 twin, the convention of :class:`holoview.processing.peaks.detection.Peak`. The shot-noise
-floor of a demodulated phase is then ``sqrt(eta / (2 photons)) / A`` (DESIGN.md).
+floor of a demodulated phase is then ``sqrt(eta / (2 photons)) / A`` (docs/design.md).
 """
 
 from __future__ import annotations

@@ -8,7 +8,7 @@ so elliptical in FFT bins on a non-square frame), centred on the sub-bin carrier
   (the paper's improved filter; roll-off over the whole radius);
 - ``"tukey"``: flat to ``(1 - taper) r``, then a cosine edge reaching 0 at ``r``.
 
-The shot-noise phase floor of DESIGN.md depends on the window through its
+The shot-noise phase floor of docs/design.md depends on the window through its
 *area fraction* ``eta = sum |W|^2 / (rows cols)`` over the spectrum's bins
 (:func:`area_fraction`).
 """
@@ -51,9 +51,6 @@ DC_FRACTION = 0.5
 
 #: Largest radius :func:`auto_radius` returns (cycles/pixel).
 MAX_AUTO_RADIUS = 0.2
-
-#: Carriers ``(fx, fy)``, cycles/pixel: a sequence of pairs or an array of shape (n, 2).
-Carriers = Sequence[tuple[float, float]] | np.ndarray
 
 
 def check_kind(kind: str) -> str:
@@ -109,6 +106,10 @@ def _distances(points: np.ndarray, others: np.ndarray) -> np.ndarray:
     """Periodic distances (cycles/pixel) from each point to each other point, shape (n, m)."""
     delta = wrap_frequency(points[:, None, :] - others[None, :, :])
     return np.hypot(delta[..., 0], delta[..., 1])
+
+
+#: Carriers ``(fx, fy)`` in cycles/pixel: a sequence of pairs or an array of shape (N, 2).
+Carriers = Sequence[tuple[float, float]] | np.ndarray
 
 
 def _points(carriers: Carriers) -> np.ndarray:

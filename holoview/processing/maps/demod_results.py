@@ -23,7 +23,7 @@ __all__ = [
     "PeakResult",
 ]
 
-#: Reference modes (DESIGN.md, paper section 3).
+#: Reference modes (docs/design.md, paper section 3).
 REFERENCE_MODES: tuple[str, ...] = ("synthetic", "absolute", "relative")
 
 #: Spatial unwrapping policies: ``"auto"`` unwraps only maps that have wraps.

@@ -7,7 +7,7 @@ inverse FFT of the box only. The complex field per peak therefore comes at the
 box resolution (pixel ``(p, q)`` at frame position ``(p rows / by, q cols / bx)``);
 :meth:`Demodulator.upsample` brings any map to the frame grid.
 
-Conventions (DESIGN.md):
+Conventions (docs/design.md):
 
 - the field is in counts: ``|field| = Y0 A`` for a fringe term ``Y0 A exp(i phi)``,
   demodulated at the FFT bin nearest the carrier (a residual sub-bin tilt remains
@@ -412,7 +412,7 @@ class Demodulator:
         return self._boxes[i]
 
     def area_fraction(self, i: int) -> float:
-        """Return peak ``i``'s window area fraction ``sum |W|^2 / (rows cols)`` (DESIGN.md)."""
+        """Return peak ``i``'s window area fraction ``sum |W|^2 / (rows cols)`` (docs/design.md)."""
         return self._boxes[i].area_fraction
 
     def upsample(self, box_map: np.ndarray) -> np.ndarray:
@@ -573,13 +573,15 @@ class Demodulator:
             mean_phase = 0.0
         else:
             ref_conj = self._ref_conj[i]
+            ref_value = self._ref_value[i]
+            assert ref_conj is not None and ref_value is not None  # set together above
             np.multiply(field, ref_conj, out=product)
             self._unwrapped_mean[i] += step
             if self.reference == "relative":
                 np.conjugate(field, out=ref_conj)
                 mean_phase = step
             else:
-                mean_phase = cmath.phase(value * self._ref_value[i].conjugate())
+                mean_phase = cmath.phase(value * ref_value.conjugate())
                 if prev is None:  # the first against a background, or after a break
                     self._unwrapped_mean[i] = mean_phase
         if product is None:

@@ -26,7 +26,7 @@ def phase_to_height(phase: np.ndarray | float, alpha: float, wavelength: float) 
         Phase change (rad); not modified.
     alpha : float
         The peak's prefactor (n1 for RF, j n2 for FB_j, j n2 - n1 for RB_j, sign by
-        the twin, DESIGN.md); nonzero.
+        the twin, docs/design.md); nonzero.
     wavelength : float
         Laser wavelength (m).
 

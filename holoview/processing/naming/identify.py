@@ -143,7 +143,7 @@ def _from_lattice(
             continue
         measured = abs(float(alphas[p.index]))
         magnitude = measured if np.isfinite(measured) and measured > 0 else p.alpha
-        label = p.label.split("~")[0] if p.kind is LatticeKind.GHOST else p.label
+        label = p.label.split("~")[0] if p.kind is LatticeKind.GHOST and p.label else p.label
         out.append(
             PeakIdentity(
                 index=p.index,

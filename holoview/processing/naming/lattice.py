@@ -246,11 +246,15 @@ def identify_lattice(
 
     Examples
     --------
-    >>> from holoview.processing.peaks.detection import find_peaks
-    >>> peaks = find_peaks(frame)  # doctest: +SKIP
-    >>> carriers = [p.carrier for p in peaks]  # doctest: +SKIP
-    >>> ident = identify_lattice(carriers, frame.shape, 1.0, 1.333)  # doctest: +SKIP
-    >>> [(p.label, p.alpha, p.twin) for p in ident.peaks]  # doctest: +SKIP
+    Five peaks of a 512 x 512 frame (as :func:`~holoview.processing.peaks.detection.find_peaks`
+    would give them, brightest first), two of them labelled:
+
+    >>> carriers = [(-0.2005, 0.0601), (0.1504, 0.0903), (-0.0501, 0.1504),
+    ...             (-0.2506, 0.2105), (-0.1002, 0.3008)]
+    >>> labels = {"RB1": (-0.2005, 0.0601), "FB1": (-0.0501, 0.1504)}
+    >>> ident = identify_lattice(carriers, (512, 512), 1.0, 1.333, labels=labels)
+    >>> [(p.label, round(p.alpha, 3)) for p in ident.peaks]
+    [('RB1', 0.333), ('RF', 1.0), ('FB1', 1.333), ('RB2', 1.666), ('FB2', 2.666)]
     """
     check_indices(n1, n2)
     points_c, frame = _check_inputs(carriers, shape, tolerance, snap)
@@ -279,7 +283,7 @@ def identify_lattice(
         chosen, hints = from_labels(anchors, fitter, n1, n2)
         notes += [f"{h} is probably labelled on the wrong twin" for h in hints]
         source, sign_from, margin = "labels", "labels", math.inf
-        extra = {"anchors": {a.label: a.peak for a in anchors}, "flip_hint": hints}
+        anchors_by_label = {a.label: a.peak for a in anchors}
     else:
         candidates = auto_candidates(fitter, n1, n2)
         if not candidates or candidates[0].score < 2:
@@ -290,7 +294,7 @@ def identify_lattice(
         chosen, margin = choose(candidates, evidence, n_peaks, notes)
         source = "auto"
         chosen, sign_from = orient(chosen, sign_reference)
-        extra = {}
+        anchors_by_label, hints = {}, ()
     check = None if evidence is None else evidence.check(chosen.matches, n_peaks)
     ident = _assemble(
         chosen,
@@ -304,7 +308,7 @@ def identify_lattice(
         max_order=max_order,
         notes=notes,
     )
-    return replace(ident, **extra)
+    return replace(ident, anchors=anchors_by_label, flip_hint=hints)
 
 
 _AMBIGUOUS_GHOST = (
@@ -412,7 +416,11 @@ def _assemble(
         and max(p.point[0], 1) <= max_order
         and p.point not in named
     )
-    residuals = [p.residual_bins for p in peaks if p.kind is LatticeKind.FIRST_ORDER]
+    residuals = [
+        p.residual_bins
+        for p in peaks
+        if p.kind is LatticeKind.FIRST_ORDER and p.residual_bins is not None
+    ]
     precision = float(np.sqrt(np.mean(np.square(residuals)))) if residuals else math.nan
     logger.info(
         "lattice (%s, sign by %s): %s; missing %s",

@@ -1,7 +1,7 @@
 """The carrier lattice: every peak of a multiplexed spectrum as two integers.
 
 Every first-order family is an integer combination of two carriers (paper eq. 6,
-DESIGN.md "The lattice"): ``f_FB_j = j f_FB1`` and ``f_RB_j = j f_FB1 - f_RF``. A point
+docs/design.md "The lattice"): ``f_FB_j = j f_FB1`` and ``f_RB_j = j f_FB1 - f_RF``. A point
 of the lattice is written ``(fb1, rf)``, its carrier ``fb1 * f_FB1 + rf * f_RF``
 (cycles/pixel, folded into ``[-0.5, 0.5)`` as the camera samples it), and its prefactor
 follows exactly as the same combination of ``alpha_FB1 = n2`` and ``alpha_RF = n1``:
@@ -20,7 +20,7 @@ The camera's nonlinearity makes the harmonics and the intermodulation products (
 ``f +- g`` of two carriers); they are lattice points too, with the summed alpha. The
 reference-arm phase enters a point ``rf`` times (RF once, every RB_j negatively, no
 FB_j): :func:`coupling`. A point and its negative are the two twins of one peak; the
-*stored* twin is the one with a positive alpha (DESIGN.md, twin rule), which needs
+*stored* twin is the one with a positive alpha (docs/design.md, twin rule), which needs
 ``n2 > n1``.
 
 A :class:`Basis` (the two carriers) predicts every point; :func:`match` names detected

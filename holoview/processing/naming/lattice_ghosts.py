@@ -123,7 +123,8 @@ def find_ghosts(
         rb1 = bases.index((1, -1))
         copies = every[:, :, [rb1, rb1 + len(bases)]].min(axis=(1, 2))
         counts = np.where(copies <= tol, counts, 0)
-        best, rival, top, names = None, False, 0, frozenset()
+        best, rival, top = None, False, 0
+        names: frozenset[tuple[int, tuple[int, int]]] = frozenset()
         for k in np.argsort(-counts, kind="stable")[:GHOST_TRIALS]:
             if counts[k] < MIN_GHOST_SUPPORT or (best is not None and counts[k] < top):
                 break

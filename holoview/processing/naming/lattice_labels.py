@@ -31,7 +31,21 @@ from holoview.processing.naming.lattice_search import (
 from holoview.processing.peaks.snapping import bin_distance
 from holoview.processing.peaks.snapping import snap as snap_carrier
 
-__all__ = ["Anchor", "from_labels", "snap_labels"]
+__all__ = ["Anchor", "LabelContradictionError", "from_labels", "snap_labels"]
+
+
+class LabelContradictionError(InputError):
+    """Labels the lattice contradicts: another peak's name, the wrong twin, one point twice.
+
+    Attributes
+    ----------
+    label : str
+        The label named (the first that the lattice calls otherwise).
+    """
+
+    def __init__(self, message: str, label: str) -> None:
+        super().__init__(message)
+        self.label = label
 
 
 @dataclass(frozen=True)
@@ -91,7 +105,9 @@ def snap_labels(
             if other.peak == found[0]:
                 raise InputError(f"labels {other.label} and {label} name the same detected peak")
             if other.point == point:
-                raise InputError(f"labels {other.label} and {label} name one lattice point")
+                raise LabelContradictionError(
+                    f"labels {other.label} and {label} name one lattice point", label
+                )
         anchors.append(Anchor(label, point, found[0], found[1]))
     return anchors
 
@@ -129,57 +145,76 @@ def check_anchors(candidate: Candidate, anchors: list[Anchor], fitter: Fitter) -
         if found is not None and found.target.point == anchor.point and found.twin == anchor.twin:
             continue
         where = candidate.basis.carrier(anchor.point)
+        if found is not None and found.target.point == anchor.point:
+            raise LabelContradictionError(
+                f"label {anchor.label} contradicts the lattice of the other labels: it is "
+                f"given on the wrong twin; label ({where[0]:+.4f}, {where[1]:+.4f}) "
+                "cycles/pixel instead",
+                anchor.label,
+            )
         distance = float(
             min(
                 bin_distance(fitter.carriers[anchor.peak] - np.asarray(where), fitter.shape),
                 bin_distance(fitter.carriers[anchor.peak] + np.asarray(where), fitter.shape),
             )
         )
-        raise InputError(
+        raise LabelContradictionError(
             f"label {anchor.label} contradicts the lattice of the other labels: it puts "
             f"{anchor.label} at ({where[0]:+.4f}, {where[1]:+.4f}) cycles/pixel, "
-            f"{distance:.1f} bins from the peak labelled"
+            f"{distance:.1f} bins from the peak labelled",
+            anchor.label,
         )
 
 
 def contradiction(best: Candidate, chosen: Candidate, anchors: list[Anchor]) -> None:
     """Raise naming the label that the lattice explaining the most peaks calls otherwise.
 
-    The global twin of an automatic naming is free: it is aligned with most labels (with
-    the first label on a tie), and a label on the other twin than the rest is named.
+    The global twin of an automatic naming is free: it is aligned with most labels, and a
+    label on the other twin than the rest is named (both halves where there is no majority).
     """
     named = {m.peak: m for m in best.matches}
     scores = f"it explains {best.score:g} against {chosen.score:g} with the labels given"
     for anchor in anchors:
         theirs = named.get(anchor.peak)
         if theirs is None:
-            raise InputError(
+            raise LabelContradictionError(
                 f"label {anchor.label} contradicts the lattice: the peak labelled "
-                f"{anchor.label} is off the lattice that explains the most peaks ({scores})"
+                f"{anchor.label} is off the lattice that explains the most peaks ({scores})",
+                anchor.label,
             )
         if theirs.target.label != anchor.label:
-            raise InputError(
+            raise LabelContradictionError(
                 f"label {anchor.label} contradicts the lattice: the peak labelled "
                 f"{anchor.label} is {theirs.target.label} on the lattice that explains the "
-                f"most peaks ({scores})"
+                f"most peaks ({scores})",
+                anchor.label,
             )
     flips = [named[a.peak].twin != a.twin for a in anchors]
-    if 2 * sum(flips) > len(flips) or (2 * sum(flips) == len(flips) and flips[0]):
+    if 2 * sum(flips) == len(flips):  # no majority: either half may be the wrong one
+        halves = [
+            ", ".join(a.label for a, f in zip(anchors, flips, strict=True) if f == side)
+            for side in (flips[0], not flips[0])
+        ]
+        raise LabelContradictionError(
+            f"labels {halves[0]} and {halves[1]} contradict the lattice: they are given on "
+            f"opposite twins; label {halves[0]} or {halves[1]} on its other twin ({scores})",
+            anchors[0].label,
+        )
+    if 2 * sum(flips) > len(flips):
         flips = [not f for f in flips]
     for anchor, flip in zip(anchors, flips, strict=True):
         if flip:
             others = ", ".join(a.label for a, f in zip(anchors, flips, strict=True) if not f)
-            raise InputError(
+            raise LabelContradictionError(
                 f"label {anchor.label} contradicts the lattice: it is given on the other "
-                f"twin than {others}; label its other twin ({scores})"
+                f"twin than {others}; label its other twin ({scores})",
+                anchor.label,
             )
 
 
-def from_labels(
-    anchors: list[Anchor], fitter: Fitter, n1: float, n2: float
-) -> tuple[Candidate, tuple[str, ...]]:
-    """The labels' lattice, checked against itself and against the best automatic one."""
-    fits = []
+def _fit_labels(anchors: list[Anchor], fitter: Fitter) -> Candidate:
+    """The best lattice the labels fix where every label sits where it puts it."""
+    fits: list[tuple[Candidate | None, InputError | None]] = []
     for basis in label_bases(anchors, fitter.carriers):
         try:
             candidate = fitter.fit(basis)
@@ -191,7 +226,39 @@ def from_labels(
     good = [c for c, _ in fits if c is not None]
     if not good:
         raise next(exc for _, exc in fits if exc is not None)
-    chosen = max(good, key=lambda c: (c.score, -c.penalty))
+    return max(good, key=lambda c: (c.score, -c.penalty))
+
+
+def _odd_one_out(anchors: list[Anchor], fitter: Fitter) -> LabelContradictionError | None:
+    """With three labels or more that disagree: the one the others' best lattice calls wrong.
+
+    The first two labels fix the lattice the rest are held to, so a wrong first label
+    would otherwise be blamed on a right third one.
+    """
+    if len(anchors) < 3:
+        return None
+    found: list[tuple[float, LabelContradictionError]] = []
+    for odd in anchors:
+        rest = [a for a in anchors if a is not odd]
+        try:
+            candidate = _fit_labels(rest, fitter)
+        except InputError:
+            continue
+        try:
+            check_anchors(candidate, [odd], fitter)
+        except LabelContradictionError as exc:
+            found.append((candidate.score, exc))
+    return max(found, key=lambda item: item[0])[1] if found else None
+
+
+def from_labels(
+    anchors: list[Anchor], fitter: Fitter, n1: float, n2: float
+) -> tuple[Candidate, tuple[str, ...]]:
+    """The labels' lattice, checked against itself and against the best automatic one."""
+    try:
+        chosen = _fit_labels(anchors, fitter)
+    except LabelContradictionError as exc:
+        raise _odd_one_out(anchors, fitter) or exc from None
     anchored = {a.peak for a in anchors}
     others = [m for m in chosen.matches if m.peak not in anchored]
     n_peaks = fitter.carriers.shape[0]

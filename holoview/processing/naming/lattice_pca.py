@@ -91,13 +91,13 @@ class PcaCheck:
             if p.kind is not LatticeKind.OFF_LATTICE:
                 if not p.alpha:  # a ghost's own-arm term: it should not move
                     moves = abs(on_stored) > PCA_TOLERANCE
-                    note = (f"PCA prefactor {on_stored:.3f}: it moves with the surface",)
+                    moving = f"PCA prefactor {on_stored:.3f}: it moves with the surface"
                     out.append(
                         replace(
                             p,
                             pca_alpha=on_stored,
                             pca_agrees=not moves,
-                            notes=(*p.notes, *note) if moves else p.notes,
+                            notes=(*p.notes, moving) if moves else p.notes,
                         )
                     )
                     continue

@@ -17,7 +17,7 @@ FB_(l-j) and is reported as that family):
 - **unexplained**: correlated with the surface, but no model alpha fits.
 
 A negative alpha means the peak's phase decreases with the height: it sits on the other
-twin (DESIGN.md, twin rule) and is matched on ``|alpha|`` with ``flipped`` set.
+twin (docs/design.md, twin rule) and is matched on ``|alpha|`` with ``flipped`` set.
 
 A peak's carrier names it exactly where it sits on the carrier lattice
 (:mod:`holoview.processing.naming.lattice`); this classification by alpha alone is for peaks

@@ -3,7 +3,7 @@
 A carrier is stored in cycles per pixel, ``(fx, fy)``: fx along columns, fy along
 rows, numpy's FFT sign. Every carrier of a real frame has a twin at ``-f``; a
 physical peak is listed once. Without a prefactor to decide which twin is the one
-whose phase grows with the surface height (DESIGN.md), :func:`find_peaks` keeps
+whose phase grows with the surface height (docs/design.md), :func:`find_peaks` keeps
 the twin in the *canonical half-plane*: ``fx > 0``, or ``fx == 0`` and ``fy > 0``
 (on FFT bins; the Nyquist column and row count as positive). A user who knows
 better calls :meth:`Peak.flipped`.

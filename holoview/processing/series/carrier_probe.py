@@ -16,7 +16,7 @@ padded to :data:`COLUMN_TILE` columns), then per peak a dot product of the
 against about ``2.5 log2(rows cols)`` for a real FFT, and no box, window, inverse
 FFT or phase map.
 
-Conventions (DESIGN.md, as :mod:`holoview.processing.maps.demodulate`): carriers in
+Conventions (docs/design.md, as :mod:`holoview.processing.maps.demodulate`): carriers in
 cycles/pixel, ``(fx, fy)``; a term ``Y0 A exp(i (2 pi f.r + phi))`` of the frame
 gives ``v = Y0 A exp(i phi)`` in counts, phase origin at pixel ``(0, 0)``, so ``v``
 is the demodulator's ``carrier_value`` up to the leakage and weighting below. Give
@@ -315,9 +315,14 @@ class CarrierProbe:
 
     Examples
     --------
-    >>> probe = CarrierProbe((1024, 1024), [(-0.2005, 0.0601), (0.1504, 0.0903)])
-    >>> result = probe.measure(frame)  # doctest: +SKIP
-    >>> np.angle(result.values)  # mean phases, rad  # doctest: +SKIP
+    A fringe pattern of one carrier, phase 0.5 rad:
+
+    >>> y, x = np.mgrid[:256, :256]
+    >>> frame = 100 + 20 * np.cos(2 * np.pi * (0.125 * x + 0.0625 * y) + 0.5)
+    >>> probe = CarrierProbe((256, 256), [(0.125, 0.0625)])
+    >>> result = probe.measure(frame)
+    >>> round(float(np.angle(result.values[0])), 4)  # its mean phase, rad
+    0.5
     """
 
     def __init__(
@@ -339,8 +344,9 @@ class CarrierProbe:
         if taper is None:
             tapers = (auto_taper(rows, self.spacing), auto_taper(cols, self.spacing))
         else:
-            pair = (taper, taper) if np.ndim(taper) == 0 else tuple(taper)  # type: ignore[arg-type]
-            if len(pair) != 2 or not all(0 <= float(t) <= 1 for t in pair):
+            pair = np.ravel(np.asarray(taper, dtype=float))
+            pair = np.repeat(pair, 2) if pair.size == 1 else pair
+            if pair.size != 2 or not np.all((pair >= 0) & (pair <= 1)):
                 raise InputError(f"taper must be in [0, 1] (or a pair of such), got {taper!r}")
             tapers = (float(pair[0]), float(pair[1]))
         self.taper: tuple[float, float] = tapers

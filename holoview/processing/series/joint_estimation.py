@@ -1,6 +1,6 @@
 """Joint per-frame estimation: one height and one reference-arm phase from every peak.
 
-Every identified peak ``m`` sees the same surface and the same reference arm (DESIGN.md,
+Every identified peak ``m`` sees the same surface and the same reference arm (docs/design.md,
 "The lattice"): between two frames its mean phase steps by
 
     ``s_m = alpha_m du + c_m dpsi + noise``,   ``du = 4 pi dh / wavelength``,
@@ -171,9 +171,15 @@ class JointEstimator:
 
     Examples
     --------
-    >>> estimator = JointEstimator([0.333, 1.0, 1.333], [-1, 1, 0], 532e-9)
-    >>> frame = estimator.update(values_of_frame)  # doctest: +SKIP
-    >>> frame.height, frame.vibration, frame.flagged  # doctest: +SKIP
+    RB1, RF and FB1 see a surface rising 50 nm a frame (for RF, more than a quarter
+    wave: its phase steps past pi, which the joint estimate resolves):
+
+    >>> alphas = np.array([0.333, 1.0, 1.333])
+    >>> estimator = JointEstimator(alphas, [-1, 1, 0], 532e-9)
+    >>> for h in (0.0, 50e-9, 100e-9, 150e-9):  # m
+    ...     frame = estimator.update(np.exp(4j * np.pi * alphas * h / 532e-9))
+    >>> round(frame.height * 1e9, 6), round(abs(frame.vibration), 6)  # nm, rad
+    (150.0, 0.0)
     """
 
     def __init__(
@@ -298,6 +304,8 @@ class JointEstimator:
             guess[~present] = FIRST_SIGMA * 10
             self._sigma2 = guess**2
         now = self._sigma2 if sigma is None else self._check_sigma(sigma) ** 2
+        if now is None:  # nothing measured yet: every peak at the fallback noise
+            now = np.full(self.alphas.size, (FIRST_SIGMA * 10) ** 2)
         seen = present & np.isfinite(self._phase)
         turns = np.zeros(self.alphas.size, dtype=np.int64)
         margin, vibration_margin, flagged = math.inf, math.inf, False

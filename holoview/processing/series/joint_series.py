@@ -93,7 +93,14 @@ def _run(
     estimator: JointEstimator,
     values: NDArray[np.complex128],
     sigma: NDArray[np.float64] | None = None,
-) -> tuple[NDArray[np.float64], ...]:
+) -> tuple[
+    NDArray[np.float64],
+    NDArray[np.float64],
+    NDArray[np.float64],
+    NDArray[np.float64],
+    NDArray[np.float64],
+    NDArray[np.bool_],
+]:
     """Every frame through ``estimator``: phases, height, vibration, margins, flags."""
     n, m = values.shape
     phases = np.full((n, m), np.nan)

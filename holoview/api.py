@@ -1,0 +1,595 @@
+"""holoview from Python: the commands as functions, recordings and results as arrays.
+
+Each function mirrors a command and runs the same code: :func:`simulate` is
+``holoview simulate`` (its options as keywords), :func:`process` is ``holoview process``
+(:func:`holoview.headless.run.process_file`), :func:`export` is ``holoview export``.
+:func:`open_recording` gives a recording's frames lazily as a dask array, with their
+times and the experiment the recording carries; :func:`open_results` gives a run's
+``results.h5`` as xarray Datasets with coordinates in s and m and units.
+
+No Qt is imported here. Mistakes are :class:`~holoview.errors.InputError` (one line
+naming the problem), failed writes :class:`~holoview.errors.OutputError`.
+
+Examples
+--------
+Simulate a recording of evaporating water, process it with maps, and look at the maps:
+
+>>> import tempfile
+>>> from pathlib import Path
+>>> import holoview.api as hv
+>>> folder = Path(tempfile.mkdtemp())
+>>> recording = hv.simulate(folder / "evaporation.h5", "evaporation", size=64, frames=8,
+...                         fps=20, seed=1, evaporation_um_per_min=60)
+>>> with hv.open_recording(recording) as rec:
+...     rec.frames.shape, rec.times[1], [p.label for p in rec.experiment.peaks]
+((8, 64, 64), np.float64(0.05), ['RB1', 'RF', 'FB1'])
+>>> outcome = hv.process(recording, folder / "run", maps=True, jobs=1, report=False)
+>>> maps = hv.open_results(outcome.out, "maps")
+>>> maps.fused.dims, maps.fused.attrs["units"], maps.x.attrs["units"]
+(('time', 'y', 'x'), 'm', 'm')
+>>> rate = hv.open_results(outcome.out, "peaks").rate_m_per_s.sel(label="RB1")
+>>> round(float(rate) * 6e7, -1)  # um/min, to tens; the water falls at 60 um/min
+-60.0
+>>> maps.close()
+>>> hv.export(outcome.out, "netcdf", folder / "run.nc").path.name
+'run.nc'
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import logging
+import math
+from collections.abc import Sequence
+from pathlib import Path
+from types import TracebackType
+from typing import Any, NoReturn, Self
+
+import numpy as np
+import xarray as xr
+
+from holoview.engine.experiment import Experiment
+from holoview.errors import InputError
+from holoview.headless.exports import Export, Progress, export_results
+from holoview.headless.inputs import InputFile, OpticsOptions
+from holoview.headless.pipeline import ProcessSettings
+from holoview.headless.results_data import open_results as _open_results
+from holoview.headless.run import PeakChoice, ProcessOutcome, process_file
+
+logger = logging.getLogger(__name__)
+
+__all__ = [
+    "Recording",
+    "export",
+    "open_recording",
+    "open_results",
+    "process",
+    "simulate",
+]
+
+
+class _OptionParser(argparse.ArgumentParser):
+    """A command's parser whose mistakes are an InputError, not an exit."""
+
+    def error(self, message: str) -> NoReturn:
+        raise InputError(f"{self.prog}: {message}")
+
+
+def _argv(options: dict[str, Any]) -> list[str]:
+    """Keyword options as command-line arguments: ``wave_rms_nm=40`` -> ``--wave-rms-nm 40``.
+
+    True is a flag, None and False leave the option out, a tuple gives several values,
+    a list of tuples repeats the option.
+    """
+    argv: list[str] = []
+    for name, value in options.items():
+        option = "--" + name.replace("_", "-")
+        if value is None or value is False:
+            continue
+        if value is True:
+            argv.append(option)
+        elif isinstance(value, list):
+            for item in value:
+                argv += [option, *(str(v) for v in np.atleast_1d(item))]
+        elif isinstance(value, tuple):
+            argv += [option, *(str(v) for v in value)]
+        else:
+            argv += [option, str(value)]
+    return argv
+
+
+def _run_command(command: str, positional: list[str], options: dict[str, Any]) -> int:
+    """Parse ``options`` with the command's own parser and run it quietly."""
+    parser = _OptionParser(prog="holoview")
+    subparsers = parser.add_subparsers(dest="command")
+    module = importlib.import_module(f"holoview.cli.{command}")
+    module.add_parser(subparsers)
+    args = parser.parse_args([command, *positional, *_argv(options)])
+    args.quiet, args.verbose = True, 0
+    return int(module.run(args) or 0)
+
+
+def simulate(path: str | Path, scenario: str = "waves", **options: Any) -> Path:
+    """Write a simulated recording with its truth: ``holoview simulate PATH``.
+
+    Parameters
+    ----------
+    path : str or Path
+        The recording to create (an existing file is not overwritten).
+    scenario : str
+        ``"waves"``, ``"evaporation"``, ``"injection"`` and the others of
+        ``holoview simulate --help``.
+    **options
+        The command's options with underscores: ``size`` (pixels), ``frames``,
+        ``fps`` (frames/s), ``seed``, ``noise``, ``wavelength_nm``, ``pixel_pitch_um``,
+        ``n2`` or ``fluid``, ``m_r_mrad=(mx, my)``, ``evaporation_um_per_min``,
+        ``wave_rms_nm``, ``ghost=[(arm, tx, ty, amplitude), ...]``, ...; units as the
+        names say.
+
+    Returns
+    -------
+    Path
+        ``path``.
+
+    Raises
+    ------
+    InputError
+        An unknown option, a value the command refuses, an existing file.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> folder = Path(tempfile.mkdtemp())
+    >>> simulate(folder / "waves.h5", "waves", size=64, frames=4, seed=2).name
+    'waves.h5'
+    >>> simulate(folder / "other.h5", size=64, colour="blue")
+    Traceback (most recent call last):
+    ...
+    holoview.errors.InputError: holoview: unrecognized arguments: --colour blue
+    """
+    _run_command("simulate", [str(path)], {"scenario": scenario, **options})
+    return Path(path)
+
+
+def _frame_range(frames: str | slice | range | None) -> str | None:
+    """``frames`` as ``--frames START:STOP`` takes it."""
+    if frames is None or isinstance(frames, str):
+        return frames
+    if isinstance(frames, range | slice) and frames.step in (None, 1):
+        start = "" if frames.start is None else str(frames.start)
+        stop = "" if frames.stop is None else str(frames.stop)
+        return f"{start}:{stop}"
+    raise InputError(f"frames takes 'START:STOP', a slice or a range without step, got {frames}")
+
+
+def process(
+    recording: str | Path,
+    out: str | Path,
+    *,
+    labels: dict[str, tuple[float, float]] | None = None,
+    auto: int | None = None,
+    anchor: tuple[str, tuple[float, float]] | None = None,
+    experiment: str | Path | None = None,
+    wavelength_m: float | None = None,
+    pixel_pitch_m: float | None = None,
+    n1: float | None = None,
+    n2: float | None = None,
+    fluid: str | None = None,
+    fps: float | None = None,
+    reference: str | None = None,
+    window: str | None = None,
+    radius: float | str | None = None,
+    unwrap: str | None = None,
+    background: str | int | None = None,
+    maps: bool = False,
+    area_m2: float | None = None,
+    frames: str | slice | range | None = None,
+    threads: int = 1,
+    jobs: int | None = None,
+    scheduler: str | None = None,
+    report: str | bool | None = "png",
+    overwrite: bool = False,
+) -> ProcessOutcome:
+    """Process a recording into an output folder: ``holoview process RECORDING --out OUT``.
+
+    The same code as the command (:func:`holoview.headless.run.process_file`), the same
+    outputs (``trends.csv``, ``summary.json``, ``results.h5``, ``report.png``), the
+    options in SI units.
+
+    Parameters
+    ----------
+    recording : str or Path
+        A holoview recording, a TIFF stack, a folder of images, a video or a ``.npy``.
+    out : str or Path
+        The output folder (``overwrite`` to replace an earlier run's results).
+    labels : dict of str to (fx, fy), optional
+        Labelled peaks, carriers in cycles/pixel (``--label``).
+    auto : int, optional
+        The N strongest peaks, identified by PCA (``--auto``).
+    anchor : (str, (fx, fy)), optional
+        With ``auto``: the reference peak (``--anchor``).
+    experiment : str or Path, optional
+        An experiment file (``--experiment``). With none of ``labels``, ``auto`` and
+        ``experiment``: the recording's own experiment, else ``auto=4``.
+    wavelength_m, pixel_pitch_m : float, optional
+        Laser wavelength and object-side pixel pitch, m (over the recording's).
+    n1, n2 : float, optional
+        Refractive indices above the surface and of the fluid; or ``fluid`` by name.
+    fps : float, optional
+        Frame rate, frames/s, replacing the file's times.
+    reference, window, radius, unwrap : optional
+        Demodulation settings as the command's options (radius in cycles/pixel, or
+        ``"matched"`` or ``"bound"``).
+    background : str or int, optional
+        The object-free hologram: a frame index of the recording, or a file.
+    maps : bool
+        Write the height maps (``--maps``).
+    area_m2 : float, optional
+        Basin area, m^2 (volume rates).
+    frames : str, slice or range, optional
+        The frames to process (``"100:500"``, ``slice(100, 500)``).
+    threads, jobs, scheduler : optional
+        FFTW threads per frame; processes (None: automatic); a Dask scheduler.
+    report : str or None
+        The report's format, ``"png"``, ``"pdf"`` or ``"svg"`` (``report.png``, ...:
+        ``--report-format``); None (or False): no report.
+    overwrite : bool
+        Replace the results of an earlier run in ``out``.
+
+    Returns
+    -------
+    ProcessOutcome
+        ``out``, the peaks, the series, the analysis and ``summary`` (the content of
+        ``summary.json``); open the results with :func:`open_results` (``out``).
+
+    Raises
+    ------
+    InputError
+        For anything ``holoview process`` refuses (one line naming it).
+    OutputError
+        An output could not be written.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> folder = Path(tempfile.mkdtemp())
+    >>> path = simulate(folder / "rec.h5", "evaporation", size=64, frames=8, fps=20, seed=1)
+    >>> outcome = process(path, folder / "out", jobs=1, report=False)
+    >>> sorted(p.name for p in outcome.files)
+    ['results.h5', 'summary.json', 'trends.csv']
+    >>> outcome.summary["fused"]["labels"]
+    ['RB1', 'RF', 'RB2', 'FB1', 'RB3']
+    """
+    choice = PeakChoice(
+        experiment=None if experiment is None else Path(experiment),
+        labels=dict(labels or {}),
+        auto=auto,
+        anchor=anchor,
+    )
+    optics = OpticsOptions(
+        wavelength_m=wavelength_m,
+        pixel_pitch_m=pixel_pitch_m,
+        n1=n1,
+        n2=n2,
+        fluid=fluid,
+        fps_hz=fps,
+    )
+    settings = ProcessSettings(
+        reference=reference,
+        window=window,
+        radius=radius,
+        unwrap=unwrap,
+        maps=maps,
+        area_m2=area_m2,
+        threads=threads,
+        background=None if background is None else str(background),
+    )
+    return process_file(
+        recording,
+        out,
+        choice=choice,
+        optics_options=optics,
+        settings=settings,
+        frames=_frame_range(frames),
+        report=report,
+        overwrite=overwrite,
+        jobs=jobs,
+        scheduler=scheduler,
+    )
+
+
+class _Frames:
+    """A frame file as an array dask can read: ``frames[i:j]`` reads frames i to j-1.
+
+    The file is opened on the first read in each process (pickled, it reopens by path).
+    """
+
+    def __init__(self, path: Path, shape: tuple[int, int, int], dtype: np.dtype) -> None:
+        self.path = path
+        self.shape = shape
+        self.dtype = dtype
+        self.ndim = 3
+        self._file: InputFile | None = None
+
+    def __reduce__(self) -> tuple[Any, ...]:
+        return (_Frames, (self.path, self.shape, self.dtype))
+
+    def __getitem__(self, key: Any) -> np.ndarray:
+        key = key if isinstance(key, tuple) else (key,)
+        indices = range(self.shape[0])[key[0]]
+        if self._file is None:
+            self._file = InputFile(self.path)
+        if isinstance(indices, int):
+            return self._file.read(indices)[key[1:]]
+        stack = np.empty((len(indices), *self.shape[1:]), self.dtype)
+        for k, index in enumerate(indices):
+            stack[k] = self._file.read(index)
+        return stack[(slice(None), *key[1:])]
+
+    def close(self) -> None:
+        if self._file is not None:
+            self._file.close()
+            self._file = None
+
+
+class Recording:
+    """A recording opened for reading: frames (lazy), times, setup and experiment.
+
+    Made by :func:`open_recording`; use it as a context manager, or :meth:`close` it.
+
+    Attributes
+    ----------
+    path : Path
+    kind : str
+        ``"hdf5"``, ``"tiff"``, ``"folder"``, ``"numpy"`` or ``"video"``.
+    frames : dask.array.Array
+        ``(frames, rows, cols)`` in the file's dtype (raw camera counts), one frame per
+        chunk; nothing is read until computed (``frames[10].compute()``,
+        ``frames.mean(axis=0).compute()``).
+    times : ndarray or None
+        Each frame's time, s, from 0 at the first: the camera's clock, else the host's
+        arrival times, or ``index / fps``; None when the file has no times and no
+        ``fps`` was given.
+    setup : dict
+        A holoview recording's optical setup (``wavelength_m``, ``pixel_pitch_m``,
+        ``n1``, ``n2``, ...); empty for other files.
+    experiment : Experiment or None
+        The experiment in force at the first frame (labelled peaks, optics, window);
+        None when the file carries none.
+    experiments : list of (int, Experiment)
+        Every experiment stored, with the frame it holds from.
+    """
+
+    def __init__(self, path: str | Path, fps: float | None = None) -> None:
+        import dask.array as da
+        from dask.base import tokenize
+
+        self._input = InputFile(path)
+        source = self._input
+        self.path = source.path
+        self.kind = source.kind
+        self.setup = dict(source.setup)
+        n = len(source)
+        shape = (n, *source.frame_shape)
+        self._frames = _Frames(self.path, shape, source.dtype)
+        stat = self.path.stat()
+        self.frames = da.from_array(
+            self._frames,
+            chunks=(1, *source.frame_shape),
+            lock=True,
+            name="holoview-frames-" + tokenize(str(self.path), stat.st_mtime_ns, shape),
+            meta=np.empty((0, 0, 0), source.dtype),
+        )
+        try:
+            self.times: np.ndarray | None = source.times(range(n), fps) if n else None
+        except InputError as exc:
+            logger.info("%s", exc)
+            self.times = None
+        self.experiments: list[tuple[int, Experiment]] = []
+        for start, text in source.experiments:
+            where = f"{self.path} experiment (from frame {start})"
+            try:
+                self.experiments.append((start, Experiment.from_json(text, where)))
+            except InputError as exc:
+                logger.warning("%s; ignored", exc)
+        held = [e for start, e in self.experiments if start <= 0]
+        self.experiment = held[-1] if held else None
+
+    def __len__(self) -> int:
+        return int(self.frames.shape[0])
+
+    def to_xarray(self) -> xr.DataArray:
+        """The frames as a DataArray ``(time, y, x)``: s, and m with a pixel pitch.
+
+        Without times the ``time`` coordinate is absent (the frame index stays);
+        without a pixel pitch, ``y`` and ``x`` are in pixels (``units`` ``1``).
+        """
+        n, rows, cols = self.frames.shape
+        pitch = self.setup.get("pixel_pitch_m")
+        known = pitch is not None and math.isfinite(float(pitch)) and float(pitch) > 0
+        scale = float(pitch) if known else 1.0
+        axis_units = "m" if known else "1"
+        coords: dict[str, Any] = {
+            "frame": ("time", np.arange(n), {"units": "1"}),
+            "y": ("y", np.arange(rows) * scale, {"units": axis_units}),
+            "x": ("x", np.arange(cols) * scale, {"units": axis_units}),
+        }
+        if self.times is not None:
+            coords["time"] = ("time", self.times, {"units": "s"})
+        return xr.DataArray(
+            self.frames,
+            dims=("time", "y", "x"),
+            coords=coords,
+            name="intensity",
+            attrs={"units": "count", "long_name": "camera value (raw counts)"},
+        )
+
+    def close(self) -> None:
+        """Release the file (the frames cannot be read after)."""
+        self._frames.close()
+        self._input.close()
+
+    def __enter__(self) -> Self:
+        return self
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        self.close()
+
+
+def open_recording(path: str | Path, *, fps: float | None = None) -> Recording:
+    """Open a recording for reading: any input ``holoview process`` reads.
+
+    Parameters
+    ----------
+    path : str or Path
+        A holoview recording (``.h5``), a TIFF stack, a folder of TIFF/PNG images, a
+        video (``.avi``, ``.mkv``, ``.mp4``, ``.mov``) or a numpy array (``.npy``,
+        ``.npz``).
+    fps : float, optional
+        Frame rate, frames/s: the times are then ``index / fps`` (files without times
+        need it for :attr:`Recording.times`).
+
+    Returns
+    -------
+    Recording
+
+    Raises
+    ------
+    InputError
+        A missing, unreadable or unknown file (one line naming it).
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> import numpy as np
+    >>> folder = Path(tempfile.mkdtemp())
+    >>> np.save(folder / "stack.npy", np.arange(3 * 4 * 5, dtype=np.uint16).reshape(3, 4, 5))
+    >>> with open_recording(folder / "stack.npy", fps=10) as rec:
+    ...     print(rec.kind, rec.frames.shape, rec.times, int(rec.frames[2].sum().compute()))
+    numpy (3, 4, 5) [0.  0.1 0.2] 990
+    """
+    return Recording(path, fps)
+
+
+def open_results(
+    path: str | Path, group: str = "maps", *, chunks: dict[str, int] | None = None
+) -> xr.Dataset:
+    """Open a group of a run's ``results.h5`` as an xarray Dataset (lazily).
+
+    ``maps`` gives ``h(time, y, x)`` per peak and ``fused`` (m; ``time`` in s, ``y``
+    and ``x`` in m on the object side, at the map pixels' centres); ``trends`` the
+    series by ``(time, label)``; ``peaks`` the table by ``label``. Format 1.0 files
+    open the same way (:mod:`holoview.headless.results_data`).
+
+    Parameters
+    ----------
+    path : str or Path
+        ``results.h5``, or the output folder holding it.
+    group : str
+        ``"maps"``, ``"trends"`` or ``"peaks"``.
+    chunks : dict, optional
+        Dask chunks, e.g. ``{"time": 64}``, for maps larger than memory.
+
+    Returns
+    -------
+    xarray.Dataset
+        Close it (or use ``with``) to release the file.
+
+    Raises
+    ------
+    InputError
+        No such file, not a results file, an unknown group, or no maps.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> folder = Path(tempfile.mkdtemp())
+    >>> path = simulate(folder / "rec.h5", "evaporation", size=64, frames=8, fps=20, seed=1)
+    >>> out = process(path, folder / "out", jobs=1, report=False).out
+    >>> with open_results(out, "trends") as trends:
+    ...     print(trends.mean_height_m.dims, trends.time.attrs["units"], trends.sizes["time"])
+    ('time', 'label') s 8
+    >>> open_results(out, "maps")  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    holoview.errors.InputError: ... holds no maps: run holoview process with --maps
+    """
+    return _open_results(path, group, chunks=chunks)
+
+
+def export(
+    results: str | Path,
+    to: str,
+    out: str | Path,
+    *,
+    maps: Sequence[str] | None = None,
+    overwrite: bool = False,
+    mat_version: str = "5",
+    progress: Progress | None = None,
+) -> Export:
+    """Export a run's results: ``holoview export RESULTS --to TO --out OUT``.
+
+    Parameters
+    ----------
+    results : str or Path
+        ``results.h5``, or the output folder holding it.
+    to : str
+        ``"netcdf"`` (a ``.nc`` file), ``"zarr"`` (a folder), ``"mat"`` (a ``.mat``
+        file) or ``"tiff"`` (a folder of ImageJ stacks, one per map).
+    out : str or Path
+        The file or folder to create.
+    maps : sequence of str, optional
+        The maps to export (all by default).
+    overwrite : bool
+        Replace an existing ``out``.
+    mat_version : str
+        ``"5"`` (scipy, Octave, MATLAB; 2 GB per variable) or ``"7.3"`` (HDF5).
+    progress : callable, optional
+        ``progress(done, total)`` while the maps are written.
+
+    Returns
+    -------
+    Export
+        The path written, the format, the groups and maps.
+
+    Raises
+    ------
+    InputError
+        See :func:`holoview.headless.exports.export_results`.
+    OutputError
+        The output could not be written (nothing is left at ``out``).
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> from scipy.io import loadmat
+    >>> folder = Path(tempfile.mkdtemp())
+    >>> path = simulate(folder / "rec.h5", "evaporation", size=64, frames=8, fps=20, seed=1)
+    >>> out = process(path, folder / "out", maps=True, jobs=1, report=False).out
+    >>> done = export(out, "mat", folder / "run.mat", maps=["fused"])
+    >>> done.maps
+    ('fused',)
+    >>> mat = loadmat(done.path, simplify_cells=True)
+    >>> mat["maps"]["fused"].shape, mat["maps"]["units"]["fused"], mat["trends"]["time"][1]
+    ((8, 16, 16), 'm', np.float64(0.05))
+    """
+    return export_results(
+        results,
+        to,
+        out,
+        maps=maps,
+        overwrite=overwrite,
+        mat_version=mat_version,
+        progress=progress,
+    )
