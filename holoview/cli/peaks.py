@@ -72,6 +72,7 @@ def _table(document: dict[str, Any]) -> str:
             f"{peak['index']:>3}  {names:<{width}}{fx:>+9.4f}{fy:>+9.4f}"
             f"{peak['amplitude']:>11.4g}{peak['snr']:>9.1f}  {twin:<5}{point:>9}{resid:>7}  "
             f"{','.join(peak['flags'])}"
+            + (f"  {peak['sideband']['text']}" if peak.get("sideband") else "")
         )
     for key, text in (("missing", "predicted, not detected"), ("notes", "note")):
         for line in document.get(key) or []:

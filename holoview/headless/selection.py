@@ -28,7 +28,7 @@ from holoview.engine.experiment import Experiment, check_carrier, check_label, i
 from holoview.errors import InputError
 from holoview.processing.naming.labelling import ModelLabelling
 from holoview.processing.naming.lattice import LatticeIdentification
-from holoview.processing.naming.lattice_geometry import LatticePeak
+from holoview.processing.naming.lattice_geometry import LatticeKind, LatticePeak
 from holoview.processing.peaks.detection import Peak
 from holoview.processing.peaks.snapping import SNAP_BINS, snap
 
@@ -213,11 +213,19 @@ def describe_peaks(
     twin; None without a lattice), ``lattice`` ([fb1, rf]: the carrier is ``fb1 f_FB1 +
     rf f_RF``; None off the lattice), ``residual_bins`` (distance to that lattice point,
     FFT bins), ``kind``, ``coupling`` (to the reference-arm phase), ``amplitude``,
-    ``snr``, ``flags``, ``alpha`` (exact on the lattice; else None).
+    ``snr``, ``flags``, ``alpha`` (exact on the lattice; else None), ``sideband``.
+
+    A surface sideband (flag ``"surface"``) that the lattice places on none of its
+    points has ``kind`` ``"surface"``, no label, and ``sideband``: ``of`` (its
+    carrier's name), ``of_index``, ``q_cpp`` (its offset ``[qx, qy]``, cycles/pixel),
+    ``order`` and ``text`` ("sideband of RB1 at q = (...)"); None for other peaks.
     """
     rows = []
     for i, peak in enumerate(detected):
         named = None if lattice is None else lattice.peaks[i]
+        if "surface" in peak.flags and (named is None or named.kind not in ON_LATTICE):
+            rows.append(_sideband_row(i, peak, detected, lattice, labelling))
+            continue
         twin = None if named is None else named.twin
         carrier = peak.flipped().carrier if twin else peak.carrier
         label = None if named is None else named.label
@@ -240,6 +248,53 @@ def describe_peaks(
                 "snr": float(peak.snr),
                 "flags": sorted(peak.flags),
                 "alpha": None if named is None else named.alpha,
+                "sideband": None,
             }
         )
     return rows
+
+
+#: Lattice kinds that name a peak of its own (a surface sideband placed there is not one).
+ON_LATTICE = (LatticeKind.FIRST_ORDER, LatticeKind.SECOND_ORDER, LatticeKind.INTERMODULATION)
+
+
+def _sideband_row(
+    i: int,
+    peak: Peak,
+    detected: Sequence[Peak],
+    lattice: LatticeIdentification | None,
+    labelling: ModelLabelling | None,
+) -> dict[str, Any]:
+    """:func:`describe_peaks`' row of a surface sideband."""
+    parent = snap(peak.sideband_of or peak.carrier, [p.carrier for p in detected], (1, 1), 1e-6)
+    of_index = None if parent is None else parent[0]
+    name = None
+    if of_index is not None:
+        if labelling is not None and labelling.names[of_index]:
+            name = labelling.names[of_index][0]
+        elif lattice is not None and lattice.peaks[of_index].label:
+            name = lattice.peaks[of_index].label
+    name = name or (f"peak {of_index}" if of_index is not None else "a carrier")
+    q = peak.surface_offset or (0.0, 0.0)
+    return {
+        "index": i,
+        "label": None,
+        "labels": [],
+        "carrier": [float(peak.carrier[0]), float(peak.carrier[1])],
+        "twin": None,
+        "lattice": None,
+        "residual_bins": None,
+        "kind": "surface",
+        "coupling": None,
+        "amplitude": float(peak.amplitude),
+        "snr": float(peak.snr),
+        "flags": sorted(peak.flags),
+        "alpha": None,
+        "sideband": {
+            "of": name,
+            "of_index": of_index,
+            "q_cpp": [q[0], q[1]],
+            "order": peak.sideband_order,
+            "text": f"sideband of {name} at q = ({q[0]:+.4f}, {q[1]:+.4f}) cycles/px",
+        },
+    }

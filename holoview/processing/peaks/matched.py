@@ -70,6 +70,11 @@ NEAR_BEST = 0.1
 #: does not average down, as it does their noise.
 CUT_WEIGHT = 2.0
 
+#: The Tukey edges a matched window chooses among (with the one asked for), by the same
+#: estimate of the map error: a wider edge rings less at small radii
+#: (``benchmarks/bench_windows.py``).
+MATCHED_TAPERS = (0.25, 0.5, 0.75)
+
 #: A Tukey window passes at least 90 % of the power (``W >= 0.95``) out to ``1 - WAVE_EDGE
 #: taper`` of its radius: the matched radius of a surface with waves seen at ``|q|`` is at
 #: least ``|q| / (1 - WAVE_EDGE taper)``.
@@ -341,6 +346,35 @@ def _weighed(errors: np.ndarray, noise: np.ndarray) -> np.ndarray:
     return noise + CUT_WEIGHT * (errors - noise)
 
 
+def _best_radius(
+    spectrum: SurfaceSpectrum,
+    carrier: tuple[float, float],
+    span: tuple[float, float],
+    *,
+    kind: str,
+    taper: float,
+) -> tuple[float, float, float, float]:
+    """``(weighed error, radius, cut, taper)`` of the radius :func:`matched_window` takes.
+
+    ``span``: the smallest radius and the bound, cycles/pixel.
+    """
+    smallest, bound = span
+    coarse = np.geomspace(smallest, bound, CANDIDATES)
+    errors, errors_noise = map_errors(spectrum, carrier, coarse, kind=kind, taper=taper)
+    best = int(np.argmin(_weighed(errors, errors_noise)))
+    low, high = coarse[max(best - 1, 0)], coarse[min(best + 1, len(coarse) - 1)]
+    fine = np.append(np.linspace(low, high, CANDIDATES), bound)
+    fine_errors, fine_noise = map_errors(spectrum, carrier, fine, kind=kind, taper=taper)
+    weighed = _weighed(fine_errors, fine_noise)
+    # the narrowest of the radii as good as the best: the estimate of what a radius cuts
+    # is measured against the widest map, whose own errors it takes for cuts of the
+    # narrower ones (a flat minimum drifts wide)
+    least = float(np.min(weighed))
+    chosen = int(np.flatnonzero(weighed <= least + NEAR_BEST * abs(least)).min())
+    cut = float(np.sqrt(max(fine_errors[chosen] - fine_noise[chosen], 0.0)))
+    return float(weighed[chosen]), float(fine[chosen]), cut, taper
+
+
 def matched_window(
     spectrum: SurfaceSpectrum,
     carrier: tuple[float, float],
@@ -368,8 +402,10 @@ def matched_window(
         Rule ``"matched"``: the radius of least :func:`map_errors` (what it cuts weighed
         :data:`CUT_WEIGHT` times) among :data:`CANDIDATES` radii spaced evenly in log
         between :data:`MIN_RADIUS_BINS` bins and the bound, then as many around the best,
-        the narrowest within :data:`NEAR_BEST` of the least; the bound (rule ``"bound"``, with
-        the reason) where the spectra show no measurable change around the carrier.
+        the narrowest within :data:`NEAR_BEST` of the least; for a Tukey window, with
+        the edge of :data:`MATCHED_TAPERS` (or ``taper``) that gives the least; the
+        bound (rule ``"bound"``, with the reason) where the spectra show no measurable
+        change around the carrier.
     """
     rows, cols = spectrum.shape
     per_bin = 1.0 / max(rows, cols)  # cycles/pixel of one bin along the finer axis
@@ -391,20 +427,11 @@ def matched_window(
             bound,
             "no measurable change of the surface around the carrier: the bound",
         )
-    coarse = np.geomspace(smallest, bound, CANDIDATES)
-    errors, errors_noise = map_errors(spectrum, carrier, coarse, kind=kind, taper=taper)
-    best = int(np.argmin(_weighed(errors, errors_noise)))
-    low, high = coarse[max(best - 1, 0)], coarse[min(best + 1, len(coarse) - 1)]
-    fine = np.append(np.linspace(low, high, CANDIDATES), bound)
-    fine_errors, fine_noise = map_errors(spectrum, carrier, fine, kind=kind, taper=taper)
-    weighed = _weighed(fine_errors, fine_noise)
-    # the narrowest of the radii as good as the best: the estimate of what a radius cuts
-    # is measured against the widest map, whose own errors it takes for cuts of the
-    # narrower ones (a flat minimum drifts wide)
-    least = float(np.min(weighed))
-    chosen = int(np.flatnonzero(weighed <= least + NEAR_BEST * abs(least)).min())
-    radius = float(fine[chosen])
-    cut = float(np.sqrt(max(fine_errors[chosen] - fine_noise[chosen], 0.0)))
+    tapers = (taper, *(t for t in MATCHED_TAPERS if t != taper)) if kind == "tukey" else (taper,)
+    choices = [
+        _best_radius(spectrum, carrier, (smallest, bound), kind=kind, taper=t) for t in tapers
+    ]
+    _, radius, cut, taper = min(choices)
     waves = min(bound, spectrum.band / (1.0 - WAVE_EDGE * taper)) if kind == "tukey" else 0.0
     if spectrum.band > 0 and kind != "tukey":
         waves = min(bound, spectrum.band / PASS_FRACTION[kind])
