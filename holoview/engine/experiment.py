@@ -220,10 +220,10 @@ class Experiment:
     def __post_init__(self) -> None:
         for name in ("wavelength_m", "pixel_pitch_m", "n1", "n2"):
             object.__setattr__(self, name, _optional_positive(name, getattr(self, name)))
-        rule = radius_rule(self.radius)
-        if rule == "matched":
-            object.__setattr__(self, "radius", None)
-        elif rule == "given":
+        if self.radius is None or isinstance(self.radius, str):
+            if radius_rule(self.radius) == "matched":
+                object.__setattr__(self, "radius", None)
+        else:
             radius = _optional_positive("radius", self.radius)
             object.__setattr__(self, "radius", radius)
             if radius is not None and radius >= 0.5:

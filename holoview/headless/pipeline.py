@@ -274,13 +274,15 @@ def make_core(
     detected: Sequence[Peak] = (),
     background: np.ndarray | None = None,
     spectrum: SurfaceSpectrum | None = None,
+    placed: Sequence[bool] | None = None,
 ) -> FrameCore:
     """Return the per-frame core of a run, its demodulator built (InputError if it cannot work).
 
     ``detected``: every peak found in the first frame; no automatic window reaches one
     (the surface's sidebands are not peaks: :func:`window_neighbours`).
     ``background``: the object-free hologram absolute phases are taken against.
-    ``spectrum``: the spectrum the windows are matched to.
+    ``spectrum``: the spectrum the windows are matched to. ``placed``: per detected peak,
+    whether naming put it on the lattice (a sideband flag it overrules).
     """
     core = FrameCore(
         shape,
@@ -288,7 +290,7 @@ def make_core(
         peaks,
         saturation=saturation,
         threads=settings.threads,
-        neighbours=window_neighbours(detected),
+        neighbours=window_neighbours(detected, placed),
         background=background,
         spectrum=spectrum,
     )

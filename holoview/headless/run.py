@@ -27,6 +27,7 @@ import numpy as np
 
 from holoview.engine.experiment import Experiment, LabelledPeak
 from holoview.engine.frame_core import matching_positions
+from holoview.engine.resolve import on_lattice
 from holoview.errors import InputError
 from holoview.headless.analysis import Analysis, analyse, known_joint
 from holoview.headless.chunks import plan_jobs
@@ -414,6 +415,7 @@ def process_file(
             source.saturation,
             detected=detected,
             background=background,
+            placed=on_lattice(selection.labelling, len(detected)),
             spectrum=_matching_spectrum(
                 source,
                 selected,

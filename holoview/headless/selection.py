@@ -25,10 +25,11 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from holoview.engine.experiment import Experiment, check_carrier, check_label, is_model_label
+from holoview.engine.resolve import ON_LATTICE
 from holoview.errors import InputError
 from holoview.processing.naming.labelling import ModelLabelling
 from holoview.processing.naming.lattice import LatticeIdentification
-from holoview.processing.naming.lattice_geometry import LatticeKind, LatticePeak
+from holoview.processing.naming.lattice_geometry import LatticePeak
 from holoview.processing.peaks.detection import Peak
 from holoview.processing.peaks.snapping import SNAP_BINS, snap
 
@@ -182,7 +183,7 @@ def select_auto(
         peaks.append(peak.relabelled(f"P{rank}"))
     if len(indices) < count:
         logger.warning("--auto %d: only %d significant peaks detected", count, len(indices))
-    notes = ()
+    notes: tuple[str, ...] = ()
     if anchor is None:
         notes = (
             "auto: the brightest peak was taken as RB1 on the twin with fx > 0; if the "
@@ -252,10 +253,6 @@ def describe_peaks(
             }
         )
     return rows
-
-
-#: Lattice kinds that name a peak of its own (a surface sideband placed there is not one).
-ON_LATTICE = (LatticeKind.FIRST_ORDER, LatticeKind.SECOND_ORDER, LatticeKind.INTERMODULATION)
 
 
 def _sideband_row(

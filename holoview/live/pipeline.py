@@ -33,7 +33,7 @@ from holoview.engine.frame_core import (
     fuse_maps,
     trusted_maps,
 )
-from holoview.engine.resolve import Resolution, resolve_peaks
+from holoview.engine.resolve import Resolution, on_lattice, resolve_peaks
 from holoview.engine.window_matching import WindowMatcher
 from holoview.live.continuity import Continuity
 from holoview.processing.fourier.spectrum import display_spectrum
@@ -262,9 +262,9 @@ class LivePipeline:
         if self._peaks is None or (self.detect_inline and self.peaks_due(now)):
             self._detect(frame)
         resolution = self.resolution()
-        self._core.configure(
-            self.experiment, resolution.peaks, window_neighbours(self._peaks or [])
-        )
+        detected = self._peaks or []
+        placed = on_lattice(resolution.labelling, len(detected))
+        self._core.configure(self.experiment, resolution.peaks, window_neighbours(detected, placed))
         if self._measure_due:
             self._measure_due = False
             note = self._matcher.measure(self._core, frame, surface_band(self._peaks or []))

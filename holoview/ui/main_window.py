@@ -207,6 +207,7 @@ class MainWindow(ExperimentActions, QMainWindow):
         self.quit_action = action("Quit", "Ctrl+Q", self.close)
         self.reset_layout_action = action("Reset layout", None, self.reset_layout)
         self.auto_levels_action = action("Auto levels", "Ctrl+L", self.hologram.auto_levels)
+        self.match_action = action("Match windows to the surface", "Ctrl+M", self.match_windows)
         menus = self.menuBar()
         file_menu = menus.addMenu("&File")
         for act in (
@@ -222,6 +223,7 @@ class MainWindow(ExperimentActions, QMainWindow):
         acq.addAction(self.start_action)
         acq.addAction(self.record_action)
         acq.addAction(self.auto_levels_action)
+        acq.addAction(self.match_action)
         view = menus.addMenu("&View")
         for dock in self.docks.values():
             view.addAction(dock.toggleViewAction())
@@ -382,6 +384,11 @@ class MainWindow(ExperimentActions, QMainWindow):
     def _pca_requested(self, on: bool) -> None:
         if self.session is not None:
             self.session.set_pca(on)
+
+    def match_windows(self) -> None:
+        """Ask the maps worker to match every window to the surface again (maps restart)."""
+        if self.session is not None:
+            self.session.match_windows()
 
     def _reset_trends(self) -> None:
         if self.session is not None:

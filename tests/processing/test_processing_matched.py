@@ -102,7 +102,7 @@ def test_wavy_surface_maps_keep_the_waves(wavy) -> None:
             err = r.delta_h[use] - true[use]
             errors[label] = float(np.sqrt(np.mean((err - err.mean()) ** 2)))
             maps.append(np.where(r.mask, r.delta_h, np.nan))
-        fused = fuse_coregistered(maps, [r.noise_height for r in result.peaks])
+        fused = fuse_coregistered(maps, [r.error_height for r in result.peaks])
         true = truth("RB1", t)
         use = inner & np.isfinite(fused)
         err = fused[use] - true[use]

@@ -106,3 +106,17 @@ def test_a_pair_around_one_carrier_is_a_sideband_pair() -> None:
     # too bright against the carrier: a peak of its own
     bright = surface_sidebands(points, np.array([0.3, 0.1, 0.2, 0.2]), shape)
     assert bright == [None] * 4
+
+
+def test_sidebands_bound_no_window_unless_the_lattice_places_them() -> None:
+    from holoview.processing.peaks.detection import Peak
+    from holoview.processing.peaks.radii import window_neighbours
+
+    carrier = Peak((0.2, 0.1), 0.3, 100.0)
+    sideband = Peak((0.22, 0.1), 0.01, 20.0, frozenset({"surface"}), sideband_of=(0.2, 0.1))
+    other = Peak((0.05, -0.3), 0.1, 50.0)
+    assert sideband.surface_offset == pytest.approx((0.02, 0.0))
+    assert sideband.flipped().surface_offset == pytest.approx((-0.02, 0.0))
+    assert window_neighbours([carrier, sideband, other]) == [carrier.carrier, other.carrier]
+    placed = window_neighbours([carrier, sideband, other], [True, True, False])
+    assert placed == [carrier.carrier, sideband.carrier, other.carrier]

@@ -354,9 +354,9 @@ def test_loading_a_bad_experiment_file_keeps_the_labels(qtbot, open_windows, tmp
     window.label_peak("RB1", *RB1)
     before = window.experiment
     bad = tmp_path / "other.json"
-    bad.write_text('{"format": "holoview-experiment", "version": 3}')
+    bad.write_text('{"format": "holoview-experiment", "version": 9}')
     window.load_experiment(bad)
-    assert "version 3 is not supported" in window.banner_text and str(bad) in window.banner_text
+    assert "version 9 is not supported" in window.banner_text and str(bad) in window.banner_text
     assert window.experiment == before
     good = tmp_path / "good.json"
     Experiment(n2=1.361, peaks=()).save(good)

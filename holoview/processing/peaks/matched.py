@@ -286,27 +286,29 @@ def map_errors(
     *,
     kind: str,
     taper: float,
+    widest: tuple[str, float] | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Expected squared map error and its noise (rad^2 per trusted pixel) at each radius.
 
-    The last radius is the largest. The maps of every frame at every radius are made
-    as the demodulator makes them (on the box of the largest radius), each on its own
-    trusted pixels (amplitude, border). Against the map of the largest radius ``B``,
-    the map of radius ``r`` differs by what ``r`` cuts and by the noise of the bins
-    ``B`` passes and ``r`` does not: ``D_r = c_r^2 + n^2 sum (W_B - W_r)^2``; its error
-    is ``c_r^2 + n^2 sum W_r^2``, ``n^2`` the phase noise per unit of window from the
-    spectrum's noise floor; averaged over the frames. What the largest radius cuts is
-    not seen (it is the same for all).
+    The last radius is the largest, ``B``. The maps of every frame at every radius are
+    made as the demodulator makes them (on the box of ``B``), each on its own trusted
+    pixels (amplitude, border), and compared with the widest map: ``B`` with ``widest``
+    = ``(kind, taper)``, by default the windows' own. The map of radius ``r`` differs
+    from it by what ``r`` cuts and by the noise of the bins the widest passes and ``r``
+    does not: ``D_r = c_r^2 + n^2 sum (W_B - W_r)^2``; its error is ``c_r^2 + n^2 sum
+    W_r^2``, ``n^2`` the phase noise per unit of window from the spectrum's noise floor;
+    averaged over the frames. What the widest map cuts is not seen: windows of other
+    shapes are compared against one widest map, the one that cuts least.
     """
     rows, cols = spectrum.shape
     size = float(rows * cols)
     box_shape = box_shape_for(spectrum.shape, float(radii[-1]))
     plan = ifft2_plan(box_shape)
+    shapes = [(kind, taper)] * len(radii) + [widest or (kind, taper)]
+    radii = np.append(radii, radii[-1])
     geos = [
-        box_geometry(
-            spectrum.shape, box_shape, carrier=carrier, kind=kind, radius=float(r), taper=taper
-        )
-        for r in radii
+        box_geometry(spectrum.shape, box_shape, carrier=carrier, kind=k, radius=float(r), taper=t)
+        for r, (k, t) in zip(radii, shapes, strict=True)
     ]
     weights = [np.abs(geo.weights[0::2]).astype(np.float64) * size for geo in geos]
     passed = np.array([float(np.sum(w * w)) for w in weights])
@@ -338,7 +340,7 @@ def map_errors(
             step = np.angle(product[trusted] * np.conj(products[-1][trusted]))
             total[j] += max(float(np.var(step)) - unit * extra[j], 0.0) + unit * passed[j]
     count = len(spectrum.frames)
-    return total / count, noise / count
+    return total[:-1] / count, noise[:-1] / count
 
 
 def _weighed(errors: np.ndarray, noise: np.ndarray) -> np.ndarray:
@@ -360,11 +362,16 @@ def _best_radius(
     """
     smallest, bound = span
     coarse = np.geomspace(smallest, bound, CANDIDATES)
-    errors, errors_noise = map_errors(spectrum, carrier, coarse, kind=kind, taper=taper)
+    widest = (kind, min(MATCHED_TAPERS)) if kind == "tukey" else None
+    errors, errors_noise = map_errors(
+        spectrum, carrier, coarse, kind=kind, taper=taper, widest=widest
+    )
     best = int(np.argmin(_weighed(errors, errors_noise)))
     low, high = coarse[max(best - 1, 0)], coarse[min(best + 1, len(coarse) - 1)]
     fine = np.append(np.linspace(low, high, CANDIDATES), bound)
-    fine_errors, fine_noise = map_errors(spectrum, carrier, fine, kind=kind, taper=taper)
+    fine_errors, fine_noise = map_errors(
+        spectrum, carrier, fine, kind=kind, taper=taper, widest=widest
+    )
     weighed = _weighed(fine_errors, fine_noise)
     # the narrowest of the radii as good as the best: the estimate of what a radius cuts
     # is measured against the widest map, whose own errors it takes for cuts of the

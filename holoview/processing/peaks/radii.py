@@ -71,9 +71,13 @@ def radius_rule(radius: Radius) -> str:
             )
         return radius
     if isinstance(radius, bool) or not isinstance(radius, int | float):
-        raise InputError(f"window radius {radius!r} is not a number")
-    if not (np.isfinite(radius) and radius > 0):
-        raise InputError(f"window radius must be > 0 cycles/pixel, got {radius}")
+        raise InputError(f"window radius {str(radius)[:20]!r} is not a number")
+    try:
+        value = float(radius)
+    except OverflowError:
+        raise InputError("window radius is not a finite number") from None
+    if not (np.isfinite(value) and value > 0):
+        raise InputError(f"window radius must be > 0 cycles/pixel, got {value:g}")
     return "given"
 
 
@@ -87,13 +91,22 @@ def surface_band(detected: Sequence[Peak]) -> float:
     return max((float(np.hypot(*q)) for q in offsets if q is not None), default=0.0)
 
 
-def window_neighbours(detected: Sequence[Peak]) -> list[tuple[float, float]]:
+def window_neighbours(
+    detected: Sequence[Peak], on_lattice: Sequence[bool] | None = None
+) -> list[tuple[float, float]]:
     """The carriers (cycles/pixel) of the detected peaks that bound windows.
 
     Every detected peak but the surface's sidebands (flag ``"surface"``): a sideband is
     the surface's content around its carrier, which the carrier's window is to pass.
+    ``on_lattice`` (per detected peak, from naming) overrules the flag: a lattice point
+    is never a sideband.
     """
-    return [p.carrier for p in detected if "surface" not in p.flags]
+    lattice = list(on_lattice) if on_lattice is not None else [False] * len(detected)
+    return [
+        p.carrier
+        for p, placed in zip(detected, lattice, strict=True)
+        if placed or "surface" not in p.flags
+    ]
 
 
 def peak_name(peaks: Sequence[Peak], i: int) -> str:
