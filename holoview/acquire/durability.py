@@ -31,6 +31,7 @@ from typing import NamedTuple
 
 import h5py
 
+from holoview.atomic import hidden_sibling
 from holoview.errors import InputError, OutputError, os_error_text
 
 logger = logging.getLogger(__name__)
@@ -197,7 +198,8 @@ class DiskReserve:
     Parameters
     ----------
     target : Path
-        The file being protected; the reserve is ``.NAME.reserve`` in its folder.
+        The file being protected; the reserve is ``.NAME.reserve`` in its folder (NAME
+        shortened, with a hash, where that would be too long a file name).
     size : int
         Bytes to hold.
     name : str, optional
@@ -210,7 +212,7 @@ class DiskReserve:
     """
 
     def __init__(self, target: Path, size: int = RESERVE_BYTES, *, name: str | None = None) -> None:
-        self.path = target.with_name(f".{target.name}.reserve")
+        self.path = hidden_sibling(target, ".reserve")
         what = name or str(target)
         try:
             fd = os.open(self.path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)

@@ -21,7 +21,7 @@ import os
 import queue
 import threading
 import time
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from typing import NamedTuple
 
 import numpy as np
@@ -85,6 +85,12 @@ class Recorder:
     max_seconds : float, optional
         Record the frames that arrive within this many seconds of :meth:`start` (by
         their host arrival time), then stop (None: no time limit).
+    carried : callable, optional
+        ``carried(index)``: the experiment (JSON text, or None) a replayed file carries
+        for its frame ``index`` (:meth:`Source.carried_experiment`). Each frame's is
+        looked up by the frame's index in the file, and stored from that frame of the
+        recording whenever it differs from the one stored last: a copy keeps the
+        experiment and its changes, at frame numbers of the copy.
     """
 
     def __init__(
@@ -94,6 +100,7 @@ class Recorder:
         *,
         max_frames: int | None = None,
         max_seconds: float | None = None,
+        carried: Callable[[int], str | None] | None = None,
     ) -> None:
         if max_frames is not None and max_frames < 1:
             writer.close()
@@ -121,6 +128,8 @@ class Recorder:
         self._stop = threading.Event()
         self._stop_at = 0  # with drain, the ring position to record up to before stopping
         self._experiments: queue.SimpleQueue[str] = queue.SimpleQueue()
+        self._carried = carried
+        self._carried_last: str | None = None
         self._thread = threading.Thread(target=self._run, name="holoview-recorder", daemon=True)
 
     @classmethod
@@ -141,7 +150,10 @@ class Recorder:
         its unit (a value HDF5 cannot hold as an attribute is left out, with a
         warning), the source's pixel format, the setup: the source's own
         (:attr:`Source.setup`) updated with ``setup``, and the ``experiment`` in force
-        (JSON text). ``max_frames`` and ``max_seconds`` as for :class:`Recorder`.
+        (JSON text). Without ``experiment``, the experiments a replayed source carries
+        are copied, with their changes (``carried`` of :class:`Recorder`); an
+        ``experiment`` replaces them. ``max_frames`` and ``max_seconds`` as for
+        :class:`Recorder`.
         """
         infos = source.describe_settings()
         settings = {}
@@ -162,7 +174,8 @@ class Recorder:
             significant_bits=_significant_bits(pixel_format),
             experiment=experiment,
         )
-        return cls(ring, writer, max_frames=max_frames, max_seconds=max_seconds)
+        carried = source.carried_experiment if experiment is None else None
+        return cls(ring, writer, max_frames=max_frames, max_seconds=max_seconds, carried=carried)
 
     @property
     def written(self) -> int:
@@ -252,6 +265,11 @@ class Recorder:
                     break
                 while not self._experiments.empty():
                     writer.note_experiment(self._experiments.get())
+                if self._carried is not None and meta.file_index >= 0:
+                    text = self._carried(meta.file_index)
+                    if text is not None and text != self._carried_last:
+                        writer.note_experiment(text)
+                        self._carried_last = text
                 writer.append(pixels, meta.frame_id, meta.t_device, meta.t_host)
                 if self.max_frames is not None and len(writer) >= self.max_frames:
                     self._end_at_limit()

@@ -33,6 +33,7 @@ naming it and the frame.
 
 from __future__ import annotations
 
+import bisect
 import math
 import threading
 import time
@@ -236,6 +237,18 @@ class ReplaySource(Source):
     def speed_factor(self) -> float:
         """Times the recorded pace."""
         return self._factor
+
+    @property
+    def experiment_problem(self) -> str | None:
+        """Why the file's stored experiment is not carried (damaged), else None."""
+        return self._require_file().experiment_problem
+
+    def carried_experiment(self, index: int) -> str | None:
+        """The file's experiment (JSON text) in force at frame ``index``; None before any."""
+        experiments = self._require_file().experiments
+        starts = [start for start, _ in experiments]
+        k = bisect.bisect_right(starts, index)
+        return experiments[k - 1][1] if k else None
 
     def frame_time_s(self, index: int) -> float:
         """Time of frame ``index`` in the recording since its first frame, seconds.

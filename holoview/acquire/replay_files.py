@@ -70,6 +70,9 @@ class FrameFile(ABC):
         GenICam name of the values (``Mono8``/``Mono16`` unless the file says more).
     setup : dict
         The optical setup stored in the file (holoview recordings), else empty.
+    experiments : list of (int, str)
+        The experiments the file carries, ``(from_frame, JSON text)`` in order
+        (holoview recordings), else empty.
     """
 
     kind = ""
@@ -78,6 +81,9 @@ class FrameFile(ABC):
         self.path = path
         self.rate_hz: float | None = None
         self.setup: dict[str, Any] = {}
+        self.experiments: list[tuple[int, str]] = []
+        #: Why a recording's stored experiment is not carried (damaged), else None.
+        self.experiment_problem: str | None = None
         self.frame_shape: tuple[int, int] = (0, 0)
         self.dtype = np.dtype(np.uint16)
         self.pixel_format = ""
@@ -194,6 +200,11 @@ class HDF5File(FrameFile):
         self._load_index()
 
     def _load_index(self) -> None:
+        try:
+            self.experiments = self._reader.experiments()
+        except InputError as exc:  # the frames still play; the experiment is not carried
+            self.experiment_problem = str(exc)
+            self.experiments = []
         self._ids = self._reader.frame_ids
         self._times = self._reader.times
         self.rate_hz = self._reader.fps if math.isfinite(self._reader.fps) else None

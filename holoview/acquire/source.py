@@ -351,6 +351,16 @@ class Source(ABC):
         """
         return {}
 
+    def carried_experiment(self, index: int) -> str | None:
+        """The experiment (JSON text) in force at frame ``index`` of a replayed file.
+
+        A replayed holoview recording carries the experiment its frames were taken
+        with, and its changes; a recording made from the replay copies them
+        (:class:`~holoview.acquire.recorder.Recorder`). None for cameras and files
+        that carry none.
+        """
+        return None
+
     # -- template methods --------------------------------------------------------
     @property
     def is_open(self) -> bool:

@@ -7,6 +7,8 @@ import importlib
 import platform
 import sys
 
+from holoview.cli.signals import emit
+
 
 def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     """Register ``info``."""
@@ -69,7 +71,7 @@ def _loaded_aravis_version() -> str:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Print one ``name: version`` line per component."""
+    """Print one ``name: version`` line per component (OutputError when stdout fails)."""
     from holoview import __version__
 
     qt, pyqt = qt_versions()
@@ -91,6 +93,5 @@ def run(args: argparse.Namespace) -> int:
         ("GenICam (Aravis)", ("yes: " if usable else "no: ") + aravis),
     ]
     width = max(len(name) for name, _ in rows)
-    for name, value in rows:
-        print(f"{name:<{width}}  {value}")
+    emit("\n".join(f"{name:<{width}}  {value}" for name, value in rows))
     return 0

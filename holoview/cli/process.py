@@ -245,7 +245,11 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _run_batch(args: argparse.Namespace, recordings: list[Path], options: dict) -> int:
-    """Process a folder or glob of recordings; one line per failure, and the totals."""
+    """Process a folder or glob of recordings; one line per failure, and the totals.
+
+    Exit status 3 when an output of any recording could not be written, else 2 when
+    one failed, else 0 (130 when stopped).
+    """
     from holoview.headless.batch import process_batch
 
     bar, update = _progress_bar(args.quiet)
@@ -274,4 +278,6 @@ def _run_batch(args: argparse.Namespace, recordings: list[Path], options: dict) 
             f"{outcome.index}: {done} of {len(outcome.rows)} recordings processed"
             + (f", {len(outcome.failed)} failed" if outcome.failed else "")
         )
+    if any(row.output_failed for row in outcome.failed):
+        return 3  # an output could not be written (a full disk), as for one recording
     return 2 if outcome.failed else 0

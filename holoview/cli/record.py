@@ -3,6 +3,11 @@
 The camera thread fills a frame ring; the recorder thread writes every frame to
 the file (format in :mod:`holoview.acquire.recording`); this command shows a
 progress bar and ends with one line of what was acquired, recorded and lost.
+
+The recording stores the experiment ``--experiment`` names; without it, a replayed
+holoview recording's own experiment is copied with its changes, each from the frame
+of the copy where the source's frame it held from went (``replay:`` keeps the
+labelled peaks, so processing the copy measures what processing the source did).
 """
 
 from __future__ import annotations
@@ -65,7 +70,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
     add_experiment_option(
         parser,
         "the experiment in force (labelled peaks, optics, window, reference; as the GUI "
-        "saves it): stored in the recording, so `holoview process` needs no peak options",
+        "saves it): stored in the recording, so `holoview process` needs no peak options. "
+        "Without it, a replayed recording's own experiment and its changes are copied; "
+        "with it, they are replaced by FILE's",
     )
     add_optics_options(parser, "setup stored in the recording (over the experiment's)")
     return parser
@@ -195,6 +202,11 @@ def run(args: argparse.Namespace) -> int:
         setup = optics
         if experiment is not None:
             setup = {k: getattr(experiment, k) for k in OPTICS if getattr(experiment, k)}
+        if experiment is not None and source.carried_experiment(0) is not None:
+            logger.info("the source's experiment is replaced by %s", args.experiment)
+        problem = getattr(source, "experiment_problem", None)
+        if experiment is None and problem is not None:
+            logger.warning("%s: the copy carries no experiment", problem)
         recorder = Recorder.for_source(
             ring,
             out,

@@ -17,8 +17,8 @@ would go on as if never stopped (seen: SIGTERM during ``process --maps``, inside
 sent again :data:`RETRY_S` later (from a timer thread: SIGALRM is left to others,
 pytest-timeout among them), to whatever handler is then in place.
 
-:func:`emit` prints a command's result line; a closed pipe or a full disk behind
-standard output becomes an :class:`~holoview.errors.OutputError` (one line, exit
+:func:`emit` prints a command's result; a closed standard output, a closed pipe or a
+full disk behind it becomes an :class:`~holoview.errors.OutputError` (one line, exit
 status 3) instead of a traceback.
 """
 
@@ -133,8 +133,11 @@ def emit(text: str) -> None:
     Raises
     ------
     OutputError
-        Standard output is a closed pipe or a full disk.
+        Standard output is closed (the command was started with it closed, ``>&-``),
+        a closed pipe or a full disk.
     """
+    if sys.stdout is None:  # Python's stdout when descriptor 1 was closed at start
+        raise OutputError("cannot write to standard output: it is closed")
     try:
         print(text, flush=True)
     except OSError as exc:

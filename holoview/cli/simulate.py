@@ -10,8 +10,12 @@ peak options. After the writer closes, this command reopens the file and adds th
 truth. The recording and the figure are written under temporary names and renamed
 when complete
 (:mod:`holoview.atomic`): a simulation that fails or is stopped leaves no file, and
-neither an existing recording nor an existing figure is overwritten. Every option
-is checked before the simulation starts.
+neither an existing recording nor an existing figure is overwritten, also one that
+another program created while the simulation ran (a no-replace rename): then the
+command ends with one line naming the file and exit status 3 (an output that could
+not be put in place), and the complete simulation is kept under its temporary name,
+which the line gives (a simulation without ``--seed`` cannot be made again). Every
+option is checked before the simulation starts.
 
 ``/truth`` layout
 -----------------
@@ -42,6 +46,7 @@ from __future__ import annotations
 import argparse
 import logging
 import math
+import os
 import time
 from dataclasses import asdict
 from pathlib import Path
@@ -451,6 +456,8 @@ def check_outputs(args: argparse.Namespace) -> None:
         return
     if not 0 <= args.png_frame < args.frames:
         raise InputError(f"--png-frame must be in 0..{args.frames - 1}, got {args.png_frame}")
+    if os.path.abspath(args.png) == os.path.abspath(args.out):
+        raise InputError(f"--png {args.png} is the recording's own name; give another")
     if args.png.is_dir():
         raise InputError(f"--png {args.png} is a folder; give a file name such as figure.png")
     if args.png.exists():
@@ -508,7 +515,7 @@ def run(args: argparse.Namespace) -> int:
         noise=args.noise,
         surface=surface,
     )
-    with atomic_path(args.out) as partial:
+    with atomic_path(args.out, replace=False, keep=True) as partial:
         with RecordingWriter(
             partial,
             setup.shape,
@@ -548,7 +555,7 @@ def run(args: argparse.Namespace) -> int:
             f"at {args.png_frame / args.fps:.3g} s, {setup.shape[1]} x {setup.shape[0]} pixels",
             amplitudes=visible,
         )
-        with atomic_path(args.png) as partial_png:
+        with atomic_path(args.png, replace=False, keep=True) as partial_png:
             save_figure(figure, partial_png, name=str(args.png))
     logger.info("wrote %d frames to %s", len(truths), args.out)
     return 0

@@ -5,18 +5,31 @@ pattern (``'runs/*.h5'``, quoted so that the shell leaves it) names the files it
 matches; a folder holding recordings (``.h5``/``.hdf5``, videos, ``.npy``/``.npz``)
 names those, in natural order. A folder of images is one input, as before.
 
-:func:`process_batch` processes each into its own folder, ``OUT/<name>`` (the
-recording's file name without its suffix; ``<name>_2``, ... where two share one),
-one after the other, each on the same workers (:mod:`holoview.headless.parallel`,
-started once), and writes ``OUT/index.csv``: one row per recording, its status
-(``ok``, ``failed`` with the reason, ``interrupted``), frames, seconds, and the
-fused rate and each peak's rate with their standard errors (m/s), under a temporary
-name, renamed when complete. A recording that fails does not stop the others.
+:func:`process_batch` processes each into its own folder, ``OUT/<name>``, one after
+the other, each on the same workers (:mod:`holoview.headless.parallel`, started
+once), and writes ``OUT/index.csv``. ``<name>`` is the recording's file name without
+its suffix, made safe (:func:`holoview.paths.confined_name`: separators, control and
+invisible characters and leading dots become ``_``, so ``...h5`` is ``OUT/__``, never
+``OUT/..``; a long name is cut, with a hash); where two recordings give the same name
+(compared without regard to case, for file systems that ignore it), the later ones in
+the batch's order get ``<name>_2``, ``<name>_3``, ... A recording that fails does not
+stop the others. ``OUT`` is locked for the batch (one run at a time, as each
+recording's folder is: :mod:`holoview.headless.output_folder`).
 
-``index.csv`` columns: ``input``, ``out``, ``status``, ``message``, ``frames``,
-``seconds``, ``fused_rate_m_per_s``, ``fused_rate_stderr_m_per_s``, then for each
-peak label met in any run ``rate_<label>_m_per_s`` and ``rate_<label>_stderr_m_per_s``
-(empty where a run has no such peak or no rate).
+``index.csv`` describes the folders next to it at every moment: it is rewritten
+(under a temporary name, then renamed) after each recording, and each row's figures
+are read back from the ``summary.json`` in the recording's folder, whatever run wrote
+it. So a batch stopped half-way, or a run whose interruption kept the earlier results,
+leaves an index whose rows say what each folder holds. Columns: ``input``, ``out``,
+``status`` (what this batch did: ``ok``, ``failed`` with the reason, ``interrupted``,
+``not run``), ``message``, ``frames``, ``seconds``, ``results_utc`` (when the results
+in the folder were made; empty: the folder holds none), ``fused_rate_m_per_s``,
+``fused_rate_stderr_m_per_s``, then for each peak label met in any folder
+``rate_<label>_m_per_s`` and ``rate_<label>_stderr_m_per_s`` (empty where a run has no
+such peak or no rate). A text cell that begins with ``=``, ``+``, ``-``, ``@``, a tab
+or a carriage return (a file name can) gets a ``'`` in front, so that a spreadsheet
+shows it as text instead of running it as a formula (OWASP's rule against CSV
+injection); numbers are written as they are.
 """
 
 from __future__ import annotations
@@ -24,6 +37,7 @@ from __future__ import annotations
 import contextlib
 import csv
 import glob
+import json
 import logging
 import re
 from collections.abc import Callable
@@ -41,9 +55,16 @@ from holoview.atomic import atomic_path
 from holoview.errors import HoloviewError, InputError, OutputError, os_error_text
 from holoview.file_kinds import special_file
 from holoview.headless.chunks import plan_jobs
-from holoview.headless.output_folder import OutputFolder
+from holoview.headless.output_folder import (
+    FolderLock,
+    OutputFolder,
+    make_folder,
+    remove_if_empty,
+)
 from holoview.headless.parallel import ChunkRunner, open_runner
-from holoview.headless.run import OUTPUT_NAMES, process_file
+from holoview.headless.pipeline import ProcessSettings
+from holoview.headless.run import OUTPUT_NAMES, SUMMARY_JSON, process_file, run_inputs
+from holoview.paths import check_apart, confined_name
 
 logger = logging.getLogger(__name__)
 
@@ -52,6 +73,9 @@ INDEX_CSV = "index.csv"
 
 #: File suffixes a folder of recordings holds.
 RECORDING_SUFFIXES = HDF5_SUFFIXES + VIDEO_SUFFIXES + NUMPY_SUFFIXES
+
+#: First characters that make a spreadsheet read a cell as a formula (OWASP).
+FORMULA_STARTS = ("=", "+", "-", "@", "\t", "\r")
 
 _GLOB = re.compile(r"[*?\[]")
 
@@ -100,31 +124,57 @@ def find_recordings(spec: str | Path) -> list[Path] | None:
 
 
 def output_names(recordings: list[Path]) -> list[str]:
-    """One folder name per recording: its stem, ``_2``, ``_3``... added where stems repeat."""
+    """One folder name per recording (module docs): its stem made safe, ``_2``... where taken."""
     names: list[str] = []
     taken: set[str] = set()
     for recording in recordings:
-        name, k = recording.stem or "recording", 1
-        while name in taken:
+        base = confined_name(recording.stem, fallback="recording")
+        name, k = base, 1
+        while name.casefold() in taken:
             k += 1
-            name = f"{recording.stem}_{k}"
-        taken.add(name)
+            name = f"{base}_{k}"
+        taken.add(name.casefold())
         names.append(name)
     return names
 
 
 @dataclass
 class BatchRow:
-    """One recording of a batch: where its results went and what came out."""
+    """One recording of a batch: what this batch did with it, and what its folder holds."""
 
     input: Path
     out: Path
     status: str = "not run"
     message: str = ""
-    frames: int = 0
-    seconds: float = 0.0
+    frames: int | None = None
+    seconds: float | None = None
+    results_utc: str = ""
     fused: tuple[float | None, float | None] = (None, None)
     peaks: dict[str, tuple[float | None, float | None]] = field(default_factory=dict)
+    #: The failure was an output that could not be written (a full disk): exit status 3.
+    output_failed: bool = False
+    #: What is wrong with the folder's summary, if anything.
+    note: str = ""
+
+    def read_folder(self) -> None:
+        """Take the figures from the ``summary.json`` in :attr:`out` (none: empty figures)."""
+        self.frames, self.seconds, self.results_utc = None, None, ""
+        self.fused, self.peaks, self.note = (None, None), {}, ""
+        try:
+            document = json.loads((self.out / SUMMARY_JSON).read_text(encoding="utf-8"))
+            self.frames = int(document["frames"]["processed"])
+            self.seconds = float(document["timing"]["seconds"])
+            self.results_utc = str(document.get("created_utc") or "")
+            fused = document.get("fused") or {}
+            self.fused = (fused.get("rate_m_per_s"), fused.get("rate_stderr_m_per_s"))
+            self.peaks = {
+                str(label): (entry.get("rate_m_per_s"), entry.get("rate_stderr_m_per_s"))
+                for label, entry in (document.get("peaks") or {}).items()
+            }
+        except FileNotFoundError:
+            return
+        except (OSError, ValueError, KeyError, TypeError, AttributeError) as exc:
+            self.note = f"its {SUMMARY_JSON} cannot be read ({exc!r})"
 
 
 @dataclass(frozen=True)
@@ -142,16 +192,39 @@ class BatchOutcome:
 
 
 def _number(value: float | None) -> str:
-    return "" if value is None else format(value, ".10g")
+    return "" if not isinstance(value, int | float) else format(value, ".10g")
 
 
-def write_index(path: Path, rows: list[BatchRow]) -> None:
+def text_cell(text: str) -> str:
+    """A text cell of a CSV file that a spreadsheet will not run as a formula (OWASP).
+
+    Examples
+    --------
+    >>> text_cell("=1+1.h5")
+    "'=1+1.h5"
+    >>> text_cell("run.h5")
+    'run.h5'
+    """
+    return f"'{text}" if text.startswith(FORMULA_STARTS) else text
+
+
+def write_index(path: Path, rows: list[BatchRow], *, replace: bool = True) -> None:
     """Write ``index.csv`` (module documentation) under a temporary name, then rename it.
+
+    Parameters
+    ----------
+    path : Path
+        The index.
+    rows : list of BatchRow
+        One per recording.
+    replace : bool
+        Replace an index there; False: a no-replace rename.
 
     Raises
     ------
     OutputError
-        It could not be written.
+        It could not be written (:class:`~holoview.atomic.TargetExistsError`: without
+        ``replace``, another program created it meanwhile).
     """
     labels: list[str] = []
     for row in rows:
@@ -163,6 +236,7 @@ def write_index(path: Path, rows: list[BatchRow]) -> None:
         "message",
         "frames",
         "seconds",
+        "results_utc",
         "fused_rate_m_per_s",
         "fused_rate_stderr_m_per_s",
     ]
@@ -170,19 +244,18 @@ def write_index(path: Path, rows: list[BatchRow]) -> None:
         header += [f"rate_{label}_m_per_s", f"rate_{label}_stderr_m_per_s"]
     try:
         with (
-            atomic_path(path) as temporary,
-            open(temporary, "w", newline="", encoding="utf-8") as f,
+            atomic_path(path, replace=replace) as temporary,
+            open(temporary, "w", newline="", encoding="utf-8", errors="backslashreplace") as f,
         ):
             writer = csv.writer(f, lineterminator="\n")
-            writer.writerow(header)
+            writer.writerow(text_cell(cell) for cell in header)
             for row in rows:
                 line = [
-                    str(row.input),
-                    str(row.out),
-                    row.status,
-                    row.message,
-                    str(row.frames),
-                    format(row.seconds, ".3f"),
+                    *(text_cell(str(text)) for text in (row.input, row.out, row.status)),
+                    text_cell("; ".join(m for m in (row.message, row.note) if m)),
+                    "" if row.frames is None else str(row.frames),
+                    "" if row.seconds is None else format(row.seconds, ".3f"),
+                    text_cell(row.results_utc),
                     _number(row.fused[0]),
                     _number(row.fused[1]),
                 ]
@@ -194,16 +267,70 @@ def write_index(path: Path, rows: list[BatchRow]) -> None:
         raise OutputError(f"cannot write {path}: {os_error_text(exc)}") from exc
 
 
-def _check_folders(out: Path, rows: list[BatchRow], overwrite: bool) -> None:
-    """Refuse, before anything runs, output folders holding earlier results."""
+class _Index:
+    """``index.csv`` rewritten after each recording; a stale one never outlives a failed write."""
+
+    def __init__(self, path: Path, rows: list[BatchRow], *, replace: bool) -> None:
+        self.path = path
+        self.rows = rows
+        self._replace = replace  # False until this batch has written it (no-replace first)
+        self.error: OutputError | None = None
+
+    def publish(self) -> None:
+        """Write the index from the rows; on failure remove the old one (it would mislead)."""
+        try:
+            write_index(self.path, self.rows, replace=self._replace)
+        except OutputError as exc:
+            self.error = exc
+            if self._replace:
+                self.path.unlink(missing_ok=True)
+            logger.warning("%s", exc)
+            return
+        self._replace = True
+        self.error = None
+
+
+def _check_folders(
+    out: Path, rows: list[BatchRow], overwrite: bool, options: dict[str, Any]
+) -> None:
+    """Refuse, before anything runs, earlier results (without overwrite) and inputs as outputs."""
     index = out / INDEX_CSV
     if index.exists() and not overwrite:
         raise InputError(
             f"--out {out} holds the index of an earlier batch ({INDEX_CSV}); give "
             "--overwrite to replace it when this batch completes, or another folder"
         )
+    inputs = [
+        path
+        for row in rows
+        for path in run_inputs(
+            row.input, options["choice"], options.get("settings") or ProcessSettings()
+        )
+    ]
+    check_apart([index], inputs)
     for row in rows:
-        OutputFolder(row.out, OUTPUT_NAMES, overwrite=overwrite)
+        OutputFolder(row.out, OUTPUT_NAMES, overwrite=overwrite, inputs=inputs)
+
+
+def _attempt(row: BatchRow, runner: ChunkRunner | None, **kwargs: Any) -> bool:
+    """Process one recording into its row (status, message); True when the batch must stop."""
+    try:
+        outcome = process_file(row.input, row.out, runner=runner, **kwargs)
+    except HoloviewError as exc:
+        row.status, row.message = "failed", str(exc)
+        row.output_failed = isinstance(exc, OutputError)
+        logger.warning("%s: %s", row.input, exc)  # the command prints it again at the end
+        return False
+    except KeyboardInterrupt:
+        row.status, row.message = "interrupted", "stopped before its results were written"
+        return True
+    if not outcome.data.interrupted:
+        row.status = "ok"
+        return False
+    row.status = "interrupted"
+    if not outcome.files:
+        row.message = "stopped; the results already in its folder are kept"
+    return True
 
 
 def process_batch(
@@ -244,10 +371,11 @@ def process_batch(
     Raises
     ------
     InputError
-        Earlier results in the folders without ``overwrite``, bad ``jobs``, or a
-        scheduler that does not answer (before anything runs).
+        Earlier results in the folders without ``overwrite``, an output that is an
+        input, a folder another run holds, bad ``jobs``, or a scheduler that does not
+        answer (before anything runs).
     OutputError
-        The index could not be written.
+        The index could not be written (a stale index is removed).
     """
     folder = Path(out)
     if folder.exists() and not folder.is_dir():
@@ -256,44 +384,31 @@ def process_batch(
         BatchRow(input=r, out=folder / name)
         for r, name in zip(recordings, output_names(recordings), strict=True)
     ]
-    _check_folders(folder, rows, overwrite)
+    _check_folders(folder, rows, overwrite, options)
     interrupted = False
-    with contextlib.ExitStack() as stack:
-        runner: ChunkRunner | None = None
-        workers = plan_jobs(jobs, _LONG, "hdf5")
-        if workers > 1 or scheduler is not None:
-            runner = stack.enter_context(open_runner(workers, scheduler))
-        for k, row in enumerate(rows):
-            logger.info("recording %d of %d: %s", k + 1, len(rows), row.input)
-            try:
-                outcome = process_file(
-                    row.input,
-                    row.out,
-                    progress=progress,
-                    overwrite=overwrite,
-                    runner=runner,
-                    **options,
-                )
-            except HoloviewError as exc:
-                row.status, row.message = "failed", str(exc)
-                logger.error("%s: %s", row.input, exc)
-                continue
-            except KeyboardInterrupt:
-                interrupted = True
-                break
-            data, analysis = outcome.data, outcome.analysis
-            row.status = "interrupted" if data.interrupted else "ok"
-            row.frames, row.seconds = len(data.frames), data.wall_seconds
-            if analysis.fit is not None:
-                row.fused = (analysis.fit.rate, analysis.fit.stderr)
-            row.peaks = {p.label: (p.rate, p.rate_stderr) for p in analysis.peaks}
-            if data.interrupted:
-                interrupted = True
-                break
+    created = make_folder(folder)
+    index = _Index(folder / INDEX_CSV, rows, replace=overwrite)
     try:
-        folder.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise OutputError(f"cannot create {folder}: {os_error_text(exc)}") from exc
-    index = folder / INDEX_CSV
-    write_index(index, rows)
-    return BatchOutcome(tuple(rows), index, interrupted)
+        with contextlib.ExitStack() as stack:
+            stack.enter_context(FolderLock(folder))
+            runner: ChunkRunner | None = None
+            workers = plan_jobs(jobs, _LONG, "hdf5")
+            if workers > 1 or scheduler is not None:
+                runner = stack.enter_context(open_runner(workers, scheduler))
+            for row in rows:
+                row.read_folder()
+            for k, row in enumerate(rows):
+                logger.info("recording %d of %d: %s", k + 1, len(rows), row.input)
+                kwargs = {"progress": progress, "overwrite": overwrite, **options}
+                try:
+                    interrupted = _attempt(row, runner, **kwargs)
+                finally:
+                    row.read_folder()
+                    index.publish()
+                if interrupted:
+                    break
+    finally:
+        remove_if_empty(created)
+    if index.error is not None:
+        raise index.error
+    return BatchOutcome(tuple(rows), index.path, interrupted)

@@ -405,22 +405,17 @@ class InputFile:
         if not self.path.exists():
             raise InputError(f"{self.path}: no such file or folder")
         self.setup: dict[str, Any] = {}
-        self.experiments: list[tuple[int, str]] = []
-        self._experiment_problem: str | None = None
         self.info: dict[str, Any] = {"path": str(self.path)}
         bits: int | None = None
         if self.path.is_file() and self.path.suffix.lower() in (".h5", ".hdf5"):
             with RecordingReader(self.path) as reader:
                 self.setup = dict(reader.setup)
-                try:
-                    self.experiments = reader.experiments()
-                except InputError as exc:
-                    self._experiment_problem = str(exc)
                 bits = reader.significant_bits
                 self.info.update(
                     uuid=reader.uuid, source=reader.source, created_utc=reader.created_utc
                 )
         self._file: FrameFile = open_frame_file(self.path)
+        self.experiments = self._file.experiments
         self.kind = self._file.kind
         self.frame_shape = self._file.frame_shape
         self.dtype = np.dtype(self._file.dtype)
@@ -453,8 +448,8 @@ class InputFile:
         one experiment.
         """
         notes: list[str] = []
-        if self._experiment_problem is not None:
-            return None, [f"{self._experiment_problem}; ignored"]
+        if self._file.experiment_problem is not None:
+            return None, [f"{self._file.experiment_problem}; ignored"]
         in_force = [(start, text) for start, text in self.experiments if start <= frame]
         later = [start for start, _ in self.experiments if start > frame]
         if later:

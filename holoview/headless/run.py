@@ -8,10 +8,11 @@ through the demodulator, maps to ``results.h5`` as they come
 (:mod:`~holoview.headless.analysis`); write ``trends.csv``, ``summary.json``,
 ``results.h5`` (:mod:`~holoview.headless.outputs`) and ``report.png`` (or PDF, SVG:
 :mod:`~holoview.headless.report`). Every user mistake is an
-:class:`~holoview.errors.InputError` raised before the output folder is touched where
-it can be known that early. The outputs are written under temporary names and put in
-place when the run completes; what an earlier run left in the folder is replaced only
-then, and only with ``overwrite`` (:mod:`~holoview.headless.output_folder`).
+:class:`~holoview.errors.InputError` raised before anything is written where it can be
+known that early. The output folder is locked for the run from its start (one run at a
+time); the outputs are written under temporary names and put in place when the run
+completes; what an earlier run left in the folder is replaced only then, and only with
+``overwrite``; no output may be an input (:mod:`~holoview.headless.output_folder`).
 """
 
 from __future__ import annotations
@@ -266,6 +267,17 @@ def read_background(spec: str | None, source: InputFile) -> np.ndarray | None:
     return frame
 
 
+def run_inputs(input_path: str | Path, choice: PeakChoice, settings: ProcessSettings) -> list[Path]:
+    """Every file or folder a run reads: the input, an experiment file, a background file."""
+    inputs = [Path(input_path)]
+    if choice.experiment is not None:
+        inputs.append(Path(choice.experiment))
+    spec = settings.background
+    if spec is not None and not spec.lstrip("-").isdigit():
+        inputs.append(Path(spec))
+    return inputs
+
+
 def check_background(frame: np.ndarray, where: str) -> None:
     """Refuse a background that is no hologram: absolute phases against it would be noise.
 
@@ -346,10 +358,12 @@ def process_file(
     InputError
         For an unreadable input, missing or wrong parameters, a bad experiment file or
         labels (a label on no detected peak, an unknown label without alpha), peaks the
-        PCA cannot identify, earlier results without ``overwrite``, ``jobs`` below 1,
-        a scheduler that does not answer, or workers that cannot read the input.
+        PCA cannot identify, earlier results without ``overwrite``, an output that is
+        an input, a folder another run holds, ``jobs`` below 1, a scheduler that does
+        not answer, or workers that cannot read the input.
     OutputError
-        An output could not be written (the folder keeps what it held).
+        An output could not be written, or (without ``overwrite``) results appeared
+        in the folder during the run (the folder keeps what it held).
     """
     settings = settings or ProcessSettings()
     if report is True:
@@ -366,7 +380,12 @@ def process_file(
     options = optics_options or OpticsOptions()
     out_dir = Path(out)
     with (
-        OutputFolder(out_dir, OUTPUT_NAMES, overwrite=overwrite) as outputs,
+        OutputFolder(
+            out_dir,
+            OUTPUT_NAMES,
+            overwrite=overwrite,
+            inputs=run_inputs(input_path, choice, settings),
+        ) as outputs,
         InputFile(input_path) as source,
         contextlib.ExitStack() as stack,
     ):
@@ -440,7 +459,6 @@ def process_file(
             demodulator.radius,
             demodulator.box_shape,
         )
-        outputs.create()
         results = ResultsFile(
             outputs.path(RESULTS_H5),
             labels=[p.label or f"P{j}" for j, p in enumerate(selection.peaks)],

@@ -1,9 +1,11 @@
 """Save what is on screen: the current maps (TIFF or NPY) and the window (PNG).
 
 Maps are written as float32 in metres (heights) or radians (phases), one file per
-map, named ``STEM_LABEL.tif`` / ``STEM_LABEL.npy``; TIFF files carry the unit in
-their description. Every file is written under a temporary name and renamed when
-complete (:mod:`holoview.atomic`): a full disk leaves the files that were there.
+map, named ``STEM_LABEL.tif`` / ``STEM_LABEL.npy`` (the label made a safe name by
+:func:`holoview.paths.confined_name`, the whole shortened with a hash where it would be
+too long a file name); TIFF files carry the unit in their description. Every file is
+written under a temporary name and renamed when complete (:mod:`holoview.atomic`): a
+full disk leaves the files that were there.
 """
 
 from __future__ import annotations
@@ -16,8 +18,9 @@ import numpy as np
 import tifffile
 from PyQt6.QtWidgets import QWidget
 
-from holoview.atomic import atomic_path
+from holoview.atomic import atomic_path, fit_name, name_max
 from holoview.errors import InputError, OutputError, os_error_text
+from holoview.paths import confined_name
 
 logger = logging.getLogger(__name__)
 
@@ -45,8 +48,8 @@ def export_maps(maps: Mapping[str, np.ndarray], path: Path, unit: str) -> list[P
         raise InputError(f"folder {path.parent} does not exist")
     written = []
     for name, data in maps.items():
-        safe = "".join(c if c.isalnum() or c in "-_" else "_" for c in name)
-        target = path.with_name(f"{path.stem}_{safe}{suffix}")
+        stem = f"{path.stem}_{confined_name(name, fallback='map')}"
+        target = path.with_name(fit_name(stem, name_max(path.parent) - len(suffix)) + suffix)
         array = np.asarray(data, dtype=np.float32)
         try:
             with atomic_path(target) as partial:

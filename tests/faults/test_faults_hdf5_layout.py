@@ -203,3 +203,16 @@ def test_a_damaged_stored_experiment_falls_back_to_automatic_peaks(
         done = run_main(["-q", "peaks", str(path)], capsys)
     assert done.status == 0, done.err
     assert reason in caplog.text
+    caplog.clear()
+    copy = tmp_path / "copy.h5"
+    with caplog.at_level(logging.WARNING):
+        done = run_main(
+            ["-q", "record", str(copy), "--source", f"replay:{path}", "--frames", "5"], capsys
+        )
+    assert done.status == 0, done.err
+    assert "Traceback" not in done.err
+    if how in ("nested-100000", "radius-5000-digits"):  # a text: carried, refused when parsed
+        return
+    assert reason in caplog.text and "the copy carries no experiment" in caplog.text
+    with h5py.File(copy, "r") as f:
+        assert "experiment" not in f or f["experiment/changes"].shape[0] == 0
