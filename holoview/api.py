@@ -353,6 +353,9 @@ class Recording:
         Each frame's time, s, from 0 at the first: the camera's clock, else the host's
         arrival times, or ``index / fps``; None when the file has no times and no
         ``fps`` was given.
+    times_note : str
+        Which clock timed the frames and why (the rule of ``holoview process``'s notes),
+        or why there are no times.
     setup : dict
         A holoview recording's optical setup (``wavelength_m``, ``pixel_pitch_m``,
         ``n1``, ``n2``, ...); empty for other files.
@@ -383,11 +386,19 @@ class Recording:
             name="holoview-frames-" + tokenize(str(self.path), stat.st_mtime_ns, shape),
             meta=np.empty((0, 0, 0), source.dtype),
         )
-        try:
-            self.times: np.ndarray | None = source.times(range(n), fps) if n else None
-        except InputError as exc:
-            logger.info("%s", exc)
-            self.times = None
+        #: How the times were found (the clock rule's note), or why there are none.
+        self.times_note = ""
+        self.times: np.ndarray | None = None
+        if n:
+            try:
+                found = source.times(range(n), fps)
+            except InputError as exc:
+                logger.info("%s", exc)
+                self.times_note = str(exc)
+            else:
+                self.times, self.times_note = found.times, found.note
+                if found.warning:
+                    logger.warning("%s", found.note)
         self.experiments: list[tuple[int, Experiment]] = []
         for start, text in source.experiments:
             where = f"{self.path} experiment (from frame {start})"

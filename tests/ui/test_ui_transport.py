@@ -35,7 +35,7 @@ def _window(qtbot, open_windows, tmp_path: Path, source: str, peaks=()) -> MainW
 
 def _newest_index(window: MainWindow) -> int:
     newest = window.session.newest_frame() if window.session is not None else None
-    return -1 if newest is None else newest[2].index
+    return -1 if newest is None else newest[2].file_index
 
 
 def _shows(qtbot, window: MainWindow, index: int) -> None:
