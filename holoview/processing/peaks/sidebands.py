@@ -3,7 +3,7 @@
 A surface with structure at wave vector ``q`` (cycles/pixel) modulates the phase of every
 carrier it reflects: each carrier ``f`` gets sidebands at ``f + q`` and ``f - q``, of
 equal magnitude (the height is real), about ``2 pi alpha_f h_q / wavelength`` times the
-carrier's (DESIGN.md, "The surface's own spectrum"). A strong wave shows as the same
+carrier's (the design notes, "The surface's own spectrum"). A strong wave shows as the same
 offset pattern around several carriers. Such a sideband is surface content, to be
 passed by the carrier's window: never a neighbour that shrinks it, never a peak to name.
 
