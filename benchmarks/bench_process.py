@@ -48,9 +48,8 @@ sys.path.insert(0, str(REPO))
 
 from holoview.acquire.recording import RecordingWriter  # noqa: E402
 from holoview.engine.experiment import Experiment, LabelledPeak  # noqa: E402
-from holoview.engine.frame_core import CarrierCore  # noqa: E402
+from holoview.engine.frame_core import CarrierCore, FrameCore  # noqa: E402
 from holoview.headless.inputs import InputFile, OpticsOptions, resolve_optics  # noqa: E402
-from holoview.headless.pipeline import ProcessSettings, make_core  # noqa: E402
 from holoview.headless.selection import select_from_experiment  # noqa: E402
 from holoview.optics.families import predict_families  # noqa: E402
 from holoview.optics.setup import Setup  # noqa: E402
@@ -129,8 +128,8 @@ def demodulator_speed(path: Path, labels: list[str]) -> tuple[float, float, str]
         peaks=tuple(LabelledPeak(k, c) for k, c in parsed.items()),
     )
     selection = select_from_experiment(experiment, find_peaks(frames[0]), shape, "labels")
-    core = make_core(shape, experiment, selection.peaks, ProcessSettings(), saturation)
-    demodulator = core.demodulator
+    core = FrameCore(shape, experiment, selection.peaks, saturation=saturation)
+    demodulator = core.build()
     assert demodulator is not None
     for frame in frames[:4]:
         demodulator.process(frame)

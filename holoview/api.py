@@ -51,11 +51,11 @@ import xarray as xr
 
 from holoview.engine.experiment import Experiment
 from holoview.errors import InputError
-from holoview.headless.exports import Export, Progress, export_results
 from holoview.headless.inputs import InputFile, OpticsOptions
-from holoview.headless.pipeline import ProcessSettings
-from holoview.headless.results_data import open_results as _open_results
-from holoview.headless.run import PeakChoice, ProcessOutcome, process_file
+from holoview.headless.results.exports import Export, Progress, export_results
+from holoview.headless.results.results_data import open_results as _open_results
+from holoview.headless.run import ProcessOutcome, process_file
+from holoview.headless.settings import PeakChoice, ProcessOptions, ProcessSettings
 
 logger = logging.getLogger(__name__)
 
@@ -287,11 +287,9 @@ def process(
         threads=threads,
         background=None if background is None else str(background),
     )
-    return process_file(
-        recording,
-        out,
+    options = ProcessOptions(
         choice=choice,
-        optics_options=optics,
+        optics=optics,
         settings=settings,
         frames=_frame_range(frames),
         report=report,
@@ -299,6 +297,7 @@ def process(
         jobs=jobs,
         scheduler=scheduler,
     )
+    return process_file(recording, out, options)
 
 
 class _Frames:
@@ -499,7 +498,7 @@ def open_results(
     ``maps`` gives ``h(time, y, x)`` per peak and ``fused`` (m; ``time`` in s, ``y``
     and ``x`` in m on the object side, at the map pixels' centres); ``trends`` the
     series by ``(time, label)``; ``peaks`` the table by ``label``. Format 1.0 files
-    open the same way (:mod:`holoview.headless.results_data`).
+    open the same way (:mod:`holoview.headless.results.results_data`).
 
     Parameters
     ----------
@@ -576,7 +575,7 @@ def export(
     Raises
     ------
     InputError
-        See :func:`holoview.headless.exports.export_results`.
+        See :func:`holoview.headless.results.exports.export_results`.
     OutputError
         The output could not be written (nothing is left at ``out``).
 

@@ -117,9 +117,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     logging.captureWarnings(True)
     previous_hook, sys.unraisablehook = sys.unraisablehook, _quiet_hdf5_cleanup
     try:
-        if args.command == "live":  # the GUI closes its window on these signals itself
-            return int(args._run(args) or 0)
-        with stop_on_signals():
+        with stop_on_signals():  # the live window, once open, closes itself on them
             return int(args._run(args) or 0)
     except OutputError as exc:
         print(f"holoview {args.command}: error: {exc}", file=sys.stderr)

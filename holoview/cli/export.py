@@ -1,7 +1,7 @@
 """``holoview export``: a run's ``results.h5`` as NetCDF, Zarr, MATLAB or TIFF stacks.
 
 The formats, their layouts and limits are documented in
-:mod:`holoview.headless.exports`; the output is written under a temporary name and
+:mod:`holoview.headless.results.exports`; the output is written under a temporary name and
 renamed when complete, and replaces an existing one only with ``--overwrite``.
 """
 
@@ -65,7 +65,7 @@ def run(args: argparse.Namespace) -> int:
     """Export, with a progress bar; print one line naming what was written."""
     from tqdm import tqdm
 
-    from holoview.headless.exports import export_results
+    from holoview.headless.results.exports import export_results
 
     bar = tqdm(unit="chunk", disable=args.quiet or None, file=sys.stderr, dynamic_ncols=True)
 

@@ -2,8 +2,8 @@
 
 The offline replay and test mode of docs/design.md: the same processing as the GUI, no
 display (:mod:`holoview.headless`). Output files and their layout are documented in
-:mod:`holoview.headless.outputs` and the README. ``--jobs`` and ``--scheduler`` spread
-the frames over processes or a Dask cluster (:mod:`holoview.headless.parallel`); a
+:mod:`holoview.headless.results.outputs` and the README. ``--jobs`` and ``--scheduler`` spread
+the frames over processes or a Dask cluster (:mod:`holoview.headless.parallel.runners`); a
 folder of recordings or a glob is a batch (:mod:`holoview.headless.batch`).
 """
 
@@ -13,6 +13,7 @@ import argparse
 import logging
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from holoview.cli.options import (
     add_experiment_option,
@@ -24,7 +25,10 @@ from holoview.cli.options import (
 )
 from holoview.cli.signals import emit
 from holoview.errors import InputError
-from holoview.headless.figures import FORMATS
+
+if TYPE_CHECKING:
+    from holoview.headless.settings import ProcessOptions
+from holoview.headless.results.figures import FORMATS
 
 logger = logging.getLogger(__name__)
 
@@ -166,13 +170,11 @@ def _rate_text(rate: float | None, stderr: float | None) -> str:
 def run(args: argparse.Namespace) -> int:
     """Process, show progress, print one line of what came out."""
     from holoview.headless.batch import find_recordings
-    from holoview.headless.pipeline import ProcessSettings
-    from holoview.headless.run import PeakChoice, process_file
+    from holoview.headless.run import process_file
     from holoview.headless.selection import parse_assignment
+    from holoview.headless.settings import PeakChoice, ProcessOptions, ProcessSettings
     from holoview.processing.fourier.fftplans import usable_cpus
 
-    if args.jobs is not None and args.jobs < 1:
-        raise InputError(f"--jobs must be at least 1, got {args.jobs}")
     if args.threads < 1:
         raise InputError(f"--threads must be at least 1, got {args.threads}")
     cores = usable_cpus()
@@ -197,27 +199,22 @@ def run(args: argparse.Namespace) -> int:
         threads=args.threads,
         background=args.background,
     )
-    options = {
-        "choice": choice,
-        "optics_options": optics_options(args, args.fps),
-        "settings": settings,
-        "frames": args.frames,
-        "report": args.report_format,
-    }
+    options = ProcessOptions(
+        choice=choice,
+        optics=optics_options(args, args.fps),
+        settings=settings,
+        frames=args.frames,
+        report=args.report_format,
+        overwrite=args.overwrite,
+        jobs=args.jobs,
+        scheduler=args.scheduler,
+    )
     recordings = find_recordings(args.input)
     if recordings is not None:
         return _run_batch(args, recordings, options)
     bar, update = _progress_bar(args.quiet)
     with bar:
-        outcome = process_file(
-            args.input,
-            args.out,
-            progress=update,
-            overwrite=args.overwrite,
-            jobs=args.jobs,
-            scheduler=args.scheduler,
-            **options,
-        )
+        outcome = process_file(args.input, args.out, options, progress=update)
     if outcome.data.interrupted:
         done = len(outcome.data.frames)
         print(
@@ -244,7 +241,7 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _run_batch(args: argparse.Namespace, recordings: list[Path], options: dict) -> int:
+def _run_batch(args: argparse.Namespace, recordings: list[Path], options: ProcessOptions) -> int:
     """Process a folder or glob of recordings; one line per failure, and the totals.
 
     Exit status 3 when an output of any recording could not be written, else 2 when
@@ -254,15 +251,7 @@ def _run_batch(args: argparse.Namespace, recordings: list[Path], options: dict) 
 
     bar, update = _progress_bar(args.quiet)
     with bar:
-        outcome = process_batch(
-            recordings,
-            args.out,
-            progress=update,
-            jobs=args.jobs,
-            scheduler=args.scheduler,
-            overwrite=args.overwrite,
-            **options,
-        )
+        outcome = process_batch(recordings, args.out, options, progress=update)
     for row in outcome.failed:
         print(f"holoview process: {row.input}: {row.message}", file=sys.stderr)
     done = sum(r.status == "ok" for r in outcome.rows)

@@ -13,9 +13,12 @@ Python runs a signal handler between two bytecodes of whatever runs then, and an
 exception raised in a finaliser (``__del__``, a weakref callback: the garbage
 collector calls them) is printed as "Exception ignored" and dropped: the command
 would go on as if never stopped (seen: SIGTERM during ``process --maps``, inside
-``WeakValueDictionary``'s callback). A stop signal that lands in a finaliser is
-sent again :data:`RETRY_S` later (from a timer thread: SIGALRM is left to others,
-pytest-timeout among them), to whatever handler is then in place.
+``WeakValueDictionary``'s callback). numpy's C code calls Python helpers of its own
+and turns what they raise into its own errors (seen: SIGTERM during a ``--scheduler``
+run, in ``_promote_fields`` under ``np.unique``, became "TypeError: Cannot compare
+structured arrays", exit 1). A stop signal that lands in a finaliser or in numpy's
+Python code is sent again :data:`RETRY_S` later (from a timer thread: SIGALRM is left
+to others, pytest-timeout among them), to whatever handler is then in place.
 
 :func:`emit` prints a command's result; a closed standard output, a closed pipe or a
 full disk behind it becomes an :class:`~holoview.errors.OutputError` (one line, exit
@@ -52,16 +55,24 @@ class Stopped(KeyboardInterrupt):
         self.signal_name = signal.Signals(signum).name
 
 
-def _in_finaliser(frame: FrameType | None) -> bool:
-    """Whether ``frame`` runs a finaliser, where an exception raised would be dropped."""
+def _swallowed_in(frame: FrameType | None) -> bool:
+    """Whether an exception raised in ``frame`` could be dropped or replaced.
+
+    ``frame`` runs a finaliser, or numpy's own Python code (which numpy's C code may
+    have called).
+    """
     if frame is None:
         return False
     code = frame.f_code
-    return code.co_name == "__del__" or Path(code.co_filename).name in _CALLBACK_FILES
+    if code.co_name == "__del__" or Path(code.co_filename).name in _CALLBACK_FILES:
+        return True
+    numpy = sys.modules.get("numpy")  # not imported: not running
+    where = getattr(numpy, "__file__", None)
+    return where is not None and code.co_filename.startswith(str(Path(where).parent) + os.sep)
 
 
 def _raise_stopped(signum: int, frame: FrameType | None) -> None:
-    if _in_finaliser(frame):
+    if _swallowed_in(frame):
         again = threading.Timer(RETRY_S, os.kill, (os.getpid(), signum))
         again.daemon = True
         again.start()

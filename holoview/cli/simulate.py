@@ -348,7 +348,7 @@ def spectrum_figure(
     from matplotlib import patheffects
 
     from holoview.engine.true_labels import VISIBLE_AMPLITUDE
-    from holoview.headless.figures import new_figure
+    from holoview.headless.results.figures import new_figure
 
     data = frame.astype(np.float64)
     rows, cols = frame.shape
@@ -446,7 +446,7 @@ def spectrum_figure(
 
 def check_outputs(args: argparse.Namespace) -> None:
     """Refuse, before simulating, outputs that exist or cannot be written (InputError)."""
-    from holoview.headless.figures import figure_format
+    from holoview.headless.results.figures import figure_format
 
     if args.out.exists():
         raise InputError(f"{args.out} exists; holoview does not overwrite recordings")
@@ -545,7 +545,7 @@ def run(args: argparse.Namespace) -> int:
             surface=surface,
         )
     if args.png is not None and figure_frame is not None:
-        from holoview.headless.figures import save_figure
+        from holoview.headless.results.figures import save_figure
 
         figure = spectrum_figure(
             figure_frame,

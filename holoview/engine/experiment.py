@@ -51,6 +51,7 @@ from holoview.processing.peaks.radii import radius_rule
 __all__ = [
     "EXPERIMENT_FORMAT",
     "EXPERIMENT_VERSION",
+    "MAX_PEAKS",
     "PEAK_LABELS",
     "Experiment",
     "LabelledPeak",
@@ -78,6 +79,15 @@ LABEL_PATTERN = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.+~-]{0,31}")
 RESERVED_LABELS = ("fused", "time", "frame", "y", "x")
 
 Carrier = tuple[float, float]
+
+#: Most labelled peaks an experiment may hold. Every peak's window, and its twin's, must
+#: keep clear of the others: at a window radius of 1/64 cycles/pixel (maps 32 times
+#: narrower than the frame) the spectrum holds about 650 such windows, and every peak
+#: costs a window's FFT in every frame (at 1024 x 1024, 256 peaks take about a third of a
+#: second a frame). The peak model names about 20 peaks; a setup of the paper's kind
+#: shows 5 to 10. An experiment of thousands is a mistake, and an expensive one (10 000
+#: peaks kept the live window from opening for over 40 s, growing past 4.7 GB).
+MAX_PEAKS = 256
 
 
 def check_label(label: object, where: str) -> str:
@@ -339,6 +349,11 @@ class Experiment:
         items = data.get("peaks", [])
         if not isinstance(items, list):
             raise InputError(f"{where}: peaks must be a list")
+        if len(items) > MAX_PEAKS:
+            raise InputError(
+                f"{where}: {len(items)} peaks; an experiment holds at most {MAX_PEAKS} "
+                "(their windows could not keep clear of each other)"
+            )
         peaks = []
         for i, item in enumerate(items):
             peaks.append(_peak_from_dict(item, version, f"{where}, peak {i}"))

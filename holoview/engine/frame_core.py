@@ -9,16 +9,16 @@ the same numbers on the same frames:
   separable DFT at the exact carriers, a quarter of a full FFT's time;
 - :class:`FrameCore` keeps one :class:`~holoview.processing.maps.demodulate.Demodulator`
   for a set of peaks and an experiment's settings (window, radius, reference,
-  unwrapping), rebuilt only when they change: the maps; its windows are matched to
-  the spectrum it was given (:meth:`FrameCore.match`), or at the bound, or given;
-- :func:`trusted_maps`: each peak's map, NaN where untrusted (delta-h in m where the
-  peak has alpha, else phase in rad);
-- :class:`Coregistration`: the maps' displacements against the first peak's, measured
-  over the frames it is given (:mod:`holoview.processing.maps.coregister`);
-- :func:`fuse_maps`: the fused delta-h map of one frame, co-registered, leaving out a
-  peak whose mean phase stepped at that frame.
+  unwrapping), rebuilt only when they change: the maps, their mean phases following
+  the carrier probe's values (the series' own), so that a process holding a run's
+  values can tell a worker where the maps' 2 pi offsets stand; its windows are
+  matched to the spectrum it was given (:meth:`FrameCore.match`), or at the bound, or
+  given;
+- :func:`matching_positions`: the frames of a run its windows are matched to.
 
-The mean-phase series, depths and rates are :mod:`holoview.engine.series`.
+What follows from the maps (trusted maps, phase steps, co-registration, fusion) is
+:mod:`holoview.engine.map_step`; the mean-phase series, depths and rates are
+:mod:`holoview.engine.series`.
 """
 
 from __future__ import annotations
@@ -31,12 +31,6 @@ import numpy as np
 
 from holoview.engine.experiment import Experiment
 from holoview.processing.fourier.frames import DamagedFrameError, frame_damage
-from holoview.processing.maps.coregister import (
-    MIN_MAP_SIDE,
-    Displacement,
-    DisplacementEstimator,
-    fuse_coregistered,
-)
 from holoview.processing.maps.demod_results import DemodResult
 from holoview.processing.maps.demodulate import Demodulator
 from holoview.processing.peaks.detection import Peak
@@ -50,12 +44,9 @@ __all__ = [
     "FFT_THREADS",
     "MATCHING_FRAMES",
     "CarrierCore",
-    "Coregistration",
     "FrameCore",
-    "fuse_maps",
     "matching_positions",
     "series_key",
-    "trusted_maps",
 ]
 
 #: FFTW threads per frame. One: on a two-core machine the other core reads frames (or
@@ -149,6 +140,10 @@ class CarrierCore:
         return self._probe.measure(frame)
 
 
+def _carriers(peaks: Sequence[Peak]) -> tuple[tuple[float, float], ...]:
+    return tuple((float(p.carrier[0]), float(p.carrier[1])) for p in peaks)
+
+
 class FrameCore:
     """Demodulate frames at a set of peaks with an experiment's settings.
 
@@ -176,7 +171,7 @@ class FrameCore:
         The spectrum the windows are matched to (:meth:`match`).
     windows : sequence of Window, optional
         The windows of the peaks, decided elsewhere (a run's, in its workers): used as
-        they are while the peaks are these.
+        they are while the peaks' carriers are these.
 
     Notes
     -----
@@ -208,8 +203,9 @@ class FrameCore:
         self.neighbours = tuple(neighbours)
         #: the spectrum the windows are matched to (None: not measured)
         self.spectrum = spectrum
-        self._fixed = None if windows is None else (self.peaks, tuple(windows))
+        self._fixed = None if windows is None else (_carriers(self.peaks), tuple(windows))
         self._demod: Demodulator | None = None
+        self._probe = CarrierCore(self.frame_shape, saturation)
 
     def configure(
         self,
@@ -304,8 +300,9 @@ class FrameCore:
         )
 
     def _fixed_windows(self) -> tuple[Window, ...] | None:
-        """The windows given at construction, while the peaks are the ones they were for."""
-        if self._fixed is None or self._fixed[0] != self.peaks:
+        """The windows given at construction, while the carriers are the ones they were for
+        (the peaks may be named since: a run's identification gives labels and alphas)."""
+        if self._fixed is None or self._fixed[0] != _carriers(self.peaks):
             return None
         return self._fixed[1]
 
@@ -323,7 +320,7 @@ class FrameCore:
         if self._stale():
             self._demod = None
             e = self.experiment
-            self._demod = Demodulator(
+            demod = Demodulator(
                 self.frame_shape,
                 self.peaks,
                 window=e.window,
@@ -333,11 +330,16 @@ class FrameCore:
                 wavelength=e.wavelength_m,
                 saturation=self.saturation,
                 threads=self.threads,
-                background=self.background if e.reference == "absolute" else None,
                 neighbours=self.neighbours,
                 spectrum=self.spectrum,
                 windows=self._fixed_windows(),
             )
+            self._probe.configure(demod.peaks)
+            if self.background is not None and e.reference == "absolute":
+                measured = self._probe.measure(self.background)
+                assert measured is not None
+                demod.set_background(self.background, measured.values)
+            self._demod = demod
             self._settings_key = self._settings()
         return self._demod
 
@@ -354,8 +356,20 @@ class FrameCore:
         if self._demod is not None:
             self._demod.break_sequence()
 
-    def process(self, frame: np.ndarray) -> DemodResult | None:
+    def carrier_values(self, frame: np.ndarray) -> CarrierValues | None:
+        """The carrier probe's values of ``frame`` at the demodulator's peaks (None: no peak)."""
+        if self.build() is None:
+            return None
+        return self._probe.measure(frame)
+
+    def process(
+        self, frame: np.ndarray, values: Sequence[complex] | np.ndarray | None = None
+    ) -> DemodResult | None:
         """Demodulate ``frame`` (not modified); None when there is no peak.
+
+        ``values``: the carrier probe's values of the frame at the demodulator's peaks
+        (:meth:`carrier_values`), when the caller has them already; else measured here.
+        The maps' mean phases, steps and unwrapping in time follow them.
 
         Raises
         ------
@@ -369,109 +383,9 @@ class FrameCore:
         damage = frame_damage(np.asarray(frame))
         if damage is not None:
             raise DamagedFrameError(f"frame damaged in transfer: {damage}; no maps", damage)
-        return demod.process(frame)
-
-
-def trusted_maps(result: DemodResult) -> list[np.ndarray]:
-    """Each peak's map of one frame, float32, NaN where untrusted.
-
-    Delta-h in m where the peak has alpha (and the demodulator a wavelength), else the
-    phase in rad.
-    """
-    return [
-        np.where(
-            r.mask, r.delta_h if r.delta_h is not None else r.phase, np.float32(np.nan)
-        ).astype(np.float32, copy=False)
-        for r in result.peaks
-    ]
-
-
-class Coregistration:
-    """The displacements of a frame's maps against the first peak's, measured over frames.
-
-    A new estimate starts whenever the peaks or the map shape change. Maps smaller
-    than :data:`~holoview.processing.maps.coregister.MIN_MAP_SIDE` and single maps are not
-    co-registered; reference frames (zero maps) are not added.
-    """
-
-    def __init__(self) -> None:
-        self._estimator: DisplacementEstimator | None = None
-        self._key: tuple | None = None
-
-    def add(self, result: DemodResult, maps: Sequence[np.ndarray]) -> None:
-        """Add one frame's :func:`trusted_maps` to the estimate."""
-        labels = tuple(r.peak.label for r in result.peaks)
-        self.add_maps(labels, result.box_shape, maps, reference="reference" in result.flags)
-
-    def add_maps(
-        self,
-        labels: Sequence[str | None],
-        box_shape: tuple[int, int],
-        maps: Sequence[np.ndarray],
-        *,
-        reference: bool = False,
-    ) -> None:
-        """Add one frame's :func:`trusted_maps`, of peaks ``labels``, demodulated elsewhere.
-
-        ``reference``: the frame was a reference frame (its maps are zero: not added).
-        """
-        if len(maps) < 2 or min(box_shape) < MIN_MAP_SIDE:
-            return
-        key = (tuple(labels), tuple(box_shape))
-        if key != self._key or self._estimator is None:
-            self._estimator = DisplacementEstimator(tuple(box_shape), len(maps))
-            self._key = key
-        if not reference:
-            self._estimator.add(list(maps))
-
-    def displacements(self, result: DemodResult | None = None) -> list[Displacement] | None:
-        """One displacement per map (map pixels), or None before an estimate exists.
-
-        With ``result``, None also when the estimate is for other peaks or map shape.
-        """
-        if self._estimator is None:
-            return None
-        if result is not None:
-            key = (tuple(r.peak.label for r in result.peaks), result.box_shape)
-            if key != self._key:
-                return None
-        return self._estimator.displacements()
-
-
-def fuse_maps(
-    maps: Sequence[np.ndarray | None],
-    noise_m: Sequence[float | None],
-    stepped: Sequence[bool],
-    displacements: Sequence[Displacement] | None = None,
-    *,
-    method: str = "spline",
-) -> np.ndarray | None:
-    """Return the fused delta-h map of one frame (m), co-registered; None with fewer than two.
-
-    Parameters
-    ----------
-    maps : sequence of (ndarray or None)
-        Each peak's delta-h map, m, NaN where untrusted (None: the peak is not fused).
-    noise_m : sequence of (float or None)
-        Each peak's per-pixel height noise on that frame, m (the weight is its inverse
-        square; None or 0 on a reference frame: plain means).
-    stepped : sequence of bool
-        Whether the peak's mean phase stepped at this frame: such peaks are left out,
-        unless every one did.
-    displacements : sequence of Displacement, optional
-        One per peak (:class:`Coregistration`): the maps are moved onto the first's grid.
-    method : {"spline", "cubic"}
-        Interpolation (:func:`~holoview.processing.maps.coregister.fuse_coregistered`).
-    """
-    chosen = [j for j, m in enumerate(maps) if m is not None]
-    steady = [j for j in chosen if not stepped[j]]
-    chosen = steady or chosen
-    if len(chosen) < 2:
-        return None
-    shifts = None if displacements is None else [displacements[j].shift for j in chosen]
-    return fuse_coregistered(
-        [maps[j] for j in chosen],  # type: ignore[misc]
-        [np.nan if noise_m[j] is None else noise_m[j] for j in chosen],
-        shifts,
-        method=method,
-    )
+        if values is None:
+            measured = self._probe.measure(frame)
+            assert measured is not None
+            values = measured.values
+        given = np.asarray(values, dtype=np.complex128)
+        return demod.process(frame, given if np.all(np.isfinite(given)) else None)

@@ -7,7 +7,7 @@ that the series can take every frame of the camera while the maps take what time
 left. :class:`PhaseSeries` keeps them with each value's phase noise and the frame's
 flags, for every frame it is given (the whole run headless; the last
 :data:`LIVE_LENGTH` frames live), and marks a peak whose mean phase steps past
-:data:`~holoview.processing.maps.demodulate.PHASE_STEP_LIMIT` between two frames. With
+:data:`~holoview.processing.maps.mean_phases.PHASE_STEP_LIMIT` between two frames. With
 :meth:`PhaseSeries.track_joint` it also estimates every frame jointly over its peaks
 (:mod:`holoview.processing.series.joint_estimation`): one height and one reference-arm phase,
 each peak's 2 pi ambiguity resolved by all of them together, so a peak that aliases in
@@ -23,11 +23,12 @@ from __future__ import annotations
 import logging
 import math
 from collections.abc import Sequence
+from dataclasses import dataclass
 
 import numpy as np
 
 from holoview.errors import InputError
-from holoview.processing.maps.demodulate import PHASE_STEP_LIMIT
+from holoview.processing.maps.mean_phases import PHASE_STEP_LIMIT
 from holoview.processing.naming.lattice_geometry import point_of
 from holoview.processing.series.carrier_probe import CarrierValues
 from holoview.processing.series.joint_estimation import JointEstimator
@@ -35,7 +36,14 @@ from holoview.processing.series.phase_series import unwrap_in_time
 
 logger = logging.getLogger(__name__)
 
-__all__ = ["LIVE_LENGTH", "SERIES_FRAME_FLAGS", "PhaseSeries", "coupling_of", "frame_time"]
+__all__ = [
+    "LIVE_LENGTH",
+    "SERIES_FRAME_FLAGS",
+    "JointSetup",
+    "PhaseSeries",
+    "coupling_of",
+    "frame_time",
+]
 
 #: Frame flags a series counts (the carrier probe's).
 SERIES_FRAME_FLAGS = ("nonfinite", "saturated", "damaged")
@@ -62,6 +70,85 @@ def coupling_of(label: str | None, n1: float | None, n2: float | None) -> int | 
 def frame_time(t_device: float, t_host: float) -> float:
     """A frame's time, s: the camera's clock where it has one, else the host's arrival time."""
     return t_device if math.isfinite(t_device) else t_host
+
+
+@dataclass(frozen=True)
+class JointSetup:
+    """The joint estimate's arguments (:meth:`PhaseSeries.track_joint`), and the peaks fused.
+
+    Built once, by :meth:`of`, for the live trends, ``holoview process`` and its analysis,
+    and the maps step (:mod:`holoview.engine.map_step`), which fuses the same peaks'
+    maps as the depth.
+
+    Attributes
+    ----------
+    alphas : tuple of (float or None)
+        Each peak's prefactor, signed as the peak was measured.
+    couplings : tuple of (int or None)
+        Each peak's coupling to the reference-arm phase (:func:`coupling_of`).
+    wavelength_m : float or None
+        Laser wavelength, m (None: no joint estimate, no heights).
+    exclude : tuple of bool
+        Peaks left out of the joint estimate and of the fusion.
+    """
+
+    alphas: tuple[float | None, ...]
+    couplings: tuple[int | None, ...]
+    wavelength_m: float | None
+    exclude: tuple[bool, ...]
+
+    @classmethod
+    def of(
+        cls,
+        labels: Sequence[str | None],
+        alphas: Sequence[float | None],
+        *,
+        wavelength_m: float | None,
+        n1: float | None,
+        n2: float | None,
+        exclude: Sequence[bool] | None = None,
+    ) -> JointSetup:
+        """The setup of peaks ``labels`` with prefactors ``alphas`` (None: unknown).
+
+        A peak without alpha is always excluded; ``exclude`` leaves others out too.
+        """
+        skip = [False] * len(labels) if exclude is None else list(exclude)
+        return cls(
+            alphas=tuple(alphas),
+            couplings=tuple(coupling_of(label, n1, n2) for label in labels),
+            wavelength_m=wavelength_m,
+            exclude=tuple(bool(e) or a is None for e, a in zip(skip, alphas, strict=True)),
+        )
+
+    @property
+    def columns(self) -> tuple[int, ...]:
+        """The peaks of the joint estimate: an alpha, a coupling, not excluded."""
+        if self.wavelength_m is None:
+            return ()
+        return tuple(
+            j
+            for j, (c, e) in enumerate(zip(self.couplings, self.exclude, strict=True))
+            if c is not None and not e
+        )
+
+    def fused(self) -> tuple[bool, ...]:
+        """Per peak, whether its maps go into the fused map.
+
+        The joint estimate's peaks, whose depth is the fused depth; with none, every
+        peak with an alpha that is not excluded. Known before the frames, so that
+        every frame's maps are fused as they are made.
+        """
+        columns = self.columns
+        if columns:
+            return tuple(j in columns for j in range(len(self.alphas)))
+        return tuple(not e for e in self.exclude)
+
+    def track(self, series: PhaseSeries) -> None:
+        """Estimate ``series`` jointly with this setup (nothing without a wavelength)."""
+        if self.wavelength_m is not None:
+            series.track_joint(
+                list(self.alphas), list(self.couplings), self.wavelength_m, list(self.exclude)
+            )
 
 
 def _joint_key(

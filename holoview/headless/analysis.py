@@ -1,7 +1,7 @@
 """After the frames: which peak is which, depth series, fused depth, rates and flags.
 
 Everything here works on the per-frame carrier values a run kept
-(:class:`~holoview.headless.pipeline.RunData`), through :mod:`holoview.processing`:
+(:class:`~holoview.headless.run_data.RunData`), through :mod:`holoview.processing`:
 
 - auto mode: :func:`~holoview.processing.naming.identify.identify_peaks` (the carrier lattice,
   with the temporal PCA confirming; off the lattice the PCA with the reference peak's
@@ -20,19 +20,20 @@ from __future__ import annotations
 
 import logging
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from holoview.engine.depth import pca_check, summarise
-from holoview.engine.series import coupling_of
+from holoview.engine.series import JointSetup
 from holoview.errors import InputError
 from holoview.headless.inputs import Optics
-from holoview.headless.pipeline import RunData
+from holoview.headless.run_data import RunData
 from holoview.headless.selection import Selection
 from holoview.processing.naming.identify import Identification, identify_peaks
 from holoview.processing.naming.lattice_geometry import LatticePeak
 from holoview.processing.naming.prefactors import PeakKind
+from holoview.processing.peaks.detection import Peak
 from holoview.processing.series.phase_series import check_aliasing
 from holoview.processing.series.rate_fits import RateFit
 
@@ -143,15 +144,6 @@ class Analysis:
     margins: np.ndarray | None = None
     flagged: np.ndarray | None = None
 
-    def map_fusion_scales(self) -> list[float | None]:
-        """Per peak, metres per radian if its maps go into the fused map, else None.
-
-        The peaks used in the fused depth, or every peak with a height map when none is.
-        """
-        scales = [p.map_scale for p in self.peaks]
-        used = [s if p.used_in_fused else None for p, s in zip(self.peaks, scales, strict=True)]
-        return used if any(s is not None for s in used) else scales
-
 
 def _auto_names(ident: Identification) -> list[str]:
     """Unique labels: families by name, repeats ``RB1_2``, ..., the rest ``P<index>``."""
@@ -198,8 +190,12 @@ def _identify(
 
 
 @dataclass
-class _Naming:
-    """Per peak: label, signed alpha on the demodulated twin, fusable, PCA alpha and share."""
+class Naming:
+    """What the peaks are: label, signed alpha on the demodulated twin, fusable, PCA's view.
+
+    Known before the frames for labelled peaks (:func:`name_peaks`); in auto mode from
+    the series, after it, and before any map is made (the maps take its prefactors).
+    """
 
     labels: list[str]
     signed: list[float | None]
@@ -207,28 +203,43 @@ class _Naming:
     pca_alpha: list[float | None]
     explained: list[float | None]
     ident: Identification | None = None
+    flags: list[set[str]] = field(default_factory=list)
+
+    def joint(self, optics: Optics) -> JointSetup:
+        """The joint estimate of these peaks: the fusable ones, their couplings."""
+        return JointSetup.of(
+            self.labels,
+            self.signed,
+            wavelength_m=optics.wavelength_m,
+            n1=optics.n1,
+            n2=optics.n2,
+            exclude=[not f for f in self.fusable],
+        )
+
+    def peaks(self, selection: Selection) -> tuple[Peak, ...]:
+        """The selection's peaks as the maps take them: these labels and signed prefactors."""
+        return tuple(
+            replace(p, label=label, alpha=alpha)
+            for p, label, alpha in zip(selection.peaks, self.labels, self.signed, strict=True)
+        )
+
+    @property
+    def exclude(self) -> tuple[bool, ...]:
+        """Peaks kept out of the fusion: those the identification could not explain."""
+        return tuple(not f for f in self.fusable)
 
 
-def _given_names(selection: Selection) -> _Naming:
+def _given_names(selection: Selection) -> Naming:
     peaks = selection.peaks
     m = len(peaks)
-    return _Naming(
+    return Naming(
         labels=[p.label or f"P{j}" for j, p in enumerate(peaks)],
         signed=[p.alpha for p in peaks],
         fusable=[p.alpha is not None for p in peaks],
         pca_alpha=[None] * m,
         explained=[None] * m,
+        flags=[set() for _ in range(m)],
     )
-
-
-@dataclass(frozen=True)
-class JointSetup:
-    """The joint estimate's arguments (:meth:`~holoview.engine.series.PhaseSeries.track_joint`)."""
-
-    alphas: list[float | None]
-    couplings: list[int | None]
-    wavelength_m: float
-    exclude: list[bool]
 
 
 def known_joint(selection: Selection, optics: Optics) -> JointSetup | None:
@@ -240,30 +251,35 @@ def known_joint(selection: Selection, optics: Optics) -> JointSetup | None:
     """
     if selection.mode == "auto" or optics.wavelength_m is None:
         return None
-    return _joint_setup(_given_names(selection), optics, optics.wavelength_m)
+    return _given_names(selection).joint(optics)
 
 
-def _joint_setup(naming: _Naming, optics: Optics, wavelength_m: float) -> JointSetup:
-    """The joint estimate of peaks named ``naming``: the fusable ones, their couplings."""
-    return JointSetup(
-        alphas=naming.signed,
-        couplings=[coupling_of(label, optics.n1, optics.n2) for label in naming.labels],
-        wavelength_m=wavelength_m,
-        exclude=[not f for f in naming.fusable],
-    )
+def name_peaks(data: RunData, selection: Selection, optics: Optics) -> Naming:
+    """What each peak is: the selection's labels, or in auto mode the identification's.
+
+    Raises
+    ------
+    InputError
+        In auto mode, when the PCA cannot identify the peaks (too few frames, no motion).
+    """
+    if selection.mode != "auto":
+        return _given_names(selection)
+    return _pca_names(_identify(data.series.unwrapped(), data, selection, optics))
 
 
-def _pca_names(ident: Identification, flags: list[set[str]]) -> _Naming:
-    """Labels and prefactors from the PCA identification (module docstring); adds flags."""
+def _pca_names(ident: Identification) -> Naming:
+    """Labels and prefactors from the PCA identification (module docstring), and flags."""
     m = len(ident.peaks)
-    naming = _Naming(
+    naming = Naming(
         labels=_auto_names(ident),
         signed=[None] * m,
         fusable=[False] * m,
         pca_alpha=[p.alpha for p in ident.peaks],
         explained=[p.explained for p in ident.peaks],
         ident=ident,
+        flags=[set() for _ in range(m)],
     )
+    flags = naming.flags
     for j, p in enumerate(ident.peaks):
         if p.aliased:
             flags[j].add("aliased_in_time")
@@ -295,7 +311,7 @@ def _run_flags(selection: Selection, data: RunData) -> list[set[str]]:
     return flags
 
 
-def _lattice_of(selection: Selection, naming: _Naming, j: int) -> LatticePeak | None:
+def _lattice_of(selection: Selection, naming: Naming, j: int) -> LatticePeak | None:
     """Peak ``j``'s place on the lattice: the auto identification's, else the selection's."""
     ident = naming.ident
     if ident is not None and ident.lattice is not None:
@@ -303,30 +319,25 @@ def _lattice_of(selection: Selection, naming: _Naming, j: int) -> LatticePeak | 
     return selection.lattice[j] if j < len(selection.lattice) else None
 
 
-def analyse(data: RunData, selection: Selection, optics: Optics) -> Analysis:
-    """Name the peaks (auto mode), convert to depths, fuse, fit rates, set flags.
+def analyse(data: RunData, selection: Selection, optics: Optics, naming: Naming) -> Analysis:
+    """Convert the series to depths, fuse, fit rates, set flags (the peaks ``naming`` says).
 
-    Raises
-    ------
-    InputError
-        In auto mode, when the PCA cannot identify the peaks (too few frames, no motion).
+    The joint estimate is :meth:`Naming.joint` (a run that knew it before its frames
+    made it as they came: nothing is done again).
     """
     wavelength = optics.wavelength_m
     assert wavelength is not None
     flags = _run_flags(selection, data)
-    if selection.mode == "auto":
-        raw_phases = data.series.unwrapped()
-        naming = _pca_names(_identify(raw_phases, data, selection, optics), flags)
-    else:
-        naming = _given_names(selection)
+    for j, more in enumerate(naming.flags):
+        flags[j] |= more
     labels, signed = naming.labels, naming.signed
     # a peak with a negative prefactor is stored on its other twin (docs/design.md)
     signs = [-1.0 if (a is not None and a < 0) else 1.0 for a in signed]
     alphas = [abs(a) if a is not None else None for a in signed]
-    joint = _joint_setup(naming, optics, wavelength)
-    data.series.track_joint(signed, joint.couplings, wavelength, exclude=joint.exclude)
-    summary = summarise(data.series, signed, wavelength, exclude=joint.exclude)
-    notes = list(selection.notes)
+    joint = naming.joint(optics)
+    joint.track(data.series)
+    summary = summarise(data.series, signed, wavelength, exclude=list(joint.exclude))
+    notes = [*selection.notes, *data.notes]
     if summary.note is not None:
         notes.append(summary.note)
         logger.warning("%s", summary.note)

@@ -6,7 +6,7 @@ matches; a folder holding recordings (``.h5``/``.hdf5``, videos, ``.npy``/``.npz
 names those, in natural order. A folder of images is one input, as before.
 
 :func:`process_batch` processes each into its own folder, ``OUT/<name>``, one after
-the other, each on the same workers (:mod:`holoview.headless.parallel`, started
+the other, each on the same workers (:mod:`holoview.headless.parallel.runners`, started
 once), and writes ``OUT/index.csv``. ``<name>`` is the recording's file name without
 its suffix, made safe (:func:`holoview.paths.confined_name`: separators, control and
 invisible characters and leading dots become ``_``, so ``...h5`` is ``OUT/__``, never
@@ -14,7 +14,7 @@ invisible characters and leading dots become ``_``, so ``...h5`` is ``OUT/__``, 
 (compared without regard to case, for file systems that ignore it), the later ones in
 the batch's order get ``<name>_2``, ``<name>_3``, ... A recording that fails does not
 stop the others. ``OUT`` is locked for the batch (one run at a time, as each
-recording's folder is: :mod:`holoview.headless.output_folder`).
+recording's folder is: :mod:`holoview.headless.results.output_folder`).
 
 ``index.csv`` describes the folders next to it at every moment: it is rewritten
 (under a temporary name, then renamed) after each recording, and each row's figures
@@ -43,7 +43,6 @@ import re
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 
 from holoview.acquire.replay_files import (
     HDF5_SUFFIXES,
@@ -54,16 +53,17 @@ from holoview.acquire.replay_files import (
 from holoview.atomic import atomic_path
 from holoview.errors import HoloviewError, InputError, OutputError, os_error_text
 from holoview.file_kinds import special_file
-from holoview.headless.chunks import plan_jobs
-from holoview.headless.output_folder import (
+from holoview.headless.parallel.chunks import plan_jobs
+from holoview.headless.parallel.runners import ChunkRunner, open_runner
+from holoview.headless.prepare import run_inputs
+from holoview.headless.results.output_folder import (
     FolderLock,
     OutputFolder,
     make_folder,
     remove_if_empty,
 )
-from holoview.headless.parallel import ChunkRunner, open_runner
-from holoview.headless.pipeline import ProcessSettings
-from holoview.headless.run import OUTPUT_NAMES, SUMMARY_JSON, process_file, run_inputs
+from holoview.headless.run import OUTPUT_NAMES, SUMMARY_JSON, process_file
+from holoview.headless.settings import ProcessOptions
 from holoview.paths import check_apart, confined_name
 
 logger = logging.getLogger(__name__)
@@ -290,32 +290,32 @@ class _Index:
         self.error = None
 
 
-def _check_folders(
-    out: Path, rows: list[BatchRow], overwrite: bool, options: dict[str, Any]
-) -> None:
+def _check_folders(out: Path, rows: list[BatchRow], options: ProcessOptions) -> None:
     """Refuse, before anything runs, earlier results (without overwrite) and inputs as outputs."""
     index = out / INDEX_CSV
+    overwrite = options.overwrite
     if index.exists() and not overwrite:
         raise InputError(
             f"--out {out} holds the index of an earlier batch ({INDEX_CSV}); give "
             "--overwrite to replace it when this batch completes, or another folder"
         )
     inputs = [
-        path
-        for row in rows
-        for path in run_inputs(
-            row.input, options["choice"], options.get("settings") or ProcessSettings()
-        )
+        path for row in rows for path in run_inputs(row.input, options.choice, options.settings)
     ]
     check_apart([index], inputs)
     for row in rows:
         OutputFolder(row.out, OUTPUT_NAMES, overwrite=overwrite, inputs=inputs)
 
 
-def _attempt(row: BatchRow, runner: ChunkRunner | None, **kwargs: Any) -> bool:
+def _attempt(
+    row: BatchRow,
+    runner: ChunkRunner | None,
+    options: ProcessOptions,
+    progress: Callable[[int, int], None] | None,
+) -> bool:
     """Process one recording into its row (status, message); True when the batch must stop."""
     try:
-        outcome = process_file(row.input, row.out, runner=runner, **kwargs)
+        outcome = process_file(row.input, row.out, options, progress=progress, runner=runner)
     except HoloviewError as exc:
         row.status, row.message = "failed", str(exc)
         row.output_failed = isinstance(exc, OutputError)
@@ -336,12 +336,9 @@ def _attempt(row: BatchRow, runner: ChunkRunner | None, **kwargs: Any) -> bool:
 def process_batch(
     recordings: list[Path],
     out: str | Path,
+    options: ProcessOptions,
     *,
     progress: Callable[[int, int], None] | None = None,
-    jobs: int | None = None,
-    scheduler: str | None = None,
-    overwrite: bool = False,
-    **options: Any,
 ) -> BatchOutcome:
     """Process every recording into ``out/<name>`` and write ``out/index.csv``.
 
@@ -351,16 +348,12 @@ def process_batch(
         From :func:`find_recordings`.
     out : str or Path
         The batch's folder (created if missing).
+    options : ProcessOptions
+        Each recording's (:func:`~holoview.headless.run.process_file`); the workers
+        (``jobs``, ``scheduler``) are started once for the whole batch, and
+        ``overwrite`` replaces earlier results (each recording's, and the index).
     progress : callable, optional
         ``progress(done, total)`` within each recording.
-    jobs, scheduler : optional
-        As for :func:`~holoview.headless.run.process_file`; the workers are started
-        once for the whole batch.
-    overwrite : bool
-        Replace earlier results (each recording's, and the index).
-    **options
-        Passed to :func:`~holoview.headless.run.process_file` (``choice``,
-        ``optics_options``, ``settings``, ``frames``, ``report``).
 
     Returns
     -------
@@ -384,24 +377,23 @@ def process_batch(
         BatchRow(input=r, out=folder / name)
         for r, name in zip(recordings, output_names(recordings), strict=True)
     ]
-    _check_folders(folder, rows, overwrite, options)
+    _check_folders(folder, rows, options)
     interrupted = False
     created = make_folder(folder)
-    index = _Index(folder / INDEX_CSV, rows, replace=overwrite)
+    index = _Index(folder / INDEX_CSV, rows, replace=options.overwrite)
     try:
         with contextlib.ExitStack() as stack:
             stack.enter_context(FolderLock(folder))
             runner: ChunkRunner | None = None
-            workers = plan_jobs(jobs, _LONG, "hdf5")
-            if workers > 1 or scheduler is not None:
-                runner = stack.enter_context(open_runner(workers, scheduler))
+            workers = plan_jobs(options.jobs, _LONG, "hdf5")
+            if workers > 1 or options.scheduler is not None:
+                runner = stack.enter_context(open_runner(workers, options.scheduler))
             for row in rows:
                 row.read_folder()
             for k, row in enumerate(rows):
                 logger.info("recording %d of %d: %s", k + 1, len(rows), row.input)
-                kwargs = {"progress": progress, "overwrite": overwrite, **options}
                 try:
-                    interrupted = _attempt(row, runner, **kwargs)
+                    interrupted = _attempt(row, runner, options, progress)
                 finally:
                     row.read_folder()
                     index.publish()

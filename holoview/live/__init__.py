@@ -2,20 +2,20 @@
 
 :class:`~holoview.live.session.LiveSession` runs the camera thread, the frame ring, the
 recorder and the workers (:mod:`holoview.live.worker`), each frame processed by
-:class:`~holoview.live.pipeline.LivePipeline` on the engine's per-frame core. The GUI
+:class:`~holoview.live.maps_pipeline.MapsPipeline` on the engine's per-frame core. The GUI
 (:mod:`holoview.ui`) only reads the latest result and sends commands; a script or a
 test can do the same without a display; a replay is steered through
 :class:`~holoview.live.replay_control.ReplayControl` (``LiveSession.replay``).
 """
 
-from holoview.live.pipeline import LivePipeline, LiveResult
+from holoview.live.maps_pipeline import LiveResult, MapsPipeline
 from holoview.live.replay_control import ReplayControl, ReplayState
 from holoview.live.session import LiveSession, RecordingProgress, RecordRequest, discover_sources
 
 __all__ = [
-    "LivePipeline",
     "LiveResult",
     "LiveSession",
+    "MapsPipeline",
     "RecordRequest",
     "RecordingProgress",
     "ReplayControl",

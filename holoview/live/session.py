@@ -28,9 +28,9 @@ from holoview.engine.depth import DepthSummary
 from holoview.engine.experiment import Experiment
 from holoview.engine.true_labels import true_experiment
 from holoview.errors import HoloviewError, InputError
-from holoview.live.pipeline import LivePipeline, LiveResult
+from holoview.live.maps_pipeline import LiveResult, MapsPipeline
 from holoview.live.replay_control import ReplayControl
-from holoview.live.trends import SeriesPipeline, TrendSummary
+from holoview.live.series_pipeline import SeriesPipeline, TrendSummary
 from holoview.live.worker import DemodWorker, SeriesWorker
 
 logger = logging.getLogger(__name__)
@@ -175,7 +175,7 @@ class LiveSession:
         self.ring = FrameRing(capacity, shape, self.source.dtype)
         self.camera = CameraThread(self.source, self.ring)
         saturation = self.saturation_value
-        self.pipeline = LivePipeline(self.experiment, shape, saturation=saturation)
+        self.pipeline = MapsPipeline(self.experiment, shape, saturation=saturation)
         self.worker = DemodWorker(self.ring, self.pipeline, every_frame=self.every_frame)
         self.worker.listener = self._maps_listener
         self.series = SeriesPipeline(shape, saturation=saturation)

@@ -1,13 +1,13 @@
 """The live worker threads: the series, the maps, peak detection.
 
 - The series worker (``holoview-series``) takes *every* frame from the ring and runs a
-  :class:`~holoview.live.trends.SeriesPipeline` on it: the carrier values, so the
+  :class:`~holoview.live.series_pipeline.SeriesPipeline` on it: the carrier values, so the
   trends, rates and the temporal unwrapping see the camera's full rate; frames the ring
   overwrote before it read them are counted (:meth:`RingWorker.status`), never hidden.
 - The maps worker (``holoview-demod``) takes the *newest* frame (the series has the
   others, so a map is never older than it must be), or every frame in order when
   asked (scripted runs, the parity test), and runs a
-  :class:`~holoview.live.pipeline.LivePipeline` on it: the maps, at whatever rate is
+  :class:`~holoview.live.maps_pipeline.MapsPipeline` on it: the maps, at whatever rate is
   left. It hands the demodulator's peaks to the series worker.
 - Peak detection (``holoview-peaks``), much slower than a frame, runs beside them.
 
@@ -34,8 +34,8 @@ from holoview.acquire.source import FrameMeta
 from holoview.engine.experiment import Experiment
 from holoview.engine.frame_core import FFT_THREADS
 from holoview.errors import HoloviewError
-from holoview.live.pipeline import LivePipeline, LiveResult
-from holoview.live.trends import SeriesPipeline, TrendSummary
+from holoview.live.maps_pipeline import LiveResult, MapsPipeline
+from holoview.live.series_pipeline import SeriesPipeline, TrendSummary
 from holoview.processing.peaks.detection import Peak, find_peaks
 
 logger = logging.getLogger(__name__)
@@ -275,13 +275,13 @@ class RingWorker:
 
 
 class DemodWorker(RingWorker):
-    """The maps: a :class:`LivePipeline` on the newest frame, on ``holoview-demod``.
+    """The maps: a :class:`MapsPipeline` on the newest frame, on ``holoview-demod``.
 
     Parameters
     ----------
     ring : FrameRing
         Frames to process (a ``"newest"`` consumer).
-    pipeline : LivePipeline
+    pipeline : MapsPipeline
         What to do with each frame; commands (``experiment``, ``reset``) between frames.
     every_frame : bool
         Take every frame in order (an ``"every"`` consumer) instead of the newest.
@@ -289,7 +289,7 @@ class DemodWorker(RingWorker):
 
     niceness = YIELDING_NICENESS
 
-    def __init__(self, ring: FrameRing, pipeline: LivePipeline, every_frame: bool = False) -> None:
+    def __init__(self, ring: FrameRing, pipeline: MapsPipeline, every_frame: bool = False) -> None:
         if every_frame:
             consumer = ring.consumer("maps", mode="every")
         else:

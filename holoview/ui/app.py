@@ -1,26 +1,44 @@
-"""Start the Qt application and the main window.
+"""Start the Qt application and the main window; stop it however it is stopped.
 
 Ctrl-C, SIGTERM and SIGHUP close the window as its close button does: a recording
 in progress is stopped and its file closed, the layout is saved, and the process
-exits with status 0. (Python runs signal handlers only when the interpreter has
-control, so a timer hands it control five times a second.)
+exits with status 130 (Python runs signal handlers only when the interpreter has
+control, so a timer hands it control five times a second). Before the event loop
+runs (the window being built), the command's own handlers stop it as they stop any
+command (:mod:`holoview.cli.signals`).
+
+A display that goes away (the X server or Wayland compositor ends, an SSH connection
+carrying X drops) makes Qt print a warning and end the process at once, with the
+window's threads still running (seen: a worker's traceback, and a recording's file
+left open). Qt's messages pass through :func:`stop_on_lost_display`, which on that
+warning stops what the window runs (:meth:`MainWindow.shut_down`: the recording's
+file closed, the threads joined), prints one line and exits with status 130, as a
+closed terminal (SIGHUP) would.
 """
 
 from __future__ import annotations
 
 import contextlib
 import logging
+import os
 import signal
+import sys
 from collections.abc import Iterator
 from pathlib import Path
 from types import FrameType
 
-from PyQt6.QtCore import QTimer
-from PyQt6.QtWidgets import QApplication, QWidget
+from PyQt6.QtCore import QMessageLogContext, QTimer, QtMsgType, qInstallMessageHandler
+from PyQt6.QtWidgets import QApplication
 
 from holoview.ui.main_window import MainWindow
 
 logger = logging.getLogger(__name__)
+
+#: Exit status of a window stopped by a signal or by the loss of its display.
+STOPPED_STATUS = 130
+
+#: The starts of the warnings Qt prints just before it ends a process whose display is gone.
+LOST_DISPLAY_WARNINGS = ("The X11 connection broke", "The Wayland connection broke")
 
 
 def application() -> QApplication:
@@ -38,11 +56,16 @@ SIGNAL_POLL_MS = 200
 
 
 @contextlib.contextmanager
-def close_on_signals(window: QWidget) -> Iterator[None]:
-    """Within the block, SIGINT, SIGTERM and SIGHUP close ``window`` (not ignored ones)."""
+def close_on_signals(window: MainWindow) -> Iterator[list[int]]:
+    """Within the block, SIGINT, SIGTERM and SIGHUP close ``window`` (not ignored ones).
+
+    Yields the list of the signals received (empty while none came).
+    """
+    received: list[int] = []
 
     def close(signum: int, frame: FrameType | None) -> None:
         logger.warning("%s: closing the window", signal.Signals(signum).name)
+        received.append(signum)
         QTimer.singleShot(0, window.close)
 
     previous = {}
@@ -53,11 +76,43 @@ def close_on_signals(window: QWidget) -> Iterator[None]:
     poll.timeout.connect(lambda: None)
     poll.start(SIGNAL_POLL_MS)
     try:
-        yield
+        yield received
     finally:
         poll.stop()
         for sig, handler in previous.items():
             signal.signal(sig, handler)
+
+
+@contextlib.contextmanager
+def stop_on_lost_display(windows: list[MainWindow]) -> Iterator[None]:
+    """Within the block, the loss of the display stops the ``windows`` and the process.
+
+    Every other message of Qt's is printed on stderr as Qt prints it (or handed to the
+    handler installed before).
+    """
+
+    def handle(kind: QtMsgType, context: QMessageLogContext, message: str | None) -> None:
+        text = message or ""
+        if text.startswith(LOST_DISPLAY_WARNINGS):
+            for window in windows:
+                window.shut_down()
+            logger.error(
+                "the display is gone (%s); the window's work was stopped and its files closed",
+                text.strip(),
+            )
+            sys.stdout.flush()
+            os._exit(STOPPED_STATUS)  # Qt ends the process as this returns: end it first
+        if previous is not None:
+            previous(kind, context, message)
+        else:  # as Qt's own handler does
+            sys.stderr.write(text + "\n")
+            sys.stderr.flush()
+
+    previous = qInstallMessageHandler(handle)
+    try:
+        yield
+    finally:
+        qInstallMessageHandler(previous)
 
 
 def run_live(
@@ -82,13 +137,29 @@ def run_live(
     Returns
     -------
     int
-        The exit status of the event loop.
+        The exit status of the event loop; :data:`STOPPED_STATUS` when a stop signal
+        closed the window.
+
+    Raises
+    ------
+    KeyboardInterrupt
+        An interrupt (or a stop signal turned into one) before the event loop ran: the
+        window built so far is closed first.
     """
     app = application()
-    window = MainWindow(source=source, experiment_path=experiment, optics=optics)
-    window.show()
-    if quit_after is not None:
-        QTimer.singleShot(int(quit_after * 1000), window.close)
-    logger.info("main window open on source %s", source)
-    with close_on_signals(window):
-        return app.exec()
+    windows: list[MainWindow] = []
+    with stop_on_lost_display(windows):
+        try:
+            window = MainWindow(source=source, experiment_path=experiment, optics=optics)
+            windows.append(window)
+            window.show()
+            if quit_after is not None:
+                QTimer.singleShot(int(quit_after * 1000), window.close)
+            logger.info("main window open on source %s", source)
+            with close_on_signals(window) as received:
+                status = app.exec()
+        except KeyboardInterrupt:
+            for built in windows:
+                built.close()
+            raise
+    return STOPPED_STATUS if received else status

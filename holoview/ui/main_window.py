@@ -32,8 +32,7 @@ from PyQt6.QtWidgets import (
 from holoview import __version__
 from holoview.engine.experiment import Experiment, default_experiment_path
 from holoview.errors import HoloviewError
-from holoview.live.pipeline import LiveResult
-from holoview.live.rates import RateMeter
+from holoview.live.maps_pipeline import LiveResult
 from holoview.live.session import LiveSession, RecordRequest, discover_sources
 from holoview.ui.background import BackgroundCall
 from holoview.ui.exports import export_maps, export_window_png
@@ -42,7 +41,7 @@ from holoview.ui.recording_panel import RecordingPanel
 from holoview.ui.settings import ui_settings
 from holoview.ui.source_panel import SourcePanel
 from holoview.ui.spectrum_view import SpectrumView
-from holoview.ui.status_bar import LiveFigures, LiveStatusBar
+from holoview.ui.status_bar import LiveFigures, LiveStatusBar, RateMeter
 from holoview.ui.surface_view import FUSED, SurfaceView
 from holoview.ui.transport_bar import TransportBar
 from holoview.ui.trends_view import TrendsView
@@ -586,8 +585,12 @@ class MainWindow(ExperimentActions, QMainWindow):
         self.restoreState(self._default_state)
         self.transport.attach(self.transport.control)
 
-    def closeEvent(self, event: QCloseEvent) -> None:
-        """Stop every thread and timer, remember the layout, then close."""
+    def shut_down(self) -> None:
+        """Stop every thread and timer (a recording's file closed), remember the layout.
+
+        What closing the window does before it goes; also called alone when the display
+        is lost (:mod:`holoview.ui.app`), where the window cannot be closed.
+        """
         self.timer.stop()
         opened = self.opener.wait()
         if isinstance(opened, LiveSession):
@@ -595,4 +598,8 @@ class MainWindow(ExperimentActions, QMainWindow):
         self.discovery.wait()
         self.stop_source()
         self.save_layout()
+
+    def closeEvent(self, event: QCloseEvent) -> None:
+        """Stop every thread and timer, remember the layout, then close."""
+        self.shut_down()
         super().closeEvent(event)

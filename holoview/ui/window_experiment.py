@@ -20,11 +20,15 @@ from holoview.engine.experiment import Experiment, LabelledPeak
 from holoview.errors import HoloviewError
 
 if TYPE_CHECKING:
-    from holoview.live.pipeline import LiveResult
+    from holoview.live.maps_pipeline import LiveResult
     from holoview.live.session import LiveSession
     from holoview.ui.spectrum_view import SpectrumView
     from holoview.ui.status_bar import LiveStatusBar
     from holoview.ui.surface_view import SurfaceView
+
+
+#: Added to the name of an experiment file the window could not read, for its own settings.
+IGNORED_SUFFIX = ".window.json"
 
 
 class ExperimentActions:
@@ -121,7 +125,13 @@ class ExperimentActions:
             try:
                 self.experiment = Experiment.load(self.experiment_path)
             except HoloviewError as exc:
-                problem = f"experiment settings ignored: {exc}"
+                # the file is the user's: kept as it is, the window's settings saved beside
+                ignored = self.experiment_path
+                self.experiment_path = ignored.with_name(ignored.name + IGNORED_SUFFIX)
+                problem = (
+                    f"experiment settings ignored: {exc} (the file is kept; this window's "
+                    f"settings are saved to {self.experiment_path})"
+                )
         try:
             self.experiment = replace(self.experiment, **self.optics)
         except HoloviewError as exc:

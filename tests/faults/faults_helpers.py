@@ -200,6 +200,79 @@ def stop_signal(child: subprocess.Popen[str], name: str) -> None:
     child.send_signal(getattr(signal, name))
 
 
+def descendants(pid: int) -> set[int]:
+    """Every process below ``pid`` now (from /proc)."""
+    parents: dict[int, int] = {}
+    for entry in Path("/proc").iterdir():
+        if entry.name.isdigit():
+            try:
+                stat = (entry / "stat").read_text()
+            except OSError:
+                continue
+            parents[int(entry.name)] = int(stat.rsplit(")", 1)[1].split()[1])
+    found: set[int] = set()
+    todo = [pid]
+    while todo:
+        parent = todo.pop()
+        children = {p for p, pp in parents.items() if pp == parent}
+        todo += list(children - found)
+        found |= children
+    return found
+
+
+def alive(pid: int) -> bool:
+    """Whether process ``pid`` runs (a zombie, ended but not reaped, does not)."""
+    try:
+        stat = Path(f"/proc/{pid}/stat").read_text()
+    except OSError:
+        return False
+    return stat.rsplit(")", 1)[1].split()[0] != "Z"
+
+
+def command_line(pid: int) -> str:
+    """Process ``pid``'s command line, its words joined by spaces ("" once it ended)."""
+    try:
+        return Path(f"/proc/{pid}/cmdline").read_bytes().replace(b"\0", b" ").decode()
+    except OSError:
+        return ""
+
+
+def start_holoview_to_files(
+    folder: Path, *args: str, env: dict[str, str] | None = None
+) -> subprocess.Popen[str]:
+    """Start ``python -m holoview ARGS`` with stdout and stderr in files of ``folder``.
+
+    For children whose own children may outlive them: a pipe would stay open as long
+    as they do. ``env`` is added to :func:`child_env`'s. Read the output with
+    :func:`output_of`.
+    """
+    with open(folder / "stdout.txt", "w") as out, open(folder / "stderr.txt", "w") as err:
+        child = subprocess.Popen(
+            [sys.executable, "-m", "holoview", *args],
+            stdout=out,
+            stderr=err,
+            text=True,
+            env=child_env(**(env or {})),
+        )
+    _children.append(child)
+    return child
+
+
+def output_of(folder: Path, child: subprocess.Popen[str], timeout: float = 60.0) -> Done:
+    """Wait for a child of :func:`start_holoview_to_files` (killed after ``timeout`` s, which
+    fails the test); its exit status and output."""
+    start = time.monotonic()
+    try:
+        child.wait(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        child.kill()
+        child.wait()
+        pytest.fail(f"holoview did not end within {timeout} s")
+    out = (folder / "stdout.txt").read_text()
+    err = (folder / "stderr.txt").read_text()
+    return Done(child.returncode, out, err, time.monotonic() - start)
+
+
 def run_main(args: list[str], capsys: pytest.CaptureFixture) -> Done:
     """Run holoview's ``main`` in this process (faster than a child) and capture its output."""
     from holoview.cli import main

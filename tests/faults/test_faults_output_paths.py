@@ -16,7 +16,7 @@ import pytest
 from faults_helpers import child_env, fill_disk, one_line_error, run_holoview, run_main
 
 from holoview.headless.batch import INDEX_CSV, output_names, process_batch, text_cell
-from holoview.headless.run import PeakChoice
+from holoview.headless.settings import PeakChoice, ProcessOptions
 from holoview.paths import MAX_NAME_BYTES, confined_name
 
 
@@ -157,7 +157,8 @@ def test_an_interrupted_batch_rerun_leaves_an_index_that_describes_the_folders(
         shutil.copy(sim_recording, runs / name)
     recordings = sorted(runs.iterdir())
     out = tmp_path / "out"
-    process_batch(recordings, out, choice=PeakChoice(auto=4), frames=":20", report=False)
+    first = ProcessOptions(choice=PeakChoice(auto=4), frames=":20", report=False)
+    process_batch(recordings, out, first)
     finished: list[int] = []
 
     def stop_in_b(done: int, total: int) -> None:  # b: the second recording
@@ -166,14 +167,8 @@ def test_an_interrupted_batch_rerun_leaves_an_index_that_describes_the_folders(
         elif finished and done == 10:
             raise KeyboardInterrupt
 
-    outcome = process_batch(
-        recordings,
-        out,
-        choice=PeakChoice(auto=4),
-        report=False,
-        overwrite=True,
-        progress=stop_in_b,
-    )
+    again = ProcessOptions(choice=PeakChoice(auto=4), report=False, overwrite=True)
+    outcome = process_batch(recordings, out, again, progress=stop_in_b)
     assert outcome.interrupted
     rows = {Path(r["input"]).name: r for r in read_index(out)}
     assert [rows[n]["status"] for n in ("a.h5", "b.h5", "c.h5")] == ["ok", "interrupted", "not run"]

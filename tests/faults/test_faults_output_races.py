@@ -21,9 +21,9 @@ from faults_helpers import finish, one_line_error, run_holoview, start_holoview,
 
 from holoview import atomic
 from holoview.atomic import TargetExistsError, atomic_path, rename_no_replace, temporary_path
-from holoview.headless.output_folder import LOCK_NAME
-from holoview.headless.pipeline import ProcessSettings
-from holoview.headless.run import PeakChoice, process_file
+from holoview.headless.results.output_folder import LOCK_NAME
+from holoview.headless.run import process_file
+from holoview.headless.settings import PeakChoice, ProcessOptions, ProcessSettings
 
 #: Options that make the long numpy stack a recording holoview can process.
 STACK_OPTIONS = ("--fps", "20", "--wavelength-nm", "532", "--fluid", "water", "--jobs", "1")
@@ -129,13 +129,13 @@ def test_results_written_meanwhile_are_replaced_only_with_overwrite(
         if done == 10 and not meanwhile:
             meanwhile.update(copy_in(complete, out))
 
-    run = {"choice": PeakChoice(auto=4), "progress": another_program, "overwrite": overwrite}
+    options = ProcessOptions(choice=PeakChoice(auto=4), overwrite=overwrite)
     if not overwrite:
         with pytest.raises(TargetExistsError, match="appeared while this run was writing"):
-            process_file(sim_recording, out, **run)
+            process_file(sim_recording, out, options, progress=another_program)
         assert results_of(out) == meanwhile  # not replaced, no file of this run left
         return
-    outcome = process_file(sim_recording, out, **run)
+    outcome = process_file(sim_recording, out, options, progress=another_program)
     assert len(outcome.files) == 4
     assert results_of(out) != meanwhile
     assert not list(out.glob(".*"))
@@ -152,13 +152,8 @@ def test_an_interrupted_run_keeps_complete_results_written_meanwhile(
             meanwhile.update(copy_in(complete, out))
             raise KeyboardInterrupt
 
-    outcome = process_file(
-        sim_recording,
-        out,
-        choice=PeakChoice(auto=4),
-        settings=ProcessSettings(maps=True),
-        progress=write_then_stop,
-    )
+    options = ProcessOptions(choice=PeakChoice(auto=4), settings=ProcessSettings(maps=True))
+    outcome = process_file(sim_recording, out, options, progress=write_then_stop)
     assert outcome.data.interrupted and outcome.files == ()
     assert results_of(out) == meanwhile
 

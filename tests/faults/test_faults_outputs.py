@@ -14,8 +14,8 @@ import pytest
 from faults_helpers import child_env, one_line_error, run_holoview
 
 from holoview.atomic import OutputSet, atomic_path
-from holoview.headless.pipeline import ProcessSettings
-from holoview.headless.run import PeakChoice, process_file
+from holoview.headless.run import process_file
+from holoview.headless.settings import PeakChoice, ProcessOptions, ProcessSettings
 
 PARTIAL = "*.partial*"
 
@@ -59,9 +59,8 @@ def test_overwrite_says_what_it_replaces_and_replaces_it(
 def test_an_earlier_output_this_run_does_not_write_is_removed(
     sim_recording: Path, earlier: Path
 ) -> None:
-    outcome = process_file(
-        sim_recording, earlier, choice=PeakChoice(auto=4), report=False, overwrite=True
-    )
+    options = ProcessOptions(choice=PeakChoice(auto=4), report=False, overwrite=True)
+    outcome = process_file(sim_recording, earlier, options)
     assert (
         sorted(p.name for p in outcome.files)
         == sorted(earlier / n for n in ("trends.csv", "summary.json", "results.h5"))
@@ -77,14 +76,10 @@ def test_an_interruption_keeps_the_earlier_results(sim_recording: Path, earlier:
         if done == 10:
             raise KeyboardInterrupt
 
-    outcome = process_file(
-        sim_recording,
-        earlier,
-        choice=PeakChoice(auto=4),
-        settings=ProcessSettings(maps=True),
-        progress=stop_after_10,
-        overwrite=True,
+    options = ProcessOptions(
+        choice=PeakChoice(auto=4), settings=ProcessSettings(maps=True), overwrite=True
     )
+    outcome = process_file(sim_recording, earlier, options, progress=stop_after_10)
     assert outcome.data.interrupted and outcome.files == ()
     assert snapshot(earlier) == before
 

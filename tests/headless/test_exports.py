@@ -22,8 +22,8 @@ import xarray as xr
 import zarr
 from headless_sim import Simulated, run_cli
 
-from holoview.headless import cf, export_mat, exports
-from holoview.headless.results_layout import map_dimensions
+from holoview.headless.results import cf, export_mat, exports
+from holoview.headless.results.results_layout import map_dimensions
 
 V1_FILE = Path(__file__).parent / "data" / "results_v1.h5"
 

@@ -11,8 +11,7 @@ import pytest
 import tifffile
 from headless_sim import Simulated, run_cli
 
-from holoview.engine.series import PhaseSeries
-from holoview.headless.pipeline import RunData, fuse_frame
+from holoview.engine.map_step import FUSION_METHOD, fuse_maps
 from holoview.processing.maps.coregister import MIN_MAP_SIDE, Displacement, coregister
 from holoview.processing.maps.heights import fuse
 
@@ -47,40 +46,22 @@ def test_displacements_are_reported_and_stored_with_the_maps(
                 assert entry["shift_map_px"] == [0.0, 0.0]
 
 
-def run_data(steps: list[list[bool]], shifts: list[tuple[float, float]]) -> RunData:
-    n, m = len(steps), len(steps[0])
-    series = PhaseSeries.from_arrays(
-        [f"P{j}" for j in range(m)],
-        times=np.arange(n, dtype=float),
-        frames=np.arange(n),
-        values=np.ones((n, m), complex),
-        noise_rad=np.full((n, m), 0.1),
-        phase_steps=np.array(steps),
-    )
-    return RunData(
-        series=series,
-        map_noise_rad=np.full((n, m), 0.1),
-        map_flags=[{"low_amplitude": 0, "overlap": 0} for _ in range(m)],
-        box_shape=(32, 32),
-        radius=0.1,
-        displacements=[Displacement(s, (0.01, 0.01), True, 50) for s in shifts],
-    )
-
-
-def test_fuse_frame_moves_the_maps_and_leaves_out_a_peak_that_stepped() -> None:
+def test_fuse_maps_moves_the_maps_and_leaves_out_a_peak_that_stepped() -> None:
+    """The maps step's fusion: moved by the displacements (Keys' cubic), stepped peaks out."""
     rng = np.random.default_rng(0)
     maps = [rng.normal(size=(32, 32)).astype(np.float32) for _ in range(3)]
     shifts = [(0.0, 0.0), (0.5, -0.25), (1.0, 2.0)]
-    scales = [1e-9, 2e-9, 3e-9]
-    data = run_data([[False, False, False], [False, True, False], [True, True, True]], shifts)
-    for position, chosen in ((0, [0, 1, 2]), (1, [0, 2]), (2, [0, 1, 2])):
-        fused = fuse_frame(data, position, maps, scales)
-        moved = coregister([maps[j] for j in chosen], [shifts[j] for j in chosen])
-        expected, _ = fuse(
-            moved, [0.1 * scales[j] for j in chosen], masks=[np.isfinite(m) for m in moved]
+    displacements = [Displacement(s, (0.01, 0.01), True, 50) for s in shifts]
+    noise = [0.1e-9, 0.2e-9, 0.3e-9]
+    steps = [[False, False, False], [False, True, False], [True, True, True]]
+    for stepped, chosen in zip(steps, ([0, 1, 2], [0, 2], [0, 1, 2]), strict=True):
+        fused = fuse_maps(maps, noise, stepped, displacements)
+        moved = coregister(
+            [maps[j] for j in chosen], [shifts[j] for j in chosen], method=FUSION_METHOD
         )
+        expected, _ = fuse(moved, [noise[j] for j in chosen], masks=[np.isfinite(m) for m in moved])
         np.testing.assert_allclose(fused, expected, rtol=1e-5, equal_nan=True)
-    assert fuse_frame(data, 0, maps, [1e-9, None, None]) is None  # one peak: nothing to fuse
+    assert fuse_maps([maps[0], None, None], noise, steps[0], displacements) is None  # one map
 
 
 def test_maps_too_small_to_co_register_are_fused_as_they_are(

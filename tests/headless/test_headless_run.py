@@ -10,8 +10,8 @@ import h5py
 import pytest
 from headless_sim import Simulated
 
-from holoview.headless.pipeline import ProcessSettings
-from holoview.headless.run import PeakChoice, process_file
+from holoview.headless.run import process_file
+from holoview.headless.settings import PeakChoice, ProcessOptions, ProcessSettings
 
 
 def test_an_interruption_keeps_the_results_of_the_frames_done(
@@ -23,13 +23,11 @@ def test_an_interruption_keeps_the_results_of_the_frames_done(
             raise KeyboardInterrupt
 
     out = tmp_path / "partial"
-    outcome = process_file(
-        evaporation.path,
-        out,
+    options = ProcessOptions(
         choice=PeakChoice(labels={k: evaporation.carriers[k] for k in ("RB1", "FB1")}),
         settings=ProcessSettings(maps=True),
-        progress=stop_after_25,
     )
+    outcome = process_file(evaporation.path, out, options, progress=stop_after_25)
     assert outcome.data.interrupted
     assert len(outcome.data.frames) == 25
     summary = json.loads((out / "summary.json").read_text())

@@ -14,7 +14,7 @@ import tifffile
 from headless_sim import Simulated, run_cli
 
 from holoview.acquire.recording import RecordingWriter
-from holoview.headless.outputs import TRENDS_HEADER
+from holoview.headless.results.outputs import TRENDS_HEADER
 
 FIRST_ORDER = {"RB1", "RF", "FB1", "RB2"}
 

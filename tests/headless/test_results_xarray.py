@@ -23,8 +23,8 @@ import xarray as xr
 from headless_sim import Simulated, run_cli
 
 from holoview.errors import InputError
-from holoview.headless.exports import export_results
-from holoview.headless.results_data import map_labels, open_results, results_version
+from holoview.headless.results.exports import export_results
+from holoview.headless.results.results_data import map_labels, open_results, results_version
 
 V1_FILE = Path(__file__).parent / "data" / "results_v1.h5"
 

@@ -4,7 +4,8 @@ A simulated recording (which carries its true experiment) goes through the live 
 (no Qt: a replay source, the camera thread, the ring, the series worker taking every
 frame) and through ``holoview process`` with no peak options; the per-frame carrier
 values, the mean heights per peak and fused, and the rates must agree to float32
-rounding.
+rounding; every frame's maps, the fused one included, are the same maps step's
+(:class:`holoview.engine.map_step.MapStep`), equal to the last bit.
 """
 
 from __future__ import annotations
@@ -18,8 +19,9 @@ import pytest
 
 from holoview.cli import main
 from holoview.engine.depth import summarise
-from holoview.headless.run import PeakChoice, process_file
-from holoview.live import pipeline as live_pipeline
+from holoview.headless.run import process_file
+from holoview.headless.settings import ProcessOptions
+from holoview.live import maps_pipeline
 from holoview.live.session import LiveSession
 
 
@@ -29,17 +31,24 @@ def recording(simulate_evaporation) -> Path:
     return simulate_evaporation(60)
 
 
-def _live_run(path: Path, experiment, monkeypatch: pytest.MonkeyPatch) -> LiveSession:
-    """Replay ``path`` once, as fast as it reads, every frame through the live worker."""
+def _live_run(
+    path: Path, experiment, monkeypatch: pytest.MonkeyPatch, results: list | None = None
+) -> LiveSession:
+    """Replay ``path`` once, as fast as it reads, every frame through the live worker.
+
+    ``results``: every frame's :class:`~holoview.live.maps_pipeline.LiveResult` is added to it.
+    """
     # peaks are detected once (on the first frame, as process does): the parity is the
     # per-frame core's, not the live re-detection's schedule
-    monkeypatch.setattr(live_pipeline, "PEAKS_HZ", 1e-9)
+    monkeypatch.setattr(maps_pipeline, "PEAKS_HZ", 1e-9)
     session = LiveSession(
         f"replay:{path}",
         experiment,
         source_options={"loop": False, "hold": False, "speed": "fast"},
         every_frame=True,
     )
+    if results is not None:
+        session.on_maps(lambda: results.append(session.latest()))  # on the maps thread
     session.start()
     deadline = time.monotonic() + 60
     while session.worker.running and time.monotonic() < deadline:
@@ -53,15 +62,10 @@ def _live_run(path: Path, experiment, monkeypatch: pytest.MonkeyPatch) -> LiveSe
 def test_live_engine_and_process_agree_on_every_frame(
     recording: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, reference: str
 ) -> None:
-    from holoview.headless.pipeline import ProcessSettings
+    from holoview.headless.settings import ProcessSettings
 
-    outcome = process_file(
-        recording,
-        tmp_path / "out",
-        choice=PeakChoice(),
-        settings=ProcessSettings(reference=reference),
-        report=False,
-    )
+    options = ProcessOptions(settings=ProcessSettings(reference=reference), report=False)
+    outcome = process_file(recording, tmp_path / "out", options)
     assert outcome.selection.source == "recording"
     session = _live_run(recording, outcome.experiment, monkeypatch)
     for worker in (session.worker, session.series_worker):
@@ -95,7 +99,7 @@ def test_a_fast_injection_watched_live_gives_the_headless_rates(
     argv = ["-q", "simulate", str(path), "--scenario", "injection", "--size", "256"]
     argv += ["--frames", "80", "--fps", "25", "--seed", "2", "--injection-ul-per-s", "12.3"]
     assert main([*argv, "--basin-area-cm2", "70.6"]) == 0
-    outcome = process_file(path, tmp_path / "out", choice=PeakChoice(), report=False)
+    outcome = process_file(path, tmp_path / "out", ProcessOptions(report=False))
     session = _live_run(path, outcome.experiment, monkeypatch)
     assert session.series_worker.status().read == 80
     live = session.summary()
@@ -107,3 +111,37 @@ def test_a_fast_injection_watched_live_gives_the_headless_rates(
     assert live.fit.rate == pytest.approx(truth, rel=0.01)  # the target: within 1 %
     for fit, peak in zip(live.peak_fits, headless.peaks, strict=True):
         assert fit is not None and fit.rate == pytest.approx(peak.rate, rel=1e-5)
+
+
+@pytest.mark.parametrize("reference", ["relative", "absolute"])
+def test_live_maps_are_those_process_writes(
+    recording: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, reference: str
+) -> None:
+    """Every frame's maps of each peak and the fused map, live and ``process --maps``: equal.
+
+    The displacements are the one thing the live maps measure as they go (``process``
+    before its maps); the evaporating surface has no structure to measure them on, so
+    they are zero in both, and the fused maps must be equal too.
+    """
+    from holoview.headless.settings import ProcessSettings
+
+    settings = ProcessSettings(reference=reference, maps=True)
+    outcome = process_file(
+        recording, tmp_path / "out", ProcessOptions(settings=settings, report=False)
+    )
+    results: list = []
+    _live_run(recording, outcome.experiment, monkeypatch, results)
+    assert [r.frame_index for r in results] == list(range(60))
+    assert not any(d.measured for d in outcome.data.displacements[1:])
+    with h5py.File(tmp_path / "out" / "results.h5", "r") as f:
+        labels = [p.label for p in outcome.analysis.peaks]
+        assert {*labels, "fused"} <= set(f["maps"])
+        for r in results:
+            assert set(r.heights_m) == set(labels)
+            for label in labels:
+                written = f["maps"][label][r.frame_index]
+                trusted = np.isfinite(written)
+                assert trusted.any() or r.frame_index == 0
+                np.testing.assert_array_equal(r.heights_m[label][trusted], written[trusted])
+            assert r.fused_m is not None
+            np.testing.assert_array_equal(r.fused_m, f["maps"]["fused"][r.frame_index])

@@ -12,7 +12,7 @@ import pytest
 
 from holoview.acquire.ring import FrameRing
 from holoview.engine.experiment import Experiment
-from holoview.live.pipeline import LivePipeline
+from holoview.live.maps_pipeline import MapsPipeline
 from holoview.live.worker import YIELDING_NICENESS, DemodWorker, yield_to_others
 
 pytestmark = pytest.mark.skipif(
@@ -50,7 +50,7 @@ def _eventually(check, seconds: float = 2.0) -> bool:
 
 def test_the_maps_worker_and_its_peak_thread_run_niced() -> None:
     ring = FrameRing(4, (64, 64), np.uint16)
-    worker = DemodWorker(ring, LivePipeline(Experiment(), (64, 64)))
+    worker = DemodWorker(ring, MapsPipeline(Experiment(), (64, 64)))
     expected = min(_nice_of(threading.get_native_id()) + YIELDING_NICENESS, 19)
     worker.start()
     try:

@@ -19,9 +19,9 @@ from holoview.acquire.recording import RecordingReader
 from holoview.acquire.source import FrameMeta
 from holoview.engine.experiment import Experiment
 from holoview.errors import InputError
-from holoview.live import trends as live_trends
+from holoview.live import series_pipeline
 from holoview.live.continuity import Continuity
-from holoview.live.pipeline import LivePipeline, LiveResult
+from holoview.live.maps_pipeline import LiveResult, MapsPipeline
 from holoview.live.replay_control import FASTEST
 from holoview.live.session import LiveSession
 
@@ -43,7 +43,7 @@ def _frames(path: Path) -> np.ndarray:
         return reader[:]
 
 
-def _play(pipeline: LivePipeline, frames: np.ndarray, plan: list[tuple[int, int]]) -> list:
+def _play(pipeline: MapsPipeline, frames: np.ndarray, plan: list[tuple[int, int]]) -> list:
     """Process ``(index, segment)`` in order, as a replay would deliver them."""
     return [
         pipeline.process(frames[i], FrameMeta(i, i * 0.05, 100 + i * 0.05, file_index=i, segment=s))
@@ -70,7 +70,7 @@ def test_continuity_breaks_only_where_the_segment_changes() -> None:
 
 def test_relative_maps_never_pair_frames_across_a_jump(recording: Path) -> None:
     frames = _frames(recording)
-    pipeline = LivePipeline(_stored(recording, "relative"), frames.shape[1:])
+    pipeline = MapsPipeline(_stored(recording, "relative"), frames.shape[1:])
     plan = [(0, 0), (1, 0), (2, 0), (20, 1), (21, 1), (20, 2)]
     results = _play(pipeline, frames, plan)
     assert [(r.frame_index, r.segment) for r in results] == plan
@@ -87,7 +87,7 @@ def test_relative_maps_never_pair_frames_across_a_jump(recording: Path) -> None:
 
 def test_absolute_reference_is_kept_across_a_jump(recording: Path) -> None:
     frames = _frames(recording)
-    pipeline = LivePipeline(_stored(recording, "absolute"), frames.shape[1:])
+    pipeline = MapsPipeline(_stored(recording, "absolute"), frames.shape[1:])
     results = _play(pipeline, frames, [(0, 0), (1, 0), (10, 1), (11, 1)])
     name = "RB1"
     assert not np.any(results[0].heights_m[name])  # the reference frame
@@ -115,7 +115,7 @@ def _shown(session: LiveSession, index: int) -> LiveResult:
 def test_a_steered_session_follows_seeks_and_restarts_its_trends(
     recording: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    monkeypatch.setattr(live_trends, "TREND_HZ", math.inf)
+    monkeypatch.setattr(series_pipeline, "TREND_HZ", math.inf)
     session = LiveSession(
         f"replay:{recording}",
         _stored(recording, "relative"),

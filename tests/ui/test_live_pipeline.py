@@ -9,10 +9,9 @@ import pytest
 
 from holoview.acquire.source import FrameMeta
 from holoview.engine.experiment import Experiment, LabelledPeak
-from holoview.live import pipeline as live_pipeline
-from holoview.live import trends as live_trends
-from holoview.live.pipeline import LivePipeline, block_max
-from holoview.live.trends import SeriesPipeline
+from holoview.live import maps_pipeline, series_pipeline
+from holoview.live.maps_pipeline import MapsPipeline, block_max
+from holoview.live.series_pipeline import SeriesPipeline
 
 from .holograms import FB1, N1, N2, RB1, WAVELENGTH_M, carriers, hologram_stack
 
@@ -29,7 +28,7 @@ def _experiment(**changes: object) -> Experiment:
     return Experiment(**{**base.__dict__, **changes})
 
 
-def _run(pipeline: LivePipeline, frames: np.ndarray, dt: float = 0.1) -> list:
+def _run(pipeline: MapsPipeline, frames: np.ndarray, dt: float = 0.1) -> list:
     return [
         pipeline.process(frame, FrameMeta(frame_id=i, t_device=i * dt, t_host=100.0 + i * dt))
         for i, frame in enumerate(frames)
@@ -45,7 +44,7 @@ def test_block_max_keeps_narrow_peaks() -> None:
 
 def test_two_labels_bring_predicted_peaks_and_maps() -> None:
     frames = hologram_stack(6, (128, 128))
-    results = _run(LivePipeline(_experiment(), (128, 128)), frames)
+    results = _run(MapsPipeline(_experiment(), (128, 128)), frames)
     last = results[-1]
     truth = carriers()
     assert set(last.predicted) >= {"RF", "RB2"}
@@ -64,10 +63,10 @@ def test_two_labels_bring_predicted_peaks_and_maps() -> None:
 def test_maps_are_co_registered_by_their_measured_displacements(monkeypatch) -> None:
     """Families imaging the bump at shifted places: the shifts are measured, in camera pixels,
     against the first labelled peak, and the fused map is put on its grid."""
-    monkeypatch.setattr(live_pipeline, "COREGISTER_HZ", math.inf)  # every frame
+    monkeypatch.setattr(maps_pipeline, "COREGISTER_HZ", math.inf)  # every frame
     images = {"RB1": (0.5, -0.5), "RF": (3.0, -2.0), "RB2": (-2.0, 1.5)}
     frames = hologram_stack(40, (128, 128), shifts=images)
-    results = _run(LivePipeline(_experiment(), (128, 128)), frames)
+    results = _run(MapsPipeline(_experiment(), (128, 128)), frames)
     assert results[0].shifts_px == {"RB1": (0.0, 0.0)}  # a reference frame: nothing measured
     last = results[-1]
     assert last.grid_of == "RB1" and last.fused_m is not None
@@ -80,7 +79,7 @@ def test_maps_are_co_registered_by_their_measured_displacements(monkeypatch) -> 
 
 def test_maps_too_small_to_co_register_are_fused_unmoved() -> None:
     frames = hologram_stack(3, (32, 32))
-    last = _run(LivePipeline(_experiment(radius=0.06), (32, 32)), frames)[-1]
+    last = _run(MapsPipeline(_experiment(radius=0.06), (32, 32)), frames)[-1]
     assert last.fused_m is not None and min(last.fused_m.shape) < 8
     assert last.shifts_px == {} and last.grid_of is None
 
@@ -88,13 +87,13 @@ def test_maps_too_small_to_co_register_are_fused_unmoved() -> None:
 def test_custom_label_has_phase_but_no_height() -> None:
     frames = hologram_stack(3, (128, 128))
     experiment = _experiment(peaks=(LabelledPeak("mine", RB1),))
-    last = _run(LivePipeline(experiment, (128, 128)), frames)[-1]
+    last = _run(MapsPipeline(experiment, (128, 128)), frames)[-1]
     assert last.predicted == {}
     assert "mine" in last.phases_rad and "mine" not in last.heights_m
 
 
 def test_commands_change_settings_between_frames() -> None:
-    pipeline = LivePipeline(_experiment(peaks=()), (128, 128))
+    pipeline = MapsPipeline(_experiment(peaks=()), (128, 128))
     frames = hologram_stack(2, (128, 128))
     assert _run(pipeline, frames[:1])[0].labelled == {}
     pipeline.apply("experiment", _experiment())
@@ -103,7 +102,7 @@ def test_commands_change_settings_between_frames() -> None:
 
 
 def test_reset_restarts_the_absolute_reference() -> None:
-    pipeline = LivePipeline(_experiment(), (128, 128))
+    pipeline = MapsPipeline(_experiment(), (128, 128))
     frames = hologram_stack(6, (128, 128))
     before = _run(pipeline, frames[:4])[-1]
     assert np.nanmax(np.abs(before.fused_m)) > 5e-9
@@ -114,7 +113,7 @@ def test_reset_restarts_the_absolute_reference() -> None:
 
 def _series_run(frames: np.ndarray, dt: float = 0.1) -> tuple[SeriesPipeline, list]:
     """The maps pipeline resolves the peaks; the series pipeline takes every frame."""
-    maps = LivePipeline(_experiment(), (128, 128))
+    maps = MapsPipeline(_experiment(), (128, 128))
     series = SeriesPipeline((128, 128))
     trends = []
     for i, frame in enumerate(frames):
@@ -126,7 +125,7 @@ def _series_run(frames: np.ndarray, dt: float = 0.1) -> tuple[SeriesPipeline, li
 
 
 def test_series_takes_every_frame_and_summarises_depths_and_rate(monkeypatch) -> None:
-    monkeypatch.setattr(live_trends, "TREND_HZ", math.inf)  # a summary every frame
+    monkeypatch.setattr(series_pipeline, "TREND_HZ", math.inf)  # a summary every frame
     series, trends = _series_run(hologram_stack(6, (128, 128)))
     assert trends[:2] == [None, None]  # fewer than three frames
     last = trends[-1]
@@ -140,7 +139,7 @@ def test_series_takes_every_frame_and_summarises_depths_and_rate(monkeypatch) ->
 
 
 def test_series_restarts_on_reset_and_on_new_peaks(monkeypatch) -> None:
-    monkeypatch.setattr(live_trends, "TREND_HZ", math.inf)
+    monkeypatch.setattr(series_pipeline, "TREND_HZ", math.inf)
     frames = hologram_stack(6, (128, 128))
     series, _ = _series_run(frames[:4])
     series.apply("reset")

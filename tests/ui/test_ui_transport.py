@@ -10,7 +10,7 @@ import pytest
 from PyQt6.QtCore import Qt
 
 from holoview.engine.experiment import Experiment, LabelledPeak
-from holoview.live import trends as live_trends
+from holoview.live import series_pipeline
 from holoview.ui.main_window import MainWindow
 from holoview.ui.trends_view import JUMPED
 
@@ -94,7 +94,7 @@ def test_buttons_keys_and_slider_move_the_frame_shown(qtbot, open_windows, tmp_p
 
 
 def test_maps_and_trends_follow_a_jump(qtbot, open_windows, tmp_path, hologram_file, monkeypatch):
-    monkeypatch.setattr(live_trends, "TREND_HZ", math.inf)
+    monkeypatch.setattr(series_pipeline, "TREND_HZ", math.inf)
     peaks = (LabelledPeak("RB1", RB1), LabelledPeak("FB1", FB1))
     window = _window(qtbot, open_windows, tmp_path, f"replay:{hologram_file}", peaks)
     assert window.experiment.reference == "relative"

@@ -13,7 +13,8 @@ from PyQt6.QtCore import QTimer
 
 from holoview.acquire.recording import RecordingReader
 from holoview.engine.experiment import Experiment
-from holoview.headless.run import PeakChoice, process_file
+from holoview.headless.run import process_file
+from holoview.headless.settings import ProcessOptions
 from holoview.live.session import RecordRequest
 from holoview.ui.main_window import MainWindow
 from holoview.ui.settings import ui_settings
@@ -127,7 +128,7 @@ def test_a_recording_made_in_the_window_carries_the_operators_labels_to_process(
     assert len(stored) == 2 and stored[0][0] == 0 and stored[1][0] >= 3
     first, changed = (Experiment.from_json(text) for _, text in stored)
     assert {p.label for p in first.peaks} == {"RB1", "FB1"} and changed.radius == 0.045
-    outcome = process_file(target, tmp_path / "out", choice=PeakChoice(), report=False)
+    outcome = process_file(target, tmp_path / "out", ProcessOptions(report=False))
     assert outcome.selection.source == "recording"
     labels = {p.label for p in outcome.selection.peaks}
     assert labels >= {"RB1", "FB1", "RF", "RB2"}  # the operator's two, the model's rest

@@ -48,8 +48,9 @@ MAX_CACHED_PLANS = 48
 _WISDOM_FILE = "wisdom.bin"
 _lock = threading.Lock()
 _plans: OrderedDict[tuple[object, ...], pyfftw.FFTW] = OrderedDict()
-#: The wisdom file imported so far (None: not yet), so each file is read once.
-_loaded: dict[str, Path | None] = {"wisdom": None}
+#: The wisdom file imported so far (None: not yet), so each file is read once; and the
+#: wisdom adopted from another process (:func:`adopt_wisdom`), if any.
+_loaded: dict[str, object] = {"wisdom": None, "adopted": None}
 
 
 def cache_dir() -> Path:
@@ -219,6 +220,31 @@ def usable_cpus() -> int:
         return max(1, len(os.sched_getaffinity(0)))
     except AttributeError:  # pragma: no cover - not on Linux
         return max(1, os.cpu_count() or 1)
+
+
+def current_wisdom() -> tuple[bytes, ...]:
+    """The wisdom this process plans from now (FFTW's, exported): to hand to another process."""
+    with _lock:
+        load_wisdom()
+        return tuple(pyfftw.export_wisdom())
+
+
+def adopt_wisdom(wisdom: tuple[bytes, ...]) -> None:
+    """Plan from ``wisdom`` (another process's :func:`current_wisdom`) alone from now on.
+
+    Its plans are then the other process's, transform for transform, and so are the
+    numbers they give: a worker's maps equal the parent's to the last bit. The wisdom
+    file is not read any more in this process, and the plans cached are dropped; a
+    second call with the same wisdom does nothing.
+    """
+    with _lock:
+        if _loaded.get("adopted") == wisdom:
+            return
+        pyfftw.forget_wisdom()
+        pyfftw.import_wisdom(wisdom)
+        _loaded["adopted"] = wisdom
+        _loaded["wisdom"] = wisdom_path()  # the file's wisdom is not mixed in
+        _plans.clear()
 
 
 def clear_plans() -> None:

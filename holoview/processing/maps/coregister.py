@@ -49,7 +49,6 @@ import numpy as np
 from scipy import ndimage
 
 from holoview.errors import InputError
-from holoview.processing.maps.heights import fuse
 
 #: Smallest side (pixels) of maps the estimator takes; smaller maps are not co-registered.
 MIN_MAP_SIDE = 8
@@ -483,5 +482,22 @@ def fuse_coregistered(
         sigma = np.ones(len(maps))
     if shifts is not None:
         maps = coregister(maps, shifts, method=method)
-    fused, _ = fuse(maps, list(sigma), masks=[np.isfinite(m) for m in maps])
+    if not maps:
+        raise InputError("no maps to fuse")
+    # sum(w m) / sum(w) over the trusted maps of each pixel (heights.fuse's rule), one
+    # map at a time: no stack of the frame's maps in float64
+    shape = np.shape(maps[0])
+    total = np.zeros(shape, dtype=np.float64)
+    weight = np.zeros(shape, dtype=np.float64)
+    for values, s in zip(maps, sigma, strict=True):
+        array = np.asarray(values, dtype=np.float32)
+        if array.shape != shape:
+            raise InputError(f"maps of shapes {shape} and {array.shape} cannot be fused")
+        trusted = np.isfinite(array)
+        w = 1.0 / float(s) ** 2
+        total += np.where(trusted, array, np.float32(0.0)) * w
+        weight += trusted * w
+    with np.errstate(invalid="ignore", divide="ignore"):
+        fused = total / weight
+    fused[weight == 0] = np.nan
     return fused.astype(np.float32)

@@ -79,7 +79,7 @@ class PeakResult:
     flags : frozenset of str
         ``"reference"`` (this frame became the reference; phase zero),
         ``"phase_step"`` (mean phase moved more than
-        :data:`~holoview.processing.maps.demodulate.PHASE_STEP_LIMIT`
+        :data:`~holoview.processing.maps.mean_phases.PHASE_STEP_LIMIT`
         since the previous frame), ``"low_amplitude"`` (few trusted pixels),
         ``"overlap"`` (window wider than half the distance to another peak).
     """

@@ -35,7 +35,6 @@ at a time. It creates no thread; FFTW may use ``threads`` internally.
 
 from __future__ import annotations
 
-import cmath
 import logging
 from collections.abc import Sequence
 
@@ -55,6 +54,7 @@ from holoview.processing.maps.demod_results import (
     DemodResult,
     PeakResult,
 )
+from holoview.processing.maps.mean_phases import MeanPhases, MeanPhaseState
 from holoview.processing.maps.phase_maps import (
     PhaseMap,
     floor_bins,
@@ -68,6 +68,7 @@ from holoview.processing.peaks.radii import (
     check_peaks,
     check_radii,
     distinct_neighbours,
+    fell_back,
     peak_name,
     peak_windows,
     radius_rule,
@@ -79,9 +80,6 @@ __all__ = ["Demodulator"]
 
 #: Box size (bins) from which a box's inverse FFT uses the frame FFT's threads.
 LARGE_BOX = 256 * 256
-
-#: A mean-phase step per frame (rad) beyond which a peak is flagged ``"phase_step"``.
-PHASE_STEP_LIMIT = 0.8 * np.pi
 
 #: A peak with fewer trusted pixels than this fraction of those it could have (inside the
 #: aperture, off the border) is flagged ``"low_amplitude"``.
@@ -234,7 +232,7 @@ class Demodulator:
         fallbacks = tuple(
             f"{peak_name(self.peaks, i)}: {w.reason} ({w.radius:.4g} cycles/pixel)"
             for i, w in enumerate(self.windows)
-            if spectrum is not None and w.rule == "bound" and radius_rule(radius) == "matched"
+            if radius_rule(radius) == "matched" and fell_back(w)
         )
         #: what the user should know about the windows: a given radius reaching a peak,
         #: a matched window at the bound for want of measurable surface power
@@ -302,16 +300,16 @@ class Demodulator:
         n = len(self.peaks)
         self._index = 0
         self._ref_conj: list[np.ndarray | None] = [None] * n
-        self._prev_value: list[complex | None] = [None] * n
-        self._ref_value: list[complex | None] = [None] * n
-        self._unwrapped_mean = [0.0] * n
-        #: the reference's spectrum at the noise-floor bins (absolute and relative modes)
-        self._ref_floor: np.ndarray | None = None
+        background = None
         if self._background is not None:
-            for i, (conj, value) in enumerate(self._background):
+            background = [value for _, value in self._background]
+            for i, (conj, _) in enumerate(self._background):
                 self._ref_conj[i] = conj.copy()
-                self._ref_value[i] = value
-            self._ref_floor = self._background_floor
+        self._phases = MeanPhases(n, self.reference, background)
+        #: the reference's spectrum at the noise-floor bins (absolute and relative modes)
+        self._ref_floor: np.ndarray | None = (
+            None if self._background is None else self._background_floor
+        )
 
     def break_sequence(self) -> None:
         """Forget the previous frame: the next one does not follow it (a replay jumped).
@@ -322,14 +320,14 @@ class Demodulator:
         (the next frame's is taken as it is, against the reference), and no phase step
         is measured over it.
         """
-        n = len(self.peaks)
-        self._prev_value = [None] * n
+        self._phases.break_sequence()
         if self.reference == "relative":
-            self._ref_conj = [None] * n
-            self._ref_value = [None] * n
+            self._ref_conj = [None] * len(self.peaks)
             self._ref_floor = None
 
-    def set_background(self, background: np.ndarray | None) -> None:
+    def set_background(
+        self, background: np.ndarray | None, values: Sequence[complex] | np.ndarray | None = None
+    ) -> None:
         """Take absolute phases against an object-free hologram from the next frame on.
 
         Parameters
@@ -338,6 +336,9 @@ class Demodulator:
             A hologram of the demodulator's shape (counts; not modified), recorded
             without the object (or before the change to measure); None returns to
             taking the first frame after :meth:`reset_reference` as the reference.
+        values : sequence of complex, optional
+            Each peak's carrier value in the background measured elsewhere (counts), as
+            :meth:`process` takes them: give them when the frames' values are given.
 
         Raises
         ------
@@ -360,10 +361,12 @@ class Demodulator:
             raise InputError("the background hologram holds NaN or infinite pixels")
         flat = half.reshape(-1)
         box_plan = ifft2_plan(self.box_shape, threads=self._box_threads)
+        given = self._given(values)
         kept = []
         for i, geo in enumerate(self._boxes):
             field = self._field(i, flat, box_plan)
-            kept.append((np.conj(field), complex(np.vdot(geo.ramp, field)) / field.size))
+            value = complex(np.vdot(geo.ramp, field)) / field.size if given is None else given[i]
+            kept.append((np.conj(field), value))
         array.setflags(write=False)
         self.background, self._background = array, kept
         self._background_floor = np.take(flat, self._floor_index)
@@ -476,8 +479,43 @@ class Demodulator:
             flags=frozenset(flags),
         )
 
-    def process(self, frame: np.ndarray) -> DemodResult:
+    def _given(self, values: Sequence[complex] | np.ndarray | None) -> list[complex] | None:
+        """``values`` as one complex per peak (InputError for another count), or None."""
+        if values is None:
+            return None
+        given = [complex(v) for v in values]
+        if len(given) != len(self.peaks):
+            raise InputError(f"{len(given)} carrier values given for {len(self.peaks)} peaks")
+        return given
+
+    def phase_state(self) -> MeanPhaseState:
+        """The mean phases' running state (:mod:`~holoview.processing.maps.mean_phases`)."""
+        return self._phases.state()
+
+    def restore_phase_state(self, state: MeanPhaseState) -> None:
+        """Resume the mean phases from ``state``: that of a demodulator given the same frames.
+
+        The reference fields are not part of it: a demodulator resuming a run from its
+        middle first demodulates the run's reference frame (absolute mode) or the frame
+        before (relative mode), then restores the state the whole run would have.
+        """
+        self._phases.restore(state)
+
+    def process(
+        self, frame: np.ndarray, values: Sequence[complex] | np.ndarray | None = None
+    ) -> DemodResult:
         """Demodulate one frame (never modified) and advance the reference.
+
+        Parameters
+        ----------
+        frame : ndarray, shape ``shape``
+            The hologram, counts.
+        values : sequence of complex, optional
+            Each peak's carrier value of this frame measured elsewhere (counts; the
+            carrier probe's, :mod:`holoview.processing.series.carrier_probe`): its mean
+            phase, steps and unwrapping in time then follow them instead of the box's
+            own mean (:attr:`~holoview.processing.maps.demod_results.PeakResult.carrier_value`
+            is the value given).
 
         Returns
         -------
@@ -500,7 +538,13 @@ class Demodulator:
         flat = half.reshape(-1)
         floor = self._floor(np.take(flat, self._floor_index))
         box_plan = ifft2_plan(self.box_shape, threads=self._box_threads)
-        partial = [self._demodulate(i, flat, box_plan, mean, floor) for i in range(len(self.peaks))]
+        given = self._given(values)
+        partial = [
+            self._demodulate(
+                i, flat, box_plan, mean, floor, value=None if given is None else given[i]
+            )
+            for i in range(len(self.peaks))
+        ]
         if self.unwrap != "never":
             unwrap_maps(partial, self.peaks, always=self.unwrap == "always")
         results = tuple(self._finish(i, part) for i, part in enumerate(partial))
@@ -527,9 +571,19 @@ class Demodulator:
         return 0.0 if reference is None else floor_power(samples, reference)
 
     def _demodulate(
-        self, i: int, flat: np.ndarray, box_plan: pyfftw.FFTW, mean: float, floor: float
+        self,
+        i: int,
+        flat: np.ndarray,
+        box_plan: pyfftw.FFTW,
+        mean: float,
+        floor: float,
+        *,
+        value: complex | None,
     ) -> PhaseMap:
-        """Cut, window and invert peak ``i``'s box; phase against the reference (wrapped)."""
+        """Cut, window and invert peak ``i``'s box; phase against the reference (wrapped).
+
+        ``value``: the peak's carrier value given for this frame (else the box's own).
+        """
         peak = self.peaks[i]
         geo = self._boxes[i]
         field = self._field(i, flat, box_plan)
@@ -548,42 +602,26 @@ class Demodulator:
         if valid < MIN_VALID_FRACTION * self._trustable[i]:
             flags.add("low_amplitude")
 
-        # mean phase: the field against the sub-bin plane wave, averaged
-        value = complex(np.vdot(geo.ramp, field)) / field.size
-        prev = self._prev_value[i]
-        step = 0.0 if prev is None else cmath.phase(value * prev.conjugate())
-        if abs(step) > PHASE_STEP_LIMIT:
+        # mean phase: the field against the sub-bin plane wave, averaged (or given)
+        if value is None:
+            value = complex(np.vdot(geo.ramp, field)) / field.size
+        step = self._phases.advance(i, value)
+        if step.stepped:
             flags.add("phase_step")
-        self._prev_value[i] = value
 
         product: np.ndarray | None = self._product
         if self.reference == "synthetic":
             np.multiply(field, geo.ramp_conj, out=product)
-            if prev is None:
-                self._unwrapped_mean[i] = cmath.phase(value)
-            else:
-                self._unwrapped_mean[i] += step
-            mean_phase = cmath.phase(value)
-        elif self._ref_conj[i] is None:
+        elif step.reference:
             flags.add("reference")
             self._ref_conj[i] = np.conj(field)
-            self._ref_value[i] = value
-            self._unwrapped_mean[i] = 0.0
             product = None
-            mean_phase = 0.0
         else:
             ref_conj = self._ref_conj[i]
-            ref_value = self._ref_value[i]
-            assert ref_conj is not None and ref_value is not None  # set together above
+            assert ref_conj is not None
             np.multiply(field, ref_conj, out=product)
-            self._unwrapped_mean[i] += step
             if self.reference == "relative":
                 np.conjugate(field, out=ref_conj)
-                mean_phase = step
-            else:
-                mean_phase = cmath.phase(value * ref_value.conjugate())
-                if prev is None:  # the first against a background, or after a break
-                    self._unwrapped_mean[i] = mean_phase
         if product is None:
             phase = np.zeros(field.shape, dtype=np.float32)
             noise = 0.0
@@ -597,8 +635,8 @@ class Demodulator:
             mask=mask,
             valid=valid,
             value=value,
-            mean_phase=mean_phase,
-            target=mean_phase if self.reference == "relative" else self._unwrapped_mean[i],
+            mean_phase=step.mean_phase,
+            target=step.target,
             flags=flags,
             live=product is not None,
             noise=noise,
@@ -632,7 +670,7 @@ class Demodulator:
             delta_h=None if to_height is None else phase * np.float32(to_height),
             carrier_value=part.value,
             mean_phase=part.mean_phase,
-            mean_phase_unwrapped=float(self._unwrapped_mean[i]),
+            mean_phase_unwrapped=float(self._phases.unwrapped(i)),
             mask=part.mask,
             noise=noise,
             noise_height=None if to_height is None else abs(noise * to_height),

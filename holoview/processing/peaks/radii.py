@@ -33,6 +33,7 @@ __all__ = [
     "check_peaks",
     "check_radii",
     "distinct_neighbours",
+    "fell_back",
     "peak_name",
     "peak_radii",
     "peak_windows",
@@ -51,6 +52,9 @@ Radius = float | str | None
 
 #: Why a bound window has its radius.
 BOUND_REASON = "the bound: half the distance to the nearest other peak, twin or zero frequency"
+
+#: Why a window meant to be matched is at the bound before a spectrum was measured.
+UNMEASURED_REASON = "the bound: the spectrum was not measured"
 
 
 def radius_rule(radius: Radius) -> str:
@@ -202,7 +206,7 @@ def peak_windows(
         r = float(radius)  # type: ignore[arg-type]
         return tuple(Window(r, kind, taper, "given", float(b), "given by the user") for b in bounds)
     if rule == "bound" or spectrum is None:
-        reason = BOUND_REASON if rule == "bound" else "the bound: the spectrum was not measured"
+        reason = BOUND_REASON if rule == "bound" else UNMEASURED_REASON
         return tuple(Window(float(b), kind, taper, "bound", float(b), reason) for b in bounds)
     if spectrum.shape != tuple(shape):
         raise InputError(f"spectrum of a {spectrum.shape} frame for frames of {shape}")
@@ -210,6 +214,11 @@ def peak_windows(
         matched_window(spectrum, (float(c[0]), float(c[1])), float(b), kind=kind, taper=taper)
         for c, b in zip(carriers, bounds, strict=True)
     )
+
+
+def fell_back(window: Window) -> bool:
+    """Whether a window meant to be matched is at the bound for want of surface power."""
+    return window.rule == "bound" and window.reason not in (BOUND_REASON, UNMEASURED_REASON)
 
 
 def peak_radii(

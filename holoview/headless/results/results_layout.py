@@ -1,12 +1,12 @@
 """The layout of ``results.h5``: a netCDF-4 file that xarray and netCDF tools read whole.
 
 Format ``holoview-results`` 2.0 is HDF5 laid out in the netCDF-4/CF manner
-(:mod:`holoview.headless.cf`): the axes of each group are HDF5 dimension scales, so
+(:mod:`holoview.headless.results.cf`): the axes of each group are HDF5 dimension scales, so
 ``xarray.open_dataset(path, group="maps", engine="h5netcdf")`` gives ``h(time, y, x)``
 with its coordinates, and every numeric variable has ``units`` (UDUNITS spelling: ``m``,
 ``s``, ``rad``, ``m3``, ``m s-1``, ``count``, ``1``) and a ``long_name``; strings carry no
 unit. Format 1.0 (no dimension scales, ``/trends/time_s`` instead of ``time``, a ``unit``
-attribute instead of ``units``) is still read by :mod:`holoview.headless.results_data`.
+attribute instead of ``units``) is still read by :mod:`holoview.headless.results.results_data`.
 
 Root attributes
     ``format``, ``format_version``, ``Conventions`` (``CF-1.11``), ``uuid``,
@@ -47,12 +47,17 @@ Root attributes
     (``displacement_px``, ``displacement_stderr_px``, ``displacement_measured``; the
     maps are not moved, their coordinates are the camera's), and for ``fused`` its
     ``labels``, their radii ``radius_cpp`` (one per label) and ``grid_of`` (the maps
-    are moved onto that peak's grid before fusing). A peak without alpha keeps its phase map
-    (``units`` ``rad``, ``quantity`` ``phase``).
+    are moved onto that peak's grid before fusing). The maps, the fused one included,
+    are the maps step's (:class:`holoview.engine.map_step.MapStep`), frame by frame, as
+    the live view shows them: the fused map takes the peaks of the fused depth known
+    before the frames (the joint estimate's, else every peak with alpha), weighed by
+    each map's expected error (its noise and what its window cuts), leaving out at each
+    frame a peak whose mean phase stepped past 0.8 pi since the frame before. A peak
+    without alpha keeps its phase map (``units`` ``rad``, ``quantity`` ``phase``).
 
-Written by :class:`holoview.headless.outputs.ResultsFile` (the maps as they come, then
+Written by :class:`holoview.headless.results.outputs.ResultsFile` (the maps as they come, then
 :func:`write_trends`, :func:`write_peaks` and, for the maps, :func:`map_dimensions`);
-read as xarray Datasets by :mod:`holoview.headless.results_data`.
+read as xarray Datasets by :mod:`holoview.headless.results.results_data`.
 """
 
 from __future__ import annotations
@@ -64,9 +69,10 @@ from typing import Any
 import h5py
 import numpy as np
 
-from holoview.headless import cf
 from holoview.headless.analysis import Analysis
-from holoview.headless.pipeline import ProcessSettings, RunData
+from holoview.headless.results import cf
+from holoview.headless.run_data import RunData
+from holoview.headless.settings import ProcessSettings
 from holoview.processing.peaks.matched import Window
 
 #: Format name and version of ``results.h5``.

@@ -7,7 +7,7 @@ holds one) lazily: ``maps`` gives ``h(time, y, x)`` per peak and ``fused``, in m
 carries ``units`` (CF spelling) and ``long_name``; the Dataset's attributes are the
 file's root attributes (format, optics, settings).
 
-Format 2.0 files (:mod:`holoview.headless.results_layout`) are netCDF-4 and open
+Format 2.0 files (:mod:`holoview.headless.results.results_layout`) are netCDF-4 and open
 through xarray's ``h5netcdf`` engine. Format 1.0 files (written before dimension
 scales) are read here into the same Datasets: coordinates rebuilt from the maps'
 ``pixel_step_px`` and ``pixel_size_m`` and the trends' ``time_s``, ``unit``
@@ -25,7 +25,7 @@ import numpy as np
 import xarray as xr
 
 from holoview.errors import InputError
-from holoview.headless.results_layout import (
+from holoview.headless.results.results_layout import (
     LABEL_NAME,
     RESULTS_FORMAT,
     RESULTS_VERSION,

@@ -1,6 +1,6 @@
 """The report of a headless run (``report.png``, or PDF or SVG): what a person looks at first.
 
-Drawn with matplotlib on its Agg canvas (:mod:`holoview.headless.figures`), 1366
+Drawn with matplotlib on its Agg canvas (:mod:`holoview.headless.results.figures`), 1366
 pixels wide as a PNG, in three parts:
 
 1. the spatial-frequency spectrum of the first processed frame (log magnitude,
@@ -38,9 +38,10 @@ from matplotlib.figure import Figure
 from matplotlib.patches import Circle
 
 from holoview.headless.analysis import Analysis
-from holoview.headless.figures import new_figure, save_figure
 from holoview.headless.inputs import Optics
-from holoview.headless.pipeline import ProcessSettings, RunData, fuse_frame
+from holoview.headless.results.figures import new_figure, save_figure
+from holoview.headless.run_data import RunData
+from holoview.headless.settings import ProcessSettings
 from holoview.processing.peaks.detection import Peak
 from holoview.processing.series.rate_fits import format_rate
 
@@ -256,29 +257,20 @@ def _trend_panel(axes: Axes, data: RunData, analysis: Analysis) -> None:
 
 
 def _last_maps(data: RunData, analysis: Analysis) -> list[MapPanel]:
-    """Each peak's last map, converted to nm (else its phase in rad), and the fused one."""
+    """Each peak's last map in nm (else its phase in rad), and the fused one: the maps step's."""
     panels = []
-    heights: list[np.ndarray | None] = []
-    for peak, values in zip(analysis.peaks, data.last_maps, strict=True):
-        metres = None
-        if values is not None and data.maps_in_metres:
-            metres = values
-        elif values is not None and peak.map_scale is not None:
-            metres = values * np.float32(peak.map_scale)
-        heights.append(metres)
-        if metres is not None:
-            title = peak.label if peak.used_in_fused else f"{peak.label} (not fused)"
-            panels.append(MapPanel(title, metres * 1e9, "nm"))
-        elif values is not None:
+    for peak, values, unit in zip(analysis.peaks, data.last_maps, data.map_units, strict=True):
+        if values is None:
+            continue
+        if unit == "m":
+            title = peak.label if peak.label in data.fused_labels else f"{peak.label} (not fused)"
+            panels.append(MapPanel(title, values * 1e9, "nm"))
+        else:
             panels.append(MapPanel(f"{peak.label} phase", values, "rad"))
-    found = np.flatnonzero(data.frames == data.last_frame)
-    fused = None
-    if found.size:
-        fused = fuse_frame(data, int(found[0]), heights, analysis.map_fusion_scales())
-    if fused is not None:
+    if data.last_fused is not None:
         moved = any(d.measured and d.shift != (0.0, 0.0) for d in data.displacements)
         title = f"fused (on {analysis.peaks[0].label}'s grid)" if moved else "fused"
-        panels.append(MapPanel(title, fused * 1e9, "nm"))
+        panels.append(MapPanel(title, data.last_fused * 1e9, "nm"))
     return panels
 
 

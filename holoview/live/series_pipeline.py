@@ -28,7 +28,7 @@ from holoview.acquire.source import FrameMeta
 from holoview.engine.depth import DepthSummary, pca_check, summarise
 from holoview.engine.experiment import Experiment
 from holoview.engine.frame_core import CarrierCore
-from holoview.engine.series import LIVE_LENGTH, PhaseSeries, coupling_of, frame_time
+from holoview.engine.series import LIVE_LENGTH, JointSetup, PhaseSeries, frame_time
 from holoview.errors import HoloviewError
 from holoview.live.continuity import Continuity
 from holoview.processing.peaks.detection import Peak
@@ -180,9 +180,14 @@ class SeriesPipeline:
             [p.label or f"P{j}" for j, p in enumerate(peaks)], max_length=LIVE_LENGTH
         )
         e = self.experiment
-        if e is not None and e.wavelength_m is not None:
-            couplings = [coupling_of(p.label, e.n1, e.n2) for p in peaks]
-            series.track_joint([p.alpha for p in peaks], couplings, e.wavelength_m)
+        if e is not None:
+            JointSetup.of(
+                [p.label for p in peaks],
+                [p.alpha for p in peaks],
+                wavelength_m=e.wavelength_m,
+                n1=e.n1,
+                n2=e.n2,
+            ).track(series)
         return series
 
     def summary(self) -> DepthSummary | None:

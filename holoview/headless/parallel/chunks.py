@@ -9,11 +9,11 @@ builds its own probe (its own FFTW plans) and streams the chunk through a
 and the chunk's carrier values (a few numbers a frame), whatever the run's length.
 Everything that depends on the order of the frames (the phase steps, the unwrapping in
 time, the joint estimate, the displacements, the rates) is computed once, in order,
-from the gathered values (:mod:`holoview.headless.stitch`). No frame is needed twice:
-the chunks do not overlap. With ``--maps`` the worker demodulates every frame of its
-chunk into maps too (most of such a run's time), from the reference the serial run
-holds there (:mod:`holoview.headless.chunk_maps`: one frame before the chunk is read
-again for it), in shorter chunks, whose maps travel back whole.
+from the gathered values (:mod:`holoview.headless.parallel.stitch`). No frame is needed twice:
+the chunks do not overlap. With ``--maps`` the worker makes every frame's maps of its
+chunk too, and the fused map (most of such a run's time), through the run's maps step
+from the state the serial run holds there (:mod:`holoview.headless.parallel.chunk_maps`), in
+shorter chunks.
 
 :func:`plan_jobs` settles ``--jobs``: the default is every usable core but one (the
 parent reads the maps' frames and stitches), when the run is long enough to gain.
@@ -34,10 +34,12 @@ import numpy as np
 
 from holoview.engine.frame_core import CarrierCore
 from holoview.errors import InputError
-from holoview.headless.chunk_maps import MAPS_CHUNK_FRAMES, MapsSpec, prepare_reference
+from holoview.headless.input_identity import InputIdentity
 from holoview.headless.inputs import InputFile
-from holoview.headless.pipeline import FrameMaps, frame_maps
+from holoview.headless.parallel import chunk_maps
+from holoview.headless.parallel.chunk_maps import ChunkMaps, MapsWork
 from holoview.headless.reader import DEFAULT_DEPTH, FrameReader
+from holoview.headless.run_data import FRAME_FLAG_BITS, flag_bits
 from holoview.processing.fourier.fftplans import usable_cpus
 from holoview.processing.peaks.detection import Peak
 from holoview.processing.series.carrier_probe import CarrierValues
@@ -59,11 +61,13 @@ MAX_CHUNK_FRAMES = 2000
 SEEKABLE_KINDS = ("hdf5", "tiff", "folder", "numpy")
 
 #: The frame flags a chunk reports, in the order of its flag bits.
-CHUNK_FLAGS = ("nonfinite", "saturated", "damaged")
+CHUNK_FLAGS = FRAME_FLAG_BITS
 
 
 def plan_jobs(jobs: int | None, n_frames: int, kind: str, cores: int | None = None) -> int:
     """The processes a run of ``n_frames`` frames uses for ``--jobs JOBS``.
+
+    The one rule for ``--jobs``, local processes and a local Dask cluster alike.
 
     Parameters
     ----------
@@ -80,7 +84,9 @@ def plan_jobs(jobs: int | None, n_frames: int, kind: str, cores: int | None = No
     Returns
     -------
     int
-        At least 1; more jobs than frames are cut to the frames, with a warning.
+        At least 1; more jobs than usable cores, or than frames, are cut to those, with
+        a warning (a worker process per core is the most that gains: each costs a
+        start, memory, and a core the others need).
 
     Raises
     ------
@@ -97,12 +103,15 @@ def plan_jobs(jobs: int | None, n_frames: int, kind: str, cores: int | None = No
                 kind,
             )
         return 1
+    cores = usable_cpus() if cores is None else cores
     if jobs is None:
-        cores = usable_cpus() if cores is None else cores
         return max(1, min(cores - 1, n_frames // MIN_FRAMES_PER_JOB))
-    if jobs > n_frames:
-        logger.warning("--jobs %d: the run has %d frames; using %d", jobs, n_frames, n_frames)
-        return max(1, n_frames)
+    most, why = n_frames, f"the run has {n_frames} frames"
+    if cores < most:
+        most, why = cores, f"this machine has {cores} usable cores"
+    if jobs > most:
+        logger.warning("--jobs %d: %s; using %d", jobs, why, max(1, most))
+        return max(1, most)
     return jobs
 
 
@@ -110,9 +119,9 @@ def split_frames(n_frames: int, jobs: int, *, maps: bool = False) -> list[range]
     """Contiguous chunks of positions ``0..n_frames-1``, in order, for ``jobs`` workers.
 
     :data:`CHUNKS_PER_JOB` chunks a job (one with one job), none longer than
-    :data:`MAX_CHUNK_FRAMES` (:data:`~holoview.headless.chunk_maps.MAPS_CHUNK_FRAMES`
-    when the workers demodulate every frame's ``maps``), their lengths differing by one
-    at most.
+    :data:`MAX_CHUNK_FRAMES` (:data:`~holoview.headless.parallel.chunk_maps.MAPS_CHUNK_FRAMES`
+    when the workers make every frame's ``maps``), their lengths differing by one at
+    most.
 
     Examples
     --------
@@ -124,7 +133,7 @@ def split_frames(n_frames: int, jobs: int, *, maps: bool = False) -> list[range]
     if n_frames < 1:
         return []
     count = 1 if jobs <= 1 else jobs * CHUNKS_PER_JOB
-    most = MAPS_CHUNK_FRAMES if maps else MAX_CHUNK_FRAMES
+    most = chunk_maps.MAPS_CHUNK_FRAMES if maps else MAX_CHUNK_FRAMES
     count = max(count, -(-n_frames // most))
     count = min(count, n_frames)
     edges = np.linspace(0, n_frames, count + 1).round().astype(int)
@@ -151,11 +160,11 @@ class ChunkTask:
         Raw value at which the camera saturates (counts).
     read_ahead : int
         Frames the worker's reader reads ahead.
-    maps : MapsSpec or None
-        The run's demodulator, when the worker demodulates every frame's maps too.
-    before : sequence of int
-        With ``maps``: the input indices of the run's frames before the chunk, in order
-        (:func:`~holoview.headless.chunk_maps.prepare_reference`).
+    maps : MapsWork or None
+        Make every frame's maps too (:mod:`holoview.headless.parallel.chunk_maps`); when it
+        carries the chunk's carrier values, they are not measured again.
+    identity : InputIdentity or None
+        What the input was when the run started: the worker checks that it still is.
     """
 
     path: str
@@ -165,21 +174,21 @@ class ChunkTask:
     frame_shape: tuple[int, int]
     saturation: float | None
     read_ahead: int = DEFAULT_DEPTH
-    maps: MapsSpec | None = None
-    before: Sequence[int] = ()
+    maps: MapsWork | None = None
+    identity: InputIdentity | None = None
 
 
 @dataclass(frozen=True)
 class ChunkResult:
     """The carrier values of one chunk
-    (:class:`~holoview.processing.series.carrier_probe.CarrierValues`).
+    (:class:`~holoview.processing.series.carrier_probe.CarrierValues`), and its maps.
 
     Attributes
     ----------
     start : int
         Position of the chunk's first frame in the run.
     values : ndarray of complex128, shape (K, M)
-        Carrier values, counts (NaN for a flagged frame).
+        Carrier values, counts (NaN for a flagged frame); empty when given.
     noise : ndarray of float64, shape (K, M)
         Their phase noise, rad.
     mean_counts : ndarray of float64, shape (K,)
@@ -190,10 +199,10 @@ class ChunkResult:
         Time reading and measuring, s.
     worker : str
         ``host:pid`` of the process that measured it.
-    maps : tuple of FrameMaps
-        With the task's ``maps``: each frame's maps (empty once the parent used them).
+    maps : ChunkMaps or None
+        With the task's ``maps``: each frame's maps and what a run counts of them.
     maps_seconds : float
-        Time demodulating the maps (the reference frame's included), s.
+        Time making the maps (the reference frame's included), s.
     """
 
     start: int
@@ -204,7 +213,7 @@ class ChunkResult:
     read_seconds: float
     measure_seconds: float
     worker: str
-    maps: tuple[FrameMaps, ...] = ()
+    maps: ChunkMaps | None = None
     maps_seconds: float = 0.0
 
     def __len__(self) -> int:
@@ -219,10 +228,6 @@ class ChunkResult:
         )
 
 
-def _flag_bits(flags: frozenset[str]) -> int:
-    return sum(1 << b for b, f in enumerate(CHUNK_FLAGS) if f in flags)
-
-
 def make_tasks(
     path: Path,
     frames: Sequence[int],
@@ -232,12 +237,14 @@ def make_tasks(
     frame_shape: tuple[int, int],
     saturation: float | None,
     read_ahead: int = DEFAULT_DEPTH,
-    maps: MapsSpec | None = None,
+    maps: Sequence[MapsWork] | None = None,
+    identity: InputIdentity | None = None,
 ) -> list[ChunkTask]:
     """One task per chunk of positions into ``frames`` (input indices).
 
-    With ``maps`` the workers demodulate every frame's maps too (give a ``range`` of
-    ``frames``: each task carries the frames before its chunk).
+    ``maps``: one :class:`~holoview.headless.parallel.chunk_maps.MapsWork` per chunk, when the
+    workers make every frame's maps too. With ``identity`` (the input's when the run
+    started) a worker refuses an input replaced since.
     """
     where = str(Path(path).resolve())
     return [
@@ -249,62 +256,92 @@ def make_tasks(
             frame_shape=(int(frame_shape[0]), int(frame_shape[1])),
             saturation=saturation,
             read_ahead=read_ahead,
-            maps=maps,
-            before=frames[: chunk.start] if maps is not None else (),
+            maps=None if maps is None else maps[k],
+            identity=identity,
         )
-        for chunk in chunks
+        for k, chunk in enumerate(chunks)
     ]
 
 
-def measure_chunk(task: ChunkTask) -> ChunkResult:
-    """Measure the carrier values of one chunk (what a worker runs).
-
-    Raises
-    ------
-    InputError
-        The worker cannot open or read the input, or finds frames of another shape
-        (the message names the worker's host).
-    """
-    worker = f"{socket.gethostname()}:{os.getpid()}"
+def _open(task: ChunkTask) -> InputFile:
+    """The task's input, checked to be the run's (InputError naming the worker's host)."""
     try:
         source = InputFile(task.path)
     except InputError as exc:
         host = socket.gethostname()
         raise InputError(f"a worker on {host} cannot read the input: {exc}") from None
-    with source:
-        if source.frame_shape != task.frame_shape:
-            raise InputError(
-                f"a worker on {socket.gethostname()} sees {task.path} with frames of "
-                f"{source.frame_shape}, not {task.frame_shape}: another file by that name?"
-            )
+    if task.identity is not None:
+        now = InputIdentity.of(task.path, source.info.get("uuid"))
+        try:
+            task.identity.check(now, who=f"a worker on {socket.gethostname()}")
+        except InputError:
+            source.close()
+            raise
+    if source.frame_shape != task.frame_shape:
+        source.close()
+        raise InputError(
+            f"a worker on {socket.gethostname()} sees {task.path} with frames of "
+            f"{source.frame_shape}, not {task.frame_shape}: another file by that name?"
+        )
+    return source
+
+
+def measure_chunk(task: ChunkTask) -> ChunkResult:
+    """Measure the carrier values of one chunk, and with ``task.maps`` make its maps.
+
+    Raises
+    ------
+    InputError
+        The worker cannot open or read the input, finds it replaced since the run
+        started (the task's ``identity``), or finds frames of another shape (the
+        message names the worker's host).
+    """
+    try:
+        return _measure_chunk(task)
+    except Exception:
+        if task.identity is not None:  # a file replaced while read can fail in any way
+            task.identity.check(who=f"a worker on {socket.gethostname()}")
+        raise
+
+
+def _measure_chunk(task: ChunkTask) -> ChunkResult:
+    """:func:`measure_chunk`, before a failure is put down to a replaced input."""
+    worker = f"{socket.gethostname()}:{os.getpid()}"
+    with _open(task) as source:
         n, m = len(task.indices), len(task.peaks)
-        values = np.full((n, m), np.nan + 0j)
-        noise = np.full((n, m), np.nan)
-        mean_counts = np.full(n, np.nan)
+        given = task.maps is not None and task.maps.values is not None
+        values = np.full((0 if given else n, m), np.nan + 0j)
+        noise = np.full((0 if given else n, m), np.nan)
+        mean_counts = np.full(0 if given else n, np.nan)
         flags = np.zeros(n, np.uint8)
+        if task.maps is not None and task.maps.frame_bits is not None:
+            flags[:] = task.maps.frame_bits
         carriers = CarrierCore(task.frame_shape, task.saturation)
         carriers.configure(task.peaks)
         spent = maps_spent = 0.0
-        core = None
-        maps: list[FrameMaps] = []
+        maker = None
         if task.maps is not None:
             t0 = time.perf_counter()
-            core = task.maps.core(task.frame_shape, task.saturation)
-            prepare_reference(core, source, task.before)
+            maker = task.maps.maker(source, task.frame_shape, task.saturation, n)
             maps_spent += time.perf_counter() - t0
         with FrameReader(source.read, task.indices, depth=task.read_ahead) as reader:
             for k, (_, frame) in enumerate(reader):
                 t0 = time.perf_counter()
-                measured = carriers.measure(frame)
-                assert measured is not None
-                values[k] = measured.values
-                noise[k] = measured.noise
-                mean_counts[k] = measured.mean_counts
-                flags[k] = _flag_bits(measured.flags)
+                if given:
+                    assert task.maps is not None and task.maps.values is not None
+                    frame_values = task.maps.values[k]
+                else:
+                    measured = carriers.measure(frame)
+                    assert measured is not None
+                    values[k] = measured.values
+                    noise[k] = measured.noise
+                    mean_counts[k] = measured.mean_counts
+                    flags[k] = flag_bits(measured.flags)
+                    frame_values = values[k]
                 t1 = time.perf_counter()
                 spent += t1 - t0
-                if core is not None:
-                    maps.append(frame_maps(core, frame, "damaged" in measured.flags))
+                if maker is not None:
+                    maker.add(k, frame, frame_values, int(flags[k]))
                     maps_spent += time.perf_counter() - t1
         return ChunkResult(
             start=task.start,
@@ -315,6 +352,6 @@ def measure_chunk(task: ChunkTask) -> ChunkResult:
             read_seconds=reader.read_seconds,
             measure_seconds=spent,
             worker=worker,
-            maps=tuple(maps),
+            maps=None if maker is None else maker.result(),
             maps_seconds=maps_spent,
         )

@@ -38,7 +38,7 @@ import numpy as np
 import xarray as xr
 
 from holoview.errors import InputError
-from holoview.headless.results_data import map_labels
+from holoview.headless.results.results_data import map_labels
 
 #: MATLAB's limit for one variable of a MAT-file of version 5 to 7, bytes.
 MAT5_LIMIT_BYTES = 2**31

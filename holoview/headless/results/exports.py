@@ -1,7 +1,7 @@
 """A run's results where users live: NetCDF, Zarr, MATLAB and TIFF stacks.
 
 :func:`export_results` reads a ``results.h5`` (format 2.0, or 1.0) through
-:func:`~holoview.headless.results_data.open_results` and writes:
+:func:`~holoview.headless.results.results_data.open_results` and writes:
 
 ``netcdf``
     One netCDF-4 file (``.nc``, written by h5netcdf) with the groups ``trends``,
@@ -15,7 +15,7 @@
     yet, and MATLAB and most non-Python readers read format 2) with the same groups
     and attributes, maps in chunks of one frame, metadata consolidated.
 ``mat``
-    A MATLAB file (:mod:`holoview.headless.export_mat`): version 5 by default (in
+    A MATLAB file (:mod:`holoview.headless.results.export_mat`): version 5 by default (in
     memory, at most 2 GB per variable), or 7.3 (HDF5, streamed).
 ``tiff``
     A folder of ImageJ hyperstacks, ``<label>.tif`` per map (float32, m; axes TYX),
@@ -46,9 +46,9 @@ import xarray as xr
 
 from holoview.atomic import atomic_folder, atomic_path
 from holoview.errors import InputError, OutputError, os_error_text
-from holoview.headless.cf import netcdf_attribute
-from holoview.headless.export_mat import mat_tree, write_mat5, write_mat73
-from holoview.headless.results_data import (
+from holoview.headless.results.cf import netcdf_attribute
+from holoview.headless.results.export_mat import mat_tree, write_mat5, write_mat73
+from holoview.headless.results.results_data import (
     map_labels,
     open_results,
     results_groups,

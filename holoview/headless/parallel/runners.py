@@ -1,7 +1,7 @@
 """Where chunks are measured: processes on this machine, or the workers of a Dask cluster.
 
-A :class:`ChunkRunner` takes :class:`~holoview.headless.chunks.ChunkTask` objects and
-hands back their :class:`~holoview.headless.chunks.ChunkResult` as they complete, in any
+A :class:`ChunkRunner` takes :class:`~holoview.headless.parallel.chunks.ChunkTask` objects and
+hands back their :class:`~holoview.headless.parallel.chunks.ChunkResult` as they complete, in any
 order (the stitching puts them in order), giving out :func:`in_flight` chunks at a time:
 
 - :class:`ProcessRunner` (``--jobs N``): a pool of ``N`` processes forked from a
@@ -14,10 +14,14 @@ order (the stitching puts them in order), giving out :func:`in_flight` chunks at
   The workers ignore Ctrl-C, which the terminal sends to the whole process group: the
   parent decides, and when it is interrupted or fails it sends its workers SIGTERM (with
   ``--maps`` it lets the chunks under way finish instead: a worker stopped while sending
-  a chunk's maps would leave the pool waiting for the rest); on Linux a worker also gets
-  SIGTERM if the parent dies without a word.
+  a chunk's maps would leave the pool waiting for the rest). A parent that dies without
+  a word (SIGKILL, out of memory) cannot: each worker watches it (:func:`_follow_parent`)
+  and ends within moments of it, and then the forkserver and the resource tracker, which
+  wait for the last of their users, end too. (A parent-death signal would not do: the
+  workers' parent is the forkserver, which lives as long as a worker does.)
 - :class:`DaskRunner` (``--scheduler ADDRESS``, or ``local`` for a
-  :class:`distributed.LocalCluster` of ``--jobs`` worker processes): the same tasks as
+  :class:`distributed.LocalCluster` of ``--jobs`` worker processes, started so that a
+  stop signal stops its start: :mod:`holoview.headless.parallel.dask_cluster`): the same tasks as
   Dask futures. The workers open the input by its path (it must be on storage they
   share, with holoview installed in their environment); a worker lost mid-run has its
   chunks measured again by Dask on another (``distributed.scheduler.allowed-failures``
@@ -29,13 +33,14 @@ order (the stitching puts them in order), giving out :func:`in_flight` chunks at
 from __future__ import annotations
 
 import contextlib
-import ctypes
 import itertools
 import logging
 import multiprocessing
 import os
+import select
 import signal
 import threading
+import time
 from abc import ABC, abstractmethod
 from collections.abc import Iterator, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
@@ -44,12 +49,10 @@ from types import TracebackType
 from typing import Any, Self
 
 from holoview.errors import HoloviewError, InputError
-from holoview.headless.chunks import ChunkResult, ChunkTask, measure_chunk
+from holoview.headless.parallel.chunks import ChunkResult, ChunkTask, measure_chunk
+from holoview.headless.parallel.dask_cluster import CONNECT_TIMEOUT_S, LocalDask, check_scheduler
 
 logger = logging.getLogger(__name__)
-
-#: Seconds to wait for a scheduler to answer before giving up.
-CONNECT_TIMEOUT_S = 5.0
 
 #: Seconds a remote cluster is given to have at least one worker.
 WORKERS_TIMEOUT_S = 30.0
@@ -62,10 +65,10 @@ SINGLE_THREADED = {
 }
 
 #: What the forkserver imports once for every local worker.
-PRELOAD = ["holoview.headless.chunks"]
+PRELOAD = ["holoview.headless.parallel.chunks"]
 
-#: ``prctl`` option: the signal a process gets when its parent dies (Linux).
-_PR_SET_PDEATHSIG = 1
+#: Seconds between two looks at the parent where the system cannot wait on it (no pidfd).
+PARENT_POLL_S = 0.2
 
 
 def in_flight(workers: int) -> int:
@@ -77,12 +80,57 @@ def in_flight(workers: int) -> int:
     return 2 * max(1, workers)
 
 
-def _worker_start() -> None:
-    """In each local worker: leave Ctrl-C to the parent; SIGTERM when the parent dies."""
+def _alive(pid: int) -> bool:
+    """Whether process ``pid`` runs (a zombie, dead but not yet reaped, does not)."""
+    try:
+        with open(f"/proc/{pid}/stat", "rb") as f:
+            return f.read().rsplit(b")", 1)[1].split()[0] != b"Z"
+    except OSError:
+        pass  # no /proc: ask the kernel
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        pass  # another user's process: it runs
+    return True
+
+
+def _watch_parent(pid: int, pidfd: int | None) -> None:
+    """Wait until process ``pid`` ends, then end this process at once."""
+    if pidfd is not None:
+        select.select([pidfd], [], [])  # readable once the process has ended
+    else:
+        while _alive(pid):
+            time.sleep(PARENT_POLL_S)
+    os._exit(1)  # the parent is gone: nothing to hand the results to, nothing to clean
+
+
+def _follow_parent(pid: int) -> None:
+    """End this worker when process ``pid`` (the run's parent) ends, however it ends.
+
+    A thread waits on a pidfd of the parent (Linux 5.3 and later), or polls every
+    :data:`PARENT_POLL_S` s where there is none.
+    """
+    pidfd: int | None = None
+    try:
+        pidfd = os.pidfd_open(pid)
+    except ProcessLookupError:
+        os._exit(1)  # gone already
+    except (OSError, AttributeError):
+        pidfd = None  # no pidfd_open here: poll
+    if pidfd is None and not _alive(pid):
+        os._exit(1)
+    watcher = threading.Thread(
+        target=_watch_parent, args=(pid, pidfd), name="holoview-parent-watch", daemon=True
+    )
+    watcher.start()
+
+
+def _worker_start(parent: int) -> None:
+    """In each local worker: leave Ctrl-C to the parent; end when the parent ends."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
-    with contextlib.suppress(OSError, AttributeError):
-        libc = ctypes.CDLL(None, use_errno=True)
-        libc.prctl(_PR_SET_PDEATHSIG, int(signal.SIGTERM), 0, 0, 0)
+    _follow_parent(parent)
 
 
 @contextlib.contextmanager
@@ -166,7 +214,10 @@ class ProcessRunner(ChunkRunner):
         context = multiprocessing.get_context("forkserver")
         context.set_forkserver_preload(PRELOAD)
         self._executor = ProcessPoolExecutor(
-            max_workers=self.workers, mp_context=context, initializer=_worker_start
+            max_workers=self.workers,
+            mp_context=context,
+            initializer=_worker_start,
+            initargs=(os.getpid(),),
         )
         # every worker (and the forkserver, on first use) starts now, on a thread: the
         # forkserver's import of holoview would otherwise hold this one for a second
@@ -244,41 +295,41 @@ class DaskRunner(ChunkRunner):
     Raises
     ------
     InputError
-        No scheduler answers at the address within :data:`CONNECT_TIMEOUT_S`, or it has
-        no worker within :data:`WORKERS_TIMEOUT_S`.
+        No scheduler answers at the address within
+        :data:`~holoview.headless.parallel.dask_cluster.CONNECT_TIMEOUT_S` (or something else
+        answers), or it has no worker within :data:`WORKERS_TIMEOUT_S`.
+    KeyboardInterrupt
+        A stop signal while the local cluster starts (its processes are ended first).
     """
 
     def __init__(self, scheduler: str, jobs: int = 1) -> None:
         import distributed
 
-        self._cluster: Any = None
-        if scheduler == "local":
-            self._cluster = distributed.LocalCluster(
-                n_workers=max(1, int(jobs)),
-                threads_per_worker=1,
-                processes=True,
-                dashboard_address=None,
-                silence_logs=logging.ERROR,
-                # its HTTP server (health, metrics) on a free port, not on 8787
-                scheduler_kwargs={"dashboard_address": ":0"},
-            )
-            address = self._cluster.scheduler_address
-        else:
-            address = scheduler
+        self._cluster: LocalDask | None = None
+        self._client: Any = None
+        self._futures: list[Any] = []
         try:
-            self._client = distributed.Client(address, timeout=CONNECT_TIMEOUT_S)
-        except (OSError, TimeoutError, ValueError) as exc:
-            self._close_cluster()
-            raise InputError(
-                f"--scheduler {scheduler}: no Dask scheduler answers there ({exc})"
-            ) from None
-        try:
-            self._client.wait_for_workers(1, timeout=WORKERS_TIMEOUT_S)
-        except (OSError, TimeoutError) as exc:
+            if scheduler == "local":
+                self._cluster = LocalDask(max(1, int(jobs)))
+                address = self._cluster.address
+            else:
+                check_scheduler(scheduler)
+                address = scheduler
+            try:
+                self._client = distributed.Client(address, timeout=CONNECT_TIMEOUT_S)
+            except (OSError, TimeoutError, ValueError) as exc:
+                raise InputError(
+                    f"--scheduler {scheduler}: no Dask scheduler answers there ({exc})"
+                ) from None
+            try:
+                self._client.wait_for_workers(1, timeout=WORKERS_TIMEOUT_S)
+            except (OSError, TimeoutError) as exc:
+                raise InputError(
+                    f"--scheduler {scheduler}: the scheduler has no worker ({exc})"
+                ) from None
+        except BaseException:  # an error, or a stop signal while the cluster starts
             self.close()
-            raise InputError(
-                f"--scheduler {scheduler}: the scheduler has no worker ({exc})"
-            ) from None
+            raise
         self.workers = max(1, len(self._client.scheduler_info().get("workers", {})))
         self.name = f"Dask at {address} ({self.workers} workers)"
 
@@ -290,17 +341,24 @@ class DaskRunner(ChunkRunner):
     def run(self, tasks: Sequence[ChunkTask]) -> Iterator[ChunkResult]:
         import distributed
 
+        client = self._client  # an interruption closes the runner before this ends
         queue = iter(tasks)
-        futures = self._client.map(
+        futures = client.map(
             measure_chunk, list(itertools.islice(queue, in_flight(self.workers))), pure=False
         )
+        self._futures = futures  # cancelled by abort()
         try:
-            completed = distributed.as_completed(futures)
-            for future in completed:
-                yield future.result()
+            # the results fetched on the client's loop: an interruption lands in this
+            # thread's wait for them, never inside a call of Dask's own (whose cleanup
+            # then fails, printing a traceback)
+            completed = distributed.as_completed(futures, with_results=True)
+            for future, result in completed:
+                if future.status == "cancelled":
+                    raise HoloviewError(f"the Dask cluster dropped the work ({result})")
+                yield result
                 task = next(queue, None)
                 if task is not None:
-                    futures.append(self._client.submit(measure_chunk, task, pure=False))
+                    futures.append(client.submit(measure_chunk, task, pure=False))
                     completed.add(futures[-1])
         except distributed.client.FutureCancelledError as exc:
             raise HoloviewError(f"the Dask cluster dropped the work ({exc})") from None
@@ -309,34 +367,43 @@ class DaskRunner(ChunkRunner):
                 f"Dask workers kept dying on a chunk of frames ({exc}): out of memory?"
             ) from None
         finally:
-            self._client.cancel(futures)
+            if client.status == "running":  # not closed by abort()
+                client.cancel(futures)
 
     def abort(self) -> None:
+        client = self._client
+        if client is not None and client.status == "running":
+            # first: a result being fetched when the client closes fails on Dask's loop,
+            # which prints the traceback
+            with contextlib.suppress(Exception):
+                client.cancel(self._futures)
         self.close()
 
-    def _close_cluster(self) -> None:
-        if self._cluster is not None:
-            self._cluster.close()
-            self._cluster = None
-
     def close(self) -> None:
-        client = getattr(self, "_client", None)
+        client, self._client = self._client, None
         if client is not None:
             client.close()
-            self._client = None
-        self._close_cluster()
+        cluster, self._cluster = self._cluster, None
+        if cluster is not None:
+            cluster.close()
 
 
 def open_runner(jobs: int, scheduler: str | None = None) -> ChunkRunner:
     """The runner for ``--jobs`` and ``--scheduler`` (a Dask one when a scheduler is given).
 
+    Parameters
+    ----------
+    jobs : int
+        Local worker processes, as :func:`~holoview.headless.parallel.chunks.plan_jobs` settled
+        them (at least 1).
+    scheduler : str, optional
+        A Dask scheduler's address, or ``"local"``.
+
     Raises
     ------
     InputError
-        For ``jobs`` below 1, or a scheduler that does not answer.
+        A scheduler that does not answer.
     """
-    if jobs < 1:
-        raise InputError(f"--jobs must be at least 1, got {jobs}")
     if scheduler is not None:
         if not scheduler.strip():
             raise InputError("--scheduler: give an address (host:port) or 'local'")

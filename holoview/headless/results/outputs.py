@@ -11,12 +11,12 @@
     See :func:`summary_document`.
 ``results.h5``
     Format ``holoview-results`` 2.0, netCDF-4 in the CF manner: its layout is
-    documented in :mod:`holoview.headless.results_layout`, which writes its series and
+    documented in :mod:`holoview.headless.results.results_layout`, which writes its series and
     peaks tables and the maps' dimensions; :class:`ResultsFile` writes the maps as they
     come and the rest at the end.
 
 Each writer writes the path it is given: a run gives them temporary names and
-renames the files when it completes (:mod:`holoview.headless.output_folder`). A
+renames the files when it completes (:mod:`holoview.headless.results.output_folder`). A
 failed write is an :class:`~holoview.errors.OutputError` naming the file.
 """
 
@@ -39,18 +39,20 @@ import numpy as np
 
 from holoview import __version__
 from holoview.acquire.durability import CLOSE_MARGIN_BYTES, DiskReserve, free_bytes
+from holoview.engine.map_step import frame_shift, pixel_step
 from holoview.errors import OutputError, os_error_text
-from holoview.headless import cf
 from holoview.headless.analysis import Analysis, PeakOutcome
 from holoview.headless.inputs import Optics
-from holoview.headless.pipeline import ProcessSettings, RunData, fuse_frame
-from holoview.headless.results_layout import (
+from holoview.headless.results import cf
+from holoview.headless.results.results_layout import (
     RESULTS_FORMAT,
     RESULTS_VERSION,
     map_dimensions,
     write_peaks,
     write_trends,
 )
+from holoview.headless.run_data import RunData
+from holoview.headless.settings import ProcessSettings
 from holoview.processing.peaks.matched import Window
 
 logger = logging.getLogger(__name__)
@@ -168,8 +170,7 @@ def _displacement_entry(
     if not data.displacements:
         return None
     shift = data.displacements[j]
-    step = (frame_shape[0] / data.box_shape[0], frame_shape[1] / data.box_shape[1])
-    frame_px = [shift.shift[0] * step[0], shift.shift[1] * step[1]]
+    frame_px = list(frame_shift(shift, frame_shape, data.box_shape))
     return {
         "measured": shift.measured,
         "shift_map_px": list(shift.shift),
@@ -354,6 +355,7 @@ class ResultsFile:
                 ]
         # maps of MAP_BATCH frames, written together: one buffer per dataset
         self._block = -1
+        self._n_frames, self._box_shape = n_frames, box_shape
         self._buffers = [np.empty((MAP_BATCH, *box_shape), np.float32) for _ in self._maps]
 
     def _buffer(self, position: int) -> int:
@@ -390,39 +392,26 @@ class ResultsFile:
             fillvalue=np.float32(np.nan),
         )
 
-    def write_map(self, position: int, peak: int, values: np.ndarray) -> None:
-        """Store peak ``peak``'s map of the ``position``-th processed frame."""
-        if self._maps:
-            self._buffers[peak][self._buffer(position)] = values
+    def write_maps(
+        self, position: int, maps: Sequence[np.ndarray], fused: np.ndarray | None
+    ) -> None:
+        """Store the ``position``-th processed frame's maps (one per peak) and fused map.
 
-    def _finish_maps(self, data: RunData, analysis: Analysis, converted: bool) -> list[str]:
-        """Convert phase maps to delta-h (auto mode), then fuse each frame's; return the labels.
-
-        The fused map (``/maps/fused``) takes the peaks used in the fused depth (every
-        peak in metres when none is), co-registered by the run's measured
-        displacements (:func:`~holoview.headless.pipeline.fuse_frame`).
+        The first fused map creates ``/maps/fused``; a frame given none keeps NaN there.
         """
-        peaks = analysis.peaks
-        scales = [p.map_scale for p in peaks]
-        fuse_scales = analysis.map_fusion_scales()
-        fusing = [s is not None for s in fuse_scales]
-        n, by, bx = self._maps[0].shape
-        fused_set = None
-        if sum(fusing) >= 2:
-            fused_set = self._map_dataset(self._file["maps"], "fused", n, (by, bx))
-        for position in range(n):
-            maps: list[np.ndarray | None] = [dataset[position] for dataset in self._maps]
-            for j, scale in enumerate(scales):
-                if scale is None:
-                    maps[j] = None
-                elif not converted:
-                    maps[j] = (maps[j] * np.float32(scale)).astype(np.float32)
-                    self._maps[j][position] = maps[j]
-            if fused_set is not None:
-                fused = fuse_frame(data, position, maps, fuse_scales)
-                if fused is not None:
-                    fused_set[position] = fused
-        return [p.label for p, use in zip(peaks, fusing, strict=True) if use]
+        if not self._maps:
+            return
+        if fused is not None and "fused" not in self._file["maps"]:
+            with self._guard():
+                self._maps.append(
+                    self._map_dataset(self._file["maps"], "fused", self._n_frames, self._box_shape)
+                )
+            self._buffers.append(np.full((MAP_BATCH, *self._box_shape), np.nan, np.float32))
+        row = self._buffer(position)
+        for buffer, values in zip(self._buffers, maps, strict=False):
+            buffer[row] = values
+        if fused is not None:
+            self._buffers[-1][row] = fused
 
     def finish(
         self,
@@ -433,16 +422,10 @@ class ResultsFile:
         settings: ProcessSettings,
         input_path: str,
         frame_shape: tuple[int, int],
-        converted: bool,
     ) -> None:
-        """Write the series, the peaks table and the attributes; name and convert the maps.
-
-        ``converted`` says the maps already hold delta-h (prefactors known during the
-        run); otherwise they hold phases and are converted here.
-        """
+        """Write the series, the peaks table and the attributes; name the maps."""
         n, m = len(data.frames), len(analysis.peaks)
-        fused_maps = self._maps[0].shape[1] * self._maps[0].shape[2] * 4 if self._maps else 0
-        self._ensure_room(n * (48 * m + 48 + fused_maps))
+        self._ensure_room(n * (48 * m + 48))
         with self._guard():
             self._finish(
                 data=data,
@@ -451,7 +434,6 @@ class ResultsFile:
                 settings=settings,
                 input_path=input_path,
                 frame_shape=frame_shape,
-                converted=converted,
             )
 
     def _finish(
@@ -463,7 +445,6 @@ class ResultsFile:
         settings: ProcessSettings,
         input_path: str,
         frame_shape: tuple[int, int],
-        converted: bool,
     ) -> None:
         self._flush()
         for dataset in self._maps:
@@ -492,14 +473,12 @@ class ResultsFile:
         self._write_trends(data, analysis, settings)
         self._write_peaks(analysis, data)
         if self._maps:
-            fused_labels = self._finish_maps(data, analysis, converted)
             self._name_maps(
                 data=data,
                 analysis=analysis,
                 optics=optics,
                 settings=settings,
                 frame_shape=frame_shape,
-                fused_labels=fused_labels,
             )
 
     def _write_trends(self, data: RunData, analysis: Analysis, settings: ProcessSettings) -> None:
@@ -516,11 +495,9 @@ class ResultsFile:
         optics: Optics,
         settings: ProcessSettings,
         frame_shape: tuple[int, int],
-        fused_labels: list[str],
     ) -> None:
         group = self._file["maps"]
-        by, bx = data.box_shape
-        step = (frame_shape[0] / by, frame_shape[1] / bx)
+        step = pixel_step(frame_shape, data.box_shape)
         common: dict[str, Any] = {
             "reference": settings.reference,
             "reference_description": (
@@ -542,7 +519,7 @@ class ResultsFile:
             group.move(f"_peak{j}", peak.label)
             attrs = group[peak.label].attrs
             attrs.update(common)
-            height = peak.map_scale is not None
+            height = data.map_units[j] == "m"
             attrs.update(
                 {
                     "label": peak.label,
@@ -569,13 +546,13 @@ class ResultsFile:
                 {
                     "label": "fused",
                     "units": "m",
-                    "long_name": "height change fused from " + ", ".join(fused_labels),
+                    "long_name": "height change fused from " + ", ".join(data.fused_labels),
                     "quantity": "delta_h",
-                    "labels": ",".join(fused_labels),
+                    "labels": ",".join(data.fused_labels),
                     "radius_cpp": [
                         data.windows[j].radius if data.windows else data.radius
                         for j, p in enumerate(analysis.peaks)
-                        if p.label in fused_labels
+                        if p.label in data.fused_labels
                     ],
                     "grid_of": analysis.peaks[0].label,
                 }

@@ -3,14 +3,14 @@
 Per frame: the display spectrum (at most :data:`SPECTRUM_HZ`), peak detection (at most
 :data:`PEAKS_HZ`; carriers drift slowly; each of the two at most a :data:`SIDE_SHARE`
 of the worker's time), the experiment's labels snapped to the detected peaks and the
-model's families added (:func:`holoview.engine.resolve.resolve_peaks`), the
-demodulated map of every peak (:class:`holoview.engine.frame_core.FrameCore`), their
-displacements (measured at most :data:`COREGISTER_HZ`) and the fused map; at each
-detection the windows' match to the surface is checked
+model's families added (:func:`holoview.engine.resolve.resolve_peaks`), and the
+maps step (:class:`holoview.engine.map_step.MapStep`: every peak's map, the phase-step
+rule, the displacements, added to at most :data:`COREGISTER_HZ`, and the fused map); at
+each detection the windows' match to the surface is checked
 (:class:`holoview.engine.window_matching.WindowMatcher`: matched again when the operator
 asks or the surface's bandwidth changed, with a note shown for :data:`NOTE_SECONDS`). The
-demodulator's peaks (:attr:`LivePipeline.peaks`) go to the series worker, which takes
-every frame (:mod:`holoview.live.trends`). Every number comes from the engine, the same
+demodulator's peaks (:attr:`MapsPipeline.peaks`) go to the series worker, which takes
+every frame (:mod:`holoview.live.series_pipeline`). Every number comes from the engine, the same
 code ``holoview process`` runs; this module only decides when to call what, and packs
 a :class:`LiveResult` for the window.
 """
@@ -26,13 +26,8 @@ import numpy as np
 
 from holoview.acquire.source import FrameMeta
 from holoview.engine.experiment import Experiment
-from holoview.engine.frame_core import (
-    FFT_THREADS,
-    Coregistration,
-    FrameCore,
-    fuse_maps,
-    trusted_maps,
-)
+from holoview.engine.frame_core import FFT_THREADS, FrameCore
+from holoview.engine.map_step import MapStep
 from holoview.engine.resolve import Resolution, on_lattice, resolve_peaks
 from holoview.engine.window_matching import WindowMatcher
 from holoview.live.continuity import Continuity
@@ -43,7 +38,7 @@ from holoview.processing.peaks.radii import surface_band, window_neighbours
 
 logger = logging.getLogger(__name__)
 
-__all__ = ["LivePipeline", "LiveResult", "block_max"]
+__all__ = ["LiveResult", "MapsPipeline", "block_max"]
 
 #: Highest rate of the display spectrum, Hz.
 SPECTRUM_HZ = 10.0
@@ -119,7 +114,7 @@ def block_max(image: np.ndarray, limit: int) -> np.ndarray:
     return out
 
 
-class LivePipeline:
+class MapsPipeline:
     """Turn frames into :class:`LiveResult` objects; used by one thread at a time.
 
     Commands (:meth:`apply`) change the experiment, or restart the absolute reference
@@ -156,7 +151,7 @@ class LivePipeline:
         self._peaks_at = -math.inf
         self._peaks_cost = 0.0
         self._core = FrameCore(frame_shape, experiment, saturation=saturation)
-        self._coregistration = Coregistration()
+        self._maps = MapStep(self._core)
         self._coregistered_at = -math.inf
         self._resolution_key: tuple | None = None
         self._resolution = Resolution(peaks=())
@@ -267,45 +262,22 @@ class LivePipeline:
         self._core.configure(self.experiment, resolution.peaks, window_neighbours(detected, placed))
         if self._measure_due:
             self._measure_due = False
-            note = self._matcher.measure(self._core, frame, surface_band(self._peaks or []))
+            note = self._matcher.measure(self._core, frame, surface_band(detected))
             if note is not None:
                 logger.info("%s", note)
                 self._window_note = (note, now)
-        demod = self._core.process(frame)
+        estimate = now - self._coregistered_at >= 1.0 / COREGISTER_HZ
+        maps = self._maps.process(frame, estimate=estimate)
+        if estimate and maps.maps:
+            self._coregistered_at = now
         heights: dict[str, np.ndarray] = {}
         phases: dict[str, np.ndarray] = {}
-        shifts: dict[str, tuple[float, float]] = {}
-        grid_of = fused = None
-        if demod is not None:
-            labels = tuple(r.peak.label or "?" for r in demod.peaks)
-            for name, r in zip(labels, demod.peaks, strict=True):
+        if maps.result is not None:
+            for r in maps.result.peaks:
+                name = r.peak.label or "?"
                 phases[name] = r.phase
                 if r.delta_h is not None:
                     heights[name] = r.delta_h
-            maps = trusted_maps(demod)
-            if now - self._coregistered_at >= 1.0 / COREGISTER_HZ:
-                self._coregistration.add(demod, maps)
-                self._coregistered_at = now
-            displacements = self._coregistration.displacements(demod)
-            fused = fuse_maps(
-                [
-                    m if r.delta_h is not None else None
-                    for m, r in zip(maps, demod.peaks, strict=True)
-                ],
-                [r.error_height for r in demod.peaks],
-                ["phase_step" in r.flags for r in demod.peaks],
-                displacements,
-                method="cubic",
-            )
-            if displacements is not None:
-                grid_of = labels[0]
-                step = (
-                    demod.frame_shape[0] / demod.box_shape[0],
-                    demod.frame_shape[1] / demod.box_shape[1],
-                )
-                for name, d in zip(labels, displacements, strict=True):
-                    if d.measured:
-                        shifts[name] = (d.shift[0] * step[0], d.shift[1] * step[1])
         self._seq += 1
         return LiveResult(
             seq=self._seq,
@@ -320,10 +292,10 @@ class LivePipeline:
             radius=self._core.radius,
             radii=self._core.radii(),
             heights_m=heights,
-            fused_m=fused,
+            fused_m=maps.fused,
             phases_rad=phases,
-            shifts_px=shifts,
-            grid_of=grid_of,
+            shifts_px=maps.shifts_px,
+            grid_of=maps.grid_of,
             notes=(*resolution.notes, *self._core.notes, *self._recent_note(now)),
             frame_index=meta.file_index,
             segment=meta.segment,

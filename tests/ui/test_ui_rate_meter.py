@@ -1,10 +1,10 @@
-"""Event rates over a sliding window (camera, processing and display rates)."""
+"""The display's rate meter: events over a sliding window."""
 
 from __future__ import annotations
 
 import pytest
 
-from holoview.live.rates import RateMeter
+from holoview.ui.status_bar import RateMeter
 
 
 def test_rate_meter() -> None:

@@ -1,0 +1,418 @@
+"""A headless run's passes over its frames, in one process.
+
+1. :func:`measure_frames`: every frame's carrier values (the carrier probe,
+   :class:`~holoview.engine.frame_core.CarrierCore`, what the live series worker runs)
+   into the run's :class:`~holoview.engine.series.PhaseSeries`, estimated jointly as
+   the frames come where the prefactors are known: all the trends and rates need, at
+   a quarter of a full FFT's time a frame.
+2. :func:`spread_pass`: the maps of :data:`COREGISTER_FRAMES` frames spread over the
+   run (and of the last), through the maps step
+   (:class:`~holoview.engine.map_step.MapStep`): the peaks' displacements, measured
+   before any map is fused, so that every frame's fused map is co-registered alike;
+   and, without ``--maps``, the last frame's maps for the report.
+3. :func:`maps_pass` (``--maps``): every frame's maps and fused map, through the maps
+   step, into the :class:`~holoview.headless.run_data.MapSink` as they come; the maps'
+   mean phases follow the series' values of step 1, so that a worker given a chunk of
+   the run places every map's 2 pi offset as this pass does
+   (:mod:`holoview.headless.parallel.chunk_maps`).
+
+Each pass reads its frames through a :class:`~holoview.headless.reader.FrameReader`,
+so memory stays bounded by the few frames it reads ahead. :class:`MapsSpec` says what
+a pass's maps step is, here and in the workers.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from holoview.engine.experiment import Experiment
+from holoview.engine.frame_core import CarrierCore, FrameCore
+from holoview.engine.map_step import Coregistration, FrameMaps, MapStep
+from holoview.headless.inputs import InputFile
+from holoview.headless.reader import DEFAULT_DEPTH, FrameReader
+from holoview.headless.run_data import (
+    DAMAGED_BIT,
+    NONFINITE_BIT,
+    MapRecord,
+    RunData,
+    check_run,
+    flag_bits,
+)
+from holoview.processing.maps.coregister import Displacement
+from holoview.processing.peaks.detection import Peak
+from holoview.processing.peaks.matched import SurfaceSpectrum, Window
+
+logger = logging.getLogger(__name__)
+
+__all__ = [
+    "COREGISTER_FRAMES",
+    "MapsSpec",
+    "frame_maps",
+    "maps_pass",
+    "measure_frames",
+    "spread_pass",
+    "spread_positions",
+]
+
+#: Frames, spread over a run, whose maps measure the peaks' displacements.
+COREGISTER_FRAMES = 50
+
+
+@dataclass(frozen=True)
+class MapsSpec:
+    """What a pass's maps step is (:meth:`step`): the same here and in every worker.
+
+    Attributes
+    ----------
+    experiment : Experiment
+        Window, radius, reference, unwrapping, wavelength and refractive indices.
+    peaks : tuple of Peak
+        The peaks demodulated, with the prefactors the maps take (signed as measured).
+    neighbours : tuple of (fx, fy)
+        The detected peaks that bound windows, cycles/pixel (the surface's sidebands
+        are not peaks: :func:`~holoview.processing.peaks.radii.window_neighbours`).
+    threads : int
+        FFTW threads per frame.
+    background : ndarray or None
+        The background hologram of absolute phases, counts.
+    exclude : tuple of bool
+        Peaks kept out of the fused map besides those without alpha.
+    displacements : tuple of Displacement
+        The displacements measured before the pass (empty: none).
+    windows : tuple of Window
+        Each peak's window, decided once for the run (:meth:`matched`; empty: by the
+        experiment's rule, the bound or the radius given, from the carriers).
+    """
+
+    experiment: Experiment
+    peaks: tuple[Peak, ...]
+    neighbours: tuple[tuple[float, float], ...]
+    threads: int
+    background: np.ndarray | None
+    exclude: tuple[bool, ...] = ()
+    displacements: tuple[Displacement, ...] = ()
+    windows: tuple[Window, ...] = ()
+
+    def matched(
+        self, frame_shape: tuple[int, int], saturation: float | None, spectrum: SurfaceSpectrum
+    ) -> MapsSpec:
+        """This spec with each peak's window matched to ``spectrum``, here and in the workers."""
+        core = FrameCore(
+            frame_shape,
+            self.experiment,
+            self.peaks,
+            saturation=saturation,
+            threads=self.threads,
+            neighbours=self.neighbours,
+            spectrum=spectrum,
+        )
+        demod = core.build()
+        assert demod is not None
+        return replace(self, windows=demod.windows)
+
+    def core(self, frame_shape: tuple[int, int], saturation: float | None) -> FrameCore:
+        """A new core, its demodulator built (its own reference; the FFTW plans cached)."""
+        core = FrameCore(
+            frame_shape,
+            self.experiment,
+            self.peaks,
+            saturation=saturation,
+            threads=self.threads,
+            background=self.background,
+            neighbours=self.neighbours,
+            windows=self.windows or None,
+        )
+        core.build()
+        return core
+
+    def step(self, frame_shape: tuple[int, int], saturation: float | None) -> MapStep:
+        """A new maps step: displacements fixed when the spec has them, else measured."""
+        core = self.core(frame_shape, saturation)
+        demod = core.demodulator
+        assert demod is not None
+        fixed = None
+        if self.displacements:
+            labels = [p.label for p in demod.peaks]
+            fixed = (labels, demod.box_shape, list(self.displacements))
+        return MapStep(core, Coregistration(fixed), self.exclude or None)
+
+
+def measure_frames(
+    source: InputFile,
+    frames: range,
+    times: np.ndarray,
+    data: RunData,
+    peaks: Sequence[Peak],
+    *,
+    read_ahead: int = DEFAULT_DEPTH,
+    progress: Callable[[int], None] | None = None,
+    maps: tuple[MapStep, MapRecord] | None = None,
+) -> RunData:
+    """Stream ``frames`` of ``source`` into ``data``'s series: each frame's carrier values.
+
+    Parameters
+    ----------
+    source : InputFile
+        The input (read from a ``holoview-reader`` thread during the call).
+    frames : range
+        Input frame indices to process.
+    times : ndarray, shape (len(frames),)
+        Their times, s.
+    data : RunData
+        The run's record (its series set up, a joint estimate tracked where known).
+    peaks : sequence of Peak
+        The demodulator's peaks.
+    read_ahead : int
+        Frames read ahead.
+    progress : callable, optional
+        Called with the number of frames done, after each frame.
+    maps : (MapStep, MapRecord), optional
+        Make every frame's maps in the same pass (``--maps``, the displacements
+        measured before: :func:`spread_pass`), recorded as they come.
+
+    Returns
+    -------
+    RunData
+        ``data``. After an interruption (KeyboardInterrupt) with at least one frame
+        done, the series of the frames done and ``interrupted`` set; with none done,
+        the interruption is raised again.
+    """
+    n = len(frames)
+    series = data.series
+    carriers = CarrierCore(source.frame_shape, source.saturation)
+    carriers.configure(peaks)
+    done = 0
+    reader = FrameReader(source.read, frames, depth=read_ahead)
+    try:
+        with reader:
+            for position, (index, frame) in enumerate(reader):
+                t0 = time.perf_counter()
+                measured = carriers.measure(frame)
+                assert measured is not None
+                series.add(float(times[position]), index, measured)
+                bits = flag_bits(measured.flags)
+                data.frame_bits[position] = bits
+                t1 = time.perf_counter()
+                data.demod_seconds += t1 - t0
+                if maps is not None:
+                    made = frame_maps(maps[0], frame, measured.values, bits)
+                    t2 = time.perf_counter()
+                    maps[1].record(position, index, made)
+                    data.demod_seconds += t2 - t1
+                    data.maps_seconds += t2 - t1
+                    data.write_seconds += time.perf_counter() - t2
+                done = position + 1
+                if progress is not None:
+                    progress(done)
+    except KeyboardInterrupt:
+        if done == 0:
+            raise
+        logger.warning("interrupted after %d of %d frames: results of those", done, n)
+        data.truncate(done)
+    data.read_seconds += reader.read_seconds
+    return check_run(data)
+
+
+def spread_positions(n: int, relative: bool) -> tuple[np.ndarray, int]:
+    """The positions of a run's spread pass, and every how many frames one measures.
+
+    One frame every ``n // COREGISTER_FRAMES`` measures the displacements; the last is
+    demodulated too (the report's maps), and in relative mode the one before it, so
+    that the last map is against the previous frame (a displacement frame's map is
+    against the one demodulated before it, which only gives it more to measure).
+
+    Examples
+    --------
+    >>> positions, every = spread_positions(10, relative=True)
+    >>> positions.tolist(), every
+    ([0, 1, 2, 3, 4, 5, 6, 7, 8, 9], 1)
+    >>> spread_positions(200, relative=False)[0][-3:].tolist()
+    [192, 196, 199]
+    """
+    every = max(1, n // COREGISTER_FRAMES)
+    wanted = np.zeros(n, dtype=bool)
+    wanted[::every] = True
+    wanted[n - 1] = True
+    if relative and n > 1:
+        wanted[n - 2] = True
+    return np.flatnonzero(wanted), every
+
+
+def spread_pass(
+    source: InputFile,
+    frames: range,
+    data: RunData,
+    spec: MapsSpec,
+    *,
+    record: bool,
+    read_ahead: int = DEFAULT_DEPTH,
+    until: Callable[[int], None] | None = None,
+) -> list[Displacement]:
+    """Measure the displacements over frames spread over the run (:func:`spread_positions`).
+
+    The frames' carrier values are measured here (the same probe, the same numbers as
+    the series'), so that the pass may come before the series, or beside it.
+
+    Parameters
+    ----------
+    source : InputFile
+        The input.
+    frames : range
+        The run's input frame indices (those of an interrupted run's frames done).
+    data : RunData
+        The run's record: its displacements, fused labels and, with ``record``, its map
+        counts and last maps are this pass's.
+    spec : MapsSpec
+        The maps step (its displacements are measured here).
+    record : bool
+        Count these frames' maps into ``data`` and keep the last (no ``--maps`` pass).
+    read_ahead : int
+        Frames read ahead.
+    until : callable, optional
+        ``until(position)``: called before the frame at ``position`` is taken (a
+        parallel run takes the workers' chunks in meanwhile).
+
+    Returns
+    -------
+    list of Displacement
+        Also kept in ``data.displacements`` (empty when not measured).
+    """
+    n = len(frames)
+    positions, every = spread_positions(n, spec.experiment.reference == "relative")
+    step = spec.step(source.frame_shape, source.saturation)
+    demod = step.core.demodulator
+    assert demod is not None
+    probe = CarrierCore(source.frame_shape, source.saturation)
+    probe.configure(demod.peaks)
+    counts = MapRecord(data) if record else None
+    reader = FrameReader(source.read, [frames[int(p)] for p in positions], depth=read_ahead)
+    with reader:
+        for k, (index, frame) in enumerate(reader):
+            position = int(positions[k])
+            if until is not None:
+                until(position)
+            t0 = time.perf_counter()
+            measured = probe.measure(frame)
+            assert measured is not None
+            maps = frame_maps(
+                step,
+                frame,
+                measured.values,
+                flag_bits(measured.flags),
+                estimate=position % every == 0,
+                fuse=record and position == n - 1,
+            )
+            if counts is not None:
+                counts.record(position, index, maps)
+            seconds = time.perf_counter() - t0
+            data.maps_seconds += seconds
+            data.demod_seconds += seconds
+    data.read_seconds += reader.read_seconds
+    measured_shifts = step.coregistration.displacements()
+    data.displacements = list(measured_shifts or [])
+    data.fused_labels = _fused_labels(step)
+    return data.displacements
+
+
+def _fused_labels(step: MapStep) -> tuple[str, ...]:
+    """The labels of the peaks the step fuses (none when fewer than two)."""
+    demod = step.core.demodulator
+    assert demod is not None
+    labels = tuple(
+        p.label or f"P{j}"
+        for j, (p, use) in enumerate(zip(demod.peaks, step.fused_peaks(), strict=True))
+        if use and p.alpha is not None
+    )
+    return labels if len(labels) >= 2 else ()
+
+
+def frame_maps(
+    step: MapStep,
+    frame: np.ndarray,
+    values: np.ndarray,
+    bits: int,
+    *,
+    estimate: bool = False,
+    fuse: bool = True,
+) -> FrameMaps:
+    """The maps step of one frame of a run, given its carrier values and probe flag bits.
+
+    A frame the series flagged damaged is not demodulated, one flagged non-finite has
+    no maps (:meth:`~holoview.headless.run_data.RunData.demodulable`): the demodulator
+    sees exactly the frames whose values its mean phases are replayed from.
+    """
+    if bits & DAMAGED_BIT:
+        return FrameMaps(demodulated=False)
+    if bits & NONFINITE_BIT:
+        return FrameMaps(demodulated=True, flags=frozenset({"nonfinite"}))
+    return step.process(frame, values, estimate=estimate, fuse=fuse)
+
+
+def maps_pass(
+    source: InputFile,
+    frames: range,
+    data: RunData,
+    spec: MapsSpec,
+    record: MapRecord,
+    *,
+    read_ahead: int = DEFAULT_DEPTH,
+    progress: Callable[[int], None] | None = None,
+) -> RunData:
+    """Every frame's maps and fused map into ``record``'s sink, in order (``--maps``).
+
+    Parameters
+    ----------
+    source : InputFile
+        The input.
+    frames : range
+        The run's input frame indices.
+    data : RunData
+        The run's record, its series measured (the maps' mean phases follow its
+        values); its map counts are this pass's.
+    spec : MapsSpec
+        The maps step, its displacements measured (:func:`spread_pass`).
+    record : MapRecord
+        Counts each frame's maps into ``data`` and writes them.
+    read_ahead : int
+        Frames read ahead.
+    progress : callable, optional
+        Called with the number of frames done, after each frame.
+
+    Returns
+    -------
+    RunData
+        ``data``; after an interruption (KeyboardInterrupt) with frames done, their
+        series only and ``interrupted`` set; with none done, the interruption is raised
+        again.
+    """
+    n = len(data.series)
+    step = spec.step(source.frame_shape, source.saturation)
+    reader = FrameReader(source.read, frames[:n], depth=read_ahead)
+    done = 0
+    try:
+        with reader:
+            for position, (index, frame) in enumerate(reader):
+                t0 = time.perf_counter()
+                maps = frame_maps(
+                    step, frame, data.values[position], int(data.frame_bits[position])
+                )
+                t1 = time.perf_counter()
+                record.record(position, index, maps)
+                data.maps_seconds += t1 - t0
+                data.demod_seconds += t1 - t0
+                data.write_seconds += time.perf_counter() - t1
+                done = position + 1
+                if progress is not None:
+                    progress(done)
+    except KeyboardInterrupt:
+        if done == 0:
+            raise
+        logger.warning("interrupted after %d of %d frames' maps: results of those", done, n)
+        data.truncate(done)
+    data.read_seconds += reader.read_seconds
+    return data

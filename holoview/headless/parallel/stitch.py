@@ -1,0 +1,341 @@
+"""A run's passes on many processes: chunks measured elsewhere, stitched in order here.
+
+The passes of :mod:`holoview.headless.frame_passes`, their per-frame work on a
+:class:`~holoview.headless.parallel.runners.ChunkRunner`, giving the
+:class:`~holoview.headless.run_data.RunData` one process gives on the same frames, the
+same numbers, whatever the number of workers or chunks:
+
+- :func:`measure_chunks`: the workers measure every frame's carrier values
+  (:func:`~holoview.headless.parallel.chunks.measure_chunk`), which depend on that frame alone;
+  this process adds them to the run's :class:`~holoview.engine.series.PhaseSeries`
+  frame after frame, in order, as the serial loop does, as soon as the chunks before
+  have come: the phase steps against the previous finite value, and the joint
+  estimate with its ambiguities where the prefactors are known before the run. Nothing
+  is computed per chunk, so no chunk boundary can show in the results. Meanwhile this
+  process measures the displacements on frames spread over the run
+  (:func:`~holoview.headless.frame_passes.spread_pass`), each once the chunk holding
+  it is in. In ``relative`` mode with ``--maps`` the workers make every frame's maps
+  in the same pass (:mod:`holoview.headless.parallel.chunk_maps`), the displacements measured
+  first;
+- :func:`map_chunks` (``--maps`` in the ``absolute`` and ``synthetic`` modes, and after
+  an auto run's identification): the workers make every frame's maps and fused map,
+  each chunk from the mean phases this process replays from the series up to its start.
+
+This process keeps what depends on the order of the frames (the series, the
+displacements, the mean phases at each chunk's start) and writes the maps in order.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import replace
+
+import numpy as np
+
+from holoview.headless.frame_passes import MapsSpec
+from holoview.headless.input_identity import InputIdentity
+from holoview.headless.inputs import InputFile
+from holoview.headless.parallel.chunk_maps import MapsWork
+from holoview.headless.parallel.chunks import ChunkResult, make_tasks, split_frames
+from holoview.headless.parallel.runners import ChunkRunner
+from holoview.headless.reader import DEFAULT_DEPTH
+from holoview.headless.run_data import MapRecord, RunData, check_run
+from holoview.processing.fourier.fftplans import current_wisdom
+from holoview.processing.maps.mean_phases import MeanPhases, MeanPhaseState
+from holoview.processing.peaks.detection import Peak
+
+logger = logging.getLogger(__name__)
+
+__all__ = ["map_chunks", "measure_chunks"]
+
+
+class _Gathered:
+    """The chunks' results as they arrive, and the prefix of frames all measured."""
+
+    def __init__(
+        self,
+        results: Iterator[ChunkResult],
+        starts: list[int],
+        n: int,
+        progress: Callable[[int], None] | None,
+        in_order: Callable[[ChunkResult], None],
+    ) -> None:
+        self._results = results
+        self._in_order = in_order
+        self._slot = {start: k for k, start in enumerate(starts)}
+        self._ends = [*starts[1:], n]
+        self.chunks: list[ChunkResult | None] = [None] * len(starts)
+        self.done = 0  # frames in the chunks complete from the first
+        self._ready = 0  # chunks complete from the first
+        self._progress = progress
+        self._measured = 0
+
+    def close(self) -> None:
+        """Let the runner cancel what is still pending."""
+        close = getattr(self._results, "close", None)
+        if close is not None:
+            close()
+
+    def until(self, position: int) -> None:
+        """Wait until the chunk holding ``position`` and every one before it are in."""
+        while self.done <= position:
+            result = next(self._results)
+            self.chunks[self._slot[result.start]] = result
+            self._measured += len(result)
+            while self._ready < len(self.chunks) and self.chunks[self._ready] is not None:
+                chunk = self.chunks[self._ready]
+                assert chunk is not None
+                self._in_order(chunk)
+                self.chunks[self._ready] = replace(chunk, maps=None)  # their memory back
+                self.done = self._ends[self._ready]
+                self._ready += 1
+            if self._progress is not None:
+                self._progress(self._measured)
+
+
+def _gather(
+    runner: ChunkRunner,
+    gathered: _Gathered,
+    data: RunData,
+    n: int,
+    *,
+    what: str = "",
+    meanwhile: Callable[[Callable[[int], None]], None] | None = None,
+) -> None:
+    """Take every chunk in order (``meanwhile`` first); an interruption keeps the prefix done."""
+    try:
+        if meanwhile is not None:
+            meanwhile(gathered.until)
+        gathered.until(n - 1)
+    except KeyboardInterrupt:
+        runner.abort()
+        if gathered.done == 0:
+            raise
+        logger.warning(
+            "interrupted after %d of %d frames%s: results of those", gathered.done, n, what
+        )
+        data.truncate(gathered.done)  # a chunk interrupted while added
+    finally:
+        gathered.close()
+
+
+def measure_chunks(
+    source: InputFile,
+    frames: range,
+    times: np.ndarray,
+    data: RunData,
+    peaks: Sequence[Peak],
+    *,
+    runner: ChunkRunner,
+    identity: InputIdentity | None = None,
+    read_ahead: int = DEFAULT_DEPTH,
+    progress: Callable[[int], None] | None = None,
+    spread: Callable[[Callable[[int], None]], None] | None = None,
+    maps: tuple[MapsSpec, MapRecord] | None = None,
+) -> RunData:
+    """:func:`~holoview.headless.frame_passes.measure_frames`, the frames on ``runner``.
+
+    Parameters
+    ----------
+    source : InputFile
+        The input (its path is what the workers open).
+    frames : range
+        Input frame indices to process.
+    times : ndarray, shape (len(frames),)
+        Their times, s.
+    data : RunData
+        The run's record (its series set up, a joint estimate tracked where known).
+    peaks : sequence of Peak
+        The demodulator's peaks.
+    runner : ChunkRunner
+        Where the chunks are measured.
+    identity : InputIdentity, optional
+        The input's when the run started: every worker checks it before each chunk.
+    read_ahead : int
+        Frames read ahead (by each worker, and here).
+    progress : callable, optional
+        Called with the number of frames measured, as chunks complete.
+    spread : callable, optional
+        ``spread(until)``: this process's pass over frames spread over the run, run
+        while the workers measure, calling ``until(position)`` before it takes a frame.
+    maps : (MapsSpec, MapRecord), optional
+        The workers make every frame's maps in the same pass (relative mode; the
+        displacements measured before), recorded here in order.
+
+    Returns
+    -------
+    RunData
+        ``data``, as :func:`~holoview.headless.frame_passes.measure_frames` gives it; its
+        timings add up the workers'. After an interruption with frames done, the
+        frames of the chunks complete from the first, ``interrupted`` set.
+    """
+    n = len(frames)
+    data.workers = runner.name
+    chunks = split_frames(n, runner.workers, maps=maps is not None)
+    works = None
+    if maps is not None:
+        wisdom = current_wisdom()
+        fused = bool(data.fused_labels)
+        works = [
+            MapsWork(maps[0], wisdom, fused, before=tuple(frames[: chunk.start]))
+            for chunk in chunks
+        ]
+    tasks = make_tasks(
+        source.path,
+        frames,
+        chunks,
+        peaks=peaks,
+        frame_shape=source.frame_shape,
+        saturation=source.saturation,
+        read_ahead=read_ahead,
+        maps=works,
+        identity=identity,
+    )
+    logger.info("%d frames in %d chunks on %s", n, len(chunks), runner.name)
+    series = data.series
+
+    def add(result: ChunkResult) -> None:
+        start = time.perf_counter()
+        for k in range(len(result)):
+            position = result.start + k
+            series.add(float(times[position]), frames[position], result.measured(k))
+            data.frame_bits[position] = result.flags[k]
+        if maps is not None and result.maps is not None:
+            for k in range(len(result)):
+                maps[1].record(result.start + k, frames[result.start + k], result.maps.frame(k))
+        _account(data, result, time.perf_counter() - start)
+
+    gathered = _Gathered(runner.run(tasks), [c.start for c in chunks], n, progress, add)
+    _gather(runner, gathered, data, n, meanwhile=spread)
+    return check_run(data)
+
+
+def _account(data: RunData, result: ChunkResult, parent_seconds: float) -> None:
+    data.read_seconds += result.read_seconds
+    data.demod_seconds += result.measure_seconds + result.maps_seconds
+    data.maps_seconds += result.maps_seconds
+    data.worker_seconds += result.measure_seconds + result.maps_seconds
+    data.parent_seconds += parent_seconds
+
+
+def chunk_states(
+    data: RunData, chunks: Sequence[range], spec: MapsSpec, start: MeanPhaseState, mode: str
+) -> list[tuple[MeanPhaseState, int | None]]:
+    """Per chunk, the mean phases and the reference frame's position the serial pass has there.
+
+    The serial maps pass (:func:`~holoview.headless.frame_passes.maps_pass`) advances
+    its mean phases (:class:`~holoview.processing.maps.mean_phases.MeanPhases`) on the
+    series' values of every frame it demodulates; this replays it, with the same
+    arithmetic, from ``start`` (a fresh demodulator's state).
+    """
+    m = len(spec.peaks)
+    phases = MeanPhases(m, mode)
+    phases.restore(start)
+    first = last = None
+    background = spec.background is not None
+    out: list[tuple[MeanPhaseState, int | None]] = []
+    for chunk in chunks:
+        reference = None
+        if mode == "relative":
+            reference = last
+        elif mode == "absolute" and not background:
+            reference = first
+        out.append((phases.state(), reference))
+        for position in chunk:
+            if not data.demodulable(position):
+                continue
+            values = data.values[position]
+            for j in range(m):
+                phases.advance(j, complex(values[j]))
+            first = position if first is None else first
+            last = position
+    return out
+
+
+def map_chunks(
+    source: InputFile,
+    frames: range,
+    data: RunData,
+    spec: MapsSpec,
+    record: MapRecord,
+    *,
+    runner: ChunkRunner,
+    identity: InputIdentity | None = None,
+    read_ahead: int = DEFAULT_DEPTH,
+    progress: Callable[[int], None] | None = None,
+) -> RunData:
+    """:func:`~holoview.headless.frame_passes.maps_pass`, the frames' maps on ``runner``.
+
+    Parameters
+    ----------
+    source : InputFile
+        The input.
+    frames : range
+        The run's input frame indices.
+    data : RunData
+        The run's record, its series measured.
+    spec : MapsSpec
+        The maps step, its displacements measured.
+    record : MapRecord
+        Counts and writes each frame's maps, in order.
+    runner : ChunkRunner
+        Where the chunks' maps are made.
+    identity : InputIdentity, optional
+        The input's when the run started: every worker checks it before each chunk.
+    read_ahead : int
+        Frames read ahead by each worker.
+    progress : callable, optional
+        Called with the number of frames done, as chunks complete.
+
+    Returns
+    -------
+    RunData
+        ``data``; after an interruption with frames done, the frames of the chunks
+        complete from the first, ``interrupted`` set.
+    """
+    n = len(data.series)
+    core = spec.core(source.frame_shape, source.saturation)
+    demod = core.demodulator
+    assert demod is not None
+    wisdom = current_wisdom()
+    chunks = split_frames(n, runner.workers, maps=True)
+    states = chunk_states(data, chunks, spec, demod.phase_state(), demod.reference)
+    fused = bool(data.fused_labels)
+    works = []
+    for chunk, (state, reference) in zip(chunks, states, strict=True):
+        works.append(
+            MapsWork(
+                spec,
+                wisdom,
+                fused,
+                values=data.values[chunk.start : chunk.stop].copy(),
+                frame_bits=data.frame_bits[chunk.start : chunk.stop].copy(),
+                state=state,
+                reference=None if reference is None else frames[reference],
+                reference_values=None if reference is None else data.values[reference].copy(),
+            )
+        )
+    tasks = make_tasks(
+        source.path,
+        frames,
+        chunks,
+        peaks=spec.peaks,
+        frame_shape=source.frame_shape,
+        saturation=source.saturation,
+        read_ahead=read_ahead,
+        maps=works,
+        identity=identity,
+    )
+
+    def add(result: ChunkResult) -> None:
+        start = time.perf_counter()
+        assert result.maps is not None
+        for k in range(len(result)):
+            record.record(result.start + k, frames[result.start + k], result.maps.frame(k))
+        _account(data, result, time.perf_counter() - start)
+
+    gathered = _Gathered(runner.run(tasks), [c.start for c in chunks], n, progress, add)
+    _gather(runner, gathered, data, n, what="' maps")
+    return data

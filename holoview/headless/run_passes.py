@@ -1,0 +1,214 @@
+"""Which passes a headless run makes over its frames, in what order, in one process or many.
+
+The passes (:mod:`holoview.headless.frame_passes`; on many processes
+:mod:`holoview.headless.parallel.stitch`): the series of every frame, the displacements on frames
+spread over the run, and with ``--maps`` every frame's maps. Their order follows from
+what each needs:
+
+- every map is fused as it is made, so the displacements come before the maps;
+- an auto run's maps take the prefactors its identification gives, which needs the
+  whole series: series, identification, displacements, maps;
+- a run whose prefactors are known makes its maps in the same pass as its series
+  (each frame read once), in one process or, in ``relative`` mode, in the workers;
+  in the ``absolute`` and ``synthetic`` modes the workers need the mean phases at
+  their chunk's start, which the series gives: series first (the displacements beside
+  it), then the maps (:func:`~holoview.headless.parallel.stitch.map_chunks`).
+
+An interruption keeps the frames whose every pass is done; a run interrupted before
+its maps pass keeps the series of the frames done, and no maps (a note says so).
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Callable
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from holoview.engine.experiment import Experiment
+from holoview.headless.analysis import Naming, known_joint, name_peaks
+from holoview.headless.frame_passes import (
+    MapsSpec,
+    maps_pass,
+    measure_frames,
+    spread_pass,
+)
+from holoview.headless.input_identity import InputIdentity
+from holoview.headless.inputs import InputFile, Optics
+from holoview.headless.parallel.runners import ChunkRunner
+from holoview.headless.parallel.stitch import map_chunks, measure_chunks
+from holoview.headless.run_data import MapRecord, MapSink, RunData, new_run_data
+from holoview.headless.selection import Selection
+from holoview.headless.settings import ProcessSettings
+
+logger = logging.getLogger(__name__)
+
+__all__ = ["RunFrames", "run_passes"]
+
+
+@dataclass(frozen=True)
+class RunFrames:
+    """What the passes of a run take: its frames, peaks, settings and where they go.
+
+    Attributes
+    ----------
+    source : InputFile
+        The input.
+    frames : range
+        Input frame indices to process.
+    times : ndarray, shape (len(frames),)
+        Their times, s.
+    selection : Selection
+        The peaks chosen (labelled, or to be identified in auto mode).
+    spec : MapsSpec
+        The maps step of the selected peaks (no displacements yet).
+    experiment : Experiment
+        The run's settled experiment.
+    optics : Optics
+        The run's optics.
+    settings : ProcessSettings
+        Its settings.
+    identity : InputIdentity or None
+        The input's when the run started: the workers check it before each chunk.
+    """
+
+    source: InputFile
+    frames: range
+    times: np.ndarray
+    selection: Selection
+    spec: MapsSpec
+    experiment: Experiment
+    optics: Optics
+    settings: ProcessSettings
+    identity: InputIdentity | None = None
+
+
+def run_passes(
+    run: RunFrames,
+    *,
+    runner: ChunkRunner | None,
+    sink: MapSink | None,
+    progress: Callable[[int, int], None] | None = None,
+) -> tuple[RunData, Naming]:
+    """Make the run's passes (module documentation); return its record and its peaks' naming.
+
+    Parameters
+    ----------
+    run : RunFrames
+        The run.
+    runner : ChunkRunner or None
+        Workers (None: this process alone).
+    sink : MapSink or None
+        Receives every frame's maps (``--maps``).
+    progress : callable, optional
+        ``progress(done, total)``: the frames' work done of all the passes over every
+        frame (two with ``--maps`` when the maps follow the series, else one).
+
+    Raises
+    ------
+    KeyboardInterrupt
+        Interrupted before any frame was done.
+    InputError
+        As the passes and the identification raise.
+    """
+    source, frames = run.source, run.frames
+    spec = run.spec
+    n = len(frames)
+    demod = spec.core(source.frame_shape, source.saturation).demodulator
+    assert demod is not None
+    data = new_run_data(demod.peaks, demod.box_shape, demod.radius, n, demod.windows)
+    known = run.selection.mode != "auto"
+    maps = sink is not None
+    relative = demod.reference == "relative"
+    together = maps and known and (runner is None or relative)
+    total = n * (2 if maps and not together else 1)
+    first = None if progress is None else (lambda k: progress(k, total))
+    second = None if progress is None else (lambda k: progress(n + k, total))
+    joint = known_joint(run.selection, run.optics)
+    if joint is not None:
+        joint.track(data.series)
+    read_ahead = run.settings.read_ahead
+    if together:
+        spread_pass(source, frames, data, spec, record=False, read_ahead=read_ahead)
+        spec = replace(spec, displacements=tuple(data.displacements))
+        record = MapRecord(data, sink, fused=bool(data.fused_labels))
+        if runner is None:
+            step = spec.step(source.frame_shape, source.saturation)
+            measure_frames(
+                source,
+                frames,
+                run.times,
+                data,
+                demod.peaks,
+                read_ahead=read_ahead,
+                progress=first,
+                maps=(step, record),
+            )
+        else:
+            measure_chunks(
+                source,
+                frames,
+                run.times,
+                data,
+                demod.peaks,
+                runner=runner,
+                identity=run.identity,
+                read_ahead=read_ahead,
+                progress=first,
+                maps=(spec, record),
+            )
+        return data, name_peaks(data, run.selection, run.optics)
+    beside = None
+    if known and runner is not None:
+
+        def beside(until: Callable[[int], None]) -> None:
+            spread_pass(
+                source, frames, data, spec, record=not maps, read_ahead=read_ahead, until=until
+            )
+
+    if runner is None:
+        measure_frames(
+            source, frames, run.times, data, demod.peaks, read_ahead=read_ahead, progress=first
+        )
+    else:
+        measure_chunks(
+            source,
+            frames,
+            run.times,
+            data,
+            demod.peaks,
+            runner=runner,
+            identity=run.identity,
+            read_ahead=read_ahead,
+            progress=first,
+            spread=beside,
+        )
+    naming = name_peaks(data, run.selection, run.optics)
+    if not known:
+        spec = replace(spec, peaks=naming.peaks(run.selection), exclude=naming.exclude)
+        data.map_units = tuple("m" if a is not None else "rad" for a in naming.signed)
+    if data.interrupted:  # the frames done are the series': no displacements, no maps
+        if maps:
+            data.notes.append("interrupted before its maps were made: results.h5 holds none")
+        return data, naming
+    if beside is None:
+        spread_pass(source, frames, data, spec, record=not maps, read_ahead=read_ahead)
+    if sink is not None:
+        spec = replace(spec, displacements=tuple(data.displacements))
+        record = MapRecord(data, sink, fused=bool(data.fused_labels))
+        if runner is None:
+            maps_pass(source, frames, data, spec, record, read_ahead=read_ahead, progress=second)
+        else:
+            map_chunks(
+                source,
+                frames,
+                data,
+                spec,
+                record,
+                runner=runner,
+                identity=run.identity,
+                read_ahead=read_ahead,
+                progress=second,
+            )
+    return data, naming
