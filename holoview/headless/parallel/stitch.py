@@ -91,6 +91,7 @@ class _Gathered:
                 self.chunks[self._ready] = replace(chunk, maps=None)  # their memory back
                 self.done = self._ends[self._ready]
                 self._ready += 1
+                logger.debug("%d frames stitched in order", self.done)
             if self._progress is not None:
                 self._progress(self._measured)
 
