@@ -82,6 +82,18 @@ def test_each_peak_is_demodulated_with_its_own_window(
                 for n in results["peaks/label"][:]
             ]
         )
+    # in two processes: the windows the parent matched, the same maps to the last bit
+    status, _, err = run_cli([*argv, "--jobs", "2", "--out", str(tmp_path / "two")], capsys)
+    assert status == 0, err
+    two = json.loads((tmp_path / "two" / "summary.json").read_text())
+    assert two["timing"]["workers"] == "2 processes"
+    assert {label: p["window"] for label, p in two["peaks"].items()} == windows
+    with (
+        h5py.File(tmp_path / "matched" / "results.h5", "r") as one,
+        h5py.File(tmp_path / "two" / "results.h5", "r") as other,
+    ):
+        for name in (*windows, "fused"):
+            np.testing.assert_array_equal(one["maps"][name][:], other["maps"][name][:])
     # --radius bound: today's widest windows; a number: that one, not refused
     status, _, err = run_cli([*argv, "--radius", "bound", "--out", str(tmp_path / "b")], capsys)
     assert status == 0, err
