@@ -11,7 +11,9 @@ and the PNGs go to ``OUT/WIDTHxHEIGHT/``. States saved, one PNG each: ``1-start`
 ``2-labelled`` (the suggested labels used: predicted carriers, windows, maps,
 profile), ``3-phase`` (the same maps as phase with the cyclic colour map),
 ``4-recording`` (a recording running, its indicator), ``5-trends`` (the depth series
-and rate). ``--label`` names peaks instead of the source's suggestions.
+and rate), ``6-replay`` (that recording opened as File > Open does: its whole run, the
+frame shown as a cursor, a range fitted). ``--label`` names peaks instead of the
+source's suggestions.
 """
 
 from __future__ import annotations
@@ -22,6 +24,7 @@ import os
 import sys
 import tempfile
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 from PyQt6.QtWidgets import QApplication
@@ -37,6 +40,31 @@ def wait(app: QApplication, seconds: float) -> None:
     while time.monotonic() < end:
         app.processEvents()
         time.sleep(0.005)
+
+
+def until(app: QApplication, done: Callable[[], bool], seconds: float) -> bool:
+    """Run the event loop until ``done()`` or ``seconds`` pass; return ``done()``."""
+    end = time.monotonic() + seconds
+    while not done() and time.monotonic() < end:
+        app.processEvents()
+        time.sleep(0.005)
+    return done()
+
+
+def replay(app: QApplication, window: MainWindow, path: Path, settle: float) -> bool:
+    """Open ``path`` as File > Open does, fit the middle half of its run, show its middle."""
+    window.open_file(path)
+    if not until(app, lambda: window.run_trends.series is not None, 300):
+        print(f"no whole run: {window.banner_text}", file=sys.stderr)
+        return False
+    window.docks["Trends"].raise_()
+    times = window.run_trends.series.times  # type: ignore[union-attr]
+    n = len(times)
+    window.trends.choose_range(float(times[n // 4]), float(times[3 * n // 4]))
+    until(app, lambda: window.run_trends.range_series is not None, 300)
+    window.transport.seek(n // 2)
+    wait(app, settle)
+    return True
 
 
 def parse_label(text: str) -> tuple[str, float, float]:
@@ -61,7 +89,12 @@ def main() -> int:
     args.out.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory() as tmp:
         os.environ["XDG_CONFIG_HOME"] = tmp  # the default layout, not the user's
-        options = {"shape": (args.size, args.size)} if args.source.startswith("sim") else {}
+        # rendered live: a cycle's loop would put a jump back in the run recorded (6-replay)
+        options = (
+            {"shape": (args.size, args.size), "render": "live"}
+            if args.source.startswith("sim")
+            else {}
+        )
         window = MainWindow(
             source=args.source,
             experiment_path=Path(tmp) / "experiment.json",
@@ -108,6 +141,11 @@ def main() -> int:
         window.trends.pca_box.setChecked(True)
         wait(app, args.settle * 2)
         save("5-trends")
+        window.trends.pca_box.setChecked(False)
+        if not replay(app, window, Path(tmp) / "rec.h5", args.settle):
+            window.close()
+            return 1
+        save("6-replay")
         window.close()
     return 0
 

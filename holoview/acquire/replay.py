@@ -19,6 +19,14 @@ the file and its ``segment``: a frame that is not the one after the previous fra
 delivered (a seek, a step back, the loop starting over) opens a new segment, so
 processing never pairs frames across a jump.
 
+Each frame is stamped (``FrameMeta.t_device``) with its time in the recording, so that
+what the frames measure over time (a rate) is the same at every speed: the file's own
+clock where it has a usable one (the one rule of :mod:`holoview.acquire.frame_times`:
+a recording's camera clock, else its host's; a video's frame rate), else the index over
+the frame rate given (``rate_hz``), else over :data:`DEFAULT_RATE_HZ`, assumed; a rate
+given replaces the file's clock, as ``holoview process --fps`` does.
+:meth:`ReplaySource.clock` says which, in words.
+
 With ``loop`` the file starts over at its end (frame ids keep increasing, device
 times too); otherwise, with ``hold``, the replay pauses on the last frame (a
 window keeps showing it; resuming plays from the start again); otherwise
@@ -37,11 +45,13 @@ import bisect
 import math
 import threading
 import time
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from holoview.acquire.frame_times import CLOCK_NAMES, FrameClock
 from holoview.acquire.replay_files import FrameFile, HDF5File, open_frame_file
 from holoview.acquire.source import (
     AcquisitionError,
@@ -59,6 +69,26 @@ DEFAULT_RATE_HZ = 30.0
 SPEEDS = ("recorded", "fast", "step")
 #: Slowest and fastest ``speed_factor`` against the recorded pace.
 SPEED_FACTOR_LIMITS = (0.25, 8.0)
+
+
+@dataclass(frozen=True)
+class ReplayClock:
+    """What times a replay's frames (the module docstring's rule).
+
+    Attributes
+    ----------
+    origin : {"file", "given", "assumed"}
+        The file's own clock; a frame rate given; :data:`DEFAULT_RATE_HZ` assumed for a
+        file without times.
+    rate_hz : float or None
+        The frame rate that times the frames, frames per second (None: the file's clock).
+    text : str
+        Which, in words (``"10 frames/s, given"``).
+    """
+
+    origin: str
+    rate_hz: float | None
+    text: str
 
 
 class ReplaySource(Source):
@@ -110,6 +140,7 @@ class ReplaySource(Source):
         super().__init__(f"replay:{path}")
         self.path = Path(path)
         self._file: FrameFile | None = None
+        self._file_clock: FrameClock | None = None
         self._speed = speed
         self._rate_hz = rate_hz
         self._loop = bool(loop)
@@ -177,6 +208,7 @@ class ReplaySource(Source):
         if self._file is not None:
             self._file.close()
             self._file = None
+        self._file_clock = None
 
     def _do_start(self) -> None:
         with self._cond:
@@ -238,6 +270,23 @@ class ReplaySource(Source):
         """Times the recorded pace."""
         return self._factor
 
+    def clock(self) -> ReplayClock:
+        """What times the frames: the file's clock, or a frame rate given or assumed."""
+        file = self._require_file()
+        if self._rate_hz is not None:
+            return ReplayClock("given", self._rate_hz, f"{self._rate_hz:g} frames/s, given")
+        own = self._clock_of(file)
+        if own.usable:
+            name = own.camera_name if own.source == "camera" else CLOCK_NAMES[own.source]
+            return ReplayClock("file", None, name)
+        rate = self._effective_rate()
+        return ReplayClock(
+            "assumed",
+            rate,
+            f"{rate:g} frames/s, assumed: {self.path.name} carries no frame times; "
+            "give its rate (rate_hz)",
+        )
+
     @property
     def experiment_problem(self) -> str | None:
         """Why the file's stored experiment is not carried (damaged), else None."""
@@ -253,12 +302,30 @@ class ReplaySource(Source):
     def frame_time_s(self, index: int) -> float:
         """Time of frame ``index`` in the recording since its first frame, seconds.
 
-        From the file's timestamps (a recording's device or host clock, a video's rate),
-        else ``index`` over the playback rate.
+        By :meth:`clock`: the file's times, else ``index`` over the frame rate.
         """
         file = self._require_file()
-        t = file.time_s(index) if 0 <= index < len(file) else math.nan
-        return t if math.isfinite(t) else index / self._effective_rate()
+        if self._rate_hz is None and 0 <= index < len(file):
+            own = self._clock_of(file)
+            if own.usable:
+                return float(own.times[index] - own.times[0])
+        return index / self._effective_rate()
+
+    def _stamp(self, file: FrameFile, index: int) -> float:
+        """The time frame ``index`` is stamped with, s: on the file's clock as recorded
+        (the camera's, or the host's), else :meth:`frame_time_s`."""
+        if self._rate_hz is None:
+            own = self._clock_of(file)
+            if own.usable and index < len(own.times):
+                return float(own.times[index])
+        return self.frame_time_s(index)
+
+    def _clock_of(self, file: FrameFile) -> FrameClock:
+        """The file's own clock (the one rule), found again when a growing file grew."""
+        own = self._file_clock
+        if own is None or len(own.times) != len(file):
+            own = self._file_clock = file.clock(range(len(file)))
+        return own
 
     def pause(self) -> None:
         """Stop delivering frames until :meth:`resume` (steps and seeks still do)."""
@@ -406,7 +473,7 @@ class ReplaySource(Source):
         id_offset, t_offset = self._loop_offsets(file)
         meta = FrameMeta(
             frame_id=id_offset + file.frame_id(index),
-            t_device=file.t_device(index) + t_offset,
+            t_device=self._stamp(file, index) + t_offset,
             t_host=time.time(),
             pixel_format=file.pixel_format,
             file_index=index,
@@ -420,6 +487,6 @@ class ReplaySource(Source):
             return 0, 0.0
         n = len(file)
         rate = self._effective_rate()
-        t_span = file.t_device(n - 1) - file.t_device(0)
+        t_span = self._stamp(file, n - 1) - self._stamp(file, 0)
         period = t_span + 1.0 / rate if math.isfinite(t_span) else n / rate
         return self._loops * (file.frame_id(n - 1) + 1), self._loops * period

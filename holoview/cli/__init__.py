@@ -21,6 +21,7 @@ import logging
 import os
 import sys
 from collections.abc import Sequence
+from pathlib import Path
 from typing import NoReturn
 
 from holoview import __version__
@@ -49,7 +50,7 @@ def build_parser() -> argparse.ArgumentParser:
         prog="holoview",
         description="Live view, recording and analysis for multiplexed off-axis "
         "digital holography of fluid surfaces. With no subcommand: the live GUI "
-        "on the simulated camera.",
+        "on the simulated camera; `holoview FILE`: the GUI on a recording.",
     )
     parser.add_argument("--version", action="version", version=f"holoview {__version__}")
     add_verbosity_options(parser, top=True)
@@ -101,6 +102,12 @@ def _quiet_hdf5_cleanup(unraisable: sys.UnraisableHookArgs) -> None:
 BLAS_THREADS = "1"
 
 
+def _names_a_file(word: str) -> bool:
+    """Whether a first word that is no command names a file (``holoview FILE``)."""
+    path = Path(word)
+    return path.exists() or bool(path.suffix) or "/" in word
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the ``holoview`` command line; return the process exit status."""
     os.environ.setdefault("OPENBLAS_NUM_THREADS", BLAS_THREADS)  # read as numpy loads
@@ -109,6 +116,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     only_options = all(a.startswith("-") for a in args_list)
     if only_options and not {"-h", "--help", "--version"} & set(args_list):
         args_list.append(DEFAULT_COMMAND)
+    first = next((a for a in args_list if not a.startswith("-")), None)
+    if first is not None and first not in COMMANDS and _names_a_file(first):
+        args_list.insert(args_list.index(first), DEFAULT_COMMAND)  # holoview FILE: open it
     try:
         args = parser.parse_args(args_list)
     except SystemExit as exc:  # --help, --version, or a usage error already printed
@@ -127,8 +137,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 2
     except MemoryError as exc:
         print(
-            f"holoview {args.command}: error: not enough memory ({exc or 'an array too large'}); "
-            "ask for fewer or smaller frames",
+            f"holoview {args.command}: error: not enough memory "
+            f"({str(exc) or 'an array too large'}); ask for fewer or smaller frames",
             file=sys.stderr,
         )
         return 2

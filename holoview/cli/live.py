@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import os
 import sys
+from pathlib import Path
 
 from holoview.cli.options import add_experiment_option, add_optics_options, optics_in_metres
 
@@ -15,9 +16,20 @@ NO_DISPLAY_HELP = (
 )
 
 
-def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
+def add_parser(
+    subparsers: argparse._SubParsersAction[argparse.ArgumentParser],
+) -> argparse.ArgumentParser:
     """Register ``live``."""
     parser = subparsers.add_parser("live", help="open the live GUI (default: simulated camera)")
+    parser.add_argument(
+        "file",
+        nargs="?",
+        type=Path,
+        metavar="FILE",
+        help="a recording (or TIFF stack, image folder, video, .npy) to open as File > Open "
+        "does: paused on its first frame, its whole run measured, the experiment it "
+        "carries applied (`holoview FILE` is the same)",
+    )
     parser.add_argument(
         "--source",
         default="sim",
@@ -28,7 +40,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
         type=float,
         default=None,
         metavar="SECONDS",
-        help="close the window after this many seconds (for scripted runs and screenshots)",
+        help="close the window this many seconds after its source has opened (for scripted runs "
+        "and screenshots)",
     )
     add_experiment_option(
         parser,
@@ -53,14 +66,20 @@ def run(args: argparse.Namespace) -> int:
     if not has_display():
         print(f"holoview live: {NO_DISPLAY_HELP}", file=sys.stderr)
         return 2
-    from holoview.file_kinds import check_regular_file
+    from holoview.file_kinds import check_regular_file, special_file
     from holoview.ui.app import run_live
 
+    if args.file is not None:
+        what = special_file(args.file)
+        problem = f"{what}, not a file or folder of frames" if what else "no such file or folder"
+        if what or not args.file.exists():
+            print(f"holoview live: error: {args.file}: {problem}", file=sys.stderr)
+            return 2
     if args.experiment is not None:  # the window reads it, and saves every change to it
         check_regular_file(args.experiment, f"experiment file {args.experiment}")
-
     return run_live(
         source=args.source,
+        open_path=args.file,
         quit_after=args.quit_after,
         experiment=args.experiment,
         optics=optics_in_metres(args),

@@ -75,7 +75,7 @@ def matching_positions(reference: str, n: int) -> list[int]:
     return sorted(positions | {n - 1})
 
 
-def series_key(peaks: Sequence[Peak]) -> tuple:
+def series_key(peaks: Sequence[Peak]) -> tuple[object, ...]:
     """What identifies a series: each peak's label, alpha and carrier (a new key, a new series)."""
     return tuple((p.label, p.alpha, p.carrier) for p in peaks)
 
@@ -104,7 +104,7 @@ class CarrierCore:
         self._probe: CarrierProbe | None = None
 
     @property
-    def key(self) -> tuple:
+    def key(self) -> tuple[object, ...]:
         """:func:`series_key` of the peaks measured."""
         return series_key(self.peaks)
 
@@ -270,7 +270,7 @@ class FrameCore:
         """What the user should know about the windows in use (a given radius reaching a peak)."""
         return () if self._demod is None else self._demod.notes
 
-    def _settings(self) -> tuple:
+    def _settings(self) -> tuple[object, ...]:
         e = self.experiment
         return (e.window, e.radius, e.reference, e.unwrap, e.wavelength_m)
 

@@ -228,8 +228,9 @@ def _base_experiment(
     """
     mode = choice.mode()
     if mode == "experiment file":
-        assert choice.experiment is not None
-        return Experiment.load(choice.experiment), mode, []
+        given = choice.experiment
+        assert given is not None
+        return given if isinstance(given, Experiment) else Experiment.load(given), mode, []
     stored, notes = source.experiment_at(first_frame)
     base = stored or Experiment(wavelength_m=None, pixel_pitch_m=None, n1=None, n2=None)
     if mode == "labels":
@@ -249,10 +250,11 @@ def _settle(
 ) -> tuple[Experiment, ProcessSettings]:
     """Options over the experiment's demodulation settings; the resolved optics into it."""
     experiment = experiment.updated(
-        window=settings.window, reference=settings.reference, unwrap=settings.unwrap
+        window=settings.window,
+        reference=settings.reference,
+        unwrap=settings.unwrap,
+        radius=settings.radius,
     )
-    if settings.radius is not None:
-        experiment = replace(experiment, radius=settings.radius)
     experiment = replace(
         experiment,
         wavelength_m=optics.wavelength_m,
@@ -320,7 +322,7 @@ def read_background(spec: str | None, source: InputFile) -> np.ndarray | None:
 def run_inputs(input_path: str | Path, choice: PeakChoice, settings: ProcessSettings) -> list[Path]:
     """Every file or folder a run reads: the input, an experiment file, a background file."""
     inputs = [Path(input_path)]
-    if choice.experiment is not None:
+    if choice.experiment is not None and not isinstance(choice.experiment, Experiment):
         inputs.append(Path(choice.experiment))
     spec = settings.background
     if spec is not None and not spec.lstrip("-").isdigit():

@@ -90,6 +90,7 @@ def run_passes(
     runner: ChunkRunner | None,
     sink: MapSink | None,
     progress: Callable[[int, int], None] | None = None,
+    series_only: bool = False,
 ) -> tuple[RunData, Naming]:
     """Make the run's passes (module documentation); return its record and its peaks' naming.
 
@@ -104,6 +105,10 @@ def run_passes(
     progress : callable, optional
         ``progress(done, total)``: the frames' work done of all the passes over every
         frame (two with ``--maps`` when the maps follow the series, else one).
+    series_only : bool
+        The series and the naming alone (a window's whole run,
+        :mod:`holoview.headless.run_series`): no displacements and no maps, so no
+        ``sink``.
 
     Raises
     ------
@@ -112,6 +117,8 @@ def run_passes(
     InputError
         As the passes and the identification raise.
     """
+    if series_only and sink is not None:
+        raise ValueError("a series-only run makes no maps: give no sink")
     source, frames = run.source, run.frames
     spec = run.spec
     n = len(frames)
@@ -159,8 +166,9 @@ def run_passes(
                 maps=(spec, record),
             )
         return data, name_peaks(data, run.selection, run.optics)
-    beside = None
-    if known and runner is not None:
+    # typed here: mypy took the None for the name's type and skipped the branch below
+    beside: Callable[[Callable[[int], None]], None] | None = None
+    if known and runner is not None and not series_only:
 
         def beside(until: Callable[[int], None]) -> None:
             spread_pass(
@@ -191,6 +199,8 @@ def run_passes(
     if data.interrupted:  # the frames done are the series': no displacements, no maps
         if maps:
             data.notes.append("interrupted before its maps were made: results.h5 holds none")
+        return data, naming
+    if series_only:
         return data, naming
     if beside is None:
         spread_pass(source, frames, data, spec, record=not maps, read_ahead=read_ahead)

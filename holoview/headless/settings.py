@@ -11,6 +11,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
+from holoview.engine.experiment import Experiment
 from holoview.errors import InputError
 from holoview.headless.inputs import OpticsOptions
 from holoview.headless.reader import DEFAULT_DEPTH
@@ -73,8 +74,9 @@ class PeakChoice:
 
     Attributes
     ----------
-    experiment : Path or None
-        An experiment file (:mod:`holoview.engine.experiment`).
+    experiment : Path or Experiment or None
+        An experiment file (:mod:`holoview.engine.experiment`), or an experiment (a
+        window's labels and optics, as the file would give them).
     labels : dict of str to (fx, fy)
         Labelled carriers (cycles/pixel); with two or more of the model's families the
         model adds the others.
@@ -84,7 +86,7 @@ class PeakChoice:
         Auto mode: the reference peak's label and carrier (default: the brightest, RB1).
     """
 
-    experiment: Path | None = None
+    experiment: Path | Experiment | None = None
     labels: dict[str, Carrier] = field(default_factory=dict)
     auto: int | None = None
     anchor: tuple[str, Carrier] | None = None

@@ -13,8 +13,9 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from pathlib import Path
 
-from holoview.acquire.replay import ReplaySource
+from holoview.acquire.replay import ReplayClock, ReplaySource
 from holoview.acquire.source import Source
 
 __all__ = ["FASTEST", "SPEED_STEPS", "ReplayControl", "ReplayState", "speed_text"]
@@ -106,6 +107,15 @@ class ReplayControl:
         """A control for ``source`` if it is a replay, else None (a camera is not steered)."""
         return cls(source) if isinstance(source, ReplaySource) else None
 
+    @property
+    def path(self) -> Path:
+        """The file replayed."""
+        return self.source.path
+
+    def clock(self) -> ReplayClock:
+        """What times the frames (:meth:`~holoview.acquire.replay.ReplaySource.clock`)."""
+        return self.source.clock()
+
     def state(self) -> ReplayState:
         """Where the replay stands now."""
         source = self.source
@@ -153,6 +163,12 @@ class ReplayControl:
             ``index`` outside the file (one line, with the file's range).
         """
         return self.source.seek(index)
+
+    def show_again(self) -> None:
+        """Paused on a frame: deliver it once more (the maps follow new settings); else nothing."""
+        state = self.state()
+        if state.paused and state.index >= 0:
+            self.source.seek(state.index)
 
     def to_start(self) -> int:
         """Show the first frame; return its index."""

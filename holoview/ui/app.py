@@ -34,6 +34,9 @@ from holoview.ui.main_window import MainWindow
 
 logger = logging.getLogger(__name__)
 
+#: Milliseconds between two looks at whether the window's source is still opening.
+OPENING_POLL_MS = 50
+
 #: Exit status of a window stopped by a signal or by the loss of its display.
 STOPPED_STATUS = 130
 
@@ -115,11 +118,29 @@ def stop_on_lost_display(windows: list[MainWindow]) -> Iterator[None]:
         qInstallMessageHandler(previous)
 
 
+def close_after_opening(window: MainWindow, seconds: float) -> None:
+    """Close ``window`` ``seconds`` after its source has opened (or failed to open).
+
+    Opening a source runs on a thread and may take seconds on a loaded machine: counted
+    from the window's start, a short ``--quit-after`` could close it before its source
+    ever ran.
+    """
+
+    def arm() -> None:
+        if window.opening:
+            QTimer.singleShot(OPENING_POLL_MS, arm)
+        else:
+            QTimer.singleShot(int(seconds * 1000), window.close)
+
+    QTimer.singleShot(0, arm)
+
+
 def run_live(
     source: str = "sim",
     quit_after: float | None = None,
     experiment: Path | None = None,
     optics: dict[str, float] | None = None,
+    open_path: Path | None = None,
 ) -> int:
     """Open the main window on ``source`` and run the event loop.
 
@@ -128,11 +149,13 @@ def run_live(
     source : str
         Source specification (``sim``, ``aravis[:ID]``, ``v4l2[:N]``, ``replay:PATH``).
     quit_after : float, optional
-        Close the window after this many seconds.
+        Close the window this many seconds after its source has opened.
     experiment : Path, optional
         Experiment file to use (and keep up to date) instead of the default.
     optics : dict, optional
         ``wavelength_m``, ``pixel_pitch_m``, ``n1``, ``n2`` to use over the experiment's.
+    open_path : Path, optional
+        A file to open as File > Open does, instead of starting ``source``.
 
     Returns
     -------
@@ -150,11 +173,18 @@ def run_live(
     windows: list[MainWindow] = []
     with stop_on_lost_display(windows):
         try:
-            window = MainWindow(source=source, experiment_path=experiment, optics=optics)
+            window = MainWindow(
+                source=source,
+                autostart=open_path is None,
+                experiment_path=experiment,
+                optics=optics,
+            )
             windows.append(window)
             window.show()
+            if open_path is not None:
+                window.open_file(open_path)
             if quit_after is not None:
-                QTimer.singleShot(int(quit_after * 1000), window.close)
+                close_after_opening(window, quit_after)
             logger.info("main window open on source %s", source)
             with close_on_signals(window) as received:
                 status = app.exec()

@@ -11,16 +11,24 @@ full disk leaves the files that were there.
 from __future__ import annotations
 
 import logging
-from collections.abc import Mapping
+import time
+from collections.abc import Callable, Mapping
 from pathlib import Path
+from typing import TYPE_CHECKING, cast
 
 import numpy as np
 import tifffile
-from PyQt6.QtWidgets import QWidget
+from PyQt6.QtWidgets import QFileDialog, QWidget
 
 from holoview.atomic import atomic_path, fit_name, name_max
-from holoview.errors import InputError, OutputError, os_error_text
+from holoview.errors import HoloviewError, InputError, OutputError, os_error_text
 from holoview.paths import confined_name
+from holoview.ui.legends import FUSED
+
+if TYPE_CHECKING:
+    from holoview.live.maps_pipeline import LiveResult
+    from holoview.ui.status_bar import LiveStatusBar
+    from holoview.ui.surface_view import SurfaceView
 
 logger = logging.getLogger(__name__)
 
@@ -72,3 +80,77 @@ def export_window_png(widget: QWidget, path: Path) -> Path:
         if not widget.grab().save(str(partial), "PNG"):
             raise OutputError(f"cannot write {path}")
     return path
+
+
+class WindowExports:
+    """The main window's exports: its maps (TIFF or NPY), itself (PNG), a snapshot of both."""
+
+    _last_result: LiveResult | None
+    surface: SurfaceView
+    status: LiveStatusBar
+    show_message: Callable[[str], None]
+
+    def _window(self) -> QWidget:
+        return cast(QWidget, self)
+
+    def current_maps(self) -> tuple[dict[str, np.ndarray], str]:
+        """Return the maps of the latest result (metres or radians) and their unit."""
+        result = self._last_result
+        if result is None:
+            return {}, "m"
+        if self.surface.mode == "phase":
+            return dict(result.phases_rad), "rad"
+        maps = dict(result.heights_m)
+        if result.fused_m is not None:
+            maps[FUSED] = result.fused_m
+        return maps, "m"
+
+    def export_maps_to(self, path: Path) -> list[Path]:
+        """Write the current maps next to ``path`` (``.tif`` or ``.npy``)."""
+        maps, unit = self.current_maps()
+        return export_maps(maps, path, unit)
+
+    def export_maps_dialog(self) -> None:
+        """Ask for a file name and export the current maps."""
+        path, _ = QFileDialog.getSaveFileName(
+            self._window(),
+            "Export maps",
+            "maps.tif",
+            "TIFF (*.tif);;NumPy (*.npy)",
+        )
+        if path:
+            try:
+                written = self.export_maps_to(Path(path))
+            except HoloviewError as exc:
+                self.show_message(str(exc))
+                return
+            self.status.showMessage(f"wrote {len(written)} maps", 4000)
+
+    def save_png_dialog(self) -> None:
+        """Ask for a file name and save the window as PNG."""
+        path, _ = QFileDialog.getSaveFileName(
+            self._window(),
+            "Save window",
+            "holoview.png",
+            "PNG (*.png)",
+        )
+        if path:
+            try:
+                export_window_png(self._window(), Path(path))
+            except HoloviewError as exc:
+                self.show_message(str(exc))
+
+    def snapshot(self, folder: Path | None = None) -> list[Path]:
+        """Save the window (PNG) and the current maps (NPY) with a time stamp in the name."""
+        folder = folder or Path.cwd()
+        stem = folder / time.strftime("holoview-%Y%m%d-%H%M%S")
+        try:
+            written = [export_window_png(self._window(), stem.with_suffix(".png"))]
+            maps, unit = self.current_maps()
+            if maps:
+                written += export_maps(maps, stem.with_suffix(".npy"), unit)
+        except HoloviewError as exc:
+            self.show_message(str(exc))
+            return []
+        self.status.showMessage(f"snapshot: {len(written)} files in {folder}", 4000)
+        return written

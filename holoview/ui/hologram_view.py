@@ -139,8 +139,8 @@ class HologramView(QWidget):
         """Show ``frame`` (rows, cols) with the current levels (the first frame sets them)."""
         first = self._frame is None or self._frame.shape != frame.shape
         self._frame = frame
-        if self._levels is None:
-            self._levels = self._percentile_levels(frame)
+        if self._levels is None:  # the histogram's too: a paused replay draws one frame only
+            self.set_levels(*self._percentile_levels(frame))
         self._step = 1 if first else self.display_step()
         shown, rect = self._shown(frame, self._step)
         self.image.setImage(shown, autoLevels=False, levels=self._levels)

@@ -51,3 +51,33 @@ def side_legend(plot: pg.PlotItem, columns: int = 1) -> pg.LegendItem:
     plot.layout.addItem(legend, _VIEW_ROW, _LEGEND_COLUMN)
     plot.legend = legend
     return legend
+
+
+def fit_legend(plot: pg.PlotItem, legend: pg.LegendItem, height_px: float, most: int = 4) -> int:
+    """Give ``legend`` the fewest columns (up to ``most``) with which ``plot`` fits its view.
+
+    A side legend of one column sets the plot's least height (seven curves: about
+    150 pixels); a shorter view (a trends dock on a 1366 x 768 screen) would cut the
+    plot's bottom off, its time axis with it. More columns make the legend shorter.
+
+    Parameters
+    ----------
+    plot : pyqtgraph.PlotItem
+        The plot the legend is beside (:func:`side_legend`).
+    legend : pyqtgraph.LegendItem
+        Its legend.
+    height_px : float
+        The height the plot is shown in, pixels.
+    most : int
+        The most columns.
+
+    Returns
+    -------
+    int
+        The columns chosen.
+    """
+    for columns in range(1, most + 1):
+        legend.setColumnCount(columns)
+        if plot.layout.minimumHeight() <= height_px:
+            break
+    return columns

@@ -14,17 +14,19 @@ from __future__ import annotations
 
 import logging
 import time
-from dataclasses import replace
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from PyQt6.QtCore import QByteArray, QRect, Qt, QTimer, pyqtSignal
 from PyQt6.QtGui import QAction, QCloseEvent, QKeySequence
 from PyQt6.QtWidgets import (
     QDockWidget,
-    QFileDialog,
     QLabel,
     QMainWindow,
+    QMenu,
+    QMenuBar,
     QToolBar,
     QWidget,
 )
@@ -35,20 +37,24 @@ from holoview.errors import HoloviewError
 from holoview.live.maps_pipeline import LiveResult
 from holoview.live.session import LiveSession, RecordRequest, discover_sources
 from holoview.ui.background import BackgroundCall
-from holoview.ui.exports import export_maps, export_window_png
+from holoview.ui.exports import WindowExports
 from holoview.ui.hologram_view import HologramView
+from holoview.ui.notice_bar import NoticeBar
+from holoview.ui.open_files import FileOpening, Opened, opened_source
 from holoview.ui.recording_panel import RecordingPanel
+from holoview.ui.run_trends import RunTrends, maps_frame_text
 from holoview.ui.settings import ui_settings
 from holoview.ui.source_panel import SourcePanel
 from holoview.ui.spectrum_view import SpectrumView
 from holoview.ui.status_bar import LiveFigures, LiveStatusBar, RateMeter
-from holoview.ui.surface_view import FUSED, SurfaceView
+from holoview.ui.surface_view import SurfaceView
 from holoview.ui.transport_bar import TransportBar
 from holoview.ui.trends_view import TrendsView
 from holoview.ui.window_experiment import ExperimentActions
 from holoview.ui.window_layout import (
     FRAME_ALLOWANCE,
     arrange_docks,
+    available_area,
     fitted,
     initial_size,
     layout_for,
@@ -62,7 +68,7 @@ REDRAW_HZ = 30.0
 BANNER_S = 8.0
 
 
-class MainWindow(ExperimentActions, QMainWindow):
+class MainWindow(FileOpening, ExperimentActions, WindowExports, QMainWindow):
     """holoview's live window.
 
     Parameters
@@ -90,7 +96,7 @@ class MainWindow(ExperimentActions, QMainWindow):
         source: str = "sim",
         autostart: bool = True,
         experiment_path: Path | None = None,
-        source_options: dict | None = None,
+        source_options: dict[str, Any] | None = None,
         optics: dict[str, float] | None = None,
     ) -> None:
         super().__init__()
@@ -132,6 +138,12 @@ class MainWindow(ExperimentActions, QMainWindow):
         self.banner_bar.addWidget(self.banner)
         self.banner_bar.setVisible(False)
         self.addToolBar(Qt.ToolBarArea.TopToolBarArea, self.banner_bar)
+        self.addToolBarBreak(Qt.ToolBarArea.TopToolBarArea)
+        self.notice = NoticeBar(self)
+        self.addToolBar(Qt.ToolBarArea.TopToolBarArea, self.notice)
+        self._previous_experiment: Experiment | None = None
+        self.run_trends = RunTrends(self.trends, self)
+        self.setAcceptDrops(True)
         self.transport = TransportBar(self)
         self.addToolBar(Qt.ToolBarArea.BottomToolBarArea, self.transport)
 
@@ -146,7 +158,7 @@ class MainWindow(ExperimentActions, QMainWindow):
         self._add_dock("Spectrum", self.spectrum)
         self._add_dock("Surface", self.surface)
         self._add_dock("Trends", self.trends)
-        available = self.screen().availableGeometry().size()
+        available = available_area(self).size()
         self.resize(initial_size(available))
         self.dock_layout = layout_for(available)
         arrange_docks(self, self.docks, self.dock_layout)
@@ -183,12 +195,12 @@ class MainWindow(ExperimentActions, QMainWindow):
         self.docks[title] = dock
 
     def _make_actions(self) -> None:
-        def action(text: str, shortcut: str | None, slot: object) -> QAction:
+        def action(text: str, shortcut: str | None, slot: Callable[[], object]) -> QAction:
             act = QAction(text, self)
             if shortcut:
                 act.setShortcut(QKeySequence(shortcut))
                 act.setShortcutContext(Qt.ShortcutContext.ApplicationShortcut)
-            act.triggered.connect(slot)  # type: ignore[arg-type]
+            act.triggered.connect(slot)
             self.addAction(act)
             return act
 
@@ -198,7 +210,7 @@ class MainWindow(ExperimentActions, QMainWindow):
         self.export_action = action("Export maps...", "Ctrl+E", self.export_maps_dialog)
         self.png_action = action("Save window as PNG...", "Ctrl+P", self.save_png_dialog)
         self.load_action = action(
-            "Load experiment settings...", "Ctrl+O", self.load_experiment_dialog
+            "Load experiment settings...", "Ctrl+Shift+O", self.load_experiment_dialog
         )
         self.save_action = action(
             "Save experiment settings as...", "Ctrl+S", self.save_experiment_dialog
@@ -208,7 +220,12 @@ class MainWindow(ExperimentActions, QMainWindow):
         self.auto_levels_action = action("Auto levels", "Ctrl+L", self.hologram.auto_levels)
         self.match_action = action("Match windows to the surface", "Ctrl+M", self.match_windows)
         menus = self.menuBar()
-        file_menu = menus.addMenu("&File")
+        assert menus is not None  # a QMainWindow makes its menu bar when first asked
+        file_menu = _menu(menus, "&File")
+        for act in self._make_file_actions():
+            file_menu.addAction(act)
+        file_menu.addMenu(self.recent_menu)
+        file_menu.addSeparator()
         for act in (
             self.load_action,
             self.save_action,
@@ -218,18 +235,18 @@ class MainWindow(ExperimentActions, QMainWindow):
             self.quit_action,
         ):
             file_menu.addAction(act)
-        acq = menus.addMenu("&Acquisition")
+        acq = _menu(menus, "&Acquisition")
         acq.addAction(self.start_action)
         acq.addAction(self.record_action)
         acq.addAction(self.auto_levels_action)
         acq.addAction(self.match_action)
-        view = menus.addMenu("&View")
+        view = _menu(menus, "&View")
         for dock in self.docks.values():
             view.addAction(dock.toggleViewAction())
         view.addAction(self.banner_bar.toggleViewAction())
         view.addSeparator()
         view.addAction(self.reset_layout_action)
-        replay = menus.addMenu("&Replay")
+        replay = _menu(menus, "&Replay")
         for act in self.transport.shortcuts:
             replay.addAction(act)
             self.addAction(act)
@@ -252,6 +269,8 @@ class MainWindow(ExperimentActions, QMainWindow):
         self.recording_panel.stopRequested.connect(self.stop_recording)
         self.transport.message.connect(self.show_message)
         self.transport.changed.connect(self._show_source_values)
+        self.run_trends.message.connect(self.show_message)
+        self.run_trends.seekRequested.connect(self.transport.seek)
 
     # ---- messages ----------------------------------------------------------
     def show_message(self, text: str) -> None:
@@ -268,25 +287,29 @@ class MainWindow(ExperimentActions, QMainWindow):
         return self.banner.text() if self.banner_bar.isVisibleTo(self) else ""
 
     # ---- source ------------------------------------------------------------
-    def start_source(self, spec: str) -> None:
+    def start_source(self, spec: str, paused: bool = False) -> None:
         """Open and start ``spec`` on a thread; the window stays responsive meanwhile.
 
         Opening a camera or timing the simulator can take a second. When it is done
         (:attr:`opening` is False again) the views follow the new source, or the banner
-        says why it could not start.
+        says why it could not start. A replay starts ``paused`` on its first frame
+        when asked; the experiment a recording carries is read on the same thread.
         """
         if self.opener.busy:
             self.show_message(f"still opening {self._opening_spec}; try again when it is open")
             return
         self.stop_source()
-        options = self.source_options if spec == self._optioned_source else None
+        options = dict(self.source_options if spec == self._optioned_source else {})
+        if paused:
+            options["speed"] = "step"
         experiment = self.experiment
 
-        def open_session() -> LiveSession | str:
+        def open_session() -> Opened | str:
             try:
-                return LiveSession.open(spec, experiment, source_options=options)
+                session = LiveSession.open(spec, experiment, source_options=options)
             except HoloviewError as exc:
                 return f"cannot start {spec}: {exc}"
+            return opened_source(session, paused)
 
         self._opening_spec = spec
         self.source_panel.set_opening(spec)
@@ -298,17 +321,20 @@ class MainWindow(ExperimentActions, QMainWindow):
         return self.opener.busy
 
     def _opened(self, outcome: object) -> None:
-        if not isinstance(outcome, LiveSession):
+        if not isinstance(outcome, Opened):
             internal = f"cannot start {self._opening_spec}: internal error (see the log)"
             self.show_message(outcome if isinstance(outcome, str) else internal)
             self.source_panel.set_streaming(False)
             return
-        self.session = outcome
+        self.session = outcome.session
         self._last_seq = -1
         self._camera_seq = -1
         self._drawn = None
         self.session.on_maps(self.mapsReady.emit)
         self._adopt_source_setup(self.session.source_setup())
+        for note in outcome.notes:
+            self.show_message(note)
+        self._apply_recording_experiment(outcome.stored, self.session.source_setup())
         self._learn_known_labels()
         self.hologram.set_saturation_value(self.session.saturation_value)
         self.source_panel.set_settings(
@@ -316,16 +342,26 @@ class MainWindow(ExperimentActions, QMainWindow):
         )
         self.source_panel.set_streaming(True, self.session.description)
         self.transport.attach(self.session.replay)
+        self._attach_run()
         self.timer.start()
 
-    def _adopt_source_setup(self, setup: dict) -> None:
+    def _attach_run(self) -> None:
+        """Measure the whole run of a replayed file (the trends view shows it); else nothing."""
+        replay = self.session.replay if self.session is not None else None
+        if replay is None:
+            self.run_trends.attach(None)
+            return
+        clock = replay.clock()
+        self.run_trends.attach(replay.path, self.experiment, clock.rate_hz, clock.text)
+
+    def _adopt_source_setup(self, setup: dict[str, Any]) -> None:
         """Take the optics a source knows (simulator, recording) into the experiment."""
         fields = ("wavelength_m", "pixel_pitch_m", "n1", "n2")
         changes = {k: float(setup[k]) for k in fields if k in setup and k not in self.optics}
         if not changes or all(getattr(self.experiment, k) == v for k, v in changes.items()):
             return
         try:
-            self._set_experiment(replace(self.experiment, **changes))
+            self._set_experiment(self.experiment.with_optics(changes))
         except HoloviewError as exc:
             self.show_message(f"the source's optical setup is not usable: {exc}")
             return
@@ -338,6 +374,8 @@ class MainWindow(ExperimentActions, QMainWindow):
             return
         self.timer.stop()
         self.transport.attach(None)
+        self.run_trends.attach(None)
+        self.surface.stats_label.clear()
         self.session.close()
         self.session = None
         self.recording_panel.set_progress(None)
@@ -372,6 +410,9 @@ class MainWindow(ExperimentActions, QMainWindow):
             self.show_message(str(exc))
         self._last_seq = -1
         self._camera_seq = -1
+        if self.session.replay is not None:
+            clock = self.session.replay.clock()
+            self.run_trends.set_clock(clock.rate_hz, clock.text)
         self.source_panel.show_values(self.session.read_settings())
         self.source_panel.set_streaming(self.session.running, self.session.description)
 
@@ -412,61 +453,6 @@ class MainWindow(ExperimentActions, QMainWindow):
             self.session.stop_recording()
             self.recording_panel.set_progress(self.session.recording_progress())
 
-    # ---- exports -----------------------------------------------------------
-    def current_maps(self) -> tuple[dict, str]:
-        """Return the maps of the latest result (metres or radians) and their unit."""
-        result = self._last_result
-        if result is None:
-            return {}, "m"
-        if self.surface.mode == "phase":
-            return dict(result.phases_rad), "rad"
-        maps = dict(result.heights_m)
-        if result.fused_m is not None:
-            maps[FUSED] = result.fused_m
-        return maps, "m"
-
-    def export_maps_to(self, path: Path) -> list[Path]:
-        """Write the current maps next to ``path`` (``.tif`` or ``.npy``)."""
-        maps, unit = self.current_maps()
-        return export_maps(maps, path, unit)
-
-    def export_maps_dialog(self) -> None:
-        """Ask for a file name and export the current maps."""
-        path, _ = QFileDialog.getSaveFileName(
-            self, "Export maps", "maps.tif", "TIFF (*.tif);;NumPy (*.npy)"
-        )
-        if path:
-            try:
-                written = self.export_maps_to(Path(path))
-            except HoloviewError as exc:
-                self.show_message(str(exc))
-                return
-            self.status.showMessage(f"wrote {len(written)} maps", 4000)
-
-    def save_png_dialog(self) -> None:
-        """Ask for a file name and save the window as PNG."""
-        path, _ = QFileDialog.getSaveFileName(self, "Save window", "holoview.png", "PNG (*.png)")
-        if path:
-            try:
-                export_window_png(self, Path(path))
-            except HoloviewError as exc:
-                self.show_message(str(exc))
-
-    def snapshot(self, folder: Path | None = None) -> list[Path]:
-        """Save the window (PNG) and the current maps (NPY) with a time stamp in the name."""
-        folder = folder or Path.cwd()
-        stem = folder / time.strftime("holoview-%Y%m%d-%H%M%S")
-        try:
-            written = [export_window_png(self, stem.with_suffix(".png"))]
-            maps, unit = self.current_maps()
-            if maps:
-                written += export_maps(maps, stem.with_suffix(".npy"), unit)
-        except HoloviewError as exc:
-            self.show_message(str(exc))
-            return []
-        self.status.showMessage(f"snapshot: {len(written)} files in {folder}", 4000)
-        return written
-
     # ---- redraw ------------------------------------------------------------
     def redraw(self) -> None:
         """Draw the camera's newest frame and any new result; refresh figures and messages."""
@@ -484,8 +470,14 @@ class MainWindow(ExperimentActions, QMainWindow):
             self._draw_camera(newest[1])
             self.display_rate.tick()
         self.draw_maps()
-        trend = session.trend()
-        if trend is not None and trend.seq != self._trend_seq:
+        state = session.replay.state() if session.replay is not None else None
+        if state is not None:
+            maps_index = -1 if self._last_result is None else self._last_result.frame_index
+            self.surface.stats_label.setText(maps_frame_text(state, maps_index))
+        if self.run_trends.showing and state is not None:
+            self.run_trends.refresh(state.index)
+            self._trend_seq = -1
+        elif (trend := session.trend()) is not None and trend.seq != self._trend_seq:
             self._trend_seq = trend.seq
             self.trends.set_series(trend.times_s, trend.depths_m, jumped=trend.segment > 0)
             self.trends.set_rate(trend.rate_m_per_s, trend.rate_stderr_m_per_s, trend.rate_fit)
@@ -558,18 +550,20 @@ class MainWindow(ExperimentActions, QMainWindow):
             self.restoreGeometry(geometry)
         if isinstance(state, QByteArray):
             self.restoreState(state)
-            self.transport.attach(self.transport.control)  # shown only while steering
+            self._bars_as_they_are()
         self.fit_to_screen()
 
     def fit_to_screen(self) -> None:
         """Move and shrink the window (a restored geometry too) into its screen's free area."""
-        self.layout().activate()  # the docks' minimum sizes as they are arranged now
+        layout = self.layout()  # a QMainWindow has its own (the stubs allow None)
+        if layout is not None:
+            layout.activate()  # the docks' minimum sizes as they are arranged now
         frame, client = self.frameGeometry(), self.geometry()
         margins = frame.size() - client.size()
         if not self.isVisible():  # the window manager's frame is not known yet
             margins = margins.expandedTo(FRAME_ALLOWANCE)
             frame = QRect(frame.topLeft(), client.size() + margins)
-        position, size = fitted(frame, margins, self.screen().availableGeometry())
+        position, size = fitted(frame, margins, available_area(self))
         self.resize(size)
         self.move(position)
 
@@ -583,7 +577,13 @@ class MainWindow(ExperimentActions, QMainWindow):
     def reset_layout(self) -> None:
         """Put the docks back where they start."""
         self.restoreState(self._default_state)
-        self.transport.attach(self.transport.control)
+        self._bars_as_they_are()
+
+    def _bars_as_they_are(self) -> None:
+        """Show the bars a restored layout hid or showed by their state, not the layout's."""
+        self.transport.attach(self.transport.control)  # shown only while steering
+        self.banner_bar.setVisible(bool(self.banner.text()) and self._banner_until > 0)
+        self.notice.setVisible(bool(self.notice.label.text()) and self.notice.has_action)
 
     def shut_down(self) -> None:
         """Stop every thread and timer (a recording's file closed), remember the layout.
@@ -593,13 +593,21 @@ class MainWindow(ExperimentActions, QMainWindow):
         """
         self.timer.stop()
         opened = self.opener.wait()
-        if isinstance(opened, LiveSession):
-            opened.close()
+        if isinstance(opened, Opened):
+            opened.session.close()
         self.discovery.wait()
+        self.run_trends.close()
         self.stop_source()
         self.save_layout()
 
-    def closeEvent(self, event: QCloseEvent) -> None:
+    def closeEvent(self, event: QCloseEvent | None) -> None:
         """Stop every thread and timer, remember the layout, then close."""
         self.shut_down()
         super().closeEvent(event)
+
+
+def _menu(bar: QMenuBar, title: str) -> QMenu:
+    """A new menu ``title`` at the end of ``bar`` (owned by it)."""
+    menu = QMenu(title, bar)
+    bar.addMenu(menu)
+    return menu

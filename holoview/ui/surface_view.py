@@ -2,16 +2,19 @@
 
 Heights arrive in metres and are shown in nanometres with a perceptual colour map
 (viridis); phases arrive in radians and are shown with a cyclic one (CET-C6) over
-[-pi, pi]. A line drawn on the first map is mirrored (dashed) on the others, and
-the profile below overlays every map's curve along it (the paper's figure 4g), on
-the colour bar's range.
+[-pi, pi]. Untrusted pixels arrive as NaN and are left transparent. The height range
+(the first, "Auto range", and "follow") is :func:`colour_range`: percentiles of the
+trusted pixels, of the fused map where there is one, so that a noisy peak's map or a
+few wild pixels do not squeeze the surface into a few colours. A line drawn on the
+first map is mirrored (dashed) on the others, and the profile below overlays every
+map's curve along it (the paper's figure 4g), on the colour bar's range.
 """
 
 from __future__ import annotations
 
 import math
 import time
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 
 import numpy as np
 import pyqtgraph as pg
@@ -37,6 +40,10 @@ HEIGHT_CMAP = "viridis"
 PHASE_CMAP = "CET-C6"
 #: Seconds between colour-range updates while "follow" is on.
 FOLLOW_INTERVAL_S = 0.5
+#: Percentiles of the trusted pixels that set the height range (:func:`colour_range`).
+RANGE_PERCENTILES = (1.0, 99.0)
+#: Pixels of a map sampled for its range, at most about.
+RANGE_SAMPLES = 16384
 #: Map titles: font size, and the height they take above a map, pixels.
 TITLE_SIZE = "9pt"
 TITLE_HEIGHT_PX = 22.0
@@ -89,9 +96,43 @@ def best_columns(n: int, width: float, height: float, title: float = 0.0) -> int
     return max(range(1, n + 1), key=lambda c: (side(c), -c))
 
 
-def ordered_names(names: object) -> list[str]:
+def colour_range(
+    maps: Mapping[str, np.ndarray], percentiles: tuple[float, float] = RANGE_PERCENTILES
+) -> tuple[float, float] | None:
+    """The colour range of height maps: percentiles of their finite (trusted) values.
+
+    The fused map's where there is one (the peaks' noise-weighted mean: the surface
+    best seen); else the median, over the maps, of each map's percentiles, so that one
+    noisy peak does not set the range of all. None without a finite value, or where
+    the values are all equal (a reference frame's zero maps say nothing of the range).
+
+    Parameters
+    ----------
+    maps : mapping of str to ndarray
+        Maps by name (``"fused"`` for the fused one), any unit; NaN where untrusted.
+    percentiles : (float, float)
+        The low and high percentiles, in [0, 100].
+    """
+    ranges = {name: _percentiles(data, percentiles) for name, data in maps.items()}
+    known = {name: r for name, r in ranges.items() if r is not None}
+    if not known:
+        return None
+    chosen = [known[FUSED]] if FUSED in known else list(known.values())
+    low, high = (float(v) for v in np.median(np.array(chosen), axis=0))
+    return (low, high) if high > low else None
+
+
+def _percentiles(data: np.ndarray, percentiles: tuple[float, float]) -> np.ndarray | None:
+    """The percentiles of the finite values of ``data`` (about RANGE_SAMPLES of them)."""
+    step = max(1, int(math.sqrt(data.size / RANGE_SAMPLES)))
+    values = data[::step, ::step]
+    values = values[np.isfinite(values)]
+    return np.percentile(values, percentiles) if values.size else None
+
+
+def ordered_names(names: Iterable[str]) -> list[str]:
     """Map names in a stable order: the usual families first, other labels, then fused."""
-    given = list(names)  # type: ignore[call-overload]
+    given = list(names)
     usual = [n for n in PEAK_LABELS if n in given]
     others = sorted(n for n in given if n not in PEAK_LABELS and n != FUSED)
     return usual + others + ([FUSED] if FUSED in given else [])
@@ -131,7 +172,10 @@ class SurfaceView(QWidget):
         self.reference_box.addItems(REFERENCE_MODES)
         self.reference_box.currentTextChanged.connect(self.referenceChanged.emit)
         self.range_button = QPushButton("Auto range")
-        self.range_button.setToolTip("set the colour range once from the 1-99 percentiles")
+        self.range_button.setToolTip(
+            "set the colour range once from the 1-99 percentiles of the trusted pixels "
+            "(of the fused map where there is one)"
+        )
         self.range_button.clicked.connect(self.auto_range)
         self.follow_box = QCheckBox("follow")
         self.follow_box.setToolTip(
@@ -167,7 +211,7 @@ class SurfaceView(QWidget):
         self.profile.setLabel("left", "delta h (nm)")
         self.profile.getAxis("left").enableAutoSIPrefix(False)
         self.profile.disableAutoRange()
-        self._profile_ranges: tuple | None = None
+        self._profile_ranges: tuple[object, ...] | None = None
         self.profile_legend = side_legend(self.profile.getPlotItem())
         self.curves: dict[str, pg.PlotDataItem] = {}
         splitter = QSplitter(Qt.Orientation.Vertical)
@@ -284,22 +328,18 @@ class SurfaceView(QWidget):
         return self._levels or (-1.0, 1.0)
 
     def auto_range(self) -> None:
-        """Set the height colour range from the 1-99 percentiles of the maps shown."""
+        """Set the height colour range from the maps shown (:func:`colour_range`)."""
         self._range_from_maps()
         self._draw_maps()
 
     def _range_from_maps(self) -> None:
-        self._range_at = time.monotonic()
         if self._mode == "phase" or not self._data:
             return
-        values = np.concatenate([d[::4, ::4].ravel() for d in self._data.values()])
-        values = values[np.isfinite(values)]
-        if not values.size:
+        levels = colour_range(self._data)
+        if levels is None:  # no range to take: the next maps are looked at at once
             return
-        low, high = (float(v) for v in np.percentile(values, (1.0, 99.0)))
-        if not high > low:
-            low, high = low - 1.0, high + 1.0
-        self._levels = (low, high)
+        self._range_at = time.monotonic()
+        self._levels = levels
         self.colour_bar.setLevels(self._levels)
 
     def _bar_levels_changed(self) -> None:
@@ -365,9 +405,14 @@ class SurfaceView(QWidget):
             self.colour_bar, row=0, col=columns, rowspan=max(1, -(-len(names) // columns))
         )
 
-    def eventFilter(self, watched: QObject, event: QEvent) -> bool:
+    def eventFilter(self, watched: QObject | None, event: QEvent | None) -> bool:
         """Re-arrange the maps when their area changes size."""
-        if watched is self.graphics and event.type() == QEvent.Type.Resize and self._names:
+        if (
+            watched is self.graphics
+            and event is not None
+            and event.type() == QEvent.Type.Resize
+            and self._names
+        ):
             self._lay_out(self._names)
         return super().eventFilter(watched, event)
 

@@ -3,8 +3,11 @@
 A mixin of :class:`~holoview.ui.main_window.MainWindow`: the operator's labelling
 actions (a click named in the spectrum, the labels a source suggests, a label
 cleared), the radius and the reference mode go into the window's
-:class:`~holoview.engine.experiment.Experiment`, to the live session, and to the
-experiment file, which is saved at each change.
+:class:`~holoview.engine.experiment.Experiment`, to the live session, to the whole
+run's trends of a replayed file (measured again for new labels), and to the
+experiment file, which is saved at each change. A recording opened carries the
+experiment it was made with: it is applied as ``holoview process`` applies it, and a
+notice offers the one click back to the labels in force before.
 """
 
 from __future__ import annotations
@@ -12,9 +15,9 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
-from PyQt6.QtWidgets import QFileDialog
+from PyQt6.QtWidgets import QFileDialog, QWidget
 
 from holoview.engine.experiment import Experiment, LabelledPeak
 from holoview.errors import HoloviewError
@@ -22,9 +25,14 @@ from holoview.errors import HoloviewError
 if TYPE_CHECKING:
     from holoview.live.maps_pipeline import LiveResult
     from holoview.live.session import LiveSession
+    from holoview.ui.notice_bar import NoticeBar
+    from holoview.ui.run_trends import RunTrends
     from holoview.ui.spectrum_view import SpectrumView
     from holoview.ui.status_bar import LiveStatusBar
     from holoview.ui.surface_view import SurfaceView
+
+#: The experiment's optical fields, which a source or the command line may know better.
+OPTICS_FIELDS = ("wavelength_m", "pixel_pitch_m", "n1", "n2")
 
 
 #: Added to the name of an experiment file the window could not read, for its own settings.
@@ -41,19 +49,75 @@ class ExperimentActions:
     spectrum: SpectrumView
     surface: SurfaceView
     status: LiveStatusBar
+    notice: NoticeBar
+    run_trends: RunTrends
     _known: tuple[Experiment, str] | None
     _last_result: LiveResult | None
+    _previous_experiment: Experiment | None
     show_message: Callable[[str], None]
+
+    def _dialog_parent(self) -> QWidget | None:
+        """The window this part is mixed into, as the parent of its dialogs."""
+        return self if isinstance(self, QWidget) else None
 
     def _set_experiment(self, experiment: Experiment) -> None:
         self.experiment = experiment
         if self.session is not None:
             self.session.set_experiment(experiment)
+            if self.session.replay is not None:
+                self.session.replay.show_again()  # paused, the frame shown gets the new labels
+        self.run_trends.set_experiment(experiment)
         self._offer_known_labels()
         try:
             experiment.save(self.experiment_path)
         except OSError as exc:
             self.show_message(f"cannot save experiment settings to {self.experiment_path}: {exc}")
+
+    def _apply_recording_experiment(self, stored: Experiment | None, setup: dict[str, Any]) -> None:
+        """Use the experiment a replayed recording carries, as ``holoview process`` does.
+
+        Its labels and demodulation settings; the optics the command line gave, else
+        the recording's setup, else its own. A notice says so, with the click back to
+        the labels in force before.
+        """
+        if stored is None or not stored.peaks:
+            self.notice.dismiss()
+            return
+        optics: dict[str, Any] = {k: float(setup[k]) for k in OPTICS_FIELDS if k in setup}
+        optics |= {k: v for k, v in self.optics.items() if k in OPTICS_FIELDS}
+        try:
+            applied = replace(stored, **optics)
+        except HoloviewError as exc:
+            self.show_message(f"the recording's experiment is not usable: {exc}")
+            return
+        if applied == self.experiment:
+            self.notice.dismiss()
+            return
+        self._previous_experiment = self.experiment
+        self._set_experiment(applied)
+        self.surface.set_reference(applied.reference)
+        names = ", ".join(p.label for p in applied.peaks)
+        self.notice.show_notice(
+            f"Using the experiment the recording carries, as holoview process does: "
+            f"{names}; {applied.reference} reference.",
+            "Back to the labels before",
+            self.restore_previous_experiment,
+        )
+
+    def restore_previous_experiment(self) -> None:
+        """Go back to the labels and settings in force before a recording's were applied.
+
+        The optics stay the recording's (they describe its frames).
+        """
+        previous = self._previous_experiment
+        if previous is None:
+            return
+        self._previous_experiment = None
+        optics: dict[str, Any] = {k: getattr(self.experiment, k) for k in OPTICS_FIELDS}
+        self._set_experiment(replace(previous, **optics))
+        self.surface.set_reference(previous.reference)
+        labels = ", ".join(p.label for p in previous.peaks) or "none"
+        self.status.showMessage(f"back to the labels before: {labels}", 6000)
 
     def _learn_known_labels(self) -> None:
         """Ask the new source which labels it knows (simulator, recording)."""
@@ -133,7 +197,7 @@ class ExperimentActions:
                     f"settings are saved to {self.experiment_path})"
                 )
         try:
-            self.experiment = replace(self.experiment, **self.optics)
+            self.experiment = self.experiment.with_optics(self.optics)
         except HoloviewError as exc:
             problem = f"optics options ignored: {exc}"
             self.optics = {}
@@ -151,14 +215,19 @@ class ExperimentActions:
 
     def load_experiment_dialog(self) -> None:
         """Ask for an experiment settings file and load it."""
-        path, _ = QFileDialog.getOpenFileName(self, "Load experiment settings", "", "JSON (*.json)")
+        path, _ = QFileDialog.getOpenFileName(
+            self._dialog_parent(), "Load experiment settings", "", "JSON (*.json)"
+        )
         if path:
             self.load_experiment(Path(path))
 
     def save_experiment_dialog(self) -> None:
         """Ask where to save the experiment settings."""
         path, _ = QFileDialog.getSaveFileName(
-            self, "Save experiment settings", str(self.experiment_path), "JSON (*.json)"
+            self._dialog_parent(),
+            "Save experiment settings",
+            str(self.experiment_path),
+            "JSON (*.json)",
         )
         if path:
             try:

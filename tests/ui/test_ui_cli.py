@@ -60,3 +60,19 @@ def test_holoview_live_with_a_missing_file_stays_open_and_quits(tmp_path: Path) 
     assert result.returncode == 0, result.stderr
     assert "Traceback" not in result.stderr
     assert "cannot start replay" in result.stderr  # logged as a warning, shown in the window
+
+
+def test_holoview_file_opens_it_in_the_window(tmp_path: Path, hologram_file: Path) -> None:
+    """``holoview FILE`` is ``holoview live FILE``: the window opens the file (and keeps it
+    among the recent files); a file that is not there is one line, status 2."""
+    env = {**os.environ, "QT_QPA_PLATFORM": "offscreen", "XDG_CONFIG_HOME": str(tmp_path)}
+    argv = [sys.executable, "-m", "holoview", str(hologram_file), "--quit-after", "1"]
+    result = subprocess.run(argv, capture_output=True, text=True, timeout=120, env=env, check=False)
+    assert result.returncode == 0, result.stderr
+    assert "Traceback" not in result.stderr
+    assert str(hologram_file) in (tmp_path / "holoview" / "ui.ini").read_text()
+    missing = tmp_path / "gone.h5"
+    argv = [sys.executable, "-m", "holoview", str(missing)]
+    result = subprocess.run(argv, capture_output=True, text=True, timeout=120, env=env, check=False)
+    assert result.returncode == 2
+    assert result.stderr.strip() == f"holoview live: error: {missing}: no such file or folder"

@@ -1,4 +1,5 @@
-"""The first minute: what to do next is said, and labels a source knows are offered."""
+"""The first minute: what to do next is said, labels a source knows are offered (a
+recording's are applied, with the way back)."""
 
 from __future__ import annotations
 
@@ -48,17 +49,26 @@ def test_the_simulators_labels_are_offered_then_used_in_one_click(qtbot, tmp_pat
         window.close()
 
 
-def test_a_recordings_stored_labels_are_offered(qtbot, tmp_path: Path) -> None:
+def test_a_recordings_experiment_is_applied_and_one_click_goes_back(qtbot, tmp_path: Path) -> None:
     path = tmp_path / "run.h5"
     argv = ["-q", "simulate", str(path), "--size", "128", "--frames", "8", "--seed", "3"]
     assert main(argv) == 0
     window = _open(qtbot, tmp_path, f"replay:{path}")
     try:
-        assert "run.h5" in window.spectrum.first_step.text()
+        stored = window.session.known_experiment()[0]
+        # applied as holoview process applies it, and said
+        assert window.experiment.peaks == stored.peaks
+        assert "Using the experiment the recording carries" in window.notice.text
+        assert "RB1" in window.notice.text
+        assert not window.spectrum.suggestions
+        window.notice.button.click()  # back to the labels before: none
+        assert window.experiment.peaks == ()
+        assert window.notice.text == ""
+        assert "run.h5" in window.spectrum.first_step.text()  # offered again
         assert set(window.spectrum.suggestions) == {"RF", "RB1", "FB1"}
         window.use_known_labels()
-        stored = window.session.known_experiment()[0]
         assert window.experiment.peaks == stored.peaks
+        assert Experiment.load(tmp_path / "experiment.json").peaks == stored.peaks
     finally:
         window.close()
 

@@ -3,16 +3,14 @@ move the frame shown; a seek outside the file is a banner message."""
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 
+import numpy as np
 import pytest
 from PyQt6.QtCore import Qt
 
 from holoview.engine.experiment import Experiment, LabelledPeak
-from holoview.live import series_pipeline
 from holoview.ui.main_window import MainWindow
-from holoview.ui.trends_view import JUMPED
 
 from .holograms import FB1, N1, N2, RB1, WAVELENGTH_M
 
@@ -93,11 +91,15 @@ def test_buttons_keys_and_slider_move_the_frame_shown(qtbot, open_windows, tmp_p
     assert not window.session.replay.state().paused
 
 
-def test_maps_and_trends_follow_a_jump(qtbot, open_windows, tmp_path, hologram_file, monkeypatch):
-    monkeypatch.setattr(series_pipeline, "TREND_HZ", math.inf)
+def test_maps_follow_a_jump_and_the_trends_keep_the_whole_run(
+    qtbot, open_windows, tmp_path, hologram_file
+):
     peaks = (LabelledPeak("RB1", RB1), LabelledPeak("FB1", FB1))
     window = _window(qtbot, open_windows, tmp_path, f"replay:{hologram_file}", peaks)
     assert window.experiment.reference == "relative"
+    qtbot.waitUntil(lambda: window.run_trends.series is not None, timeout=30000)
+    whole = window.trends.curves["RB1"].getData()[0]
+    assert len(whole) == 16  # every frame of the file, before any was played twice
     window.transport.toggle()  # pause
     window.transport.seek(9)
     qtbot.waitUntil(
@@ -106,15 +108,17 @@ def test_maps_and_trends_follow_a_jump(qtbot, open_windows, tmp_path, hologram_f
     )
     sought = window._last_result
     assert sought.heights_m and not any(h.any() for h in sought.heights_m.values())
-    qtbot.waitUntil(lambda: window.trends.empty_hint.isVisibleTo(window.trends), timeout=5000)
-    assert window.trends.empty_hint.text() == JUMPED
     for index in (10, 11):
         window.transport.step(1)
         qtbot.waitUntil(lambda i=index: window._last_result.frame_index == i, timeout=10000)
         assert window._last_result.segment == sought.segment
     assert any(h.any() for h in window._last_result.heights_m.values())  # 11 against 10
-    qtbot.waitUntil(lambda: not window.trends.empty_hint.isVisibleTo(window.trends), timeout=5000)
-    assert len(window.trends.curves["RB1"].getData()[0]) == 3  # frames 9, 10, 11 only
+    window.redraw()
+    # the jump changed nothing of the run; the cursor is at frame 11 (a TIFF: 30 frames/s)
+    np.testing.assert_array_equal(window.trends.curves["RB1"].getData()[0], whole)
+    assert window.trends.cursor_line.isVisible()
+    assert window.trends.cursor_line.value() == pytest.approx(11 / 30)
+    assert not window.trends.empty_hint.isVisibleTo(window.trends)
     window.transport.step(-1)
     qtbot.waitUntil(lambda: window._last_result.frame_index == 10, timeout=10000)
     assert window._last_result.segment == sought.segment + 1

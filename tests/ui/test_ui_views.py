@@ -13,7 +13,7 @@ from holoview.processing.series.rate_fits import format_rate
 from holoview.ui.colour_index import colour_indices, colour_table
 from holoview.ui.hologram_view import HologramView
 from holoview.ui.spectrum_view import CLEAR, SpectrumView
-from holoview.ui.surface_view import FUSED, SurfaceView, sample_line
+from holoview.ui.surface_view import FUSED, SurfaceView, colour_range, sample_line
 from holoview.ui.trends_view import TrendsView
 
 pytestmark = pytest.mark.gui
@@ -217,6 +217,31 @@ def test_trends_show_rate_in_um_per_min(qtbot) -> None:
 
 
 @pytest.mark.qt_log_ignore(r"This plugin does not support propagateSizeHints\(\)")
+def test_a_short_trends_plot_keeps_its_time_axis(qtbot) -> None:
+    """Seven curves' legend in one column needs about 150 pixels: a shorter plot (a
+    trends dock at 1366 x 768) takes more columns instead of losing its bottom."""
+    view = TrendsView()
+    qtbot.addWidget(view)
+    view.resize(560, 400)
+    view.show()
+    times = np.linspace(0.0, 2.0, 50)
+    names = ("RB1", "RF", "RB2", "FB1", "RB3", "FB2", "fused")
+    view.set_series(times, {name: -times * 1e-8 for name in names})
+    item = view.plot.getPlotItem()
+
+    def fits() -> bool:
+        return item.layout.minimumHeight() <= view.plot.viewport().height()
+
+    qtbot.waitUntil(fits)
+    assert view.legend.columnCount == 1
+    view.resize(560, 190)
+    qtbot.waitUntil(lambda: view.legend.columnCount > 1 and fits())
+    assert item.size().height() <= view.plot.viewport().height() + 1  # nothing cut off
+    view.resize(560, 400)
+    qtbot.waitUntil(lambda: view.legend.columnCount == 1)
+
+
+@pytest.mark.qt_log_ignore(r"This plugin does not support propagateSizeHints\(\)")
 def test_hologram_subsampled_to_the_screen_keeps_saturation(qtbot) -> None:
     view = HologramView()
     qtbot.addWidget(view)
@@ -254,3 +279,38 @@ def test_hologram_shows_the_whole_frame_at_every_display_step(qtbot, shape) -> N
         extent = item.mapRectToParent(item.boundingRect())  # in data coordinates
         assert (extent.left(), extent.top()) == (0, 0)
         assert (extent.width(), extent.height()) == pytest.approx((cols, rows))
+
+
+def test_the_colour_range_is_the_trusted_surface_not_a_noisy_peak_or_wild_pixels() -> None:
+    """A 10 nm wave field fills the colour scale (issue 27): untrusted pixels are NaN and
+    left out, a noisy peak's map and a few wild pixels do not set the range."""
+    y, x = np.mgrid[0:128, 0:128]
+    waves = 10.0 * np.sin(2 * np.pi * x / 32) * np.cos(2 * np.pi * y / 40)  # nm
+    rng = np.random.default_rng(1)
+    good = waves + rng.normal(0, 0.5, waves.shape)
+    good[:20, :20] = np.nan  # outside the aperture: untrusted
+    noisy = waves + rng.normal(0, 60.0, waves.shape)  # a weak peak
+    wild = good.copy()
+    wild[60:62, 60:62] = 5000.0  # four wild pixels
+    low, high = colour_range({"RB1": good, "RB3": noisy, "FB1": wild, FUSED: good})
+    finite = good[np.isfinite(good)]
+    assert (low, high) == pytest.approx(tuple(np.percentile(finite, (1, 99))), abs=0.5)
+    assert -12 < low < -7 and 7 < high < 12  # the waves fill the scale
+    # no fused map: the median of the maps' own ranges, not their union
+    low, high = colour_range({"RB1": good, "RB3": noisy, "FB1": wild})
+    assert -12 < low < -7 and 7 < high < 12
+    assert colour_range({"RB1": np.full((4, 4), np.nan)}) is None
+    assert colour_range({"RB1": np.zeros((4, 4)), FUSED: np.zeros((4, 4))}) is None
+
+
+def test_a_reference_frame_s_zero_maps_leave_the_range_to_the_next_maps(qtbot) -> None:
+    """Paused on a frame after a jump, its maps are zero (relative reference); the next
+    frame's maps, even within the follow interval, set the range."""
+    view = SurfaceView()
+    qtbot.addWidget(view)
+    view.set_maps({"RB1": np.zeros((32, 32))})
+    assert view.levels == (-1.0, 1.0)  # nothing to take a range from
+    waves = 10e-9 * np.sin(np.linspace(0, 20, 32 * 32)).reshape(32, 32)
+    view.set_maps({"RB1": waves})
+    low, high = view.levels
+    assert -10.5 < low < -9 and 9 < high < 10.5

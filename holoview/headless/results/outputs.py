@@ -286,7 +286,8 @@ def summary_document(
         },
         "notes": list(analysis.notes),
     }
-    return _clean(document)
+    cleaned: dict[str, Any] = _clean(document)  # a dict stays a dict
+    return cleaned
 
 
 def _window_attributes(window: Window) -> dict[str, Any]:
@@ -498,6 +499,8 @@ class ResultsFile:
     ) -> None:
         group = self._file["maps"]
         step = pixel_step(frame_shape, data.box_shape)
+        # None is "the experiment's": prepare_run settles it before any frame is read
+        assert settings.reference is not None, "the run's settings were not settled"
         common: dict[str, Any] = {
             "reference": settings.reference,
             "reference_description": (

@@ -37,6 +37,7 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 import pyfftw
@@ -382,7 +383,7 @@ class Demodulator:
         over (against the background hologram, when there is one and the reference
         stays absolute).
         """
-        settings: dict[str, object] = {
+        settings: dict[str, Any] = {  # Demodulator's keywords, checked where it is made
             "spectrum": self.spectrum,
             "aperture": self.aperture,
             "window": self.window,
@@ -399,7 +400,7 @@ class Demodulator:
         settings.update(changes)
         if settings["reference"] != "absolute" and "background" not in changes:
             settings["background"] = None
-        return Demodulator(self.shape, peaks, **settings)  # type: ignore[arg-type]
+        return Demodulator(self.shape, peaks, **settings)
 
     def reference_field(self, i: int) -> np.ndarray | None:
         """Return peak ``i``'s reference field (counts, box resolution), or None before one.

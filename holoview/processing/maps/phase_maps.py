@@ -104,12 +104,12 @@ def guide_index(maps: Sequence[PhaseMap], peaks: Sequence[Peak]) -> int | None:
     the brightest.
     """
     candidates = [i for i, m in enumerate(maps) if m.live and m.valid]
-    with_alpha = [i for i in candidates if peaks[i].alpha is not None]
+    with_alpha = [(i, a) for i in candidates if (a := peaks[i].alpha) is not None]
     if with_alpha:
-        return min(
-            with_alpha,
-            key=lambda i: abs(peaks[i].alpha) / max(peaks[i].amplitude, 1e-30),  # type: ignore[arg-type]
+        best, _ = min(
+            with_alpha, key=lambda item: abs(item[1]) / max(peaks[item[0]].amplitude, 1e-30)
         )
+        return best
     if candidates:
         return max(candidates, key=lambda i: peaks[i].amplitude)
     return None
