@@ -447,10 +447,13 @@ class ResultsFile:
         input_path: str,
         frame_shape: tuple[int, int],
     ) -> None:
+        f = self._file
+        if data.maps_dropped and self._maps:  # interrupted before any frame's maps
+            del f["maps"]
+            self._maps, self._buffers, self._block = [], [], -1
         self._flush()
         for dataset in self._maps:
             dataset.resize(len(data.frames), axis=0)  # fewer after an interruption
-        f = self._file
         f.attrs.update(
             {
                 "format": RESULTS_FORMAT,

@@ -30,7 +30,7 @@ Root attributes
     ``used_in_fused``, ``flags`` (comma-separated), and the window each peak was
     demodulated with: ``radius_cpp`` (its cut-off, cycles/pixel), ``window_taper``,
     ``window_rule`` (``matched``, ``bound`` or ``given``) and ``window_reason``.
-``/maps`` (with ``process --maps``)
+``/maps`` (with ``process --maps``; none in a run interrupted before any frame's maps)
     Dimensions ``time`` (s), ``y`` and ``x``: positions of the map pixels' centres in
     m on the object side (map pixel ``(p, q)`` is centred on frame position
     ``(p * pixel_step_px[0], q * pixel_step_px[1])`` in pixel pitches, frame pixel
