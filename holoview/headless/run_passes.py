@@ -129,7 +129,7 @@ def run_passes(
     n = len(frames)
     demod = spec.core(source.frame_shape, source.saturation).demodulator
     assert demod is not None
-    data = new_run_data(demod.peaks, demod.box_shape, demod.radius, n)
+    data = new_run_data(demod.peaks, demod.box_shape, demod.radius, n, demod.windows)
     known = run.selection.mode != "auto"
     maps = sink is not None
     relative = demod.reference == "relative"

@@ -76,11 +76,15 @@ from holoview.processing.maps.phase_maps import (
     unwrap_maps,
 )
 from holoview.processing.peaks.detection import Peak
+from holoview.processing.peaks.matched import SurfaceSpectrum, Window
 from holoview.processing.peaks.radii import (
     check_peaks,
     check_radii,
     distinct_neighbours,
-    peak_radii,
+    fell_back,
+    peak_name,
+    peak_windows,
+    radius_rule,
 )
 
 logger = logging.getLogger(__name__)
@@ -107,10 +111,14 @@ class Demodulator:
     window : {"tukey", "raised-cosine", "top-hat"}
         Spectral window (:mod:`holoview.processing.fourier.windows`); by default
         :data:`~holoview.processing.fourier.windows.DEFAULT_WINDOW`, chosen by measurement.
-    radius : float, optional
-        Window radius (cycles/pixel), the same for every peak; by default each
+    radius : float, "matched", "bound" or None
+        Window radius: a number (cycles/pixel) for every peak; ``"bound"``: each
         peak's own, the widest that reaches no other peak, twin or zero frequency
-        (:func:`~holoview.processing.fourier.windows.auto_radii`).
+        (:func:`~holoview.processing.fourier.windows.auto_radii`); ``"matched"`` or None
+        (the default): each peak's radius of least expected map error measured on
+        ``spectrum``, never past the bound (the bound without a spectrum); see
+        :func:`~holoview.processing.peaks.radii.peak_windows`. A given radius that
+        reaches another peak is used, with a warning in :attr:`notes`.
     reference : {"synthetic", "absolute", "relative"}
         Reference mode (module documentation).
     unwrap : {"auto", "always", "never"}
@@ -140,13 +148,19 @@ class Demodulator:
         An object-free hologram of shape ``shape`` (counts): with ``reference=
         "absolute"`` every frame's phase is taken against it instead of against
         the first frame (:meth:`set_background`).
+    spectrum : SurfaceSpectrum, optional
+        A frame's spectrum (:func:`~holoview.processing.peaks.matched.measure_spectrum`)
+        the matched radii are measured on.
+    windows : sequence of Window, optional
+        Each peak's window, decided elsewhere (the same as another demodulator's);
+        ``radius``, ``window``, ``taper`` and ``spectrum`` are then not used.
 
     Raises
     ------
     InputError
         For a bad shape, an empty peak list, a carrier outside the spectrum, an
-        unknown mode, a radius so large that a window holds another peak or zero
-        frequency, or a background of another shape or mode.
+        unknown mode, a radius so large that a window holds zero frequency, or a
+        background of another shape or mode.
 
     Examples
     --------
@@ -166,7 +180,7 @@ class Demodulator:
         peaks: Sequence[Peak],
         *,
         window: str = DEFAULT_WINDOW,
-        radius: float | None = None,
+        radius: float | str | None = None,
         reference: str = "relative",
         unwrap: str = "auto",
         wavelength: float | None = None,
@@ -177,6 +191,8 @@ class Demodulator:
         threads: int | None = None,
         neighbours: Sequence[tuple[float, float]] = (),
         background: np.ndarray | None = None,
+        spectrum: SurfaceSpectrum | None = None,
+        windows: Sequence[Window] | None = None,
     ) -> None:
         if len(shape) != 2 or min(int(shape[0]), int(shape[1])) < MIN_SIDE:
             raise InputError(f"frame shape must be (rows, cols), each >= {MIN_SIDE}; got {shape}")
@@ -208,9 +224,34 @@ class Demodulator:
         self.neighbours: tuple[tuple[float, float], ...] = tuple(
             (float(fx), float(fy)) for fx, fy in neighbours
         )
+        self.spectrum = spectrum
+        if windows is None:
+            windows = peak_windows(
+                self.shape,
+                carriers,
+                radius,
+                others,
+                kind=self.window,
+                taper=self.taper,
+                spectrum=spectrum,
+            )
+        elif len(windows) != len(self.peaks):
+            raise InputError(f"{len(windows)} windows for {len(self.peaks)} peaks")
+        #: each peak's window: radius, shape and why
+        self.windows: tuple[Window, ...] = tuple(windows)
         #: each peak's window radius, cycles/pixel
-        self.radii = peak_radii(self.shape, carriers, radius, others)
-        self._overlapping = check_radii(self.peaks, self.radii, others)
+        self.radii = tuple(w.radius for w in self.windows)
+        self._overlapping, warnings = check_radii(self.peaks, self.radii, others)
+        fallbacks = tuple(
+            f"{peak_name(self.peaks, i)}: {w.reason} ({w.radius:.4g} cycles/pixel)"
+            for i, w in enumerate(self.windows)
+            if radius_rule(radius) == "matched" and fell_back(w)
+        )
+        #: what the user should know about the windows: a given radius reaching a peak,
+        #: a matched window at the bound for want of measurable surface power
+        self.notes: tuple[str, ...] = warnings + fallbacks
+        for line in warnings:
+            logger.warning("%s", line)
         #: the largest window radius (cycles/pixel): it sets the box shape
         self.radius = max(self.radii)
         self.box_shape = box_shape_for(self.shape, self.radius)
@@ -219,18 +260,19 @@ class Demodulator:
                 self.shape,
                 self.box_shape,
                 carrier=(float(p.carrier[0]), float(p.carrier[1])),
-                kind=window,
-                radius=r,
-                taper=self.taper,
+                kind=w.kind,
+                radius=w.radius,
+                taper=w.taper,
             )
-            for p, r in zip(self.peaks, self.radii, strict=True)
+            for p, w in zip(self.peaks, self.windows, strict=True)
         ]
         logger.debug(
-            "demodulating %d peak(s) of %s frames: %s window, radii %s cycles/pixel, box %s",
+            "demodulating %d peak(s) of %s frames: %s window, radii %s cycles/pixel (%s), box %s",
             len(self.peaks),
             self.shape,
             window,
             ", ".join(f"{r:.4g}" for r in self.radii),
+            ", ".join(w.rule for w in self.windows),
             self.box_shape,
         )
         self.aperture: np.ndarray | None = None
@@ -351,10 +393,12 @@ class Demodulator:
 
         Windows and FFT plans are cached by shape and parameters, so this is cheap
         when the GUI relabels or moves peaks. The radii are recomputed from the new
-        carriers unless given in ``changes``; references start over (against the
-        background hologram, when there is one and the reference stays absolute).
+        carriers (and the same spectrum) unless given in ``changes``; references start
+        over (against the background hologram, when there is one and the reference
+        stays absolute).
         """
         settings: dict[str, Any] = {  # Demodulator's keywords, checked where it is made
+            "spectrum": self.spectrum,
             "aperture": self.aperture,
             "window": self.window,
             "reference": self.reference,
@@ -636,6 +680,7 @@ class Demodulator:
             if offset:
                 phase += np.float32(offset)
         noise = part.noise
+        error = float(np.hypot(noise, self.windows[i].cut)) if noise > 0 else noise
         to_height = None
         if peak.alpha is not None and self.wavelength is not None:
             to_height = self.wavelength / (4 * np.pi * peak.alpha)
@@ -653,4 +698,5 @@ class Demodulator:
             noise_height=None if to_height is None else abs(noise * to_height),
             unwrapped=part.unwrapped,
             flags=frozenset(part.flags),
+            error_height=None if to_height is None else abs(error * to_height),
         )
