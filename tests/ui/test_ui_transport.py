@@ -106,9 +106,9 @@ def test_maps_follow_a_jump_and_the_trends_keep_the_whole_run(
     played = window.session.replay.state().segment
     window.transport.seek(9)
     qtbot.waitUntil(
-        lambda: (r := window._last_result) is not None
-        and r.frame_index == 9
-        and r.segment > played,
+        lambda: (
+            (r := window._last_result) is not None and r.frame_index == 9 and r.segment > played
+        ),
         timeout=10000,
     )
     sought = window._last_result
