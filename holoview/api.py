@@ -418,8 +418,9 @@ class Recording:
         """
         n, rows, cols = self.frames.shape
         pitch = self.setup.get("pixel_pitch_m")
-        known = pitch is not None and math.isfinite(float(pitch)) and float(pitch) > 0
-        scale = float(pitch) if known else 1.0
+        given = math.nan if pitch is None else float(pitch)
+        known = math.isfinite(given) and given > 0
+        scale = given if known else 1.0
         axis_units = "m" if known else "1"
         coords: dict[str, Any] = {
             "frame": ("time", np.arange(n), {"units": "1"}),

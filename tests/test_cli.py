@@ -120,3 +120,29 @@ def test_the_commands_run_blas_on_one_thread_unless_told(given: str | None) -> N
     assert setting == (given or "1")
     if given is None:
         assert threads == "1"  # no BLAS thread beside the main one
+
+
+@pytest.mark.parametrize(
+    ("raised", "said"),
+    [
+        # a bare MemoryError is true in a boolean context: its empty message was printed
+        # as "not enough memory ()" before the fallback was taken from its text
+        (MemoryError(), "not enough memory (an array too large)"),
+        (MemoryError("Unable to allocate 8 GiB"), "not enough memory (Unable to allocate 8 GiB)"),
+    ],
+)
+def test_out_of_memory_is_one_line_exit_2(
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+    raised: MemoryError,
+    said: str,
+) -> None:
+    import holoview.cli.info
+
+    def run(args: object) -> int:
+        raise raised
+
+    monkeypatch.setattr(holoview.cli.info, "run", run)
+    assert main(["info"]) == 2
+    err = capsys.readouterr().err
+    assert said in err and err.count("\n") == 1

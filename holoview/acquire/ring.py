@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import threading
 import time
+from enum import Enum
 from typing import Final, Literal, NamedTuple
 
 import numpy as np
@@ -37,15 +38,17 @@ from holoview.acquire.source import FrameMeta
 from holoview.errors import InputError
 
 
-class _Closed:
-    """The type of :data:`CLOSED`."""
+class _Closed(Enum):
+    """The type of :data:`CLOSED` (an enum of one, so that ``item is CLOSED`` narrows)."""
+
+    CLOSED = "CLOSED"
 
     def __repr__(self) -> str:
         return "CLOSED"
 
 
 #: Returned by :meth:`RingConsumer.get` once the ring is closed and drained.
-CLOSED: Final = _Closed()
+CLOSED: Final = _Closed.CLOSED
 
 
 class RingStatus(NamedTuple):

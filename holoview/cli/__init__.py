@@ -137,8 +137,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 2
     except MemoryError as exc:
         print(
-            f"holoview {args.command}: error: not enough memory ({exc or 'an array too large'}); "
-            "ask for fewer or smaller frames",
+            f"holoview {args.command}: error: not enough memory "
+            f"({str(exc) or 'an array too large'}); ask for fewer or smaller frames",
             file=sys.stderr,
         )
         return 2

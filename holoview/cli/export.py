@@ -14,7 +14,9 @@ from pathlib import Path
 from holoview.cli.signals import emit
 
 
-def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
+def add_parser(
+    subparsers: argparse._SubParsersAction[argparse.ArgumentParser],
+) -> argparse.ArgumentParser:
     """Register ``export``."""
     parser = subparsers.add_parser(
         "export",

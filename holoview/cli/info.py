@@ -10,7 +10,9 @@ import sys
 from holoview.cli.signals import emit
 
 
-def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
+def add_parser(
+    subparsers: argparse._SubParsersAction[argparse.ArgumentParser],
+) -> argparse.ArgumentParser:
     """Register ``info``."""
     return subparsers.add_parser(
         "info", help="print library versions and whether GenICam (Aravis) is usable"

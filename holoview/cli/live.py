@@ -16,7 +16,9 @@ NO_DISPLAY_HELP = (
 )
 
 
-def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
+def add_parser(
+    subparsers: argparse._SubParsersAction[argparse.ArgumentParser],
+) -> argparse.ArgumentParser:
     """Register ``live``."""
     parser = subparsers.add_parser("live", help="open the live GUI (default: simulated camera)")
     parser.add_argument(

@@ -107,7 +107,9 @@ def optics_options(args: argparse.Namespace, fps: float | None = None) -> Optics
     )
 
 
-def add_experiment_option(parser: argparse.ArgumentParser, help_text: str) -> None:
+def add_experiment_option(
+    parser: argparse.ArgumentParser | argparse._ArgumentGroup, help_text: str
+) -> None:
     """Add ``--experiment FILE`` (a ``holoview-experiment`` JSON file)."""
     parser.add_argument("--experiment", type=Path, metavar="FILE.json", help=help_text)
 

@@ -29,7 +29,9 @@ from holoview.errors import InputError
 logger = logging.getLogger(__name__)
 
 
-def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
+def add_parser(
+    subparsers: argparse._SubParsersAction[argparse.ArgumentParser],
+) -> argparse.ArgumentParser:
     """Register ``peaks``."""
     parser = subparsers.add_parser(
         "peaks",

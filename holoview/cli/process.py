@@ -12,8 +12,9 @@ from __future__ import annotations
 import argparse
 import logging
 import sys
+from collections.abc import Callable
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NoReturn
 
 from holoview.cli.options import (
     add_experiment_option,
@@ -26,6 +27,8 @@ from holoview.cli.signals import emit
 from holoview.errors import InputError
 
 if TYPE_CHECKING:
+    from tqdm import tqdm
+
     from holoview.headless.settings import ProcessOptions
 from holoview.headless.results.figures import FORMATS
 
@@ -39,7 +42,9 @@ def folder_path(text: str) -> Path:
     return Path(text)
 
 
-def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
+def add_parser(
+    subparsers: argparse._SubParsersAction[argparse.ArgumentParser],
+) -> argparse.ArgumentParser:
     """Register ``process``."""
     parser = subparsers.add_parser(
         "process",
@@ -142,7 +147,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
     return parser
 
 
-def _progress_bar(quiet: bool):
+def _progress_bar(quiet: bool) -> tuple[tqdm[NoReturn], Callable[[int, int], None]]:
+    """A bar on stderr (none with ``quiet``) and the function that moves it to done/total."""
     from tqdm import tqdm
 
     bar = tqdm(unit="frame", disable=quiet or None, file=sys.stderr, dynamic_ncols=True)

@@ -34,7 +34,9 @@ if TYPE_CHECKING:
 logger = logging.getLogger(__name__)
 
 
-def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
+def add_parser(
+    subparsers: argparse._SubParsersAction[argparse.ArgumentParser],
+) -> argparse.ArgumentParser:
     """Register ``record``."""
     parser = subparsers.add_parser(
         "record",
@@ -123,13 +125,11 @@ def _checked_optics(args: argparse.Namespace) -> dict[str, float]:
 
 def _experiment(args: argparse.Namespace, optics: dict[str, float]) -> Experiment | None:
     """The experiment to store: the file's with the optics options over it (None: no file)."""
-    from dataclasses import replace
-
     from holoview.engine.experiment import Experiment
 
     if args.experiment is None:
         return None
-    return replace(Experiment.load(args.experiment), **optics)
+    return Experiment.load(args.experiment).with_optics(optics)
 
 
 def _check_against_source(source_setup: dict[str, object], setup: dict[str, float]) -> None:
@@ -138,10 +138,10 @@ def _check_against_source(source_setup: dict[str, object], setup: dict[str, floa
 
     if "n1" not in setup and "n2" not in setup:
         return
-    merged = {name: setup.get(name, source_setup.get(name)) for name in ("n1", "n2")}
-    if all(isinstance(v, int | float) for v in merged.values()):
-        names = {n: (f"--{n}" if n in setup else f"the source's {n}", 1.0) for n in merged}
-        check_optics(n1=merged["n1"], n2=merged["n2"], names=names)  # type: ignore[arg-type]
+    n1, n2 = (setup.get(name, source_setup.get(name)) for name in ("n1", "n2"))
+    if isinstance(n1, int | float) and isinstance(n2, int | float):
+        names = {n: (f"--{n}" if n in setup else f"the source's {n}", 1.0) for n in ("n1", "n2")}
+        check_optics(n1=n1, n2=n2, names=names)
 
 
 def ring_capacity(ring_mb: float, frame_bytes: int) -> int:

@@ -91,7 +91,9 @@ _CONFIG_UNITS = {
 }
 
 
-def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
+def add_parser(
+    subparsers: argparse._SubParsersAction[argparse.ArgumentParser],
+) -> argparse.ArgumentParser:
     """Register ``simulate``."""
     from holoview.optics.camera import NOISE_MODELS
     from holoview.optics.scenarios import SCENARIOS
@@ -222,20 +224,23 @@ def build_setup(args: argparse.Namespace) -> Setup:
 
 def build_config(args: argparse.Namespace) -> ScenarioConfig:
     """Return the scenario physics the options describe (SI units inside)."""
+    from dataclasses import replace
+
     from holoview.optics.scenarios import ScenarioConfig
 
-    changes: dict[str, float] = {}
-    for option, name, scale in (
-        ("evaporation_um_per_min", "evaporation_rate", 1e-6 / 60),
-        ("injection_ul_per_s", "injection_rate", 1e-9),
-        ("basin_area_cm2", "basin_area", 1e-4),
-        ("wave_rms_nm", "wave_rms", 1e-9),
-        ("vibration_rms_nm", "vibration_rms", 1e-9),
-    ):
+    def given(option: str, scale: float, default: float) -> float:
         value = _number(option.replace("_", "-"), getattr(args, option), scale)
-        if value is not None:
-            changes[name] = value
-    return ScenarioConfig(**changes)
+        return default if value is None else value
+
+    base = ScenarioConfig()
+    return replace(
+        base,
+        evaporation_rate=given("evaporation_um_per_min", 1e-6 / 60, base.evaporation_rate),
+        injection_rate=given("injection_ul_per_s", 1e-9, base.injection_rate),
+        basin_area=given("basin_area_cm2", 1e-4, base.basin_area),
+        wave_rms=given("wave_rms_nm", 1e-9, base.wave_rms),
+        vibration_rms=given("vibration_rms_nm", 1e-9, base.vibration_rms),
+    )
 
 
 def write_truth(

@@ -206,8 +206,9 @@ def _joint_summary(
     for j in columns:
         column = series.noise_rad[:, j]
         column = column[np.isfinite(column)]
-        if column.size:
-            noise[j] = float(np.median(column)) * to_metres[j]  # type: ignore[operator]
+        scale = to_metres[j]  # known: the joint estimate takes only peaks with a prefactor
+        if column.size and scale is not None:
+            noise[j] = float(np.median(column)) * scale
     fit = fit_rate(series.times, fused) if np.count_nonzero(np.isfinite(fused)) >= 3 else None
     return DepthSummary(
         times=series.times.copy(),
@@ -238,7 +239,8 @@ def _per_peak_summary(
 ) -> DepthSummary:
     """The summary when each peak is unwrapped on its own (no joint estimate)."""
     n, m = heights.shape
-    known = [j for j, a in enumerate(magnitudes) if a is not None]
+    known_magnitudes = [(j, a) for j, a in enumerate(magnitudes) if a is not None]
+    known = [j for j, _ in known_magnitudes]
     skip = list(exclude) if exclude is not None else [False] * m
     fits: list[RateFit | None] = [None] * m
     noise: list[float | None] = [None] * m
@@ -252,7 +254,7 @@ def _per_peak_summary(
             track = track_depth(
                 values[:, known],
                 series.times,
-                [magnitudes[j] for j in known],
+                [a for _, a in known_magnitudes],
                 wavelength_m,
                 exclude=[skip[j] for j in known],
             )
@@ -309,13 +311,13 @@ def pca_check(
         ``prefactors`` and ``explained`` per label, ``n_samples``; None with fewer than
         two peaks or three frames, no known prefactor, or no motion to analyse.
     """
-    known = [j for j, a in enumerate(alphas) if a is not None]
+    known = [(j, a) for j, a in enumerate(alphas) if a is not None]
     if len(labels) < 2 or phases.shape[0] < 3 or not known:
         return None
     try:
         pca = phase_pca(phases)
-        reference = known[0]
-        prefactors = pca.prefactors(reference, abs(float(alphas[reference])))  # type: ignore[arg-type]
+        reference, alpha = known[0]
+        prefactors = pca.prefactors(reference, abs(float(alpha)))
     except InputError as exc:
         logger.debug("no PCA: %s", exc)
         return None

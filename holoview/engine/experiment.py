@@ -31,6 +31,8 @@ import json
 import math
 import os
 import re
+from collections.abc import Iterable, Mapping
+from collections.abc import Set as AbstractSet
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -46,6 +48,7 @@ __all__ = [
     "EXPERIMENT_FORMAT",
     "EXPERIMENT_VERSION",
     "MAX_PEAKS",
+    "OPTICS_FIELDS",
     "PEAK_LABELS",
     "Experiment",
     "LabelledPeak",
@@ -60,6 +63,9 @@ EXPERIMENT_FORMAT = "holoview-experiment"
 EXPERIMENT_VERSION = 2
 #: Versions :meth:`Experiment.from_json` reads.
 READABLE_VERSIONS = (1, 2)
+
+#: The optical values an experiment carries (SI units), as options and sources name them.
+OPTICS_FIELDS: tuple[str, ...] = ("wavelength_m", "pixel_pitch_m", "n1", "n2")
 
 #: Labels offered when an operator names a peak (any other usable name is allowed).
 PEAK_LABELS: tuple[str, ...] = ("RB1", "FB1", "RF", "RB2", "FB2")
@@ -93,13 +99,20 @@ def check_label(label: object, where: str) -> str:
 
 
 def check_carrier(carrier: object, where: str) -> Carrier:
-    """Return a carrier ``(fx, fy)`` in cycles/pixel, or raise naming what is wrong."""
+    """Return a carrier ``(fx, fy)`` in cycles/pixel, or raise naming what is wrong.
+
+    An ordered pair only: a JSON object or a set is refused (their keys or members would
+    otherwise be read as fx and fy, a set's in no fixed order), so is a string.
+    """
+    wrong = f"{where}: carrier must be [fx, fy] in cycles/pixel, got {carrier!r}"
+    if isinstance(carrier, str | bytes | Mapping | AbstractSet) or not isinstance(
+        carrier, Iterable
+    ):
+        raise InputError(wrong)
     try:
-        fx, fy = (float(v) for v in carrier)  # type: ignore[union-attr]
+        fx, fy = (float(v) for v in carrier)
     except (TypeError, ValueError, OverflowError) as exc:
-        raise InputError(
-            f"{where}: carrier must be [fx, fy] in cycles/pixel, got {carrier!r}"
-        ) from exc
+        raise InputError(wrong) from exc
     if not (math.isfinite(fx) and math.isfinite(fy)):
         raise InputError(f"{where}: carrier ({fx}, {fy}) is not finite")
     if abs(fx) > 0.5 or abs(fy) > 0.5:
@@ -276,9 +289,49 @@ class Experiment:
         """Return a copy without the peak named ``label``."""
         return replace(self, peaks=tuple(p for p in self.peaks if p.label != label))
 
-    def updated(self, **changes: object) -> Experiment:
-        """Return a copy with ``changes`` (None values leave a field as it is)."""
-        return replace(self, **{k: v for k, v in changes.items() if v is not None})
+    def updated(
+        self,
+        *,
+        window: str | None = None,
+        reference: str | None = None,
+        unwrap: str | None = None,
+        radius: float | None = None,
+    ) -> Experiment:
+        """Return a copy with the demodulation settings given (None leaves a field as it is)."""
+        return replace(
+            self,
+            window=self.window if window is None else window,
+            reference=self.reference if reference is None else reference,
+            unwrap=self.unwrap if unwrap is None else unwrap,
+            radius=self.radius if radius is None else radius,
+        )
+
+    def with_optics(self, optics: Mapping[str, float]) -> Experiment:
+        """Return a copy with the optical values ``optics`` gives, the others kept.
+
+        Parameters
+        ----------
+        optics : mapping of str to float
+            Some of :data:`OPTICS_FIELDS` (SI units), as the optics options or a source's
+            setup give them.
+
+        Raises
+        ------
+        InputError
+            For a value that is not usable, naming it.
+        ValueError
+            For a key that is not an optical value (a programming error).
+        """
+        unknown = sorted(set(optics) - set(OPTICS_FIELDS))
+        if unknown:
+            raise ValueError(f"not optical values of an experiment: {', '.join(unknown)}")
+        return replace(
+            self,
+            wavelength_m=optics.get("wavelength_m", self.wavelength_m),
+            pixel_pitch_m=optics.get("pixel_pitch_m", self.pixel_pitch_m),
+            n1=optics.get("n1", self.n1),
+            n2=optics.get("n2", self.n2),
+        )
 
     # ---- JSON --------------------------------------------------------------
     def to_dict(self) -> dict[str, Any]:
@@ -398,8 +451,10 @@ def _peak_from_dict(item: object, version: int, where: str) -> LabelledPeak:
         carrier = item.get("carrier")
     if "label" not in item or carrier is None:
         raise InputError(f'{where}: expected {{"label": ..., "carrier": [fx, fy]}}')
+    named = f"peak {item['label']!r}"
     try:
-        return LabelledPeak(item["label"], carrier, item.get("alpha"))
+        label = check_label(item["label"], named)
+        return LabelledPeak(label, check_carrier(carrier, named), item.get("alpha"))
     except InputError as exc:
         raise InputError(f"{where}: {exc}") from exc
 

@@ -44,7 +44,7 @@ __all__ = ["FFT_THREADS", "CarrierCore", "FrameCore", "series_key"]
 FFT_THREADS = 1
 
 
-def series_key(peaks: Sequence[Peak]) -> tuple:
+def series_key(peaks: Sequence[Peak]) -> tuple[object, ...]:
     """What identifies a series: each peak's label, alpha and carrier (a new key, a new series)."""
     return tuple((p.label, p.alpha, p.carrier) for p in peaks)
 
@@ -73,7 +73,7 @@ class CarrierCore:
         self._probe: CarrierProbe | None = None
 
     @property
-    def key(self) -> tuple:
+    def key(self) -> tuple[object, ...]:
         """:func:`series_key` of the peaks measured."""
         return series_key(self.peaks)
 
@@ -193,7 +193,7 @@ class FrameCore:
             return {}
         return {p.label: r for p, r in zip(demod.peaks, demod.radii, strict=True) if p.label}
 
-    def _settings(self) -> tuple:
+    def _settings(self) -> tuple[object, ...]:
         e = self.experiment
         return (e.window, e.radius, e.reference, e.unwrap, e.wavelength_m)
 

@@ -119,7 +119,7 @@ class Coregistration:
         self, fixed: tuple[Sequence[str | None], tuple[int, int], Sequence[Displacement]] | None
     ) -> None:
         self._estimator: DisplacementEstimator | None = None
-        self._key: tuple | None = None
+        self._key: tuple[object, ...] | None = None
         self._fixed: list[Displacement] | None = None
         if fixed is not None:
             labels, box_shape, displacements = fixed
@@ -192,14 +192,15 @@ def fuse_maps(
         One per peak (:class:`Coregistration`): the maps are moved onto the first's grid
         with :data:`FUSION_METHOD`.
     """
-    chosen = [j for j, m in enumerate(maps) if m is not None]
+    present = {j: m for j, m in enumerate(maps) if m is not None}
+    chosen = list(present)
     steady = [j for j in chosen if not stepped[j]]
     chosen = steady or chosen
     if len(chosen) < 2:
         return None
     shifts = None if displacements is None else [displacements[j].shift for j in chosen]
     return fuse_coregistered(
-        [maps[j] for j in chosen],  # type: ignore[misc]
+        [present[j] for j in chosen],
         [np.nan if noise_m[j] is None else noise_m[j] for j in chosen],
         shifts,
         method=FUSION_METHOD,
@@ -269,7 +270,7 @@ class MapStep:
         self.core = core
         self.coregistration = coregistration or Coregistration(None)
         self._exclude = None if exclude is None else tuple(exclude)
-        self._fused_key: tuple | None = None
+        self._fused_key: tuple[object, ...] | None = None
         self._fused: tuple[bool, ...] = ()
 
     def fused_peaks(self) -> tuple[bool, ...]:

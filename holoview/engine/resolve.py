@@ -180,7 +180,9 @@ def resolve_peaks(
     predicted: dict[str, Carrier] = {}
     labelling = None
     contradiction = None
-    anchors = {p.label: p.carrier for p in chosen if p.label not in unmatched}
+    anchors = {
+        p.label: p.carrier for p in chosen if p.label is not None and p.label not in unmatched
+    }
     family_anchors = {k: c for k, c in anchors.items() if experiment.alpha_of_label(k)}
     cannot = ""
     if len(family_anchors) >= 2 and detected and experiment.n1 and experiment.n2:
@@ -221,13 +223,14 @@ def resolve_peaks(
                 peak = peak.flipped() if prediction.twin else peak
                 taken[prediction.peak] = name
             else:
-                peak = (previous or {}).get(name)
+                last = (previous or {}).get(name)
                 if (
-                    peak is None
-                    or bin_distance(np.subtract(peak.carrier, prediction.carrier), shape)
+                    last is None
+                    or bin_distance(np.subtract(last.carrier, prediction.carrier), shape)
                     > SNAP_BINS
                 ):
                     continue
+                peak = last
             chosen.append(peak.relabelled(name, experiment.alpha_of_label(name)))
             names.add(name)
     chosen.sort(key=lambda p: -p.amplitude if p.amplitude == p.amplitude else math.inf)

@@ -156,7 +156,7 @@ def _joint_key(
     couplings: Sequence[int | None],
     wavelength_m: float,
     exclude: Sequence[bool],
-) -> tuple:
+) -> tuple[object, ...]:
     return (tuple(alphas), tuple(couplings), float(wavelength_m), tuple(bool(e) for e in exclude))
 
 
@@ -200,7 +200,7 @@ class PhaseSeries:
         self._t0: float | None = None
         self._last = np.full(m, np.nan + 0j)
         self._joint: JointEstimator | None = None
-        self._joint_key: tuple | None = None
+        self._joint_key: tuple[object, ...] | None = None
         self._joint_columns: np.ndarray = np.zeros(0, dtype=np.int64)
         self._joint_signs: np.ndarray = np.ones(0)
         self._joint_couplings: np.ndarray = np.zeros(0)
@@ -336,8 +336,8 @@ class PhaseSeries:
         if key == self._joint_key:
             return
         self._joint_key = key
-        columns = [
-            j
+        known = [
+            (j, a, c)
             for j, (a, c) in enumerate(zip(alphas, couplings, strict=True))
             if a is not None and c is not None and not skip[j]
         ]
@@ -345,13 +345,13 @@ class PhaseSeries:
         self._jphase[:] = np.nan
         self._jfused[:] = np.nan
         self._jmargin[:] = np.inf
-        if not columns:
+        if not known:
             return
-        self._joint_columns = np.array(columns, dtype=np.int64)
-        self._joint_signs = np.array([math.copysign(1.0, alphas[j]) for j in columns])
-        self._joint_couplings = np.array([couplings[j] for j in columns], dtype=np.float64)
+        self._joint_columns = np.array([j for j, _, _ in known], dtype=np.int64)
+        self._joint_signs = np.array([math.copysign(1.0, a) for _, a, _ in known])
+        self._joint_couplings = np.array([c for _, _, c in known], dtype=np.float64)
         self._joint = JointEstimator(
-            [abs(alphas[j]) for j in columns], [couplings[j] for j in columns], wavelength_m
+            [abs(a) for _, a, _ in known], [c for _, _, c in known], wavelength_m
         )
         for i in range(self._n):
             self._joint_update(i)

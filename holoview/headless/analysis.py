@@ -341,8 +341,9 @@ def analyse(data: RunData, selection: Selection, optics: Optics, naming: Naming)
     if summary.note is not None:
         notes.append(summary.note)
         logger.warning("%s", summary.note)
-    if summary.flagged is not None and summary.flagged.any():
-        count, smallest = int(summary.flagged.sum()), float(np.min(summary.margins))
+    flagged, margins = summary.flagged, summary.margins
+    if flagged is not None and margins is not None and flagged.any():
+        count, smallest = int(flagged.sum()), float(np.min(margins))
         note = (
             f"{count} frames' phase ambiguity not resolved with confidence (smallest margin "
             f"{smallest:.2f} noise standard deviations; their best solution is used)"
@@ -376,11 +377,12 @@ def analyse(data: RunData, selection: Selection, optics: Optics, naming: Naming)
         carrier = p.carrier if signs[j] > 0 else p.flipped().carrier
         pca_alpha = naming.pca_alpha[j]
         fit = summary.peak_fits[j]
+        alpha, signed_alpha = alphas[j], signed[j]
         outcomes.append(
             PeakOutcome(
                 label=labels[j],
                 carrier=(float(carrier[0]), float(carrier[1])),
-                alpha=alphas[j],
+                alpha=alpha,
                 amplitude=float(p.amplitude),
                 snr=float(p.snr),
                 flags=tuple(sorted(flags[j])),
@@ -389,12 +391,12 @@ def analyse(data: RunData, selection: Selection, optics: Optics, naming: Naming)
                 noise_m=summary.noise_m[j],
                 map_noise_rad=map_noise,
                 map_noise_m=None
-                if map_noise is None or alphas[j] is None
-                else map_noise * wavelength / (4 * np.pi * alphas[j]),
+                if map_noise is None or alpha is None
+                else map_noise * wavelength / (4 * np.pi * alpha),
                 used_in_fused=summary.used[j],
                 pca_alpha=None if pca_alpha is None else float(pca_alpha * signs[j]),
                 explained=naming.explained[j],
-                map_scale=None if signed[j] is None else wavelength / (4 * np.pi * signed[j]),
+                map_scale=None if signed_alpha is None else wavelength / (4 * np.pi * signed_alpha),
                 lattice=_lattice_of(selection, naming, j),
             )
         )

@@ -201,10 +201,11 @@ def _settle(
 ) -> tuple[Experiment, ProcessSettings]:
     """Options over the experiment's demodulation settings; the resolved optics into it."""
     experiment = experiment.updated(
-        window=settings.window, reference=settings.reference, unwrap=settings.unwrap
+        window=settings.window,
+        reference=settings.reference,
+        unwrap=settings.unwrap,
+        radius=settings.radius,
     )
-    if settings.radius is not None:
-        experiment = replace(experiment, radius=settings.radius)
     experiment = replace(
         experiment,
         wavelength_m=optics.wavelength_m,

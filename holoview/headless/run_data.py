@@ -100,6 +100,9 @@ class RunData:
         The peaks whose maps the fused map takes (:meth:`~holoview.engine.series.JointSetup.fused`).
     interrupted : bool
         The run was interrupted (Ctrl-C): the series hold the frames done before.
+    maps_dropped : bool
+        An interrupted ``--maps`` run stopped before any frame's maps were made: its
+        results hold the series of the frames done and no maps.
     notes : list of str
         What the passes noted for the summary.
     read_seconds, demod_seconds, write_seconds, wall_seconds : float
@@ -129,6 +132,7 @@ class RunData:
     map_units: tuple[str, ...] = ()
     fused_labels: tuple[str, ...] = ()
     interrupted: bool = False
+    maps_dropped: bool = False
     notes: list[str] = field(default_factory=list)
     read_seconds: float = 0.0
     demod_seconds: float = 0.0

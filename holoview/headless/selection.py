@@ -179,7 +179,7 @@ def select_auto(
         peaks.append(peak.relabelled(f"P{rank}"))
     if len(indices) < count:
         logger.warning("--auto %d: only %d significant peaks detected", count, len(indices))
-    notes = ()
+    notes: tuple[str, ...] = ()
     if anchor is None:
         notes = (
             "auto: the brightest peak was taken as RB1 on the twin with fx > 0; if the "

@@ -145,7 +145,7 @@ class MapsPipeline:
         self._core = FrameCore(frame_shape, experiment, saturation=saturation)
         self._maps = MapStep(self._core)
         self._coregistered_at = -math.inf
-        self._resolution_key: tuple | None = None
+        self._resolution_key: tuple[object, ...] | None = None
         self._resolution = Resolution(peaks=())
         self._continuity = Continuity()
 

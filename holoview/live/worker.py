@@ -25,7 +25,7 @@ import sys
 import threading
 import time
 from collections.abc import Callable
-from typing import Any
+from typing import Any, Generic, TypeVar
 
 import numpy as np
 
@@ -73,7 +73,7 @@ class PeakWorker:
 
     def __init__(self) -> None:
         self._cond = threading.Condition()
-        self._job: tuple[np.ndarray, float] | None = None
+        self._job: tuple[np.ndarray, float | None] | None = None
         self._result: tuple[list[Peak], float] | None = None
         self._error: str | None = None
         self._busy = False
@@ -92,8 +92,10 @@ class PeakWorker:
         if self._thread.ident is not None:
             self._thread.join(timeout)
 
-    def submit(self, frame: np.ndarray, radius: float) -> bool:
+    def submit(self, frame: np.ndarray, radius: float | None) -> bool:
         """Detect the peaks of ``frame`` (not modified) with window radius ``radius``.
+
+        ``radius`` in cycles/pixel; None: the automatic radius, from the carriers.
 
         Returns False, doing nothing, while a detection is under way.
         """
@@ -118,9 +120,9 @@ class PeakWorker:
             with self._cond:
                 while self._job is None and not self._stop:
                     self._cond.wait()
-                if self._stop:
+                if self._stop or self._job is None:
                     return
-                frame, radius = self._job  # type: ignore[misc]
+                frame, radius = self._job
                 self._job = None
             tick = time.perf_counter()
             try:
@@ -138,7 +140,11 @@ class PeakWorker:
                 self._result, self._busy = (peaks, time.perf_counter() - tick), False
 
 
-class RingWorker:
+#: The type of a worker's results.
+R = TypeVar("R")
+
+
+class RingWorker(Generic[R]):
     """A thread that takes frames from a ring, runs a step on each and publishes the result.
 
     Subclasses fill in :meth:`_step` (and :meth:`_apply`, for commands). Commands are
@@ -163,7 +169,7 @@ class RingWorker:
         self._consumer = consumer
         self._commands: queue.SimpleQueue[tuple[str, Any]] = queue.SimpleQueue()
         self._lock = threading.Lock()
-        self._latest: Any = None
+        self._latest: R | None = None
         self._times: collections.deque[float] = collections.deque(maxlen=32)
         self._messages: collections.deque[str] = collections.deque(maxlen=MAX_MESSAGES)
         self._last_error = ""
@@ -217,7 +223,7 @@ class RingWorker:
             self._last_error = text
             self._messages.append(text)
 
-    def _publish(self, result: object | None) -> None:
+    def _publish(self, result: R | None) -> None:
         """Count a processed frame; keep ``result`` as the newest when it is not None."""
         with self._lock:
             if result is not None:
@@ -274,7 +280,7 @@ class RingWorker:
             )
 
 
-class DemodWorker(RingWorker):
+class DemodWorker(RingWorker[LiveResult]):
     """The maps: a :class:`MapsPipeline` on the newest frame, on ``holoview-demod``.
 
     Parameters
@@ -298,7 +304,7 @@ class DemodWorker(RingWorker):
         self.pipeline = pipeline
         pipeline.detect_inline = False
         self.peaks = PeakWorker()
-        self._peak_set: tuple[tuple, Experiment] | None = None
+        self._peak_set: tuple[tuple[Peak, ...], Experiment] | None = None
 
     def start(self) -> None:
         """Start the thread and its peak thread."""
@@ -315,7 +321,7 @@ class DemodWorker(RingWorker):
         with self._lock:
             return self._latest
 
-    def peak_set(self) -> tuple[tuple, Experiment] | None:
+    def peak_set(self) -> tuple[tuple[Peak, ...], Experiment] | None:
         """The demodulator's peaks and the experiment after the last frame; None before."""
         with self._lock:
             return self._peak_set
@@ -345,7 +351,7 @@ class DemodWorker(RingWorker):
         self._publish(result)
 
 
-class SeriesWorker(RingWorker):
+class SeriesWorker(RingWorker[TrendSummary]):
     """The series: a :class:`SeriesPipeline` on every frame, on ``holoview-series``.
 
     It takes no frame until the maps worker has resolved its first set of peaks (the

@@ -93,7 +93,7 @@ class WindowExports:
     def _window(self) -> QWidget:
         return cast(QWidget, self)
 
-    def current_maps(self) -> tuple[dict, str]:
+    def current_maps(self) -> tuple[dict[str, np.ndarray], str]:
         """Return the maps of the latest result (metres or radians) and their unit."""
         result = self._last_result
         if result is None:

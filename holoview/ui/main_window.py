@@ -14,8 +14,9 @@ from __future__ import annotations
 
 import logging
 import time
-from dataclasses import replace
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from PyQt6.QtCore import QByteArray, QRect, Qt, QTimer, pyqtSignal
@@ -24,6 +25,8 @@ from PyQt6.QtWidgets import (
     QDockWidget,
     QLabel,
     QMainWindow,
+    QMenu,
+    QMenuBar,
     QToolBar,
     QWidget,
 )
@@ -51,6 +54,7 @@ from holoview.ui.window_experiment import ExperimentActions
 from holoview.ui.window_layout import (
     FRAME_ALLOWANCE,
     arrange_docks,
+    available_area,
     fitted,
     initial_size,
     layout_for,
@@ -92,7 +96,7 @@ class MainWindow(FileOpening, ExperimentActions, WindowExports, QMainWindow):
         source: str = "sim",
         autostart: bool = True,
         experiment_path: Path | None = None,
-        source_options: dict | None = None,
+        source_options: dict[str, Any] | None = None,
         optics: dict[str, float] | None = None,
     ) -> None:
         super().__init__()
@@ -154,7 +158,7 @@ class MainWindow(FileOpening, ExperimentActions, WindowExports, QMainWindow):
         self._add_dock("Spectrum", self.spectrum)
         self._add_dock("Surface", self.surface)
         self._add_dock("Trends", self.trends)
-        available = self.screen().availableGeometry().size()
+        available = available_area(self).size()
         self.resize(initial_size(available))
         self.dock_layout = layout_for(available)
         arrange_docks(self, self.docks, self.dock_layout)
@@ -191,12 +195,12 @@ class MainWindow(FileOpening, ExperimentActions, WindowExports, QMainWindow):
         self.docks[title] = dock
 
     def _make_actions(self) -> None:
-        def action(text: str, shortcut: str | None, slot: object) -> QAction:
+        def action(text: str, shortcut: str | None, slot: Callable[[], object]) -> QAction:
             act = QAction(text, self)
             if shortcut:
                 act.setShortcut(QKeySequence(shortcut))
                 act.setShortcutContext(Qt.ShortcutContext.ApplicationShortcut)
-            act.triggered.connect(slot)  # type: ignore[arg-type]
+            act.triggered.connect(slot)
             self.addAction(act)
             return act
 
@@ -215,7 +219,8 @@ class MainWindow(FileOpening, ExperimentActions, WindowExports, QMainWindow):
         self.reset_layout_action = action("Reset layout", None, self.reset_layout)
         self.auto_levels_action = action("Auto levels", "Ctrl+L", self.hologram.auto_levels)
         menus = self.menuBar()
-        file_menu = menus.addMenu("&File")
+        assert menus is not None  # a QMainWindow makes its menu bar when first asked
+        file_menu = _menu(menus, "&File")
         for act in self._make_file_actions():
             file_menu.addAction(act)
         file_menu.addMenu(self.recent_menu)
@@ -229,17 +234,17 @@ class MainWindow(FileOpening, ExperimentActions, WindowExports, QMainWindow):
             self.quit_action,
         ):
             file_menu.addAction(act)
-        acq = menus.addMenu("&Acquisition")
+        acq = _menu(menus, "&Acquisition")
         acq.addAction(self.start_action)
         acq.addAction(self.record_action)
         acq.addAction(self.auto_levels_action)
-        view = menus.addMenu("&View")
+        view = _menu(menus, "&View")
         for dock in self.docks.values():
             view.addAction(dock.toggleViewAction())
         view.addAction(self.banner_bar.toggleViewAction())
         view.addSeparator()
         view.addAction(self.reset_layout_action)
-        replay = menus.addMenu("&Replay")
+        replay = _menu(menus, "&Replay")
         for act in self.transport.shortcuts:
             replay.addAction(act)
             self.addAction(act)
@@ -347,14 +352,14 @@ class MainWindow(FileOpening, ExperimentActions, WindowExports, QMainWindow):
         clock = replay.clock()
         self.run_trends.attach(replay.path, self.experiment, clock.rate_hz, clock.text)
 
-    def _adopt_source_setup(self, setup: dict) -> None:
+    def _adopt_source_setup(self, setup: dict[str, Any]) -> None:
         """Take the optics a source knows (simulator, recording) into the experiment."""
         fields = ("wavelength_m", "pixel_pitch_m", "n1", "n2")
         changes = {k: float(setup[k]) for k in fields if k in setup and k not in self.optics}
         if not changes or all(getattr(self.experiment, k) == v for k, v in changes.items()):
             return
         try:
-            self._set_experiment(replace(self.experiment, **changes))
+            self._set_experiment(self.experiment.with_optics(changes))
         except HoloviewError as exc:
             self.show_message(f"the source's optical setup is not usable: {exc}")
             return
@@ -543,13 +548,15 @@ class MainWindow(FileOpening, ExperimentActions, WindowExports, QMainWindow):
 
     def fit_to_screen(self) -> None:
         """Move and shrink the window (a restored geometry too) into its screen's free area."""
-        self.layout().activate()  # the docks' minimum sizes as they are arranged now
+        layout = self.layout()  # a QMainWindow has its own (the stubs allow None)
+        if layout is not None:
+            layout.activate()  # the docks' minimum sizes as they are arranged now
         frame, client = self.frameGeometry(), self.geometry()
         margins = frame.size() - client.size()
         if not self.isVisible():  # the window manager's frame is not known yet
             margins = margins.expandedTo(FRAME_ALLOWANCE)
             frame = QRect(frame.topLeft(), client.size() + margins)
-        position, size = fitted(frame, margins, self.screen().availableGeometry())
+        position, size = fitted(frame, margins, available_area(self))
         self.resize(size)
         self.move(position)
 
@@ -586,7 +593,14 @@ class MainWindow(FileOpening, ExperimentActions, WindowExports, QMainWindow):
         self.stop_source()
         self.save_layout()
 
-    def closeEvent(self, event: QCloseEvent) -> None:
+    def closeEvent(self, event: QCloseEvent | None) -> None:
         """Stop every thread and timer, remember the layout, then close."""
         self.shut_down()
         super().closeEvent(event)
+
+
+def _menu(bar: QMenuBar, title: str) -> QMenu:
+    """A new menu ``title`` at the end of ``bar`` (owned by it)."""
+    menu = QMenu(title, bar)
+    bar.addMenu(menu)
+    return menu

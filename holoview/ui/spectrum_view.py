@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping, Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pyqtgraph as pg
@@ -29,6 +30,9 @@ from PyQt6.QtWidgets import (
 from holoview.engine.experiment import PEAK_LABELS
 from holoview.engine.peak_geometry import Carrier, swallowed_neighbour, window_warnings
 from holoview.processing.peaks.snapping import SNAP_BINS, snap
+
+if TYPE_CHECKING:
+    from pyqtgraph.GraphicsScene.mouseEvents import MouseClickEvent
 
 #: Pen colour of a labelled peak's marker, window and label.
 LABEL_COLOUR = "#33ddff"
@@ -405,14 +409,14 @@ class SpectrumView(QWidget):
             return
         self.peakLabelled.emit(choice, snapped[0], snapped[1])
 
-    def _scene_clicked(self, event: object) -> None:
-        if event.button().name != "LeftButton" or event.isAccepted():  # type: ignore[attr-defined]
+    def _scene_clicked(self, event: MouseClickEvent) -> None:
+        if event.button().name != "LeftButton" or event.isAccepted():
             return
-        pos = event.scenePos()  # type: ignore[attr-defined]
+        pos = event.scenePos()
         if not self.plot.vb.sceneBoundingRect().contains(pos):
             return
         point = self.plot.vb.mapSceneToView(pos)
-        event.accept()  # type: ignore[attr-defined]
+        event.accept()
         self.click_at(point.x(), point.y())
 
     def request_radius(self, label: str, radius: float) -> bool:

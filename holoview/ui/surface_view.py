@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 
 import numpy as np
 import pyqtgraph as pg
@@ -130,9 +130,9 @@ def _percentiles(data: np.ndarray, percentiles: tuple[float, float]) -> np.ndarr
     return np.percentile(values, percentiles) if values.size else None
 
 
-def ordered_names(names: object) -> list[str]:
+def ordered_names(names: Iterable[str]) -> list[str]:
     """Map names in a stable order: the usual families first, other labels, then fused."""
-    given = list(names)  # type: ignore[call-overload]
+    given = list(names)
     usual = [n for n in PEAK_LABELS if n in given]
     others = sorted(n for n in given if n not in PEAK_LABELS and n != FUSED)
     return usual + others + ([FUSED] if FUSED in given else [])
@@ -211,7 +211,7 @@ class SurfaceView(QWidget):
         self.profile.setLabel("left", "delta h (nm)")
         self.profile.getAxis("left").enableAutoSIPrefix(False)
         self.profile.disableAutoRange()
-        self._profile_ranges: tuple | None = None
+        self._profile_ranges: tuple[object, ...] | None = None
         self.profile_legend = side_legend(self.profile.getPlotItem())
         self.curves: dict[str, pg.PlotDataItem] = {}
         splitter = QSplitter(Qt.Orientation.Vertical)
@@ -405,9 +405,14 @@ class SurfaceView(QWidget):
             self.colour_bar, row=0, col=columns, rowspan=max(1, -(-len(names) // columns))
         )
 
-    def eventFilter(self, watched: QObject, event: QEvent) -> bool:
+    def eventFilter(self, watched: QObject | None, event: QEvent | None) -> bool:
         """Re-arrange the maps when their area changes size."""
-        if watched is self.graphics and event.type() == QEvent.Type.Resize and self._names:
+        if (
+            watched is self.graphics
+            and event is not None
+            and event.type() == QEvent.Type.Resize
+            and self._names
+        ):
             self._lay_out(self._names)
         return super().eventFilter(watched, event)
 

@@ -162,7 +162,9 @@ class TransportBar(QToolBar):
                 if state.paused
                 else QStyle.StandardPixmap.SP_MediaPause
             )
-            self.play_button.setIcon(self.style().standardIcon(icon))  # type: ignore[union-attr]
+            style = self.style()  # the application's, while it runs (the stubs allow None)
+            if style is not None:
+                self.play_button.setIcon(style.standardIcon(icon))
             self.play_button.setToolTip(("play" if state.paused else "pause") + " (Space)")
             if state.speed in SPEED_STEPS:
                 self.speed_box.setCurrentIndex(SPEED_STEPS.index(state.speed))

@@ -17,7 +17,7 @@ from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from PyQt6.QtWidgets import QFileDialog
+from PyQt6.QtWidgets import QFileDialog, QWidget
 
 from holoview.engine.experiment import Experiment, LabelledPeak
 from holoview.errors import HoloviewError
@@ -56,6 +56,10 @@ class ExperimentActions:
     _previous_experiment: Experiment | None
     show_message: Callable[[str], None]
 
+    def _dialog_parent(self) -> QWidget | None:
+        """The window this part is mixed into, as the parent of its dialogs."""
+        return self if isinstance(self, QWidget) else None
+
     def _set_experiment(self, experiment: Experiment) -> None:
         self.experiment = experiment
         if self.session is not None:
@@ -69,7 +73,7 @@ class ExperimentActions:
         except OSError as exc:
             self.show_message(f"cannot save experiment settings to {self.experiment_path}: {exc}")
 
-    def _apply_recording_experiment(self, stored: Experiment | None, setup: dict) -> None:
+    def _apply_recording_experiment(self, stored: Experiment | None, setup: dict[str, Any]) -> None:
         """Use the experiment a replayed recording carries, as ``holoview process`` does.
 
         Its labels and demodulation settings; the optics the command line gave, else
@@ -193,7 +197,7 @@ class ExperimentActions:
                     f"settings are saved to {self.experiment_path})"
                 )
         try:
-            self.experiment = replace(self.experiment, **self.optics)
+            self.experiment = self.experiment.with_optics(self.optics)
         except HoloviewError as exc:
             problem = f"optics options ignored: {exc}"
             self.optics = {}
@@ -211,14 +215,19 @@ class ExperimentActions:
 
     def load_experiment_dialog(self) -> None:
         """Ask for an experiment settings file and load it."""
-        path, _ = QFileDialog.getOpenFileName(self, "Load experiment settings", "", "JSON (*.json)")
+        path, _ = QFileDialog.getOpenFileName(
+            self._dialog_parent(), "Load experiment settings", "", "JSON (*.json)"
+        )
         if path:
             self.load_experiment(Path(path))
 
     def save_experiment_dialog(self) -> None:
         """Ask where to save the experiment settings."""
         path, _ = QFileDialog.getSaveFileName(
-            self, "Save experiment settings", str(self.experiment_path), "JSON (*.json)"
+            self._dialog_parent(),
+            "Save experiment settings",
+            str(self.experiment_path),
+            "JSON (*.json)",
         )
         if path:
             try:

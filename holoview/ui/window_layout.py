@@ -17,7 +17,8 @@ geometry included) is moved and shrunk into the available area.
 from __future__ import annotations
 
 from PyQt6.QtCore import QPoint, QRect, QSize, Qt
-from PyQt6.QtWidgets import QDockWidget, QMainWindow
+from PyQt6.QtGui import QGuiApplication
+from PyQt6.QtWidgets import QDockWidget, QMainWindow, QWidget
 
 #: Smallest available area (width, height) of the wide and of the medium layout, pixels.
 WIDE = (1600, 900)
@@ -27,6 +28,16 @@ PREFERRED = QSize(1800, 1000)
 #: Room left for a window manager's frame (title bar, borders) before the window is
 #: shown and its frame known, pixels.
 FRAME_ALLOWANCE = QSize(16, 40)
+
+
+def available_area(window: QWidget) -> QRect:
+    """The free area (less task bars) of the screen ``window`` is on, pixels.
+
+    A window Qt has placed on no screen takes the primary screen's; where there is no
+    screen at all (none connected, the display going), an area of :data:`PREFERRED`.
+    """
+    screen = window.screen() or QGuiApplication.primaryScreen()
+    return screen.availableGeometry() if screen is not None else QRect(QPoint(0, 0), PREFERRED)
 
 
 def layout_for(available: QSize) -> str:

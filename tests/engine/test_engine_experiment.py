@@ -116,6 +116,11 @@ def test_partial_experiment_leaves_optics_unknown() -> None:
             '"peaks": [{"label": "X", "carrier": [0.1, 0.1], "alpha": "two"}]}',
             "alpha must be a number",
         ),
+        (  # an object's keys were read as fx and fy before the carrier's type was checked
+            '{"format": "holoview-experiment", "version": 2, '
+            '"peaks": [{"label": "RB1", "carrier": {"0.1": 0, "0.2": 0}}]}',
+            "carrier must be \\[fx, fy\\]",
+        ),
         (
             '{"format": "holoview-experiment", "version": 2, "peaks": ['
             '{"label": "RB1", "carrier": [0.1, 0.1]}, {"label": "RB1", "carrier": [0.2, 0.1]}]}',

@@ -276,7 +276,8 @@ def summary_document(
         },
         "notes": list(analysis.notes),
     }
-    return _clean(document)
+    cleaned: dict[str, Any] = _clean(document)  # a dict stays a dict
+    return cleaned
 
 
 def write_summary_json(path: Path, document: dict[str, Any]) -> None:
@@ -424,10 +425,13 @@ class ResultsFile:
         input_path: str,
         frame_shape: tuple[int, int],
     ) -> None:
+        f = self._file
+        if data.maps_dropped and self._maps:  # interrupted before any frame's maps
+            del f["maps"]
+            self._maps, self._buffers, self._block = [], [], -1
         self._flush()
         for dataset in self._maps:
             dataset.resize(len(data.frames), axis=0)  # fewer after an interruption
-        f = self._file
         f.attrs.update(
             {
                 "format": RESULTS_FORMAT,
@@ -476,6 +480,8 @@ class ResultsFile:
     ) -> None:
         group = self._file["maps"]
         step = pixel_step(frame_shape, data.box_shape)
+        # None is "the experiment's": prepare_run settles it before any frame is read
+        assert settings.reference is not None, "the run's settings were not settled"
         common: dict[str, Any] = {
             "reference": settings.reference,
             "reference_description": (

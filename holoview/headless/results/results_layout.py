@@ -27,7 +27,7 @@ Root attributes
     component; cycles/pixel on the twin whose phase grows with h), and per label
     ``alpha``, ``amplitude``, ``snr``, ``rate_m_per_s``, ``rate_stderr_m_per_s``,
     ``used_in_fused``, ``flags`` (comma-separated).
-``/maps`` (with ``process --maps``)
+``/maps`` (with ``process --maps``; none in a run interrupted before any frame's maps)
     Dimensions ``time`` (s), ``y`` and ``x``: positions of the map pixels' centres in
     m on the object side (map pixel ``(p, q)`` is centred on frame position
     ``(p * pixel_step_px[0], q * pixel_step_px[1])`` in pixel pitches, frame pixel

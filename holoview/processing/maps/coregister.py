@@ -446,7 +446,7 @@ def _blank_outside(moved: np.ndarray, dy: float, dx: float) -> None:
         source = np.arange(size) + shift
         outside = (source < 0) | (source > size - 1)
         index = [slice(None), slice(None)]
-        index[axis] = outside  # type: ignore[call-overload]
+        index[axis] = outside
         moved[tuple(index)] = np.nan
 
 

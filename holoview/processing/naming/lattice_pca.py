@@ -144,7 +144,7 @@ class PcaEvidence:
 
     @classmethod
     def from_series(
-        cls, series: NDArray | None, n_peaks: int, notes: list[str]
+        cls, series: np.ndarray | None, n_peaks: int, notes: list[str]
     ) -> PcaEvidence | None:
         """Unwrap the series in time and run the PCA; None (with a note) when it cannot."""
         if series is None:

@@ -217,11 +217,13 @@ def _periodic_tree(points: np.ndarray, box: tuple[float, float]) -> cKDTree:
     return cKDTree(_on_torus(points, box), boxsize=box)
 
 
-def _matches(tree: cKDTree, targets: np.ndarray, box: tuple[float, float], tol: float) -> list:
+def _matches(
+    tree: cKDTree, targets: np.ndarray, box: tuple[float, float], tol: float
+) -> list[list[int]]:
     """For each target point, the indices of the tree's points within ``tol`` of it."""
     if len(targets) == 0:
         return []
-    return tree.query_ball_point(_on_torus(targets, box), r=tol)
+    return list(tree.query_ball_point(_on_torus(targets, box), r=tol))
 
 
 def flag_relations(

@@ -168,7 +168,7 @@ def _carriers(carriers: Sequence[Peak | tuple[float, float]], shape: tuple[int, 
         else:
             carrier, name = item, f"carrier {i}"
         try:
-            fx, fy = (float(c) for c in carrier)  # type: ignore[union-attr]
+            fx, fy = (float(c) for c in carrier)
         except (TypeError, ValueError) as exc:
             raise InputError(f"{name} must be (fx, fy) in cycles/pixel, got {carrier!r}") from exc
         if not (math.isfinite(fx) and math.isfinite(fy)):
@@ -420,7 +420,7 @@ class CarrierProbe:
         return CarrierProbe(
             self.shape,
             carriers,
-            taper=self._explicit_taper,  # type: ignore[arg-type]
+            taper=self._explicit_taper,
             aperture=self.aperture,
             noise=self.noise_frequencies is not None,
             saturation=self.saturation,
