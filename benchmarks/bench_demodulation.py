@@ -4,9 +4,17 @@ Run from the repository root::
 
     .venv/bin/python benchmarks/bench_demodulation.py            # full run, 3 to 5 minutes
     .venv/bin/python benchmarks/bench_demodulation.py --quick    # 1024 x 1024 only
+    .venv/bin/python benchmarks/bench_demodulation.py --floor --peers peers/bin/python
+                                                                 # section 0 only, a minute
 
 Prints, with the machine (CPU model, cores, load average), medians and best over frames:
 
+0. the map path's floor (issue 23, ``demod_floor.py``): at 1024 x 1024 and one thread,
+   ``Demodulator.process`` with 4 and 1 carriers beside one float32 real FFT of the frame
+   and beside PyHoloscope 1.1.3's real-FFT path (in a child process with the separate
+   environment's interpreter given by ``--peers``), taking turns, where the time of
+   ``process`` goes, and the rest of the map path (trusted maps, co-registration, fusion,
+   writing ``results.h5``: ``map_path.py``);
 1. one planned forward real FFT of the frame (pyFFTW) and numpy's, for scale;
 2. frames per second for 1024 x 1024 and 2048 x 2048, 4 and 16 peaks, each reference
    mode, without and with unwrapping (the frames alternate between a flat surface and a
@@ -36,6 +44,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
+from demod_floor import floor_frames, run_floor
 from machine import machine
 
 REPO = Path(__file__).resolve().parents[1]
@@ -315,6 +324,15 @@ def main(argv: list[str] | None = None) -> int:
         default=None,
         help="FFTW threads of the frame's FFT (default: all cores, at most 4)",
     )
+    parser.add_argument(
+        "--floor", action="store_true", help="only the map path's floor (section 0), 1024 x 1024"
+    )
+    parser.add_argument(
+        "--peers",
+        default=None,
+        help="Python interpreter of a separate environment holding pyholoscope==1.1.3 "
+        "(default: $HOLOVIEW_PEERS_PYTHON; without one PyHoloscope is skipped, saying why)",
+    )
     args = parser.parse_args(argv)
     os.environ.setdefault(
         "HOLOVIEW_CACHE_DIR", str(Path(tempfile.gettempdir()) / "holoview-bench-cache")
@@ -327,6 +345,19 @@ def main(argv: list[str] | None = None) -> int:
     radius_text = "automatic" if args.radius is None else f"{args.radius:g} cycles/pixel"
     print(f"window {args.window}; radius of the timed cases: {radius_text}")
     targets: list[tuple[str, str]] = []
+
+    print("\n== the map path's floor: 1024 x 1024, one thread, side by side (issue 23)")
+    floor_peaks = bench_peaks(4)
+    run_floor(
+        targets,
+        floor_peaks,
+        floor_frames(floor_peaks, synth, bump, moving_waves),
+        wavelength=WAVELENGTH,
+        rounds=10 if args.quick or args.floor else 25,
+        peers=args.peers,
+    )
+    if args.floor:
+        return report(targets)
 
     print("\n== one forward real FFT of the frame (float32)")
     fft_ms = {}
@@ -509,6 +540,11 @@ def main(argv: list[str] | None = None) -> int:
     print("\n== co-registration on the optics simulator (holoview.optics, paper section 2)")
     coregistration(targets, window=args.window)
 
+    return report(targets)
+
+
+def report(targets: list[tuple[str, str]]) -> int:
+    """Print the targets met or missed, and the load at the end."""
     print("\n== targets")
     for what, verdict in targets:
         print(f"{what}: {verdict}")

@@ -202,7 +202,9 @@ def main() -> None:
         n = args.frames
         carriers = (one["demodulate_seconds"] - one["maps_seconds"]) / n
         worker = carriers + one["read_seconds"] / n
-        parent = (two["parent_seconds"] - two["maps_seconds"]) / n
+        # the parent's own maps (the spread pass) run beside the workers, not in its
+        # sequential part: parent_seconds is the stitching in order alone
+        parent = two["parent_seconds"] / n
         fixed = t2 - two["seconds"] + one["maps_seconds"]
         print(
             f"  --jobs 1: frame loop {one['seconds']:.1f} s (maps of ~50 frames "

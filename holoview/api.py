@@ -193,7 +193,7 @@ def process(
     fps: float | None = None,
     reference: str | None = None,
     window: str | None = None,
-    radius: float | None = None,
+    radius: float | str | None = None,
     unwrap: str | None = None,
     background: str | int | None = None,
     maps: bool = False,
@@ -233,7 +233,8 @@ def process(
     fps : float, optional
         Frame rate, frames/s, replacing the file's times.
     reference, window, radius, unwrap : optional
-        Demodulation settings as the command's options (radius in cycles/pixel).
+        Demodulation settings as the command's options (radius in cycles/pixel, or
+        ``"matched"`` or ``"bound"``).
     background : str or int, optional
         The object-free hologram: a frame index of the recording, or a file.
     maps : bool

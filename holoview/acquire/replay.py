@@ -15,9 +15,11 @@ The replay can be steered while it streams, from any thread (a transport bar):
 :meth:`~ReplaySource.step` (one frame either way, pausing), :meth:`~ReplaySource.seek`
 (a frame index; one past the end is a one-line :class:`~holoview.errors.InputError`).
 Each frame's :class:`~holoview.acquire.source.FrameMeta` carries its ``file_index`` in
-the file and its ``segment``: a frame that is not the one after the previous frame
-delivered (a seek, a step back, the loop starting over) opens a new segment, so
-processing never pairs frames across a jump.
+the file and its ``segment``: a frame sought (:meth:`~ReplaySource.seek`, even to the
+frame after the one shown) and a frame that is not the one after the previous frame
+delivered (a step back, the loop starting over) open a new segment, so processing never
+pairs frames across a jump, and a frame sought is where its relative maps start, wherever
+play had stopped.
 
 Each frame is stamped (``FrameMeta.t_device``) with its time in the recording, so that
 what the frames measure over time (a rate) is the same at every speed: the file's own
@@ -149,6 +151,7 @@ class ReplaySource(Source):
         self._position = 0  # the next frame to play
         self._shown = -1  # the last frame delivered
         self._jump: int | None = None  # a frame to deliver at once (seek, step)
+        self._sought = False  # the jump comes from a seek: it opens a segment
         self._paused = False
         self._held = False
         self._segment = 0
@@ -201,7 +204,7 @@ class ReplaySource(Source):
     def _do_open(self) -> None:
         self._file = open_frame_file(self.path)
         with self._cond:
-            self._position, self._shown, self._jump = 0, -1, None
+            self._position, self._shown, self._jump, self._sought = 0, -1, None, False
             self._loops, self._segment, self._held = 0, 0, False
 
     def _do_close(self) -> None:
@@ -247,6 +250,12 @@ class ReplaySource(Source):
         """Index of the last frame delivered (-1 before the first)."""
         with self._cond:
             return self._shown
+
+    @property
+    def segment(self) -> int:
+        """Segment of the last frame delivered (0 before the first)."""
+        with self._cond:
+            return self._segment
 
     @property
     def paused(self) -> bool:
@@ -344,6 +353,9 @@ class ReplaySource(Source):
     def seek(self, index: int) -> int:
         """Deliver frame ``index`` next (at once, paused or not); play goes on after it.
 
+        The frame opens a new segment (unless it is the replay's first), even when it is
+        the one after the frame shown: the operator placed the replay there.
+
         Returns
         -------
         int
@@ -360,7 +372,7 @@ class ReplaySource(Source):
                 raise InputError(
                     f"frame {index} is outside {self.path.name}: it has {n} frames, 0 to {n - 1}"
                 )
-            self._jump = int(index)
+            self._jump, self._sought = int(index), True
             self._held = False
             self._cond.notify_all()
             return self._jump
@@ -368,13 +380,14 @@ class ReplaySource(Source):
     def step(self, n: int = 1) -> int:
         """Pause and show the frame ``n`` after the one shown (before it for negative ``n``).
 
-        The frame is clamped to the file's first and last. Returns its index.
+        The frame is clamped to the file's first and last; it opens a new segment when it
+        is not the one after the frame delivered before it. Returns its index.
         """
         with self._cond:
             last = len(self._require_file()) - 1
             base = self._jump if self._jump is not None else self._position - 1
             target = min(max(base + int(n), 0), last)
-            self._jump = target
+            self._jump, self._sought = target, False
             self._paused = True
             self._held = False
             self._cond.notify_all()
@@ -418,8 +431,10 @@ class ReplaySource(Source):
                 return dt / self._factor
         return 1.0 / (self._effective_rate() * self._factor)
 
-    def _take_turn(self, file: FrameFile, timeout: float | None) -> int | None:
-        """Wait until a frame may go and return its index; None when ``timeout`` s pass first.
+    def _take_turn(self, file: FrameFile, timeout: float | None) -> tuple[int, bool] | None:
+        """Wait until a frame may go; None when ``timeout`` s pass first.
+
+        Returns the frame's index and whether a seek asked for it.
 
         Raises
         ------
@@ -431,10 +446,11 @@ class ReplaySource(Source):
             while self._streaming:
                 now = time.monotonic()
                 if self._jump is not None:
-                    index, self._jump = self._jump, None
+                    index, sought = self._jump, self._sought
+                    self._jump, self._sought = None, False
                     self._position = index + 1
                     self._due = now + self._interval(file, index + 1)
-                    return index
+                    return index, sought
                 wake = deadline
                 if not self._paused and self._speed != "step":
                     if self._position >= len(file) and file.refresh() <= self._position:
@@ -451,7 +467,7 @@ class ReplaySource(Source):
                             file, self._position + 1
                         )
                         self._position += 1
-                        return self._position - 1
+                        return self._position - 1, False
                     wake = self._due if deadline is None else min(self._due, deadline)
                 if deadline is not None and now >= deadline:
                     return None
@@ -460,13 +476,14 @@ class ReplaySource(Source):
 
     def _do_fetch(self, timeout: float | None) -> Frame | None:
         file = self._require_file()
-        index = self._take_turn(file, timeout)
-        if index is None:
+        turn = self._take_turn(file, timeout)
+        if turn is None:
             return None
+        index, sought = turn
         file.check(index)
         data = file.read(index)
         with self._cond:
-            if self._shown >= 0 and index != self._shown + 1:
+            if self._shown >= 0 and (sought or index != self._shown + 1):
                 self._segment += 1
             self._shown = index
             segment = self._segment

@@ -91,8 +91,9 @@ class FrameMeta(NamedTuple):
         The frame's index in the file a replay plays (-1 for a camera).
     segment : int
         Which unbroken run of frames the frame belongs to: a replay starts a new
-        segment at each jump (a seek, a step back, a loop back to the start), so the
-        frames of one segment follow each other in the file; a camera keeps 0.
+        segment at each seek (even to the frame after the one shown) and each jump (a
+        step back, a loop back to the start), so the frames of one segment follow each
+        other in the file; a camera keeps 0.
     """
 
     frame_id: int

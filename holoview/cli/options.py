@@ -35,6 +35,18 @@ def positive_number(text: str) -> float:
     return value
 
 
+def radius_value(text: str) -> float | str:
+    """An argparse type: ``matched``, ``bound`` or a finite positive radius, cycles/pixel."""
+    if text in ("matched", "bound"):
+        return text
+    try:
+        return positive_number(text)
+    except argparse.ArgumentTypeError:
+        raise argparse.ArgumentTypeError(
+            f"{text!r} is not 'matched', 'bound' or a positive radius in cycles/pixel"
+        ) from None
+
+
 def add_verbosity_options(parser: argparse.ArgumentParser, *, top: bool = False) -> None:
     """Add ``-v`` / ``-q``; on a subcommand they mean the same as before it."""
     default: dict[str, object] = {}

@@ -74,6 +74,7 @@ def _table(document: dict[str, Any]) -> str:
             f"{peak['index']:>3}  {names:<{width}}{fx:>+9.4f}{fy:>+9.4f}"
             f"{peak['amplitude']:>11.4g}{peak['snr']:>9.1f}  {twin:<5}{point:>9}{resid:>7}  "
             f"{','.join(peak['flags'])}"
+            + (f"  {peak['sideband']['text']}" if peak.get("sideband") else "")
         )
     for key, text in (("missing", "predicted, not detected"), ("notes", "note")):
         for line in document.get(key) or []:
@@ -125,7 +126,7 @@ def run(args: argparse.Namespace) -> int:
     if problem is not None:
         raise InputError(f"{args.input} frame {args.frame} {problem}; choose another with --frame")
     check_not_background_subtracted(frame, f"{args.input} frame {args.frame}")
-    detected = find_peaks(frame, radius=experiment.radius)
+    detected = find_peaks(frame, radius=experiment.fixed_radius)
     if experiment.peaks and not detected:
         raise InputError(f"no significant peak in frame {args.frame}: nothing to label")
     resolution = resolve_peaks(experiment, detected, shape)

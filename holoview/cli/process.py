@@ -22,6 +22,7 @@ from holoview.cli.options import (
     add_optics_options,
     optics_options,
     parse_labels,
+    radius_value,
 )
 from holoview.cli.signals import emit
 from holoview.cli.waves import add_wave_options, summary_line, wave_options
@@ -104,7 +105,12 @@ def add_parser(
         "--window", choices=("raised-cosine", "top-hat", "tukey"), help="spectral window"
     )
     demod.add_argument(
-        "--radius", type=float, metavar="R", help="window radius, cycles/pixel (default: automatic)"
+        "--radius",
+        type=radius_value,
+        metavar="R",
+        help="window radius: 'matched' (per peak, matched to the surface's spectrum; the "
+        "automatic default), 'bound' (per peak, the widest reaching no other peak) or a "
+        "number, cycles/pixel, for every peak",
     )
     demod.add_argument("--unwrap", choices=("auto", "always", "never"), help="spatial unwrapping")
     demod.add_argument(

@@ -17,7 +17,12 @@ The JSON layout (format ``holoview-experiment``, version 2)::
                {"label": "G1", "carrier": [0.31, 0.02], "alpha": 0.5}]}
 
 Carriers and the radius are in cycles per pixel (``fx`` along columns, ``fy`` along
-rows), lengths in metres. ``radius: null`` is the automatic radius. A peak's
+rows), lengths in metres. ``radius`` is a number (every peak's window), ``"matched"``
+or ``null`` (the automatic radius: per peak, matched to the surface's spectrum, never
+past the bound) or ``"bound"`` (per peak, the widest reaching no other peak: what
+``null`` meant before issue 23). A file whose radius is ``"bound"`` or ``"matched"``
+is written as version 3 (earlier holoviews refuse it by its version); any other as
+version 2, as before. A peak's
 ``alpha`` is optional for the model's families (RF, RB_j, FB_j, ...), whose prefactor
 follows from the label and the indices, and needed for any other label. Every key
 but ``format`` and ``version`` may be left out (an experiment that only names peaks
@@ -43,6 +48,7 @@ from holoview.optics.families import alpha_of
 from holoview.optics.setup import check_optics
 from holoview.processing.fourier.windows import DEFAULT_WINDOW, WINDOW_KINDS
 from holoview.processing.maps.demod_results import REFERENCE_MODES, UNWRAP_MODES
+from holoview.processing.peaks.radii import radius_rule
 
 __all__ = [
     "EXPERIMENT_FORMAT",
@@ -60,9 +66,11 @@ __all__ = [
 ]
 
 EXPERIMENT_FORMAT = "holoview-experiment"
-EXPERIMENT_VERSION = 2
+EXPERIMENT_VERSION = 3
 #: Versions :meth:`Experiment.from_json` reads.
-READABLE_VERSIONS = (1, 2)
+READABLE_VERSIONS = (1, 2, 3)
+#: The version written when the radius is a number or automatic (readable before version 3).
+NUMERIC_RADIUS_VERSION = 2
 
 #: The optical values an experiment carries (SI units), as options and sources name them.
 OPTICS_FIELDS: tuple[str, ...] = ("wavelength_m", "pixel_pitch_m", "n1", "n2")
@@ -205,8 +213,10 @@ class Experiment:
     window : str
         Spectral window around each peak
         (:data:`~holoview.processing.fourier.windows.WINDOW_KINDS`).
-    radius : float or None
-        Window radius, cycles/pixel; None: automatic from the carriers.
+    radius : float, "bound" or None
+        Window radius, cycles/pixel; None: automatic, matched per peak to the surface's
+        spectrum (``"matched"`` is read as None); ``"bound"``: per peak, the widest
+        reaching no other peak (:func:`~holoview.processing.peaks.radii.peak_windows`).
     reference : {"relative", "absolute", "synthetic"}
         Reference mode of the maps (docs/design.md).
     unwrap : {"auto", "always", "never"}
@@ -225,16 +235,22 @@ class Experiment:
     n1: float | None = 1.0
     n2: float | None = 1.333
     window: str = DEFAULT_WINDOW
-    radius: float | None = None
+    radius: float | str | None = None
     reference: str = "relative"
     unwrap: str = "auto"
     peaks: tuple[LabelledPeak, ...] = field(default_factory=tuple)
 
     def __post_init__(self) -> None:
-        for name in ("wavelength_m", "pixel_pitch_m", "n1", "n2", "radius"):
+        for name in ("wavelength_m", "pixel_pitch_m", "n1", "n2"):
             object.__setattr__(self, name, _optional_positive(name, getattr(self, name)))
-        if self.radius is not None and self.radius >= 0.5:
-            raise InputError(f"window radius {self.radius} cycles/pixel is beyond Nyquist (0.5)")
+        if self.radius is None or isinstance(self.radius, str):
+            if radius_rule(self.radius) == "matched":
+                object.__setattr__(self, "radius", None)
+        else:
+            radius = _optional_positive("radius", self.radius)
+            object.__setattr__(self, "radius", radius)
+            if radius is not None and radius >= 0.5:
+                raise InputError(f"window radius {radius} cycles/pixel is beyond Nyquist (0.5)")
         for name, allowed in (
             ("window", WINDOW_KINDS),
             ("reference", REFERENCE_MODES),
@@ -254,6 +270,16 @@ class Experiment:
             raise InputError(f"label {', '.join(twice)} is given twice")
 
     # ---- derived -----------------------------------------------------------
+    @property
+    def radius_rule(self) -> str:
+        """``"matched"``, ``"bound"`` or ``"given"``: how the windows' radii are chosen."""
+        return radius_rule(self.radius)
+
+    @property
+    def fixed_radius(self) -> float | None:
+        """The radius given, cycles/pixel; None when each peak's is chosen by a rule."""
+        return self.radius if isinstance(self.radius, float) else None
+
     def alpha(self, peak: LabelledPeak) -> float | None:
         """The prefactor of ``peak``: its own, else the model's for its label, else None."""
         return peak.alpha if peak.alpha is not None else self.alpha_of_label(peak.label)
@@ -295,9 +321,12 @@ class Experiment:
         window: str | None = None,
         reference: str | None = None,
         unwrap: str | None = None,
-        radius: float | None = None,
+        radius: float | str | None = None,
     ) -> Experiment:
-        """Return a copy with the demodulation settings given (None leaves a field as it is)."""
+        """Return a copy with the demodulation settings given (None leaves a field as it is).
+
+        ``radius``: a number (cycles/pixel), ``"matched"`` or ``"bound"``.
+        """
         return replace(
             self,
             window=self.window if window is None else window,
@@ -338,7 +367,9 @@ class Experiment:
         """The experiment as its JSON object (module docstring)."""
         return {
             "format": EXPERIMENT_FORMAT,
-            "version": EXPERIMENT_VERSION,
+            "version": (
+                EXPERIMENT_VERSION if isinstance(self.radius, str) else NUMERIC_RADIUS_VERSION
+            ),
             "wavelength_m": self.wavelength_m,
             "pixel_pitch_m": self.pixel_pitch_m,
             "n1": self.n1,

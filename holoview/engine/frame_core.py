@@ -11,7 +11,10 @@ the same numbers on the same frames:
   for a set of peaks and an experiment's settings (window, radius, reference,
   unwrapping), rebuilt only when they change: the maps, their mean phases following
   the carrier probe's values (the series' own), so that a process holding a run's
-  values can tell a worker where the maps' 2 pi offsets stand.
+  values can tell a worker where the maps' 2 pi offsets stand; its windows are
+  matched to the spectrum it was given (:meth:`FrameCore.match`), or at the bound, or
+  given;
+- :func:`matching_positions`: the frames of a run its windows are matched to.
 
 What follows from the maps (trusted maps, phase steps, co-registration, fusion) is
 :mod:`holoview.engine.map_step`; the mean-phase series, depths and rates are
@@ -31,17 +34,45 @@ from holoview.processing.fourier.frames import DamagedFrameError, frame_damage
 from holoview.processing.maps.demod_results import DemodResult
 from holoview.processing.maps.demodulate import Demodulator
 from holoview.processing.peaks.detection import Peak
-from holoview.processing.peaks.radii import distinct_neighbours, peak_radii
+from holoview.processing.peaks.matched import SurfaceSpectrum, Window
+from holoview.processing.peaks.radii import distinct_neighbours, peak_radii, peak_windows
 from holoview.processing.series.carrier_probe import CarrierProbe, CarrierValues
 
 logger = logging.getLogger(__name__)
 
-__all__ = ["FFT_THREADS", "CarrierCore", "FrameCore", "series_key"]
+__all__ = [
+    "FFT_THREADS",
+    "MATCHING_FRAMES",
+    "CarrierCore",
+    "FrameCore",
+    "matching_positions",
+    "series_key",
+]
 
 #: FFTW threads per frame. One: on a two-core machine the other core reads frames (or
 #: runs the GUI), and a two-thread FFT whose second thread waits for a busy core took
 #: 450 ms instead of 10 ms per 1024 x 1024 frame.
 FFT_THREADS = 1
+
+
+#: Frames of a run after its first that its windows are matched to (absolute maps).
+MATCHING_FRAMES = 3
+
+
+def matching_positions(reference: str, n: int) -> list[int]:
+    """Positions in a run of ``n`` frames whose maps its windows are matched to.
+
+    Against the run's first frame (position 0): synthetic phases, none (the first frame
+    alone); relative maps, the second frame; absolute maps, :data:`MATCHING_FRAMES`
+    frames spread over the run (a third, two thirds, the last), the changes of the
+    surface from the reference that its maps show.
+    """
+    if reference == "synthetic" or n < 2:
+        return []
+    if reference == "relative":
+        return [1]
+    positions = {max(1, n * k // MATCHING_FRAMES) for k in range(1, MATCHING_FRAMES)}
+    return sorted(positions | {n - 1})
 
 
 def series_key(peaks: Sequence[Peak]) -> tuple[object, ...]:
@@ -109,6 +140,10 @@ class CarrierCore:
         return self._probe.measure(frame)
 
 
+def _carriers(peaks: Sequence[Peak]) -> tuple[tuple[float, float], ...]:
+    return tuple((float(p.carrier[0]), float(p.carrier[1])) for p in peaks)
+
+
 class FrameCore:
     """Demodulate frames at a set of peaks with an experiment's settings.
 
@@ -129,15 +164,21 @@ class FrameCore:
         the maps are taken against it rather than against the first frame
         (:meth:`~holoview.processing.maps.demodulate.Demodulator.set_background`).
     neighbours : sequence of (fx, fy)
-        Every detected peak's carrier, cycles/pixel: the automatic windows reach none
-        (the demodulated ones among them are recognised and dropped).
+        The detected peaks that bound windows, cycles/pixel
+        (:func:`~holoview.processing.peaks.radii.window_neighbours`): the automatic
+        windows reach none (the demodulated ones among them are recognised and dropped).
+    spectrum : SurfaceSpectrum, optional
+        The spectrum the windows are matched to (:meth:`match`).
+    windows : sequence of Window, optional
+        The windows of the peaks, decided elsewhere (a run's, in its workers): used as
+        they are while the peaks' carriers are these.
 
     Notes
     -----
     The demodulator is rebuilt (which restarts the absolute and relative reference)
     when a label or alpha appears, goes or changes, a carrier moves by a whole FFT bin,
-    a neighbour moves an automatic window's radius by a whole bin, or the window,
-    radius, reference, unwrapping or wavelength change.
+    a neighbour moves a window's bound by a whole bin, the windows are matched to
+    another spectrum, or the window, radius, reference, unwrapping or wavelength change.
     """
 
     def __init__(
@@ -150,6 +191,8 @@ class FrameCore:
         threads: int = FFT_THREADS,
         background: np.ndarray | None = None,
         neighbours: Sequence[tuple[float, float]] = (),
+        spectrum: SurfaceSpectrum | None = None,
+        windows: Sequence[Window] | None = None,
     ) -> None:
         self.frame_shape = (int(frame_shape[0]), int(frame_shape[1]))
         self.saturation = saturation
@@ -158,6 +201,9 @@ class FrameCore:
         self.experiment = experiment
         self.peaks: tuple[Peak, ...] = tuple(peaks)
         self.neighbours = tuple(neighbours)
+        #: the spectrum the windows are matched to (None: not measured)
+        self.spectrum = spectrum
+        self._fixed = None if windows is None else (_carriers(self.peaks), tuple(windows))
         self._demod: Demodulator | None = None
         self._probe = CarrierCore(self.frame_shape, saturation)
 
@@ -176,6 +222,28 @@ class FrameCore:
         if neighbours is not None:
             self.neighbours = tuple(neighbours)
 
+    def match(self, spectrum: SurfaceSpectrum | None) -> None:
+        """Match the windows to ``spectrum`` from the next frame (the maps restart)."""
+        self.spectrum = spectrum
+
+    def windows_for(self, spectrum: SurfaceSpectrum) -> tuple[Window, ...] | None:
+        """The windows ``spectrum`` would give the peaks in use (None before a frame)."""
+        demod = self._demod
+        if demod is None:
+            return None
+        carriers = np.array([p.carrier for p in demod.peaks], dtype=np.float64)
+        others = distinct_neighbours(self.frame_shape, carriers, self.neighbours)
+        e = self.experiment
+        return peak_windows(
+            self.frame_shape,
+            carriers,
+            e.radius,
+            others,
+            kind=demod.window,
+            taper=demod.taper,
+            spectrum=spectrum,
+        )
+
     @property
     def demodulator(self) -> Demodulator | None:
         """The demodulator for the current peaks (None before a frame or with no peak)."""
@@ -184,14 +252,23 @@ class FrameCore:
     @property
     def radius(self) -> float | None:
         """The window radius in use, cycles/pixel (the experiment's before the first frame)."""
-        return self.experiment.radius if self._demod is None else self._demod.radius
+        return self.experiment.fixed_radius if self._demod is None else self._demod.radius
 
     def radii(self) -> dict[str, float]:
         """Each labelled peak's window radius in use, cycles/pixel (empty before a frame)."""
+        return {label: w.radius for label, w in self.windows().items()}
+
+    def windows(self) -> dict[str, Window]:
+        """Each labelled peak's window in use (empty before a frame)."""
         demod = self._demod
         if demod is None:
             return {}
-        return {p.label: r for p, r in zip(demod.peaks, demod.radii, strict=True) if p.label}
+        return {p.label: w for p, w in zip(demod.peaks, demod.windows, strict=True) if p.label}
+
+    @property
+    def notes(self) -> tuple[str, ...]:
+        """What the user should know about the windows in use (a given radius reaching a peak)."""
+        return () if self._demod is None else self._demod.notes
 
     def _settings(self) -> tuple[object, ...]:
         e = self.experiment
@@ -210,14 +287,24 @@ class FrameCore:
             for p, q in zip(self.peaks, demod.peaks, strict=True)
         ):
             return True
-        if self.experiment.radius is not None:
+        if self._fixed_windows() is not None:
             return False
+        if demod.spectrum is not self.spectrum:
+            return True
         carriers = np.array([p.carrier for p in demod.peaks], dtype=np.float64)
         others = distinct_neighbours(self.frame_shape, carriers, self.neighbours)
-        radii = peak_radii(self.frame_shape, carriers, None, others)
+        bounds = peak_radii(self.frame_shape, carriers, None, others)
         return any(
-            abs(a - b) * min(rows, cols) > 1.0 for a, b in zip(radii, demod.radii, strict=True)
+            abs(a - w.bound) * min(rows, cols) > 1.0
+            for a, w in zip(bounds, demod.windows, strict=True)
         )
+
+    def _fixed_windows(self) -> tuple[Window, ...] | None:
+        """The windows given at construction, while the carriers are the ones they were for
+        (the peaks may be named since: a run's identification gives labels and alphas)."""
+        if self._fixed is None or self._fixed[0] != _carriers(self.peaks):
+            return None
+        return self._fixed[1]
 
     def build(self) -> Demodulator | None:
         """Return the demodulator for the current settings, rebuilding it when stale.
@@ -244,6 +331,8 @@ class FrameCore:
                 saturation=self.saturation,
                 threads=self.threads,
                 neighbours=self.neighbours,
+                spectrum=self.spectrum,
+                windows=self._fixed_windows(),
             )
             self._probe.configure(demod.peaks)
             if self.background is not None and e.reference == "absolute":

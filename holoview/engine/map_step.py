@@ -19,8 +19,9 @@ Per frame, in this order, and nowhere else:
    headless);
 4. fusion (:func:`fuse_maps`): the peaks of the fused depth
    (:meth:`~holoview.engine.series.JointSetup.fused`), moved onto the first peak's grid
-   (Keys' cubic convolution, :data:`FUSION_METHOD`), weighted by their noise, a peak
-   that stepped at that frame left out;
+   (Keys' cubic convolution, :data:`FUSION_METHOD`), weighted by their expected errors
+   (:attr:`~holoview.processing.maps.demod_results.PeakResult.error_height`: the noise
+   and what the window cuts), a peak that stepped at that frame left out;
 5. the measured shifts in camera pixels (:func:`frame_shift`), for the view and the files.
 
 :class:`MapStep` runs them and returns a :class:`FrameMaps`; a caller decides only
@@ -183,8 +184,9 @@ def fuse_maps(
     maps : sequence of (ndarray or None)
         Each peak's delta-h map, m, NaN where untrusted (None: the peak is not fused).
     noise_m : sequence of (float or None)
-        Each peak's per-pixel height noise on that frame, m (the weight is its inverse
-        square; None or 0 on a reference frame: plain means).
+        Each peak's expected per-pixel height error on that frame, m (its noise and what
+        its window cuts: the weight is its inverse square; None or 0 on a reference
+        frame: plain means).
     stepped : sequence of bool
         Whether the peak's mean phase stepped at this frame (the phase-step rule, module
         documentation): such peaks are left out, unless every one did.
@@ -351,7 +353,7 @@ class MapStep:
                     m if use and r.delta_h is not None else None
                     for m, r, use in zip(maps, peaks, chosen, strict=True)
                 ],
-                [r.noise_height for r in peaks],
+                [r.error_height for r in peaks],
                 ["phase_step" in r.flags for r in peaks],
                 displacements,
             )

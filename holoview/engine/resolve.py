@@ -31,12 +31,12 @@ from holoview.engine.experiment import Experiment
 from holoview.errors import InputError
 from holoview.processing.fourier.windows import wrap_frequency
 from holoview.processing.naming.labelling import ModelLabelling, label_peaks
-from holoview.processing.naming.lattice_geometry import LatticePeak
+from holoview.processing.naming.lattice_geometry import LatticeKind, LatticePeak
 from holoview.processing.naming.lattice_labels import LabelContradictionError
 from holoview.processing.peaks.detection import Peak
 from holoview.processing.peaks.snapping import SNAP_BINS, bin_distance, snap
 
-__all__ = ["MAX_ORDER", "Resolution", "resolve_peaks", "snap_peak"]
+__all__ = ["MAX_ORDER", "ON_LATTICE", "Resolution", "on_lattice", "resolve_peaks", "snap_peak"]
 
 #: Largest ``j`` of the first-order families (RB_j, FB_j) the model adds.
 MAX_ORDER = 3
@@ -50,8 +50,17 @@ Carrier = tuple[float, float]
 def snap_peak(
     carrier: Carrier, detected: Sequence[Peak], shape: tuple[int, int]
 ) -> tuple[int, Peak] | None:
-    """Return ``(index, peak)``: the detected peak :func:`snap` names, on ``carrier``'s twin."""
-    found = snap(carrier, [p.carrier for p in detected], shape)
+    """Return ``(index, peak)``: the detected peak :func:`snap` names, on ``carrier``'s twin.
+
+    A peak of its own is named before a surface sideband (flag ``"surface"``) within
+    reach: a label names a carrier, not the surface's content around it.
+    """
+    own = [i for i, p in enumerate(detected) if "surface" not in p.flags]
+    found = snap(carrier, [detected[i].carrier for i in own], shape)
+    if found is not None:
+        found = (own[found[0]], found[1])
+    else:
+        found = snap(carrier, [p.carrier for p in detected], shape)
     if found is None:
         return None
     index, twin = found
@@ -61,6 +70,20 @@ def snap_peak(
 def _folded(carrier: Carrier) -> Carrier:
     fx, fy = wrap_frequency(np.asarray(carrier, dtype=np.float64))
     return float(fx), float(fy)
+
+
+#: Lattice kinds that name a peak of its own: a surface sideband placed there is not one.
+ON_LATTICE = (LatticeKind.FIRST_ORDER, LatticeKind.SECOND_ORDER, LatticeKind.INTERMODULATION)
+
+
+def on_lattice(labelling: ModelLabelling | None, count: int) -> list[bool] | None:
+    """Per detected peak, whether the model's lattice places it on one of its points."""
+    if labelling is None or labelling.lattice is None:
+        return None
+    peaks = labelling.lattice.peaks
+    if len(peaks) != count:
+        return None
+    return [p.kind in ON_LATTICE for p in peaks]
 
 
 @dataclass(frozen=True)

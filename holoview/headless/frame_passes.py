@@ -26,7 +26,7 @@ from __future__ import annotations
 import logging
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -45,6 +45,7 @@ from holoview.headless.run_data import (
 )
 from holoview.processing.maps.coregister import Displacement
 from holoview.processing.peaks.detection import Peak
+from holoview.processing.peaks.matched import SurfaceSpectrum, Window
 
 logger = logging.getLogger(__name__)
 
@@ -73,7 +74,8 @@ class MapsSpec:
     peaks : tuple of Peak
         The peaks demodulated, with the prefactors the maps take (signed as measured).
     neighbours : tuple of (fx, fy)
-        Every detected peak's carrier, cycles/pixel (the automatic windows reach none).
+        The detected peaks that bound windows, cycles/pixel (the surface's sidebands
+        are not peaks: :func:`~holoview.processing.peaks.radii.window_neighbours`).
     threads : int
         FFTW threads per frame.
     background : ndarray or None
@@ -82,6 +84,9 @@ class MapsSpec:
         Peaks kept out of the fused map besides those without alpha.
     displacements : tuple of Displacement
         The displacements measured before the pass (empty: none).
+    windows : tuple of Window
+        Each peak's window, decided once for the run (:meth:`matched`; empty: by the
+        experiment's rule, the bound or the radius given, from the carriers).
     """
 
     experiment: Experiment
@@ -91,6 +96,24 @@ class MapsSpec:
     background: np.ndarray | None
     exclude: tuple[bool, ...] = ()
     displacements: tuple[Displacement, ...] = ()
+    windows: tuple[Window, ...] = ()
+
+    def matched(
+        self, frame_shape: tuple[int, int], saturation: float | None, spectrum: SurfaceSpectrum
+    ) -> MapsSpec:
+        """This spec with each peak's window matched to ``spectrum``, here and in the workers."""
+        core = FrameCore(
+            frame_shape,
+            self.experiment,
+            self.peaks,
+            saturation=saturation,
+            threads=self.threads,
+            neighbours=self.neighbours,
+            spectrum=spectrum,
+        )
+        demod = core.build()
+        assert demod is not None
+        return replace(self, windows=demod.windows)
 
     def core(self, frame_shape: tuple[int, int], saturation: float | None) -> FrameCore:
         """A new core, its demodulator built (its own reference; the FFTW plans cached)."""
@@ -102,6 +125,7 @@ class MapsSpec:
             threads=self.threads,
             background=self.background,
             neighbours=self.neighbours,
+            windows=self.windows or None,
         )
         core.build()
         return core

@@ -252,7 +252,7 @@ def parse_frame_range(text: str | None, n_frames: int) -> range:
 
 
 def check_run_settings(
-    *, area_m2: float | None, radius: float | None, frame_shape: tuple[int, int]
+    *, area_m2: float | None, radius: float | str | None, frame_shape: tuple[int, int]
 ) -> None:
     """Refuse a basin area or window radius that cannot give a sensible result.
 
@@ -260,8 +260,9 @@ def check_run_settings(
     ----------
     area_m2 : float or None
         Basin area, m^2 (:data:`AREA_RANGE`).
-    radius : float or None
-        Window radius, cycles/pixel: at least one FFT bin of the frame, below 0.5.
+    radius : float, str or None
+        Window radius, cycles/pixel: at least one FFT bin of the frame, below 0.5 (a
+        rule, ``"matched"`` or ``"bound"``, is not checked here).
     frame_shape : tuple of int
         ``(rows, cols)`` of the frames, pixels.
     """
@@ -273,7 +274,7 @@ def check_run_settings(
                 f"--area {area_m2:g} m^2 is not a plausible basin area "
                 f"({AREA_RANGE[0]:g} to {AREA_RANGE[1]:g} m^2)"
             )
-    if radius is not None:
+    if isinstance(radius, float | int):
         smallest = 1.0 / min(frame_shape)
         if not (math.isfinite(radius) and smallest <= radius < 0.5):
             raise InputError(

@@ -18,6 +18,8 @@ from pathlib import Path
 import numpy as np
 
 from holoview.engine.experiment import Experiment, LabelledPeak
+from holoview.engine.frame_core import matching_positions
+from holoview.engine.resolve import on_lattice
 from holoview.errors import InputError
 from holoview.headless.frame_passes import MapsSpec
 from holoview.headless.input_identity import InputIdentity
@@ -34,6 +36,8 @@ from holoview.headless.run_passes import RunFrames
 from holoview.headless.selection import Selection, select_auto, select_from_experiment
 from holoview.headless.settings import PeakChoice, ProcessOptions, ProcessSettings
 from holoview.processing.peaks.detection import Peak, find_peaks
+from holoview.processing.peaks.matched import SurfaceSpectrum, measure_spectrum
+from holoview.processing.peaks.radii import surface_band, window_neighbours
 
 logger = logging.getLogger(__name__)
 
@@ -119,9 +123,9 @@ def prepare_run(
     check_run_settings(
         area_m2=settings.area_m2, radius=settings.radius, frame_shape=source.frame_shape
     )
-    _, first = first_good_frame(source, selected)
+    first_index, first = first_good_frame(source, selected)
     background = read_background(settings.background, source)
-    detected = find_peaks(first, radius=experiment.radius, threads=settings.threads)
+    detected = find_peaks(first, radius=experiment.fixed_radius, threads=settings.threads)
     selection = choose_peaks(
         options.choice,
         mode=mode,
@@ -139,12 +143,27 @@ def prepare_run(
     spec = MapsSpec(
         experiment=experiment,
         peaks=tuple(selection.peaks),
-        neighbours=tuple(p.carrier for p in detected),
+        neighbours=tuple(
+            window_neighbours(detected, on_lattice(selection.labelling, len(detected)))
+        ),
         threads=settings.threads,
         background=background,
     )
-    demodulator = spec.core(source.frame_shape, source.saturation).demodulator
+    if experiment.radius_rule == "matched":
+        spectrum = _matching_spectrum(
+            source,
+            selected,
+            first_index=first_index,
+            first=first,
+            reference=experiment.reference,
+            background=background,
+            band=surface_band(detected),
+        )
+        spec = spec.matched(source.frame_shape, source.saturation, spectrum)
+    core = spec.core(source.frame_shape, source.saturation)
+    demodulator = core.demodulator
     assert demodulator is not None
+    selection = replace(selection, notes=(*selection.notes, *core.notes))
     logger.info(
         "%s: %d frames, peaks %s (from the %s), window radius %.4f cycles/pixel, maps %s",
         source.path,
@@ -166,6 +185,36 @@ def prepare_run(
         identity,
     )
     return PreparedRun(run, first, detected, demodulator.box_shape)
+
+
+def _matching_spectrum(
+    source: InputFile,
+    frames: range,
+    *,
+    first_index: int,
+    first: np.ndarray,
+    reference: str,
+    background: np.ndarray | None,
+    band: float,
+) -> SurfaceSpectrum:
+    """What a run's windows are matched to: the changes its maps show, the waves detected.
+
+    Against the background, the first frame; else the frames
+    :func:`~holoview.engine.frame_core.matching_positions` names after the first good
+    one, against it. Frames that cannot be used are left out (the first alone when none
+    is left, as for synthetic phases).
+    """
+    if reference != "synthetic" and background is not None:
+        return measure_spectrum(first, background, band=band)
+    start = frames.index(first_index)
+    later = []
+    for position in matching_positions(reference, len(frames) - start):
+        frame = source.read(frames[start + position])
+        if frame_problem(frame) is None:
+            later.append(frame)
+    if not later:
+        return measure_spectrum(first, band=band)
+    return measure_spectrum(later, first, band=band)
 
 
 def _base_experiment(

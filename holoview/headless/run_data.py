@@ -21,6 +21,7 @@ from holoview.engine.series import PhaseSeries
 from holoview.errors import InputError
 from holoview.processing.maps.coregister import Displacement
 from holoview.processing.peaks.detection import Peak
+from holoview.processing.peaks.matched import Window
 
 __all__ = [
     "FRAME_FLAG_BITS",
@@ -83,7 +84,9 @@ class RunData:
     box_shape : tuple of int
         Shape of every map, ``(by, bx)``.
     radius : float
-        Window radius used, cycles/pixel.
+        The largest window radius used, cycles/pixel (it sets ``box_shape``).
+    windows : tuple of Window
+        Each peak's window: radius, shape, the rule that chose it and why.
     last_maps : list of (ndarray or None)
         Each peak's map of the last demodulated frame (m, or rad without alpha).
     last_fused : ndarray or None
@@ -100,6 +103,9 @@ class RunData:
         The peaks whose maps the fused map takes (:meth:`~holoview.engine.series.JointSetup.fused`).
     interrupted : bool
         The run was interrupted (Ctrl-C): the series hold the frames done before.
+    maps_dropped : bool
+        An interrupted ``--maps`` run stopped before any frame's maps were made: its
+        results hold the series of the frames done and no maps.
     notes : list of str
         What the passes noted for the summary.
     read_seconds, demod_seconds, write_seconds, wall_seconds : float
@@ -122,6 +128,7 @@ class RunData:
     map_flags: list[dict[str, int]]
     box_shape: tuple[int, int]
     radius: float
+    windows: tuple[Window, ...] = ()
     last_maps: list[np.ndarray | None] = field(default_factory=list)
     last_fused: np.ndarray | None = None
     last_frame: int = -1
@@ -129,6 +136,7 @@ class RunData:
     map_units: tuple[str, ...] = ()
     fused_labels: tuple[str, ...] = ()
     interrupted: bool = False
+    maps_dropped: bool = False
     notes: list[str] = field(default_factory=list)
     read_seconds: float = 0.0
     demod_seconds: float = 0.0
@@ -192,9 +200,16 @@ class RunData:
 
 
 def new_run_data(
-    peaks: Sequence[Peak], box_shape: tuple[int, int], radius: float, n: int
+    peaks: Sequence[Peak],
+    box_shape: tuple[int, int],
+    radius: float,
+    n: int,
+    windows: Sequence[Window] = (),
 ) -> RunData:
-    """An empty record of a run of ``n`` frames of ``peaks`` (their maps ``box_shape``)."""
+    """An empty record of a run of ``n`` frames of ``peaks`` (their maps ``box_shape``).
+
+    ``windows``: each peak's window (its largest radius is ``radius``).
+    """
     m = len(peaks)
     series = PhaseSeries([p.label or f"P{j}" for j, p in enumerate(peaks)], n)
     return RunData(
@@ -204,6 +219,7 @@ def new_run_data(
         map_flags=[dict.fromkeys(MAP_PEAK_FLAGS, 0) for _ in range(m)],
         box_shape=box_shape,
         radius=radius,
+        windows=tuple(windows),
         last_maps=[None] * m,
         map_units=tuple("m" if p.alpha is not None else "rad" for p in peaks),
     )

@@ -14,8 +14,13 @@ what each needs:
   their chunk's start, which the series gives: series first (the displacements beside
   it), then the maps (:func:`~holoview.headless.parallel.stitch.map_chunks`).
 
-An interruption keeps the frames whose every pass is done; a run interrupted before
-its maps pass keeps the series of the frames done, and no maps (a note says so).
+An interruption (a KeyboardInterrupt: Ctrl-C, or a stop signal the command turned into
+one) keeps the frames whose every pass is done. A run interrupted before its maps pass
+made any frame's maps (during its series, its naming, its displacements, or before the
+maps pass's first frame or chunk is in) keeps the series of the frames done, and no maps
+(``RunData.maps_dropped``; a note says so); one interrupted later keeps the frames whose
+maps are made, in one process or many. Only an interruption before any frame's series
+is done leaves nothing (it is raised again).
 """
 
 from __future__ import annotations
@@ -124,7 +129,7 @@ def run_passes(
     n = len(frames)
     demod = spec.core(source.frame_shape, source.saturation).demodulator
     assert demod is not None
-    data = new_run_data(demod.peaks, demod.box_shape, demod.radius, n)
+    data = new_run_data(demod.peaks, demod.box_shape, demod.radius, n, demod.windows)
     known = run.selection.mode != "auto"
     maps = sink is not None
     relative = demod.reference == "relative"
@@ -192,33 +197,65 @@ def run_passes(
             progress=first,
             spread=beside,
         )
-    naming = name_peaks(data, run.selection, run.optics)
+    naming = _named(data, run)
     if not known:
         spec = replace(spec, peaks=naming.peaks(run.selection), exclude=naming.exclude)
         data.map_units = tuple("m" if a is not None else "rad" for a in naming.signed)
     if data.interrupted:  # the frames done are the series': no displacements, no maps
-        if maps:
-            data.notes.append("interrupted before its maps were made: results.h5 holds none")
+        _no_maps(data, maps)
         return data, naming
     if series_only:
         return data, naming
-    if beside is None:
-        spread_pass(source, frames, data, spec, record=not maps, read_ahead=read_ahead)
-    if sink is not None:
-        spec = replace(spec, displacements=tuple(data.displacements))
-        record = MapRecord(data, sink, fused=bool(data.fused_labels))
-        if runner is None:
-            maps_pass(source, frames, data, spec, record, read_ahead=read_ahead, progress=second)
-        else:
-            map_chunks(
-                source,
-                frames,
-                data,
-                spec,
-                record,
-                runner=runner,
-                identity=run.identity,
-                read_ahead=read_ahead,
-                progress=second,
-            )
+    try:
+        if beside is None:
+            spread_pass(source, frames, data, spec, record=not maps, read_ahead=read_ahead)
+        if sink is not None:
+            spec = replace(spec, displacements=tuple(data.displacements))
+            record = MapRecord(data, sink, fused=bool(data.fused_labels))
+            if runner is None:
+                maps_pass(
+                    source, frames, data, spec, record, read_ahead=read_ahead, progress=second
+                )
+            else:
+                map_chunks(
+                    source,
+                    frames,
+                    data,
+                    spec,
+                    record,
+                    runner=runner,
+                    identity=run.identity,
+                    read_ahead=read_ahead,
+                    progress=second,
+                )
+    except KeyboardInterrupt:  # the maps passes raise it again only before any frame's maps
+        done = len(data.series)
+        logger.warning("interrupted before the maps: results of the %d frames' series", done)
+        data.truncate(done)
+        _no_maps(data, maps)
     return data, naming
+
+
+def _named(data: RunData, run: RunFrames) -> Naming:
+    """The peaks' naming of the frames done; an interruption while naming names them again.
+
+    The naming needs every frame's series, so it cannot stop half-way: a stop during it
+    marks the run interrupted (no displacements, no maps follow) and the frames done are
+    named again for their results; a second stop then stops the command.
+    """
+    try:
+        return name_peaks(data, run.selection, run.optics)
+    except KeyboardInterrupt:
+        logger.warning(
+            "interrupted while naming the peaks: results of the %d frames' series",
+            len(data.series),
+        )
+        data.truncate(len(data.series))
+        return name_peaks(data, run.selection, run.optics)
+
+
+def _no_maps(data: RunData, maps: bool) -> None:
+    """Mark an interrupted ``--maps`` run's maps as not made: ``results.h5`` holds none."""
+    if maps:
+        data.maps_dropped = True
+        data.notes.append("interrupted before its maps were made: results.h5 holds none")

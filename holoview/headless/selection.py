@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from holoview.engine.experiment import Experiment, check_carrier, check_label, is_model_label
+from holoview.engine.resolve import ON_LATTICE
 from holoview.errors import InputError
 from holoview.processing.naming.labelling import ModelLabelling
 from holoview.processing.naming.lattice import LatticeIdentification
@@ -147,11 +148,14 @@ def select_auto(
 ) -> Selection:
     """The ``count`` strongest detected peaks, named ``P0``, ``P1``, ... for the PCA.
 
+    The surface's sidebands (flag ``"surface"``) are not peaks: they are left out.
+
     With an anchor ``(label, carrier)``, the detected peak nearest the carrier (on the
     twin given) is the PCA's reference with that label, and is kept among the peaks.
     """
     if count < 2:
         raise InputError(f"--auto needs at least 2 peaks for the PCA, got {count}")
+    detected = [p for p in detected if "surface" not in p.flags]  # sidebands: not peaks
     if len(detected) < 2:
         raise InputError(
             f"--auto {count}: only {len(detected)} significant peak detected; the PCA needs two"
@@ -210,11 +214,19 @@ def describe_peaks(
     twin; None without a lattice), ``lattice`` ([fb1, rf]: the carrier is ``fb1 f_FB1 +
     rf f_RF``; None off the lattice), ``residual_bins`` (distance to that lattice point,
     FFT bins), ``kind``, ``coupling`` (to the reference-arm phase), ``amplitude``,
-    ``snr``, ``flags``, ``alpha`` (exact on the lattice; else None).
+    ``snr``, ``flags``, ``alpha`` (exact on the lattice; else None), ``sideband``.
+
+    A surface sideband (flag ``"surface"``) that the lattice places on none of its
+    points has ``kind`` ``"surface"``, no label, and ``sideband``: ``of`` (its
+    carrier's name), ``of_index``, ``q_cpp`` (its offset ``[qx, qy]``, cycles/pixel),
+    ``order`` and ``text`` ("sideband of RB1 at q = (...)"); None for other peaks.
     """
     rows = []
     for i, peak in enumerate(detected):
         named = None if lattice is None else lattice.peaks[i]
+        if "surface" in peak.flags and (named is None or named.kind not in ON_LATTICE):
+            rows.append(_sideband_row(i, peak, detected, lattice, labelling))
+            continue
         twin = None if named is None else named.twin
         carrier = peak.flipped().carrier if twin else peak.carrier
         label = None if named is None else named.label
@@ -237,6 +249,49 @@ def describe_peaks(
                 "snr": float(peak.snr),
                 "flags": sorted(peak.flags),
                 "alpha": None if named is None else named.alpha,
+                "sideband": None,
             }
         )
     return rows
+
+
+def _sideband_row(
+    i: int,
+    peak: Peak,
+    detected: Sequence[Peak],
+    lattice: LatticeIdentification | None,
+    labelling: ModelLabelling | None,
+) -> dict[str, Any]:
+    """:func:`describe_peaks`' row of a surface sideband."""
+    parent = snap(peak.sideband_of or peak.carrier, [p.carrier for p in detected], (1, 1), 1e-6)
+    of_index = None if parent is None else parent[0]
+    name = None
+    if of_index is not None:
+        if labelling is not None and labelling.names[of_index]:
+            name = labelling.names[of_index][0]
+        elif lattice is not None and lattice.peaks[of_index].label:
+            name = lattice.peaks[of_index].label
+    name = name or (f"peak {of_index}" if of_index is not None else "a carrier")
+    q = peak.surface_offset or (0.0, 0.0)
+    return {
+        "index": i,
+        "label": None,
+        "labels": [],
+        "carrier": [float(peak.carrier[0]), float(peak.carrier[1])],
+        "twin": None,
+        "lattice": None,
+        "residual_bins": None,
+        "kind": "surface",
+        "coupling": None,
+        "amplitude": float(peak.amplitude),
+        "snr": float(peak.snr),
+        "flags": sorted(peak.flags),
+        "alpha": None,
+        "sideband": {
+            "of": name,
+            "of_index": of_index,
+            "q_cpp": [q[0], q[1]],
+            "order": peak.sideband_order,
+            "text": f"sideband of {name} at q = ({q[0]:+.4f}, {q[1]:+.4f}) cycles/px",
+        },
+    }

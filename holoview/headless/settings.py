@@ -34,9 +34,9 @@ class ProcessSettings:
         first frame). None: the experiment's.
     window : {"raised-cosine", "top-hat", "tukey"} or None
         None: the experiment's.
-    radius : float or None
-        Window radius, cycles/pixel (None: the experiment's, else automatic from the
-        carriers).
+    radius : float, str or None
+        Window radius, cycles/pixel, or ``"matched"`` or ``"bound"``
+        (:func:`~holoview.processing.peaks.radii.peak_windows`); None: the experiment's.
     unwrap : {"auto", "always", "never"} or None
         Spatial unwrapping of the maps. None: the experiment's.
     maps : bool
@@ -56,7 +56,7 @@ class ProcessSettings:
 
     reference: str | None = None
     window: str | None = None
-    radius: float | None = None
+    radius: float | str | None = None
     unwrap: str | None = None
     maps: bool = False
     area_m2: float | None = None

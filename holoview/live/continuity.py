@@ -1,8 +1,9 @@
 """Where a stream's frames stop following each other: a replay's jumps.
 
 A replay source stamps every frame with its ``segment``
-(:class:`~holoview.acquire.source.FrameMeta`): a seek, a step back or the loop
-starting over opens a new one. The maps and the series take different frames (the
+(:class:`~holoview.acquire.source.FrameMeta`): a seek (even to the frame after the
+one shown), a step back or the loop starting over opens a new one; frames a consumer
+skipped do not. The maps and the series take different frames (the
 newest, every one), so neither can tell a jump from frames it skipped by the
 indices alone; both ask a :class:`Continuity` instead. At a break the maps forget
 the previous frame (:meth:`~holoview.engine.frame_core.FrameCore.break_sequence`: no

@@ -5,7 +5,10 @@ Per frame: the display spectrum (at most :data:`SPECTRUM_HZ`), peak detection (a
 of the worker's time), the experiment's labels snapped to the detected peaks and the
 model's families added (:func:`holoview.engine.resolve.resolve_peaks`), and the
 maps step (:class:`holoview.engine.map_step.MapStep`: every peak's map, the phase-step
-rule, the displacements, added to at most :data:`COREGISTER_HZ`, and the fused map). The
+rule, the displacements, added to at most :data:`COREGISTER_HZ`, and the fused map); at
+each detection the windows' match to the surface is checked
+(:class:`holoview.engine.window_matching.WindowMatcher`: matched again when the operator
+asks or the surface's bandwidth changed, with a note shown for :data:`NOTE_SECONDS`). The
 demodulator's peaks (:attr:`MapsPipeline.peaks`) go to the series worker, which takes
 every frame (:mod:`holoview.live.series_pipeline`). Every number comes from the engine, the same
 code ``holoview process`` runs; this module only decides when to call what, and packs
@@ -25,11 +28,13 @@ from holoview.acquire.source import FrameMeta
 from holoview.engine.experiment import Experiment
 from holoview.engine.frame_core import FFT_THREADS, FrameCore
 from holoview.engine.map_step import MapStep
-from holoview.engine.resolve import Resolution, resolve_peaks
+from holoview.engine.resolve import Resolution, on_lattice, resolve_peaks
+from holoview.engine.window_matching import WindowMatcher
 from holoview.live.continuity import Continuity
 from holoview.processing.fourier.spectrum import display_spectrum
 from holoview.processing.maps.demodulate import Demodulator
 from holoview.processing.peaks.detection import Peak, find_peaks
+from holoview.processing.peaks.radii import surface_band, window_neighbours
 
 logger = logging.getLogger(__name__)
 
@@ -46,6 +51,8 @@ SIDE_SHARE = 0.1
 SPECTRUM_DISPLAY_MAX = 512
 #: Highest rate at which maps are added to the displacement estimate, Hz.
 COREGISTER_HZ = 2.0
+#: How long a note that the windows changed stays shown, seconds.
+NOTE_SECONDS = 10.0
 
 Carrier = tuple[float, float]
 
@@ -55,7 +62,8 @@ class LiveResult:
     """Everything the window draws for one processed frame.
 
     Arrays are shared, never modified after publication. Heights in metres, phases
-    in radians, carriers, the largest window radius and each labelled peak's
+    in radians, carriers (``peaks``: the detected peaks that bound windows, not the
+    surface's sidebands), the largest window radius and each labelled peak's
     (``radii``) in cycles per pixel, times in seconds.
     ``shifts_px`` holds the measured displacements ``(dy, dx)`` of the maps against
     the map ``grid_of``, in camera pixels; the fused map is on that map's grid.
@@ -148,10 +156,14 @@ class MapsPipeline:
         self._resolution_key: tuple[object, ...] | None = None
         self._resolution = Resolution(peaks=())
         self._continuity = Continuity()
+        self._matcher = WindowMatcher()
+        self._measure_due = False
+        self._window_note: tuple[str, float] | None = None
 
     # ---- commands ----------------------------------------------------------
     def apply(self, name: str, value: object) -> None:
-        """Apply a command: ``experiment`` (new settings) or ``reset``."""
+        """Apply a command: ``experiment`` (new settings), ``reset`` or ``match`` (the
+        windows matched to the surface again at the next frame)."""
         if name == "experiment":
             if not isinstance(value, Experiment):
                 raise TypeError(f"experiment command needs an Experiment, not {value!r}")
@@ -161,6 +173,9 @@ class MapsPipeline:
                 self._peaks_at = -math.inf  # detect again with the new radius
         elif name == "reset":
             self._core.reset_reference()
+        elif name == "match":
+            self._matcher.request()
+            self._measure_due = True
         else:
             raise ValueError(f"unknown command {name!r}")
 
@@ -195,12 +210,13 @@ class MapsPipeline:
         self._peaks_cost = cost_s
 
     def set_peaks(self, peaks: list[Peak]) -> None:
-        """Use newly detected peaks from the next frame on."""
+        """Use newly detected peaks from the next frame on (and check the windows' match)."""
         self._peaks = list(peaks)
+        self._measure_due = True
 
     def _detect(self, frame: np.ndarray) -> None:
         tick = time.perf_counter()
-        self.set_peaks(find_peaks(frame, radius=self.experiment.radius, threads=FFT_THREADS))
+        self.set_peaks(find_peaks(frame, radius=self.experiment.fixed_radius, threads=FFT_THREADS))
         self.peaks_done(time.perf_counter() - tick)
 
     def resolution(self) -> Resolution:
@@ -213,6 +229,12 @@ class MapsPipeline:
             )
             self._resolution_key = key
         return self._resolution
+
+    def _recent_note(self, now: float) -> tuple[str, ...]:
+        """The note that the windows changed, while it is recent."""
+        if self._window_note is None or now - self._window_note[1] > NOTE_SECONDS:
+            return ()
+        return (self._window_note[0],)
 
     # ---- one frame ---------------------------------------------------------
     def process(self, frame: np.ndarray, meta: FrameMeta) -> LiveResult:
@@ -235,9 +257,15 @@ class MapsPipeline:
         if self._peaks is None or (self.detect_inline and self.peaks_due(now)):
             self._detect(frame)
         resolution = self.resolution()
-        self._core.configure(
-            self.experiment, resolution.peaks, [p.carrier for p in self._peaks or []]
-        )
+        detected = self._peaks or []
+        placed = on_lattice(resolution.labelling, len(detected))
+        self._core.configure(self.experiment, resolution.peaks, window_neighbours(detected, placed))
+        if self._measure_due:
+            self._measure_due = False
+            note = self._matcher.measure(self._core, frame, surface_band(detected))
+            if note is not None:
+                logger.info("%s", note)
+                self._window_note = (note, now)
         estimate = now - self._coregistered_at >= 1.0 / COREGISTER_HZ
         maps = self._maps.process(frame, estimate=estimate)
         if estimate and maps.maps:
@@ -258,7 +286,7 @@ class MapsPipeline:
             t_host=meta.t_host,
             processing_s=time.perf_counter() - start,
             spectrum=self._spectrum,
-            peaks=[p.carrier for p in self._peaks or []],
+            peaks=window_neighbours(self._peaks or []),
             labelled=resolution.labelled,
             predicted=resolution.predicted,
             radius=self._core.radius,
@@ -268,7 +296,7 @@ class MapsPipeline:
             phases_rad=phases,
             shifts_px=maps.shifts_px,
             grid_of=maps.grid_of,
-            notes=resolution.notes,
+            notes=(*resolution.notes, *self._core.notes, *self._recent_note(now)),
             frame_index=meta.file_index,
             segment=meta.segment,
             contradiction=resolution.contradiction,

@@ -4,7 +4,7 @@ A :class:`ReplayControl` wraps a :class:`~holoview.acquire.replay.ReplaySource` 
 streams on the camera thread: play and pause, a step either way, a seek, the speed
 (:data:`SPEED_STEPS` times the recorded pace, or as fast as frames can be read) and
 looping. Every call returns at once; the frame asked for reaches the ring, the maps
-and the series like any other (a jump opens a new segment, see
+and the series like any other (a seek or a jump opens a new segment, see
 :mod:`holoview.live.continuity`). :meth:`ReplayControl.state` is what a transport bar
 draws: the frame shown, the file's length, the recording's time of the frame.
 """
@@ -51,6 +51,9 @@ class ReplayState:
         Times the recorded pace; :data:`FASTEST` for as fast as frames can be read.
     loop : bool
         The replay starts over at its end.
+    segment : int
+        Segment of the frame shown (:mod:`holoview.live.continuity`): the frames
+        delivered after a seek or a step back are of a higher one.
     """
 
     index: int
@@ -60,6 +63,7 @@ class ReplayState:
     held: bool
     speed: float
     loop: bool
+    segment: int = 0
 
     @property
     def text(self) -> str:
@@ -128,6 +132,7 @@ class ReplayControl:
             held=source.held,
             speed=self.speed,
             loop=source.loop,
+            segment=source.segment,
         )
 
     # ---- play and pause ----------------------------------------------------
@@ -156,6 +161,9 @@ class ReplayControl:
 
     def seek(self, index: int) -> int:
         """Show frame ``index`` next (play goes on after it when playing); return it.
+
+        The frame opens a new segment: its relative maps start from it, wherever play
+        had stopped.
 
         Raises
         ------

@@ -327,6 +327,10 @@ class LiveSession:
         """Turn the PCA identification of the trends on or off."""
         self.series_worker.post("pca", bool(on))
 
+    def match_windows(self) -> None:
+        """Match every window to the surface again from the next frame (the maps restart)."""
+        self.worker.post("match")
+
     def reset_trends(self) -> None:
         """Restart the depth series and the maps' absolute reference from the next frame."""
         self.series_worker.post("reset")

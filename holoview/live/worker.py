@@ -338,7 +338,7 @@ class DemodWorker(RingWorker[LiveResult]):
             self.pipeline.set_peaks(found[0])
             self.pipeline.peaks_done(found[1])
         due = self.pipeline.peaks_due()
-        if due and self.peaks.submit(pixels, self.pipeline.experiment.radius):
+        if due and self.peaks.submit(pixels, self.pipeline.experiment.fixed_radius):
             self.pipeline.peaks_started()
 
     def _step(self, pixels: np.ndarray, meta: FrameMeta) -> None:

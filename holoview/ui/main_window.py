@@ -169,7 +169,7 @@ class MainWindow(WavesActions, FileOpening, ExperimentActions, WindowExports, QM
         self._connect()
         self.surface.set_reference(self.experiment.reference)
         self.spectrum.set_model(
-            {p.label: (p.fx, p.fy) for p in self.experiment.peaks}, {}, self.experiment.radius
+            {p.label: (p.fx, p.fy) for p in self.experiment.peaks}, {}, self.experiment.fixed_radius
         )
         self._restore_layout()
 
@@ -220,6 +220,7 @@ class MainWindow(WavesActions, FileOpening, ExperimentActions, WindowExports, QM
         self.quit_action = action("Quit", "Ctrl+Q", self.close)
         self.reset_layout_action = action("Reset layout", None, self.reset_layout)
         self.auto_levels_action = action("Auto levels", "Ctrl+L", self.hologram.auto_levels)
+        self.match_action = action("Match windows to the surface", "Ctrl+M", self.match_windows)
         menus = self.menuBar()
         assert menus is not None  # a QMainWindow makes its menu bar when first asked
         file_menu = _menu(menus, "&File")
@@ -240,6 +241,7 @@ class MainWindow(WavesActions, FileOpening, ExperimentActions, WindowExports, QM
         acq.addAction(self.start_action)
         acq.addAction(self.record_action)
         acq.addAction(self.auto_levels_action)
+        acq.addAction(self.match_action)
         view = _menu(menus, "&View")
         for dock in self.docks.values():
             view.addAction(dock.toggleViewAction())
@@ -425,6 +427,11 @@ class MainWindow(WavesActions, FileOpening, ExperimentActions, WindowExports, QM
     def _pca_requested(self, on: bool) -> None:
         if self.session is not None:
             self.session.set_pca(on)
+
+    def match_windows(self) -> None:
+        """Ask the maps worker to match every window to the surface again (maps restart)."""
+        if self.session is not None:
+            self.session.match_windows()
 
     def _reset_trends(self) -> None:
         if self.session is not None:

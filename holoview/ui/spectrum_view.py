@@ -420,25 +420,31 @@ class SpectrumView(QWidget):
         self.click_at(point.x(), point.y())
 
     def request_radius(self, label: str, radius: float) -> bool:
-        """Ask for a new window radius around ``label``; refuse one that swallows a peak.
+        """Ask for a new window radius around ``label``; refuse one that reaches zero frequency.
 
-        Returns whether the radius was accepted (then :attr:`radiusChanged` is emitted).
+        A radius that swallows another peak is used as asked, with a warning naming the
+        peak (:attr:`message`): its content leaks into the map. Returns whether the
+        radius was accepted (then :attr:`radiusChanged` is emitted).
         """
         centre = self._labelled.get(label)
         if centre is None:
+            return False
+        if radius <= 0 or radius >= math.hypot(*centre):
+            self.message.emit(
+                f"radius {radius:.3f} cycles/px around {label} would reach zero frequency: "
+                f"kept {self._radii.get(label, self._radius):.3f}"
+            )
+            self._draw_model()
             return False
         others = [
             p for p in (*self._peaks, *self._labelled.values()) if math.dist(p, centre) > 1e-6
         ]
         swallowed = swallowed_neighbour(centre, radius, others)
-        if radius <= 0 or swallowed is not None:
-            where = f" the peak at ({swallowed[0]:+.3f}, {swallowed[1]:+.3f})" if swallowed else ""
+        if swallowed is not None:
             self.message.emit(
-                f"radius {radius:.3f} cycles/px around {label} would swallow{where}: kept "
-                f"{self._radii.get(label, self._radius):.3f}"
+                f"radius {radius:.3f} cycles/px around {label} swallows the peak at "
+                f"({swallowed[0]:+.3f}, {swallowed[1]:+.3f}): its content leaks into the map"
             )
-            self._draw_model()
-            return False
         self._radius = float(radius)
         self._radii = {}  # one radius for every peak from now on
         self._draw_model()

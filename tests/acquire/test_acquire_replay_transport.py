@@ -93,6 +93,31 @@ def test_a_jump_starts_a_new_segment_a_step_forward_does_not(tmp_path: Path) -> 
     assert (back.meta.file_index, back.meta.segment) == (7, 2)
 
 
+def test_a_seek_opens_a_segment_even_to_the_frame_after_the_one_shown(tmp_path: Path) -> None:
+    # a window paused where play had stopped (frame 3 here) and sought the next frame: its
+    # maps must start from it as after any seek, whatever frame play had reached
+    with ReplaySource(write_h5(tmp_path / "r.h5"), speed="fast") as source:
+        source.start()
+        played = [fetch(source) for _ in range(4)]  # 0 to 3
+        source.pause()
+        assert source.shown == 3 and source.segment == 0
+        source.seek(4)
+        sought = fetch(source)
+        source.step(1)
+        after = fetch(source)
+        source.seek(5)  # the frame shown, again (a window's new settings)
+        again = fetch(source)
+        source.seek(9)
+        source.step(-3)  # from the frame sought, before it came: frame 6, after 5
+        stepped = fetch(source)
+        source.stop()
+    assert {f.meta.segment for f in played} == {0}
+    assert (sought.meta.file_index, sought.meta.segment) == (4, 1)
+    assert (after.meta.file_index, after.meta.segment) == (5, 1)
+    assert (again.meta.file_index, again.meta.segment) == (5, 2)
+    assert (stepped.meta.file_index, stepped.meta.segment) == (6, 2)
+
+
 def test_seek_while_playing_goes_on_from_the_frame_sought(tmp_path: Path) -> None:
     with ReplaySource(write_h5(tmp_path / "r.h5"), speed="fast") as source:
         source.start()

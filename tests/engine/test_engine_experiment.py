@@ -34,10 +34,28 @@ def test_round_trip_keeps_every_field(tmp_path: Path) -> None:
     assert loaded == experiment
     document = json.loads((tmp_path / "sub" / "exp.json").read_text())
     assert document["format"] == "holoview-experiment"
-    assert document["version"] == EXPERIMENT_VERSION
+    assert document["version"] == 2  # a numeric radius: readable by holoview before 3
     assert document["peaks"][0] == {"label": "RB1", "carrier": [0.12, -0.05]}
     assert document["peaks"][1]["alpha"] == 0.5
     assert not list((tmp_path / "sub").glob(".*partial"))  # written whole, then renamed
+
+
+def test_radius_rules_are_spelled_in_the_file(tmp_path: Path) -> None:
+    # null and "matched": matched to the surface; "bound": the widest (null before 3)
+    bound = Experiment(radius="bound")
+    assert bound.radius_rule == "bound" and bound.fixed_radius is None
+    document = bound.to_dict()
+    assert document["radius"] == "bound" and document["version"] == EXPERIMENT_VERSION == 3
+    assert Experiment.from_dict(document) == bound
+    for text in ('"matched"', "null"):
+        loaded = Experiment.from_json(
+            f'{{"format": "holoview-experiment", "version": 3, "radius": {text}}}'
+        )
+        assert loaded.radius is None and loaded.radius_rule == "matched"
+        assert loaded.to_dict()["version"] == 2
+    assert Experiment(radius=0.05).fixed_radius == 0.05
+    with pytest.raises(InputError, match="'matched' or 'bound'"):
+        Experiment(radius="widest")
 
 
 def test_changes_replace_a_label_or_a_carrier() -> None:

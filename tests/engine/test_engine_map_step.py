@@ -12,6 +12,7 @@ from holoview.engine.series import JointSetup
 from holoview.optics.families import alpha_of
 from holoview.processing.maps.coregister import Displacement
 from holoview.processing.peaks.detection import Peak
+from holoview.processing.peaks.matched import Window
 
 N1, N2 = 1.0, 1.333
 
@@ -80,6 +81,37 @@ def test_a_peak_whose_mean_phase_stepped_is_left_out_of_the_fused_map() -> None:
         expected = fuse_maps(chosen, noise, [False] * 3)
         assert expected is not None
         np.testing.assert_array_equal(made[k].fused, expected)
+
+
+def test_the_fused_map_weighs_each_map_by_its_expected_error() -> None:
+    """A window that cuts 0.5 rad of the surface's change weighs its map down in the fused
+    map (noise and cut in quadrature, PeakResult.error_height), not by its noise alone."""
+    shape = (128, 128)
+    experiment = Experiment(n1=N1, n2=N2, wavelength_m=532e-9, reference="relative")
+    peaks = [
+        Peak((0.2, 0.1), 0.2, 100.0, label="RB1", alpha=alpha_of("RB1", N1, N2)),
+        Peak((0.05, 0.3), 0.2, 100.0, label="RF", alpha=alpha_of("RF", N1, N2)),
+        Peak((-0.25, 0.2), 0.2, 100.0, label="FB1", alpha=alpha_of("FB1", N1, N2)),
+    ]
+    windows = [Window(0.05, "tukey", 0.25, "matched", 0.07, "test", 0.05, c) for c in (0.5, 0, 0)]
+    step = MapStep(FrameCore(shape, experiment, peaks, windows=windows))
+    rng = np.random.default_rng(3)
+    frames = _frames(shape, peaks, [[0.0, 0.0, 0.0], [0.1, 0.2, 0.3]])
+    made = [step.process(f + rng.normal(0.0, 20.0, shape)) for f in frames]
+    demod = step.core.demodulator
+    assert demod is not None and demod.windows == tuple(windows)
+    result = made[1].result
+    assert result is not None
+    noise = [r.noise_height for r in result.peaks]
+    errors = [r.error_height for r in result.peaks]
+    scale = 532e-9 / (4 * np.pi * abs(peaks[0].alpha))  # m per rad of RB1's map
+    assert errors[0] == pytest.approx(np.hypot(noise[0], 0.5 * scale), rel=1e-6)
+    assert errors[1:] == pytest.approx(noise[1:], rel=1e-9)
+    expected = fuse_maps(made[1].maps, errors, [False] * 3)
+    assert expected is not None and made[1].fused is not None
+    np.testing.assert_array_equal(made[1].fused, expected)
+    by_noise = fuse_maps(made[1].maps, noise, [False] * 3)
+    assert by_noise is not None and not np.array_equal(made[1].fused, by_noise)
 
 
 def test_fixed_displacements_are_not_measured_again() -> None:

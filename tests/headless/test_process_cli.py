@@ -165,7 +165,11 @@ def test_maps_against_the_truth(
         assert keep.mean() > 0.9
         correlation = np.corrcoef(truth[keep], measured[keep])[0, 1]
         assert correlation > 0.9
-        assert np.sqrt(np.mean((truth[keep] - measured[keep]) ** 2)) < 0.5 * np.std(truth[keep])
+        # the reference arm's jitter moves RB_j and RF maps by one piston each (opposite
+        # signs; the series' joint estimate takes it out): the surface's shape is checked
+        error = truth[keep] - measured[keep]
+        assert np.std(error) < 0.15 * np.std(truth[keep])
+        assert abs(np.mean(error)) < 1.0 * np.std(truth[keep])
 
 
 def experiment_file(path: Path, peaks: list[dict], **fields: object) -> Path:
@@ -231,7 +235,7 @@ def test_peaks_file_and_auto_maps_agree(
         {"label": label, "carrier": list(evaporation.carriers[label])} for label in ("RB1", "RF")
     ]
     experiment_file(tmp_path / "peaks.json", peaks)
-    common = ["--maps", "--frames", "10:50"]
+    common = ["--maps", "--frames", "10:50", "--radius", "0.06"]  # same windows, same maps
     status, _, _ = run_cli(
         [
             "process",
@@ -246,14 +250,10 @@ def test_peaks_file_and_auto_maps_agree(
     )
     assert status == 0
     fx, fy = evaporation.carriers["RB1"]
-    with h5py.File(tmp_path / "file" / "results.h5", "r") as a:
-        radius = str(a.attrs["radius_cpp"])  # the same windows: the same maps
     status, _, _ = run_cli(
         [
             "process",
             str(evaporation.path),
-            "--radius",
-            radius,
             "--out",
             str(tmp_path / "auto"),
             "--auto",

@@ -121,11 +121,13 @@ def test_live_maps_are_those_process_writes(
 
     The displacements are the one thing the live maps measure as they go (``process``
     before its maps); the evaporating surface has no structure to measure them on, so
-    they are zero in both, and the fused maps must be equal too.
+    they are zero in both, and the fused maps must be equal too. The windows are the
+    bound in both: matched windows are measured on the frames each one sees (``process``
+    on frames spread over the run, live on the change between two detections).
     """
     from holoview.headless.settings import ProcessSettings
 
-    settings = ProcessSettings(reference=reference, maps=True)
+    settings = ProcessSettings(reference=reference, maps=True, radius="bound")
     outcome = process_file(
         recording, tmp_path / "out", ProcessOptions(settings=settings, report=False)
     )

@@ -153,6 +153,36 @@ def test_a_steered_session_follows_seeks_and_restarts_its_trends(
     np.testing.assert_array_equal(session.series.series.frames, [30, 31, 32, 33])
 
 
+def test_maps_start_at_a_frame_sought_and_follow_frames_the_maps_skipped(
+    recording: Path,
+) -> None:
+    # the window's maps worker takes the newest frame: a seek to the frame after the one
+    # shown is still where relative maps start; frames it skipped in one segment are not
+    session = LiveSession(
+        f"replay:{recording}", _stored(recording, "relative"), source_options={"speed": "step"}
+    )
+    try:
+        control = session.replay
+        assert control is not None
+        session.start()
+        for i in range(4):
+            assert control.step(1) == i
+            assert _shown(session, i).segment == 0
+        assert control.seek(4) == 4
+        sought = _shown(session, 4)
+        assert sought.segment == 1 and sought.heights_m
+        assert not any(np.any(h) for h in sought.heights_m.values())
+        for i in (5, 6, 7):  # each delivered before the next step; the maps may skip 5 and 6
+            control.step(1)
+            _wait(lambda i=i: control.state().index == i)
+        last = _shown(session, 7)
+        assert last.segment == 1
+        # against the last frame the maps took (4, 5 or 6): 50 to 150 nm of evaporation
+        assert 20 < abs(_mean_nm(last, "RB1")) < 250
+    finally:
+        session.close()
+
+
 def test_play_pause_speed_and_loop_through_the_control(recording: Path) -> None:
     session = LiveSession(f"replay:{recording}", _stored(recording, "relative"))
     try:

@@ -331,7 +331,7 @@ def test_overlapping_windows_are_flagged() -> None:
         ([Peak((0.7, 0.1), 0.1, 10.0)], {}, "outside the spectrum"),
         ([Peak((0.2, float("nan")), 0.1, 10.0)], {}, "non-finite"),
         ([Peak((0.2, 0.1), 0.1, 10.0, alpha=0.0)], {}, "alpha"),
-        ([Peak((0.2, 0.1), 0.1, 10.0), Peak((0.25, 0.1), 0.1, 10.0)], {"radius": 0.08}, "spacing"),
+        ([Peak((0.2, 0.1), 0.1, 10.0)], {"radius": "widest"}, "'matched' or 'bound'"),
         ([Peak((0.2, 0.1), 0.1, 10.0)], {"radius": 0.3}, "zero frequency"),
         ([Peak((0.2, 0.1), 0.1, 10.0)], {"radius": -0.1}, "radius"),
         ([Peak((0.2, 0.1), 0.1, 10.0)], {"window": "gauss"}, "unknown window"),
@@ -345,6 +345,21 @@ def test_overlapping_windows_are_flagged() -> None:
 def test_bad_configurations(peaks: list, kwargs: dict, message: str) -> None:
     with pytest.raises(InputError, match=message):
         Demodulator(SHAPE, peaks, **kwargs)
+
+
+def test_a_given_radius_reaching_another_peak_is_used_with_a_warning(caplog) -> None:
+    peaks = [Peak((0.2, 0.1), 0.1, 10.0, label="RB1"), Peak((0.25, 0.1), 0.1, 10.0, label="RF")]
+    demod = Demodulator(SHAPE, peaks, radius=0.08)
+    assert demod.radii == (0.08, 0.08)
+    assert [w.rule for w in demod.windows] == ["given", "given"]
+    assert len(demod.notes) == 2
+    assert "around RB1 reaches RF (spacing 0.05)" in demod.notes[0]
+    assert all(line in caplog.text for line in demod.notes)
+    # an unselected neighbour is named by its carrier
+    alone = Demodulator(SHAPE, peaks[:1], radius=0.08, neighbours=[(0.25, 0.1)])
+    assert alone.notes and "the unselected peak at (0.25, 0.1)" in alone.notes[0]
+    # the bound reaches nothing: no warning
+    assert not Demodulator(SHAPE, peaks, radius="bound").notes
 
 
 @pytest.mark.parametrize(

@@ -113,8 +113,13 @@ def test_demodulator_windows_at_the_bound_per_peak() -> None:
     assert near.radius == max(near.radii)
     result = near.process(bench_frame((256, 256), 0.0, rng=np.random.default_rng(3)))
     assert [r.radius for r in result.peaks] == list(near.radii)
-    with pytest.raises(InputError, match="unselected peak"):
-        Demodulator((256, 256), lattice, radius=0.05, neighbours=[(0.15, 0.13)])
+    # a given radius reaching it is used as given, with a warning naming it
+    given = Demodulator((256, 256), lattice, radius=0.05, neighbours=[(0.15, 0.13)])
+    assert given.radii == (0.05,) * 3
+    assert any("RF reaches the unselected peak at (0.15, 0.13)" in n for n in given.notes)
+    # without a spectrum the automatic windows are at the bound, and say why
+    assert {w.rule for w in demod.windows} == {"bound"}
+    assert all("not measured" in w.reason for w in demod.windows)
 
 
 def test_wrap_and_has_wraps() -> None:

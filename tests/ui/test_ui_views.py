@@ -101,13 +101,20 @@ def test_model_draws_windows_predictions_and_warnings(qtbot) -> None:
     assert any("aliased" in w for w in view.warnings)
 
 
-def test_radius_that_swallows_a_neighbour_is_refused(qtbot) -> None:
+def test_radius_that_swallows_a_neighbour_is_used_with_a_warning(qtbot) -> None:
     view, events = _spectrum_view(qtbot)
+    view.set_peaks([(0.2, 0.1), (0.3, 0.15)], (256, 256))
     view.set_model({"RB1": (0.2, 0.1)}, {}, 0.04)
-    distance = math.dist((0.2, 0.1), (-0.1, 0.25))
-    assert not view.request_radius("RB1", distance + 0.01)
-    assert view.radius == 0.04
-    assert events[-1][0] == "message" and "swallow" in events[-1][1]
+    distance = math.dist((0.2, 0.1), (0.3, 0.15))
+    assert view.request_radius("RB1", distance + 0.01)
+    assert view.radius == pytest.approx(distance + 0.01)
+    assert any(
+        e[0] == "message" and "swallows the peak at (+0.300, +0.150)" in e[1] for e in events
+    )
+    assert events[-1] == ("radius", pytest.approx(distance + 0.01))
+    # zero frequency is refused
+    assert not view.request_radius("RB1", 0.3)
+    assert events[-1][0] == "message" and "zero frequency" in events[-1][1]
     assert view.request_radius("RB1", 0.06)
     assert view.radius == 0.06 and events[-1] == ("radius", 0.06)
 

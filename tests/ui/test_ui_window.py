@@ -149,15 +149,15 @@ def test_bad_sources_show_a_message_and_the_window_stays(qtbot, open_windows, tm
     assert window.session is None and "missing.h5" in window.banner_text
 
 
-def test_radius_that_swallows_a_neighbour_is_refused_in_the_window(
+def test_radius_that_reaches_zero_frequency_is_refused_in_the_window(
     qtbot, open_windows, tmp_path, hologram_file
 ):
     window = _window(qtbot, open_windows, tmp_path, f"replay:{hologram_file}")
     _wait_frames(qtbot, window)
     window.label_peak("RB1", *RB1)
     qtbot.waitUntil(lambda: "RB1" in window.spectrum.labelled, timeout=5000)
-    assert not window.spectrum.request_radius("RB1", 0.3)
-    assert "swallow" in window.banner_text
+    assert not window.spectrum.request_radius("RB1", 0.5)
+    assert "zero frequency" in window.banner_text
     assert window.experiment.radius == 0.05
     _wait_frames(qtbot, window)
 
@@ -355,9 +355,9 @@ def test_loading_a_bad_experiment_file_keeps_the_labels(qtbot, open_windows, tmp
     window.label_peak("RB1", *RB1)
     before = window.experiment
     bad = tmp_path / "other.json"
-    bad.write_text('{"format": "holoview-experiment", "version": 3}')
+    bad.write_text('{"format": "holoview-experiment", "version": 9}')
     window.load_experiment(bad)
-    assert "version 3 is not supported" in window.banner_text and str(bad) in window.banner_text
+    assert "version 9 is not supported" in window.banner_text and str(bad) in window.banner_text
     assert window.experiment == before
     good = tmp_path / "good.json"
     Experiment(n2=1.361, peaks=()).save(good)

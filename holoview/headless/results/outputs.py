@@ -53,6 +53,7 @@ from holoview.headless.results.results_layout import (
 )
 from holoview.headless.run_data import RunData
 from holoview.headless.settings import ProcessSettings
+from holoview.processing.peaks.matched import Window
 
 logger = logging.getLogger(__name__)
 
@@ -129,6 +130,11 @@ def _clean(value: Any) -> Any:
     return value
 
 
+def radius_setting(radius: float | str | None) -> float | str:
+    """The radius a run was asked for: ``"matched"`` (None), ``"bound"`` or the number."""
+    return "matched" if radius is None else radius
+
+
 def _peak_entry(peak: PeakOutcome) -> dict[str, Any]:
     return {
         "carrier": list(peak.carrier),
@@ -191,8 +197,11 @@ def summary_document(
     ``frames`` as ``[start, stop]``, ``interrupted``, and a recording's uuid, source,
     creation time);
     ``parameters`` (``wavelength_m``, ``pixel_pitch_m``, ``n1``, ``n2`` and where each
-    came from, ``fps_hz`` (mean), ``reference``, ``window``, ``radius_cpp``,
-    ``unwrap``, ``maps``, ``area_m2``, ``peaks_from``); ``peaks`` (per label:
+    came from, ``fps_hz`` (mean), ``reference``, ``window``, ``radius`` (``"matched"``,
+    ``"bound"`` or the number given, cycles/pixel), ``unwrap``, ``maps``, ``area_m2``,
+    ``peaks_from``); ``peaks`` (per label: ``window``, the one it was demodulated
+    with: ``radius_cpp``, ``kind``, ``taper``, ``rule``, ``bound_cpp``,
+    ``content_cpp`` and ``reason``;
     ``carrier`` [fx, fy] cycles/pixel, ``alpha``, ``amplitude``, ``snr``,
     ``rate_m_per_s``, ``rate_stderr_m_per_s``, ``noise_m`` (of the depth series),
     ``map_noise_rad`` and ``map_noise_m`` (per map pixel, median), ``used_in_fused``,
@@ -248,7 +257,7 @@ def summary_document(
             "reference": settings.reference,
             "background": settings.background,
             "window": settings.window,
-            "radius_cpp": data.radius,
+            "radius": radius_setting(settings.radius),
             "unwrap": settings.unwrap,
             "maps": settings.maps,
             "area_m2": settings.area_m2,
@@ -257,6 +266,7 @@ def summary_document(
         "peaks": {
             p.label: {
                 **_peak_entry(p),
+                "window": data.windows[j].to_dict() if data.windows else None,
                 "displacement": _displacement_entry(data, j, frame_shape, optics.pixel_pitch_m),
             }
             for j, p in enumerate(analysis.peaks)
@@ -278,6 +288,18 @@ def summary_document(
     }
     cleaned: dict[str, Any] = _clean(document)  # a dict stays a dict
     return cleaned
+
+
+def _window_attributes(window: Window) -> dict[str, Any]:
+    """A map's attributes saying the window it was demodulated with (its cut-off)."""
+    return {
+        "radius_cpp": window.radius,
+        "window_taper": window.taper,
+        "window_rule": window.rule,
+        "window_bound_cpp": window.bound,
+        "window_content_cpp": math.nan if window.content is None else window.content,
+        "window_reason": window.reason,
+    }
 
 
 def write_summary_json(path: Path, document: dict[str, Any]) -> None:
@@ -425,10 +447,13 @@ class ResultsFile:
         input_path: str,
         frame_shape: tuple[int, int],
     ) -> None:
+        f = self._file
+        if data.maps_dropped and self._maps:  # interrupted before any frame's maps
+            del f["maps"]
+            self._maps, self._buffers, self._block = [], [], -1
         self._flush()
         for dataset in self._maps:
             dataset.resize(len(data.frames), axis=0)  # fewer after an interruption
-        f = self._file
         f.attrs.update(
             {
                 "format": RESULTS_FORMAT,
@@ -445,12 +470,12 @@ class ResultsFile:
                 "n2": optics.n2 or math.nan,
                 "reference": settings.reference,
                 "window": settings.window,
-                "radius_cpp": data.radius,
+                "radius": radius_setting(settings.radius),
                 "unwrap": settings.unwrap,
             }
         )
         self._write_trends(data, analysis, settings)
-        self._write_peaks(analysis)
+        self._write_peaks(analysis, data)
         if self._maps:
             self._name_maps(
                 data=data,
@@ -463,8 +488,8 @@ class ResultsFile:
     def _write_trends(self, data: RunData, analysis: Analysis, settings: ProcessSettings) -> None:
         write_trends(self._file.create_group("trends"), data, analysis, settings)
 
-    def _write_peaks(self, analysis: Analysis) -> None:
-        write_peaks(self._file.create_group("peaks"), analysis)
+    def _write_peaks(self, analysis: Analysis, data: RunData) -> None:
+        write_peaks(self._file.create_group("peaks"), analysis, data.windows)
 
     def _name_maps(
         self,
@@ -489,7 +514,6 @@ class ResultsFile:
             "frame_shape_px": list(frame_shape),
             "pixel_step_px": list(step),
             "window": settings.window,
-            "radius_cpp": data.radius,
             "untrusted": "NaN",
         }
         if optics.pixel_pitch_m is not None:
@@ -510,6 +534,7 @@ class ResultsFile:
                     "quantity": "delta_h" if height else "phase",
                     "alpha": peak.alpha or math.nan,
                     "carrier_cpp": list(peak.carrier),
+                    **(_window_attributes(data.windows[j]) if data.windows else {}),
                 }
             )
             if data.displacements:
@@ -530,6 +555,11 @@ class ResultsFile:
                     "long_name": "height change fused from " + ", ".join(data.fused_labels),
                     "quantity": "delta_h",
                     "labels": ",".join(data.fused_labels),
+                    "radius_cpp": [
+                        data.windows[j].radius if data.windows else data.radius
+                        for j, p in enumerate(analysis.peaks)
+                        if p.label in data.fused_labels
+                    ],
                     "grid_of": analysis.peaks[0].label,
                 }
             )

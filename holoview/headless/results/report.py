@@ -120,7 +120,7 @@ def _spectrum_panel(
     *,
     detected: Sequence[Peak],
     analysis: Analysis,
-    radius: float,
+    radii: Sequence[float],
     pixel_pitch_m: float | None,
 ) -> None:
     rows, cols = spectrum.shape
@@ -150,6 +150,7 @@ def _spectrum_panel(
         fx, fy = np.array(others).T
         axes.plot(fx, fy, "o", ms=6, mfc="none", mec="0.6", mew=1)
     for j, peak in enumerate(analysis.peaks):
+        radius = radii[j]
         colour = PALETTE[j % len(PALETTE)]
         fx, fy = peak.carrier
         axes.add_patch(Circle((fx, fy), radius, fill=False, ec=colour, lw=1.8))
@@ -174,7 +175,8 @@ def _spectrum_panel(
         top.set_xlabel("cycles/mm (object side)")
     axes.set_title(
         f"spectrum of the first frame (log magnitude)\n"
-        f"circles: window radius {radius:.3g} cycles/pixel; dots: twins; grey: other peaks",
+        f"circles: each peak's window ({min(radii):.3g} to {max(radii):.3g} cycles/pixel); "
+        "dots: twins; grey: other peaks",
         fontsize=10,
     )
 
@@ -385,7 +387,7 @@ def write_report(
         spectrum,
         detected=detected,
         analysis=analysis,
-        radius=data.radius,
+        radii=[w.radius for w in data.windows] or [data.radius] * len(analysis.peaks),
         pixel_pitch_m=optics.pixel_pitch_m,
     )
     _trend_panel(layout.axes(5.75, HEADER_IN + 0.55, 3.7, PANEL_IN), data, analysis)

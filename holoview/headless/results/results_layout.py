@@ -12,7 +12,8 @@ Root attributes
     ``format``, ``format_version``, ``Conventions`` (``CF-1.11``), ``uuid``,
     ``holoview_version``, ``created_utc``, ``input``, ``interrupted`` (the run was
     stopped: the frames done only), and the parameters (``wavelength_m``, ``n1``,
-    ``n2``, ``pixel_pitch_m``, ``reference``, ``window``, ``radius_cpp``, ``unwrap``).
+    ``n2``, ``pixel_pitch_m``, ``reference``, ``window``, ``radius``: ``"matched"``,
+    ``"bound"`` or the radius given in cycles/pixel, ``unwrap``).
 ``/trends``
     Dimensions ``time`` (N,: s from the first processed frame) and ``label`` (M,: the
     peaks). ``frame`` (time: the input's frame index, a coordinate); ``alpha``
@@ -26,8 +27,10 @@ Root attributes
     Dimensions ``label`` and ``component`` (``fx``, ``fy``). ``carrier_cpp`` (label,
     component; cycles/pixel on the twin whose phase grows with h), and per label
     ``alpha``, ``amplitude``, ``snr``, ``rate_m_per_s``, ``rate_stderr_m_per_s``,
-    ``used_in_fused``, ``flags`` (comma-separated).
-``/maps`` (with ``process --maps``)
+    ``used_in_fused``, ``flags`` (comma-separated), and the window each peak was
+    demodulated with: ``radius_cpp`` (its cut-off, cycles/pixel), ``window_taper``,
+    ``window_rule`` (``matched``, ``bound`` or ``given``) and ``window_reason``.
+``/maps`` (with ``process --maps``; none in a run interrupted before any frame's maps)
     Dimensions ``time`` (s), ``y`` and ``x``: positions of the map pixels' centres in
     m on the object side (map pixel ``(p, q)`` is centred on frame position
     ``(p * pixel_step_px[0], q * pixel_step_px[1])`` in pixel pitches, frame pixel
@@ -37,14 +40,18 @@ Root attributes
     box's resolution, NaN where not trusted; attributes ``units``, ``long_name``,
     ``quantity`` (``delta_h``), ``reference`` and ``reference_description``, ``label``,
     ``alpha``, ``carrier_cpp``, ``frame_shape_px``, ``pixel_step_px``, ``pixel_size_m``
-    (when the pixel pitch is known), ``window``, ``radius_cpp``, per peak its measured
-    shift against the first peak (``displacement_px``, ``displacement_stderr_px``,
-    ``displacement_measured``; the maps are not moved, their coordinates are the
-    camera's), and for ``fused`` its ``labels`` and ``grid_of`` (the maps are moved
-    onto that peak's grid before fusing). The maps, the fused one included, are the
-    maps step's (:class:`holoview.engine.map_step.MapStep`), frame by frame, as the
-    live view shows them: the fused map takes the peaks of the fused depth known before
-    the frames (the joint estimate's, else every peak with alpha), leaving out at each
+    (when the pixel pitch is known), ``window``, per peak the window it was demodulated
+    with (``radius_cpp``, its cut-off in cycles/pixel; ``window_taper``,
+    ``window_rule``, ``window_bound_cpp``, ``window_content_cpp`` where matched,
+    ``window_reason``) and its measured shift against the first peak
+    (``displacement_px``, ``displacement_stderr_px``, ``displacement_measured``; the
+    maps are not moved, their coordinates are the camera's), and for ``fused`` its
+    ``labels``, their radii ``radius_cpp`` (one per label) and ``grid_of`` (the maps
+    are moved onto that peak's grid before fusing). The maps, the fused one included,
+    are the maps step's (:class:`holoview.engine.map_step.MapStep`), frame by frame, as
+    the live view shows them: the fused map takes the peaks of the fused depth known
+    before the frames (the joint estimate's, else every peak with alpha), weighed by
+    each map's expected error (its noise and what its window cuts), leaving out at each
     frame a peak whose mean phase stepped past 0.8 pi since the frame before. A peak
     without alpha keeps its phase map (``units`` ``rad``, ``quantity`` ``phase``).
 
@@ -56,6 +63,7 @@ read as xarray Datasets by :mod:`holoview.headless.results.results_data`.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from typing import Any
 
 import h5py
@@ -65,6 +73,7 @@ from holoview.headless.analysis import Analysis
 from holoview.headless.results import cf
 from holoview.headless.run_data import RunData
 from holoview.headless.settings import ProcessSettings
+from holoview.processing.peaks.matched import Window
 
 #: Format name and version of ``results.h5``.
 RESULTS_FORMAT = "holoview-results"
@@ -190,8 +199,8 @@ def write_trends(
         cf.variable(group, name, values, dims, units=units, long_name=long_name, **more)
 
 
-def write_peaks(group: h5py.Group, analysis: Analysis) -> None:
-    """Write ``/peaks`` (module docstring) into ``group``."""
+def write_peaks(group: h5py.Group, analysis: Analysis, windows: Sequence[Window] = ()) -> None:
+    """Write ``/peaks`` (module docstring) into ``group``; ``windows``: each peak's."""
     peaks = analysis.peaks
     cf.dimension(group, "label", [p.label for p in peaks], units=None, long_name=LABEL_NAME)
     cf.dimension(
@@ -239,3 +248,22 @@ def write_peaks(group: h5py.Group, analysis: Analysis) -> None:
         units=None,
         long_name="the peak's flags, comma-separated",
     )
+    if not windows:
+        return
+    for name, numbers, long_name in (
+        ("radius_cpp", [w.radius for w in windows], "window radius (cut-off), cycles/pixel"),
+        ("window_taper", [w.taper for w in windows], "window's edge, fraction of the radius"),
+    ):
+        cf.variable(
+            group,
+            name,
+            np.array(numbers, dtype=np.float64),
+            ("label",),
+            units="1",
+            long_name=long_name,
+        )
+    for name, texts, long_name in (
+        ("window_rule", [w.rule for w in windows], "how the radius was chosen"),
+        ("window_reason", [w.reason for w in windows], "why this radius"),
+    ):
+        cf.variable(group, name, texts, ("label",), units=None, long_name=long_name)

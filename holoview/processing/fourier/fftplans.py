@@ -11,7 +11,9 @@ cannot be read or written only logs a warning.
 Plans hold their own aligned buffers and must not run in two threads at once, so
 :func:`rfft2_plan` and :func:`ifft2_plan` keep one plan per shape, thread count
 *and calling thread*: each thread gets its own, and a caller using one thread at
-a time never shares a buffer.
+a time never shares a buffer. :func:`rfft_rows_plan` and :func:`column_fft_plan` are
+the two passes of a real 2-D FFT apart, for a caller that needs the spectrum in some
+columns only (:mod:`holoview.processing.fourier.half_spectrum`).
 """
 
 from __future__ import annotations
@@ -41,6 +43,10 @@ PLANNER_EFFORT = "FFTW_MEASURE"
 #: ``holoview process`` and the live engine use one for the same reason; a caller that owns
 #: the machine may ask for more (``threads=usable_cpus()``).
 DEFAULT_THREADS = 1
+
+#: Runs of columns given to :func:`column_fft_plan` start at a multiple of this many
+#: columns: 128 bytes of complex64, so every run is aligned as the plan's was.
+COLUMN_ALIGN = 16
 
 #: How many plans the per-process cache keeps before dropping the least recently used.
 MAX_CACHED_PLANS = 48
@@ -136,18 +142,30 @@ def save_wisdom() -> bool:
     return True
 
 
+#: Plan kinds: (input dtype, output dtype, axes, direction); ``shape`` is the input's.
+_KINDS = {
+    "rfft2": ("float32", "complex64", (0, 1), "FFTW_FORWARD"),
+    "ifft2": ("complex64", "complex64", (0, 1), "FFTW_BACKWARD"),
+    "rfft_rows": ("float32", "complex64", (1,), "FFTW_FORWARD"),
+    "fft_columns": ("complex64", "complex64", (0,), "FFTW_FORWARD"),
+}
+
+
 def _build(
-    kind: str, shape: tuple[int, int], threads: int, effort: str
+    kind: str, shape: tuple[int, ...], threads: int, effort: str
 ) -> tuple[pyfftw.FFTW, bool]:
-    if kind == "rfft2":
-        source = pyfftw.empty_aligned(shape, dtype="float32")
-        target = pyfftw.empty_aligned((shape[0], shape[1] // 2 + 1), dtype="complex64")
-        direction = "FFTW_FORWARD"
+    source_dtype, target_dtype, axes, direction = _KINDS[kind]
+    if kind == "fft_columns":
+        # in place over the first ``width`` columns of a (rows, cols) array: the strides
+        # and alignment of a run of columns of a half spectrum
+        rows, cols, width = shape
+        scratch = pyfftw.empty_aligned((rows, cols), dtype=source_dtype)
+        source = target = scratch[:, :width]
     else:
-        source = pyfftw.empty_aligned(shape, dtype="complex64")
-        target = pyfftw.empty_aligned(shape, dtype="complex64")
-        direction = "FFTW_BACKWARD"
-    common = {"axes": (0, 1), "direction": direction, "threads": threads}
+        source = pyfftw.empty_aligned(shape, dtype=source_dtype)
+        out_shape = (shape[0], shape[1] // 2 + 1) if kind.startswith("rfft") else shape
+        target = pyfftw.empty_aligned(out_shape, dtype=target_dtype)
+    common = {"axes": axes, "direction": direction, "threads": threads}
     try:
         plan = pyfftw.FFTW(source, target, flags=("FFTW_WISDOM_ONLY",), **common)
         return plan, False
@@ -156,7 +174,7 @@ def _build(
         return plan, True
 
 
-def _plan(kind: str, shape: tuple[int, int], threads: int, effort: str) -> pyfftw.FFTW:
+def _plan(kind: str, shape: tuple[int, ...], threads: int, effort: str) -> pyfftw.FFTW:
     key = (kind, shape, threads, effort, threading.get_ident())
     with _lock:
         plan = _plans.get(key)
@@ -212,6 +230,38 @@ def ifft2_plan(
     ``plan.execute()`` (unnormalised, one pass less); the result is ``plan.output_array``.
     """
     return _plan("ifft2", (int(shape[0]), int(shape[1])), int(threads), effort or PLANNER_EFFORT)
+
+
+def rfft_rows_plan(
+    shape: tuple[int, int], *, threads: int = 1, effort: str | None = None
+) -> pyfftw.FFTW:
+    """Return the calling thread's plan of the first pass of a 2-D real FFT: each row's.
+
+    Fill ``plan.input_array`` (float32, shape ``shape``), point the output where it
+    should go (``plan.update_arrays(plan.input_array, out)``, ``out`` complex64 of shape
+    ``(rows, cols // 2 + 1)``, C-ordered rows aligned as :func:`pyfftw.empty_aligned`
+    aligns) and call ``plan.execute()``: ``out`` holds the real FFT of every row. An FFT
+    along the columns (:func:`column_fft_plan`) of the columns one needs completes the
+    2-D half spectrum there, with numpy's sign, unnormalised.
+    """
+    return _plan(
+        "rfft_rows", (int(shape[0]), int(shape[1])), int(threads), effort or PLANNER_EFFORT
+    )
+
+
+def column_fft_plan(
+    shape: tuple[int, int], width: int, *, threads: int = 1, effort: str | None = None
+) -> pyfftw.FFTW:
+    """Return the calling thread's plan of an in-place forward FFT along a run of columns.
+
+    The plan transforms ``width`` consecutive columns of a C-ordered complex64 array of
+    shape ``shape`` (rows, cols), each along its rows. Point it at the run with
+    ``plan.update_arrays(run, run)`` (``run = array[:, start:start + width]``, the
+    array aligned as :func:`pyfftw.empty_aligned` aligns it and ``start`` a multiple
+    of :data:`COLUMN_ALIGN`), then call ``plan.execute()``.
+    """
+    key = (int(shape[0]), int(shape[1]), int(width))
+    return _plan("fft_columns", key, int(threads), effort or PLANNER_EFFORT)
 
 
 def usable_cpus() -> int:

@@ -33,7 +33,11 @@ WINDOW_KINDS: tuple[str, ...] = ("raised-cosine", "top-hat", "tukey")
 #: but attenuates the band; the quarter taper has the smallest worst case.
 DEFAULT_WINDOW = "tukey"
 
-#: Default width of the Tukey window's cosine edge, as a fraction of the radius.
+#: Default width of the Tukey window's cosine edge, as a fraction of the radius (at the
+#: bound, or a radius given). A window matched to the surface chooses its edge too
+#: (:data:`~holoview.processing.peaks.matched.MATCHED_TAPERS`): at the radii a smooth
+#: surface wants, a wider edge rings less (``bench_windows.py``, issue 23: kmax 0.005,
+#: Tukey 0.75 at 0.0229 cycles/pixel 0.23 nm, Tukey 0.25 at best 0.31 nm).
 DEFAULT_TAPER = 0.25
 
 #: Fraction of the distance to the nearest other carrier used by :func:`auto_radii`:

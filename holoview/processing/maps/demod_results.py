@@ -69,6 +69,11 @@ class PeakResult:
         0 on a reference frame, NaN without a trusted pixel.
     noise_height : float or None
         ``noise`` converted to height (m) like ``delta_h``.
+    error_height : float or None
+        The map's expected error per trusted pixel (m): ``noise`` and what its window
+        cuts of the surface's change, as measured when the window was matched
+        (:attr:`~holoview.processing.peaks.matched.Window.cut`), in quadrature; what
+        fusion weighs the maps by. 0 on a reference frame.
     unwrapped : bool
         Whether spatial unwrapping ran on this map.
     flags : frozenset of str
@@ -92,6 +97,7 @@ class PeakResult:
     noise_height: float | None
     unwrapped: bool
     flags: frozenset[str]
+    error_height: float | None = None
 
 
 @dataclass(frozen=True)

@@ -1,11 +1,15 @@
 """Fourier demodulation of every labelled carrier, frame after frame (paper section 3).
 
-:class:`Demodulator` takes one real FFT of each frame (pyFFTW, planned once per
-shape), and per peak cuts a small box out of the half spectrum with the carrier
-moved to the origin and the window applied in the same step, then takes an
-inverse FFT of the box only. The complex field per peak therefore comes at the
-box resolution (pixel ``(p, q)`` at frame position ``(p rows / by, q cols / bx)``);
+:class:`Demodulator` takes a real FFT of each frame (pyFFTW, planned once per
+shape), along the columns only where its boxes and the noise floor read the spectrum
+(:class:`~holoview.processing.fourier.half_spectrum.HalfSpectrum`), and per peak cuts a
+small box out of the half spectrum with the carrier moved to the origin and the window
+applied (:func:`~holoview.processing.fourier.boxes.cut_box`), then takes an inverse FFT
+of the box only. The complex field per peak therefore comes at the box resolution
+(pixel ``(p, q)`` at frame position ``(p rows / by, q cols / bx)``);
 :meth:`Demodulator.upsample` brings any map to the frame grid.
+
+Where the time goes: ``benchmarks/bench_demodulation.py --floor``.
 
 Conventions (docs/design.md):
 
@@ -43,10 +47,17 @@ import numpy as np
 import pyfftw
 
 from holoview.errors import InputError
-from holoview.processing.fourier.boxes import BoxGeometry, border_mask, box_geometry, box_shape_for
+from holoview.processing.fourier.boxes import (
+    BoxGeometry,
+    border_mask,
+    box_geometry,
+    box_shape_for,
+    cut_box,
+)
 from holoview.processing.fourier.fastmath import TWO_PI, AngleWorkspace, angle
-from holoview.processing.fourier.fftplans import DEFAULT_THREADS, ifft2_plan, rfft2_plan
+from holoview.processing.fourier.fftplans import DEFAULT_THREADS, ifft2_plan
 from holoview.processing.fourier.frames import MIN_SIDE
+from holoview.processing.fourier.half_spectrum import HalfSpectrum
 from holoview.processing.fourier.resample import resample_mask, upsample
 from holoview.processing.fourier.windows import DEFAULT_TAPER, DEFAULT_WINDOW, check_kind
 from holoview.processing.maps.demod_results import (
@@ -58,17 +69,22 @@ from holoview.processing.maps.demod_results import (
 from holoview.processing.maps.mean_phases import MeanPhases, MeanPhaseState
 from holoview.processing.maps.phase_maps import (
     PhaseMap,
-    floor_bins,
+    floor_grid,
     floor_power,
+    median_magnitude,
     phase_noise,
     unwrap_maps,
 )
 from holoview.processing.peaks.detection import Peak
+from holoview.processing.peaks.matched import SurfaceSpectrum, Window
 from holoview.processing.peaks.radii import (
     check_peaks,
     check_radii,
     distinct_neighbours,
-    peak_radii,
+    fell_back,
+    peak_name,
+    peak_windows,
+    radius_rule,
 )
 
 logger = logging.getLogger(__name__)
@@ -95,10 +111,14 @@ class Demodulator:
     window : {"tukey", "raised-cosine", "top-hat"}
         Spectral window (:mod:`holoview.processing.fourier.windows`); by default
         :data:`~holoview.processing.fourier.windows.DEFAULT_WINDOW`, chosen by measurement.
-    radius : float, optional
-        Window radius (cycles/pixel), the same for every peak; by default each
+    radius : float, "matched", "bound" or None
+        Window radius: a number (cycles/pixel) for every peak; ``"bound"``: each
         peak's own, the widest that reaches no other peak, twin or zero frequency
-        (:func:`~holoview.processing.fourier.windows.auto_radii`).
+        (:func:`~holoview.processing.fourier.windows.auto_radii`); ``"matched"`` or None
+        (the default): each peak's radius of least expected map error measured on
+        ``spectrum``, never past the bound (the bound without a spectrum); see
+        :func:`~holoview.processing.peaks.radii.peak_windows`. A given radius that
+        reaches another peak is used, with a warning in :attr:`notes`.
     reference : {"synthetic", "absolute", "relative"}
         Reference mode (module documentation).
     unwrap : {"auto", "always", "never"}
@@ -128,13 +148,19 @@ class Demodulator:
         An object-free hologram of shape ``shape`` (counts): with ``reference=
         "absolute"`` every frame's phase is taken against it instead of against
         the first frame (:meth:`set_background`).
+    spectrum : SurfaceSpectrum, optional
+        A frame's spectrum (:func:`~holoview.processing.peaks.matched.measure_spectrum`)
+        the matched radii are measured on.
+    windows : sequence of Window, optional
+        Each peak's window, decided elsewhere (the same as another demodulator's);
+        ``radius``, ``window``, ``taper`` and ``spectrum`` are then not used.
 
     Raises
     ------
     InputError
         For a bad shape, an empty peak list, a carrier outside the spectrum, an
-        unknown mode, a radius so large that a window holds another peak or zero
-        frequency, or a background of another shape or mode.
+        unknown mode, a radius so large that a window holds zero frequency, or a
+        background of another shape or mode.
 
     Examples
     --------
@@ -154,7 +180,7 @@ class Demodulator:
         peaks: Sequence[Peak],
         *,
         window: str = DEFAULT_WINDOW,
-        radius: float | None = None,
+        radius: float | str | None = None,
         reference: str = "relative",
         unwrap: str = "auto",
         wavelength: float | None = None,
@@ -165,6 +191,8 @@ class Demodulator:
         threads: int | None = None,
         neighbours: Sequence[tuple[float, float]] = (),
         background: np.ndarray | None = None,
+        spectrum: SurfaceSpectrum | None = None,
+        windows: Sequence[Window] | None = None,
     ) -> None:
         if len(shape) != 2 or min(int(shape[0]), int(shape[1])) < MIN_SIDE:
             raise InputError(f"frame shape must be (rows, cols), each >= {MIN_SIDE}; got {shape}")
@@ -196,9 +224,34 @@ class Demodulator:
         self.neighbours: tuple[tuple[float, float], ...] = tuple(
             (float(fx), float(fy)) for fx, fy in neighbours
         )
+        self.spectrum = spectrum
+        if windows is None:
+            windows = peak_windows(
+                self.shape,
+                carriers,
+                radius,
+                others,
+                kind=self.window,
+                taper=self.taper,
+                spectrum=spectrum,
+            )
+        elif len(windows) != len(self.peaks):
+            raise InputError(f"{len(windows)} windows for {len(self.peaks)} peaks")
+        #: each peak's window: radius, shape and why
+        self.windows: tuple[Window, ...] = tuple(windows)
         #: each peak's window radius, cycles/pixel
-        self.radii = peak_radii(self.shape, carriers, radius, others)
-        self._overlapping = check_radii(self.peaks, self.radii, others)
+        self.radii = tuple(w.radius for w in self.windows)
+        self._overlapping, warnings = check_radii(self.peaks, self.radii, others)
+        fallbacks = tuple(
+            f"{peak_name(self.peaks, i)}: {w.reason} ({w.radius:.4g} cycles/pixel)"
+            for i, w in enumerate(self.windows)
+            if radius_rule(radius) == "matched" and fell_back(w)
+        )
+        #: what the user should know about the windows: a given radius reaching a peak,
+        #: a matched window at the bound for want of measurable surface power
+        self.notes: tuple[str, ...] = warnings + fallbacks
+        for line in warnings:
+            logger.warning("%s", line)
         #: the largest window radius (cycles/pixel): it sets the box shape
         self.radius = max(self.radii)
         self.box_shape = box_shape_for(self.shape, self.radius)
@@ -207,18 +260,19 @@ class Demodulator:
                 self.shape,
                 self.box_shape,
                 carrier=(float(p.carrier[0]), float(p.carrier[1])),
-                kind=window,
-                radius=r,
-                taper=self.taper,
+                kind=w.kind,
+                radius=w.radius,
+                taper=w.taper,
             )
-            for p, r in zip(self.peaks, self.radii, strict=True)
+            for p, w in zip(self.peaks, self.windows, strict=True)
         ]
         logger.debug(
-            "demodulating %d peak(s) of %s frames: %s window, radii %s cycles/pixel, box %s",
+            "demodulating %d peak(s) of %s frames: %s window, radii %s cycles/pixel (%s), box %s",
             len(self.peaks),
             self.shape,
             window,
             ", ".join(f"{r:.4g}" for r in self.radii),
+            ", ".join(w.rule for w in self.windows),
             self.box_shape,
         )
         self.aperture: np.ndarray | None = None
@@ -235,14 +289,17 @@ class Demodulator:
             aperture_box & border_mask(self.box_shape, self.shape, r) for r in self.radii
         ]
         self._trustable = [int(np.count_nonzero(t)) for t in self._trusted_box]
-        self._floor_index = floor_bins(self.shape)
+        #: the frame's FFT, along columns only where the boxes and the noise floor read it
+        self._half_spectrum = HalfSpectrum(
+            self.shape,
+            [geo.columns for geo in self._boxes],
+            *floor_grid(self.shape),
+            threads=self.threads,
+        )
         n_box = self.box_shape[0] * self.box_shape[1]
         #: boxes of 256 x 256 bins or more are worth FFTW's threads; smaller ones are not
         self._box_threads = self.threads if n_box >= LARGE_BOX else 1
         self._angle_workspace = AngleWorkspace(self.box_shape)
-        self._product = np.empty(self.box_shape, dtype=np.complex64)
-        self._magnitude = np.empty(self.box_shape, dtype=np.float32)
-        self._weights = np.empty(n_box, dtype=np.float32)
         self.background: np.ndarray | None = None
         self._background: list[tuple[np.ndarray, complex]] | None = None
         self._background_floor: np.ndarray | None = None
@@ -315,20 +372,19 @@ class Demodulator:
                 f"reference='absolute', not {self.reference!r}"
             )
         array = np.array(self._check(background, "background hologram"))  # a copy
-        half, mean = self._spectrum(array)
+        half, mean, floor = self._half_spectrum.transform(array)
         if half is None:
             raise InputError("the background hologram holds NaN or infinite pixels")
-        flat = half.reshape(-1)
         box_plan = ifft2_plan(self.box_shape, threads=self._box_threads)
         given = self._given(values)
         kept = []
         for i, geo in enumerate(self._boxes):
-            field = self._field(i, flat, box_plan)
+            field = self._field(i, half, box_plan)
             value = complex(np.vdot(geo.ramp, field)) / field.size if given is None else given[i]
             kept.append((np.conj(field), value))
         array.setflags(write=False)
         self.background, self._background = array, kept
-        self._background_floor = np.take(flat, self._floor_index)
+        self._background_floor = floor
         logger.debug("background hologram set: mean %.4g counts", mean)
         self.reset_reference()
 
@@ -337,10 +393,12 @@ class Demodulator:
 
         Windows and FFT plans are cached by shape and parameters, so this is cheap
         when the GUI relabels or moves peaks. The radii are recomputed from the new
-        carriers unless given in ``changes``; references start over (against the
-        background hologram, when there is one and the reference stays absolute).
+        carriers (and the same spectrum) unless given in ``changes``; references start
+        over (against the background hologram, when there is one and the reference
+        stays absolute).
         """
         settings: dict[str, Any] = {  # Demodulator's keywords, checked where it is made
+            "spectrum": self.spectrum,
             "aperture": self.aperture,
             "window": self.window,
             "reference": self.reference,
@@ -400,26 +458,17 @@ class Demodulator:
             )
         return array
 
-    def _spectrum(self, array: np.ndarray) -> tuple[np.ndarray | None, float]:
-        """The frame's half spectrum (the plan's buffer) and mean (counts); None if not finite."""
-        plan = rfft2_plan(self.shape, threads=self.threads)
-        np.copyto(plan.input_array, array, casting="unsafe")
-        plan.execute()
-        half = plan.output_array
-        dc = float(half[0, 0].real)
-        if not np.isfinite(dc):
-            return None, float("nan")
-        return half, dc / (self.shape[0] * self.shape[1])
-
-    def _field(self, i: int, flat: np.ndarray, box_plan: pyfftw.FFTW) -> np.ndarray:
+    def _field(self, i: int, half: np.ndarray, box_plan: pyfftw.FFTW) -> np.ndarray:
         """Cut, window and invert peak ``i``'s box: its field (counts), a new array."""
-        geo = self._boxes[i]
-        box = box_plan.input_array.reshape(-1)
-        np.take(flat, geo.index, out=box)
-        pairs = box.view(np.float32)  # window and conjugation in one pass (BoxGeometry)
-        np.multiply(pairs, geo.weights, out=pairs)
+        source, scratch = box_plan.input_array, box_plan.output_array
+        cut_box(half, self._boxes[i], source)
+        # the inverse FFT writes the new array itself (no copy); the shared plan then
+        # gets its own buffer back
+        field = pyfftw.empty_aligned(self.box_shape, dtype="complex64")
+        box_plan.update_arrays(source, field)
         box_plan.execute()
-        return box_plan.output_array.copy()
+        box_plan.update_arrays(source, scratch)
+        return field
 
     def _result(
         self, flags: set[str], mean: float, peaks: tuple[PeakResult, ...] = ()
@@ -486,19 +535,18 @@ class Demodulator:
             For a frame of another shape, not 2-D, or not of real numbers.
         """
         array = self._check(frame)
-        half, mean = self._spectrum(array)
+        half, mean, samples = self._half_spectrum.transform(array)
         if half is None:
             return self._result({"nonfinite"}, mean)
         frame_flags: set[str] = set()
         if self.saturation is not None and (array[::4, ::4] >= self.saturation).any():
             frame_flags.add("saturated")
-        flat = half.reshape(-1)
-        floor = self._floor(np.take(flat, self._floor_index))
+        floor = self._floor(samples)
         box_plan = ifft2_plan(self.box_shape, threads=self._box_threads)
         given = self._given(values)
         partial = [
             self._demodulate(
-                i, flat, box_plan, mean, floor, value=None if given is None else given[i]
+                i, half, box_plan, mean, floor, value=None if given is None else given[i]
             )
             for i in range(len(self.peaks))
         ]
@@ -527,10 +575,34 @@ class Demodulator:
             self._ref_floor = samples
         return 0.0 if reference is None else floor_power(samples, reference)
 
+    def _trusted_pixels(
+        self, i: int, field: np.ndarray, mean: float
+    ) -> tuple[np.ndarray, np.ndarray, int]:
+        """Peak ``i``'s ``|field|^2`` (counts^2), trusted pixels (a new mask) and their count.
+
+        A pixel is trusted where ``|field|^2`` reaches the threshold's square (no square
+        roots) inside the aperture and off the border. ``|field|^2`` lives in the phase's
+        scratch (:attr:`~holoview.processing.fourier.fastmath.AngleWorkspace.scratch`):
+        use it up before the phase is taken.
+        """
+        peak = self.peaks[i]
+        workspace = self._angle_workspace
+        power, squares = workspace.scratch, workspace.pairs
+        pairs = field.view(np.float32)
+        np.multiply(pairs, pairs, out=squares)
+        np.add(squares[:, 0::2], squares[:, 1::2], out=power)
+        expected = peak.amplitude * mean if peak.amplitude > 0 else median_magnitude(power)
+        threshold = np.float32(self.min_amplitude * expected)
+        mask = np.greater_equal(power, threshold * threshold)
+        if not expected > 0:
+            mask[...] = False
+        mask &= self._trusted_box[i]
+        return power, mask, int(np.count_nonzero(mask))
+
     def _demodulate(
         self,
         i: int,
-        flat: np.ndarray,
+        half: np.ndarray,
         box_plan: pyfftw.FFTW,
         mean: float,
         floor: float,
@@ -541,21 +613,13 @@ class Demodulator:
 
         ``value``: the peak's carrier value given for this frame (else the box's own).
         """
-        peak = self.peaks[i]
         geo = self._boxes[i]
-        field = self._field(i, flat, box_plan)
+        field = self._field(i, half, box_plan)
         flags: set[str] = set()
         if i in self._overlapping:
             flags.add("overlap")
 
-        # trusted pixels
-        magnitude = np.abs(field, out=self._magnitude)
-        expected = peak.amplitude * mean if peak.amplitude > 0 else float(np.median(magnitude))
-        mask = np.greater_equal(magnitude, np.float32(self.min_amplitude * expected))
-        if not expected > 0:
-            mask[...] = False
-        mask &= self._trusted_box[i]
-        valid = int(np.count_nonzero(mask))
+        power, mask, valid = self._trusted_pixels(i, field, mean)
         if valid < MIN_VALID_FRACTION * self._trustable[i]:
             flags.add("low_amplitude")
 
@@ -566,7 +630,8 @@ class Demodulator:
         if step.stepped:
             flags.add("phase_step")
 
-        product: np.ndarray | None = self._product
+        # the box's spectrum is spent: the product goes where it was (a buffer still in cache)
+        product: np.ndarray | None = box_plan.input_array
         if self.reference == "synthetic":
             np.multiply(field, geo.ramp_conj, out=product)
         elif step.reference:
@@ -583,9 +648,9 @@ class Demodulator:
             phase = np.zeros(field.shape, dtype=np.float32)
             noise = 0.0
         else:
-            phase = angle(product, workspace=self._angle_workspace)
             size = self.shape[0] * self.shape[1]
-            noise = phase_noise(magnitude, mask, floor, geo.area_fraction, size)
+            noise = phase_noise(power, mask, floor, geo.area_fraction, size)
+            phase = angle(product, workspace=self._angle_workspace)
         return PhaseMap(
             field=field,
             phase=phase,
@@ -606,15 +671,16 @@ class Demodulator:
         if part.live and part.valid:
             # put the map's 2 pi offset where the time-unwrapped mean phase says
             if part.valid == phase.size:
-                level = float(np.mean(phase))
+                level = float(phase.sum()) / phase.size
             else:
-                weights = self._weights
+                weights = self._angle_workspace.scratch.reshape(-1)  # free after the phases
                 np.copyto(weights, part.mask.reshape(-1))
                 level = float(np.dot(phase.reshape(-1), weights)) / part.valid
             offset = TWO_PI * round((part.target - level) / TWO_PI)
             if offset:
                 phase += np.float32(offset)
         noise = part.noise
+        error = float(np.hypot(noise, self.windows[i].cut)) if noise > 0 else noise
         to_height = None
         if peak.alpha is not None and self.wavelength is not None:
             to_height = self.wavelength / (4 * np.pi * peak.alpha)
@@ -632,4 +698,5 @@ class Demodulator:
             noise_height=None if to_height is None else abs(noise * to_height),
             unwrapped=part.unwrapped,
             flags=frozenset(part.flags),
+            error_height=None if to_height is None else abs(error * to_height),
         )

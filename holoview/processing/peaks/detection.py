@@ -17,7 +17,10 @@ Flags a peak can carry:
   for identification, not a rejection;
 - ``"overlap"``: closer than two window radii to another peak or twin;
 - ``"near_nyquist"``: its window reaches past the Nyquist frequency (it wraps);
-- ``"weak"``: its significance is less than twice the detection threshold.
+- ``"weak"``: its significance is less than twice the detection threshold;
+- ``"surface"``: a sideband the surface puts around a carrier, not a peak of its own
+  (:mod:`~holoview.processing.peaks.sidebands`; :attr:`Peak.sideband_of` names the
+  carrier). It bounds no window and makes no other peak ``"overlap"``.
 
 A frame damaged in transfer (rows of one value,
 :func:`~holoview.processing.fourier.frames.frame_damage`)
@@ -32,7 +35,7 @@ number of peaks.
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -49,6 +52,7 @@ from holoview.processing.fourier.frames import (
 )
 from holoview.processing.fourier.windows import auto_radii, auto_radius, wrap_frequency
 from holoview.processing.peaks.carriers import REFINE_ITERATIONS, refine_frequencies
+from holoview.processing.peaks.sidebands import surface_sidebands
 
 #: Default significance threshold: a peak's magnitude over the local background median.
 DEFAULT_THRESHOLD = 8.0
@@ -79,7 +83,7 @@ RELATION_PEAKS = 32
 MAX_REFINED = 32
 
 #: Every flag :func:`find_peaks` can put on a peak (see the module documentation).
-FLAGS: tuple[str, ...] = ("harmonic", "sum", "overlap", "near_nyquist", "weak")
+FLAGS: tuple[str, ...] = ("harmonic", "sum", "overlap", "near_nyquist", "weak", "surface")
 
 
 @dataclass(frozen=True)
@@ -104,6 +108,13 @@ class Peak:
     carrier_error : float or None
         Uncertainty of ``carrier`` in FFT bins (standard error, both axes in
         quadrature) where it was measured (:func:`refine_carriers`), else None.
+    sideband_of : tuple of float or None
+        For a surface sideband (flag ``"surface"``), the carrier it surrounds,
+        ``(fx, fy)`` cycles/pixel, on the twin nearest it; else None.
+    sideband_order : int
+        For a surface sideband, 1 at a wave's ``+-q``, 2 at a sum of two, 3 elsewhere
+        in the surface's band (:class:`~holoview.processing.peaks.sidebands.Sideband`);
+        else 0.
     """
 
     carrier: tuple[float, float]
@@ -113,6 +124,16 @@ class Peak:
     label: str | None = None
     alpha: float | None = None
     carrier_error: float | None = None
+    sideband_of: tuple[float, float] | None = None
+    sideband_order: int = 0
+
+    @property
+    def surface_offset(self) -> tuple[float, float] | None:
+        """A sideband's offset ``q`` from its carrier, cycles/pixel (None for a peak)."""
+        if self.sideband_of is None:
+            return None
+        q = wrap_frequency(np.subtract(self.carrier, self.sideband_of))
+        return float(q[0]), float(q[1])
 
     def relabelled(self, label: str | None, alpha: float | None = None) -> Peak:
         """Return a copy named ``label`` with prefactor ``alpha``."""
@@ -126,7 +147,12 @@ class Peak:
         makes the phase grow with the height.
         """
         fx, fy = self.carrier
-        return dataclasses.replace(self, carrier=(-fx, -fy))
+        parent = self.sideband_of
+        return dataclasses.replace(
+            self,
+            carrier=(-fx, -fy),
+            sideband_of=None if parent is None else (-parent[0], -parent[1]),
+        )
 
     def with_flags(self, flags: frozenset[str] | set[str]) -> Peak:
         """Return a copy carrying ``flags`` instead of the current ones."""
@@ -252,8 +278,11 @@ def flag_relations(
         return []
     carriers = np.array([p.carrier for p in peaks], dtype=np.float64)
     amplitudes = np.array([p.amplitude for p in peaks], dtype=np.float64)
+    own = np.array(["surface" not in p.flags for p in peaks])
     if radius is None:
-        radius = auto_radius(carriers, min_radius=MIN_RADIUS_BINS / min(shape))
+        radius = auto_radius(
+            carriers[own] if own.any() else carriers, min_radius=MIN_RADIUS_BINS / min(shape)
+        )
     rows, cols = shape
     bins = carriers * (cols, rows)
     box = (float(cols), float(rows))
@@ -276,16 +305,18 @@ def flag_relations(
             weaker_than = min(amplitudes[j], amplitudes[k])
             for i in found:
                 summed[i] |= amplitudes[i] < weaker_than
-    everything = np.concatenate([carriers, -carriers])
-    neighbours = _periodic_tree(everything, (1.0, 1.0))
-    k = min(3, len(everything))
-    _, index = neighbours.query(_on_torus(carriers, (1.0, 1.0)), k=k)
     overlap = np.zeros(len(peaks), dtype=bool)
-    for i, near in enumerate(np.reshape(index, (len(peaks), k))):
-        others = everything[[j for j in near.tolist() if j != i]]
-        gap = wrap_frequency(carriers[i] - others)  # exact, as the window's own test
-        overlap[i] = bool(np.hypot(gap[:, 0], gap[:, 1]).min() < 2 * radius)
-    near_nyquist = np.abs(carriers).max(axis=1) + radius > 0.5
+    mine = np.flatnonzero(own)  # sidebands bound no window and overlap nothing
+    if len(mine):
+        everything = np.concatenate([carriers[mine], -carriers[mine]])
+        neighbours = _periodic_tree(everything, (1.0, 1.0))
+        k = min(3, len(everything))
+        _, index = neighbours.query(_on_torus(carriers[mine], (1.0, 1.0)), k=k)
+        for i, near in enumerate(np.reshape(index, (len(mine), k))):
+            others = everything[[j for j in near.tolist() if j != i]]
+            gap = wrap_frequency(carriers[mine[i]] - others)  # exact, as the window's own test
+            overlap[mine[i]] = bool(np.hypot(gap[:, 0], gap[:, 1]).min() < 2 * radius)
+    near_nyquist = own & (np.abs(carriers).max(axis=1) + radius > 0.5)
     out = []
     for i, peak in enumerate(peaks):
         flags = set(peak.flags) - {"harmonic", "sum", "overlap", "near_nyquist"}
@@ -418,15 +449,64 @@ def find_peaks(
         amplitude = float(magnitude[ky, kx]) / (gain * dc) if dc > 0 else float("inf")
         found.append(Peak(carrier, amplitude, snr, frozenset(flags)))
     found.sort(key=lambda p: p.amplitude, reverse=True)
+
+    def level(point: np.ndarray) -> float:
+        """The amplitude at (x, y), bins: the largest of its 3 x 3 bins, if significant."""
+        kx, ky = int(np.rint(point[0])), int(np.rint(point[1]))
+        near = magnitude[np.ix_(np.arange(ky - 1, ky + 2) % rows, np.arange(kx - 1, kx + 2) % cols)]
+        top = float(near.max())
+        significant = top > 0.5 * threshold * float(background[ky % rows, kx % cols])
+        return top / dc if significant and dc > 0 else 0.0
+
+    found = _mark_sidebands(found, (rows, cols), level)
     if max_peaks is not None:
         found = found[:max_peaks]
     if refine and found:
         np.copyto(buffer, array, casting="unsafe")
         plan()
-        rest = [p.carrier for p in found[MAX_REFINED:]]
-        strong = _refined(plan.output_array, (rows, cols), found[:MAX_REFINED], rest)
-        found = strong + found[MAX_REFINED:]
+        found = _refine_peaks(plan.output_array, (rows, cols), found)
     return flag_relations(found, (rows, cols), radius=radius)
+
+
+def _mark_sidebands(
+    peaks: list[Peak], shape: tuple[int, int], level: Callable[[np.ndarray], float]
+) -> list[Peak]:
+    """The peaks, those that are the surface's sidebands flagged ``"surface"``."""
+    carriers = np.array([p.carrier for p in peaks], dtype=np.float64).reshape(-1, 2)
+    amplitudes = np.array([p.amplitude for p in peaks], dtype=np.float64)
+    out = list(peaks)
+    for i, sideband in enumerate(surface_sidebands(carriers, amplitudes, shape, level)):
+        if sideband is not None:
+            parent = carriers[sideband.parent] * sideband.sign
+            out[i] = dataclasses.replace(
+                peaks[i],
+                flags=peaks[i].flags | {"surface"},
+                sideband_of=(float(parent[0]), float(parent[1])),
+                sideband_order=sideband.order,
+            )
+    return out
+
+
+def _refine_peaks(half: np.ndarray, shape: tuple[int, int], peaks: list[Peak]) -> list[Peak]:
+    """The strongest :data:`MAX_REFINED` peaks that are not sidebands, refined; sidebands'
+    carriers followed (their offsets kept)."""
+    own = [i for i, p in enumerate(peaks) if "surface" not in p.flags]
+    chosen, rest = own[:MAX_REFINED], own[MAX_REFINED:]
+    out = list(peaks)
+    refined = _refined(half, shape, [peaks[i] for i in chosen], [peaks[i].carrier for i in rest])
+    moved = {}
+    for i, peak in zip(chosen, refined, strict=True):
+        out[i] = peak
+        moved[peaks[i].carrier] = peak.carrier
+    for i, peak in enumerate(peaks):
+        parent = peak.sideband_of
+        if parent is None:
+            continue
+        sign = 1.0 if parent in moved else -1.0
+        new = moved.get(parent if sign > 0 else (-parent[0], -parent[1]))
+        if new is not None:
+            out[i] = dataclasses.replace(peak, sideband_of=(sign * new[0], sign * new[1]))
+    return out
 
 
 def _refined(

@@ -1,0 +1,462 @@
+"""A window matched to the surface: per peak, the radius that minimises the expected map error.
+
+A peak's map is the phase of the spectrum around its carrier times the window ``W``,
+against a reference. A window too narrow cuts what the map must show (the change of the
+surface between the frame and the reference, and the surface's discontinuity across
+the frame's periodic seam, which rings into the map when cut); a window too wide passes
+noise (per pixel ``sum W^2`` times the spectrum's noise floor). :func:`matched_window`
+makes the maps of one frame against its reference at a dozen radii from
+:data:`MIN_RADIUS_BINS` FFT bins to the bound (half the distance to the nearest other
+term: :func:`~holoview.processing.fourier.windows.auto_radii`), as the demodulator makes
+them, and estimates each one's error from how it differs from the widest
+(:func:`map_errors`): the cut content is what remains of the difference once the noise
+the widest passes in addition is taken off. It keeps the radius of least error, then
+looks again around it. A change whose power stands above the noise is therefore
+passed: the window never cuts a wave field that the maps show above their noise. What
+a window cuts weighs :data:`CUT_WEIGHT` times its error: it is the same surface content
+missing from every peak's map, which the fused map does not average down as it does
+their noise.
+
+What the map must show is measured on the frames the demodulator itself sees
+(:func:`measure_spectrum`): a frame and the reference the maps are taken against (the
+change), or a frame alone for synthetic phases. Without measurable change around a
+carrier (a flat surface: the excess power of the change outside the carrier's central
+bins within :data:`MEASURABLE_SIGMAS` standard errors of zero), the radius is the
+bound, with a note: nothing says how narrow the surface's spectrum is.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import pyfftw
+
+from holoview.errors import InputError
+from holoview.processing.fourier.boxes import BoxGeometry, border_mask, box_geometry, box_shape_for
+from holoview.processing.fourier.fftplans import DEFAULT_THREADS, ifft2_plan, rfft2_plan
+from holoview.processing.fourier.frames import check_frame
+
+__all__ = [
+    "CENTRE_BINS",
+    "MEASURABLE_SIGMAS",
+    "SurfaceSpectrum",
+    "Window",
+    "matched_window",
+    "measure_spectrum",
+]
+
+#: Radius (FFT bins) of a carrier's central bins: its own power (the peak of a sub-bin
+#: carrier spreads over the bins next to it), and its mean phase change.
+CENTRE_BINS = 2.0
+
+#: Surface power counts as measured when the excess over the noise outside the carrier's
+#: main lobe is this many standard errors of the noise above zero.
+MEASURABLE_SIGMAS = 5.0
+
+#: Step (FFT bins) of the radial profile of the change (the content the reason names).
+STEP_BINS = 0.25
+
+#: Radii tried per peak, twice: spaced in log up to the bound, then around the best.
+CANDIDATES = 12
+
+#: Radii whose expected squared error is within this fraction of the least are as good:
+#: the widest of them is kept. The estimate is low for narrow windows (measured against
+#: the true surface on ``benchmarks/bench_windows.py``'s scene at kmax 0.005: RF 0.64 nm
+#: estimated at 0.0125 cycles/pixel against 0.88 nm true, 0.70 against 0.60 at 0.0229),
+#: and the fused map averages down the noise a wider window passes, not what a narrower
+#: one cuts: keeping the narrowest put the fused map at 1.11 and 1.16 times the sweep's
+#: best at kmax 0.01 and 0.005, the widest at 1.04 and 1.05.
+NEAR_BEST = 0.1
+
+#: What a window cuts counts this many times its squared error when the radius is chosen:
+#: the cut is the same surface content missing from every peak's map, which fusing them
+#: does not average down, as it does their noise.
+CUT_WEIGHT = 2.0
+
+#: The Tukey edges a matched window chooses among (with the one asked for), by the same
+#: estimate of the map error: a wider edge rings less at small radii
+#: (``benchmarks/bench_windows.py``).
+MATCHED_TAPERS = (0.25, 0.5, 0.75)
+
+#: A Tukey window passes at least 90 % of the power (``W >= 0.95``) out to ``1 - WAVE_EDGE
+#: taper`` of its radius: the matched radius of a surface with waves seen at ``|q|`` is at
+#: least ``|q| / (1 - WAVE_EDGE taper)``.
+WAVE_EDGE = 0.856
+
+#: Likewise for the other shapes: the fraction of the radius where ``W`` falls to 0.95.
+PASS_FRACTION = {"raised-cosine": 0.144, "top-hat": 1.0}
+
+#: A map pixel is trusted from this fraction of the median amplitude (as the demodulator's).
+MIN_AMPLITUDE = 0.25
+
+#: Smallest matched radius, FFT bins (as the automatic radii's floor).
+MIN_RADIUS_BINS = 4.0
+
+#: The rules a window radius is chosen by.
+RULES = ("matched", "bound", "given")
+
+
+@dataclass(frozen=True)
+class Window:
+    """One peak's window: its radius, shape and why.
+
+    Attributes
+    ----------
+    radius : float
+        Radius, cycles/pixel.
+    kind : str
+        Shape (:data:`~holoview.processing.fourier.windows.WINDOW_KINDS`).
+    taper : float
+        Edge width of a Tukey window, fraction of the radius.
+    rule : {"matched", "bound", "given"}
+        Matched to the surface's spectrum, the bound (widest reaching no other term),
+        or given by the user.
+    bound : float
+        Half the distance to the nearest other term, cycles/pixel.
+    reason : str
+        One line saying why this radius.
+    content : float or None
+        Matched: how far from the carrier the surface's change stands above the noise
+        floor (cycles/pixel, in whole annuli); else None.
+    cut : float
+        Matched: the map error (rad rms per trusted pixel) expected of what the window
+        cuts of the change it was matched to; else 0 (not measured).
+    """
+
+    radius: float
+    kind: str
+    taper: float
+    rule: str
+    bound: float
+    reason: str
+    content: float | None = None
+    cut: float = 0.0
+
+    def to_dict(self) -> dict[str, object]:
+        """The window as JSON-ready values (``radius_cpp``, ``kind``, ``taper``, ...)."""
+        return {
+            "radius_cpp": self.radius,
+            "kind": self.kind,
+            "taper": self.taper,
+            "rule": self.rule,
+            "bound_cpp": self.bound,
+            "content_cpp": self.content,
+            "cut_rad": self.cut,
+            "reason": self.reason,
+        }
+
+
+@dataclass(frozen=True)
+class SurfaceSpectrum:
+    """What windows are matched to: frames' half spectra, their reference's, the noise floor.
+
+    Attributes
+    ----------
+    shape : tuple of int
+        Frame shape ``(rows, cols)``.
+    frames : tuple of ndarray of complex64, shape (rows, cols // 2 + 1)
+        The frames' half spectra (``rfft2`` layout), counts: a run's maps are made of
+        frames like them.
+    reference : ndarray of complex64 or None
+        The reference's (the frame the maps are taken against), same layout; None for
+        synthetic phases.
+    floor : float
+        Noise power per bin of what a map shows (the change, or the frame), counts^2:
+        the median over the spectrum over ln 2 (noise power is exponentially
+        distributed, and peaks cover a few percent of it).
+    band : float
+        The surface's waves as peak detection saw them, cycles/pixel: the largest
+        offset of a wave's sidebands (:func:`~holoview.processing.peaks.radii.surface_band`;
+        0 when none was seen). Every matched window passes them.
+    """
+
+    shape: tuple[int, int]
+    frames: tuple[np.ndarray, ...]
+    reference: np.ndarray | None
+    floor: float
+    band: float = 0.0
+
+    def _bins(
+        self, carrier: tuple[float, float], radius: float
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Distances (cycles/pixel), half-spectrum rows, columns and conjugation of the bins
+        within ``radius`` of ``carrier`` (the other half read from the twin)."""
+        rows, cols = self.shape
+        fx, fy = float(carrier[0]), float(carrier[1])
+        kx = np.arange(int(np.floor((fx - radius) * cols)), int(np.ceil((fx + radius) * cols)) + 1)
+        ky = np.arange(int(np.floor((fy - radius) * rows)), int(np.ceil((fy + radius) * rows)) + 1)
+        rho = np.hypot(kx[None, :] / cols - fx, ky[:, None] / rows - fy)
+        inside = rho <= radius
+        yy, xx = np.broadcast_arrays(ky[:, None] % rows, kx[None, :] % cols)
+        mirrored = xx > cols // 2
+        yy = np.where(mirrored, (-yy) % rows, yy)
+        xx = np.where(mirrored, cols - xx, xx)
+        return rho[inside], yy[inside], xx[inside], mirrored[inside]
+
+    def around(self, carrier: tuple[float, float], radius: float) -> tuple[np.ndarray, np.ndarray]:
+        """Distances (cycles/pixel) and powers (counts^2) of the maps' content near a carrier.
+
+        The bins within ``radius`` of ``carrier``: ``|S - exp(i phi) S_ref|^2`` with the
+        carrier's mean phase change ``phi`` (module documentation), or ``|S|^2``,
+        averaged over the frames.
+        """
+        rho, yy, xx, mirrored = self._bins(carrier, radius)
+        rows, cols = self.shape
+        centre = rho <= CENTRE_BINS / max(rows, cols)
+        ref = None
+        if self.reference is not None:
+            ref = self.reference[yy, xx].astype(np.complex128)
+            ref = np.where(mirrored, np.conj(ref), ref)
+        power = np.zeros(rho.shape)
+        for frame in self.frames:
+            value = frame[yy, xx].astype(np.complex128)
+            value = np.where(mirrored, np.conj(value), value)
+            if ref is not None:
+                turn = np.sum(value[centre] * np.conj(ref[centre]))
+                value = value - (turn / abs(turn) if abs(turn) > 0 else 1.0) * ref
+            power += value.real**2 + value.imag**2
+        return rho, power / len(self.frames)
+
+
+def _half_spectrum(frame: np.ndarray, threads: int | None) -> np.ndarray:
+    array = check_frame(frame)
+    plan = rfft2_plan(array.shape, threads=threads or DEFAULT_THREADS)
+    np.copyto(plan.input_array, array, casting="unsafe")
+    plan()
+    return plan.output_array.copy()
+
+
+def measure_spectrum(
+    frames: np.ndarray | Sequence[np.ndarray],
+    reference: np.ndarray | None = None,
+    *,
+    band: float = 0.0,
+    threads: int | None = None,
+) -> SurfaceSpectrum:
+    """Return what windows are matched to (module documentation).
+
+    Parameters
+    ----------
+    frames : ndarray, shape (rows, cols), or sequence of them
+        Holograms (counts; not modified) whose maps the windows are to serve: for a run
+        against its first frame, a few frames spread over it.
+    reference : ndarray, optional
+        The hologram the maps are taken against (the run's first frame, the background),
+        same shape; None for synthetic phases.
+    band : float
+        The surface's waves seen by peak detection, cycles/pixel
+        (:attr:`SurfaceSpectrum.band`).
+    threads : int, optional
+        FFTW threads.
+
+    Raises
+    ------
+    InputError
+        For no frame, frames of different shapes, or spectra without a noise floor.
+    """
+    arrays = [frames] if isinstance(frames, np.ndarray) else list(frames)
+    if not arrays:
+        raise InputError("no frame to match the windows to")
+    shape = (int(np.shape(arrays[0])[0]), int(np.shape(arrays[0])[1]))
+    if any(np.shape(a) != shape for a in arrays) or (
+        reference is not None and np.shape(reference) != shape
+    ):
+        raise InputError("the frames the windows are matched to differ in shape")
+    halves = tuple(_half_spectrum(a, threads) for a in arrays)
+    other = None if reference is None else _half_spectrum(reference, threads)
+    change = halves[0] if other is None else halves[0] - other
+    sample = change[::2, 1::2]
+    floor = float(np.median(sample.real**2 + sample.imag**2)) / np.log(2)
+    if not (np.isfinite(floor) and floor > 0):
+        raise InputError("the spectrum has no noise floor (constant, equal or non-finite frames)")
+    return SurfaceSpectrum(shape, halves, other, floor, float(band))
+
+
+def _field(flat: np.ndarray, geo: BoxGeometry, plan: pyfftw.FFTW) -> np.ndarray:
+    """A peak's field (counts, box resolution) from a half spectrum: cut, window, invert."""
+    box = plan.input_array.reshape(-1)
+    np.take(flat, geo.index, out=box)
+    pairs = box.view(np.float32)
+    np.multiply(pairs, geo.weights, out=pairs)
+    plan.execute()
+    return plan.output_array.astype(np.complex128)
+
+
+def map_errors(
+    spectrum: SurfaceSpectrum,
+    carrier: tuple[float, float],
+    radii: np.ndarray,
+    *,
+    kind: str,
+    taper: float,
+    widest: tuple[str, float] | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Expected squared map error and its noise (rad^2 per trusted pixel) at each radius.
+
+    The last radius is the largest, ``B``. The maps of every frame at every radius are
+    made as the demodulator makes them (on the box of ``B``), each on its own trusted
+    pixels (amplitude, border), and compared with the widest map: ``B`` with ``widest``
+    = ``(kind, taper)``, by default the windows' own. The map of radius ``r`` differs
+    from it by what ``r`` cuts and by the noise of the bins the widest passes and ``r``
+    does not: ``D_r = c_r^2 + n^2 sum (W_B - W_r)^2``; its error is ``c_r^2 + n^2 sum
+    W_r^2``, ``n^2`` the phase noise per unit of window from the spectrum's noise floor;
+    averaged over the frames. What the widest map cuts is not seen: windows of other
+    shapes are compared against one widest map, the one that cuts least.
+    """
+    rows, cols = spectrum.shape
+    size = float(rows * cols)
+    box_shape = box_shape_for(spectrum.shape, float(radii[-1]))
+    plan = ifft2_plan(box_shape)
+    shapes = [(kind, taper)] * len(radii) + [widest or (kind, taper)]
+    radii = np.append(radii, radii[-1])
+    geos = [
+        box_geometry(spectrum.shape, box_shape, carrier=carrier, kind=k, radius=float(r), taper=t)
+        for r, (k, t) in zip(radii, shapes, strict=True)
+    ]
+    weights = [np.abs(geo.weights[0::2]).astype(np.float64) * size for geo in geos]
+    passed = np.array([float(np.sum(w * w)) for w in weights])
+    extra = np.array([float(np.sum((weights[-1] - w) ** 2)) for w in weights])
+    borders = [border_mask(box_shape, spectrum.shape, float(r)) for r in radii]
+    reference = None if spectrum.reference is None else spectrum.reference.reshape(-1)
+    references = (
+        [np.conj(_field(reference, geo, plan)) for geo in geos] if reference is not None else None
+    )
+    total = np.zeros(len(radii))
+    noise = np.zeros(len(radii))
+    for half in spectrum.frames:
+        flat = half.reshape(-1)
+        products = [_field(flat, geo, plan) for geo in geos]
+        magnitude = np.abs(products[-1])
+        valid = magnitude >= MIN_AMPLITUDE * float(np.median(magnitude))
+        if not valid.any():
+            continue
+        if references is not None:
+            products = [p * ref for p, ref in zip(products, references, strict=True)]
+        # phase noise per unit of sum W^2: floor / (2 size^2 |f|^2), averaged over pixels
+        unit = spectrum.floor * float(np.mean(1.0 / magnitude[valid] ** 2)) / (2.0 * size * size)
+        noise += unit * passed
+        for j, product in enumerate(products):
+            trusted = valid & borders[j]
+            if not trusted.any():
+                total[j] = np.inf
+                continue
+            step = np.angle(product[trusted] * np.conj(products[-1][trusted]))
+            total[j] += max(float(np.var(step)) - unit * extra[j], 0.0) + unit * passed[j]
+    count = len(spectrum.frames)
+    return total[:-1] / count, noise[:-1] / count
+
+
+def _weighed(errors: np.ndarray, noise: np.ndarray) -> np.ndarray:
+    """What a radius is chosen by: the noise, and :data:`CUT_WEIGHT` times what it cuts."""
+    return noise + CUT_WEIGHT * (errors - noise)
+
+
+def _best_radius(
+    spectrum: SurfaceSpectrum,
+    carrier: tuple[float, float],
+    span: tuple[float, float],
+    *,
+    kind: str,
+    taper: float,
+) -> tuple[float, float, float, float]:
+    """``(weighed error, radius, cut, taper)`` of the radius :func:`matched_window` takes.
+
+    ``span``: the smallest radius and the bound, cycles/pixel.
+    """
+    smallest, bound = span
+    coarse = np.geomspace(smallest, bound, CANDIDATES)
+    widest = (kind, min(MATCHED_TAPERS)) if kind == "tukey" else None
+    errors, errors_noise = map_errors(
+        spectrum, carrier, coarse, kind=kind, taper=taper, widest=widest
+    )
+    best = int(np.argmin(_weighed(errors, errors_noise)))
+    low, high = coarse[max(best - 1, 0)], coarse[min(best + 1, len(coarse) - 1)]
+    fine = np.append(np.linspace(low, high, CANDIDATES), bound)
+    fine_errors, fine_noise = map_errors(
+        spectrum, carrier, fine, kind=kind, taper=taper, widest=widest
+    )
+    weighed = _weighed(fine_errors, fine_noise)
+    # the widest of the radii as good as the best (NEAR_BEST)
+    least = float(np.min(weighed))
+    chosen = int(np.flatnonzero(weighed <= least + NEAR_BEST * abs(least)).max())
+    cut = float(np.sqrt(max(fine_errors[chosen] - fine_noise[chosen], 0.0)))
+    return float(weighed[chosen]), float(fine[chosen]), cut, taper
+
+
+def matched_window(
+    spectrum: SurfaceSpectrum,
+    carrier: tuple[float, float],
+    bound: float,
+    *,
+    kind: str,
+    taper: float,
+) -> Window:
+    """Return the window of least expected map error around ``carrier``, at most ``bound``.
+
+    Parameters
+    ----------
+    spectrum : SurfaceSpectrum
+        The spectra the map is made of (:func:`measure_spectrum`).
+    carrier : tuple of float
+        ``(fx, fy)``, cycles/pixel.
+    bound : float
+        The widest radius reaching no other term, cycles/pixel.
+    kind, taper
+        The window's shape (:func:`~holoview.processing.fourier.windows.radial_window`).
+
+    Returns
+    -------
+    Window
+        Rule ``"matched"``: the radius of least :func:`map_errors` (what it cuts weighed
+        :data:`CUT_WEIGHT` times) among :data:`CANDIDATES` radii spaced evenly in log
+        between :data:`MIN_RADIUS_BINS` bins and the bound, then as many around the best,
+        the widest within :data:`NEAR_BEST` of the least; for a Tukey window, with
+        the edge of :data:`MATCHED_TAPERS` (or ``taper``) that gives the least; the
+        bound (rule ``"bound"``, with the reason) where the spectra show no measurable
+        change around the carrier.
+    """
+    rows, cols = spectrum.shape
+    per_bin = 1.0 / max(rows, cols)  # cycles/pixel of one bin along the finer axis
+    smallest = MIN_RADIUS_BINS / min(rows, cols)
+    if bound <= smallest:
+        return Window(bound, kind, taper, "bound", bound, "the bound is the smallest window")
+    rho, power = spectrum.around(carrier, bound)
+    noise = spectrum.floor
+    excess = power - noise
+    beyond = rho > CENTRE_BINS * per_bin
+    outside = int(np.count_nonzero(beyond))
+    measured = float(excess[beyond].sum())
+    if outside == 0 or measured <= MEASURABLE_SIGMAS * noise * np.sqrt(outside):
+        return Window(
+            bound,
+            kind,
+            taper,
+            "bound",
+            bound,
+            "no measurable change of the surface around the carrier: the bound",
+        )
+    tapers = (taper, *(t for t in MATCHED_TAPERS if t != taper)) if kind == "tukey" else (taper,)
+    choices = [
+        _best_radius(spectrum, carrier, (smallest, bound), kind=kind, taper=t) for t in tapers
+    ]
+    _, radius, cut, taper = min(choices)
+    waves = min(bound, spectrum.band / (1.0 - WAVE_EDGE * taper)) if kind == "tukey" else 0.0
+    if spectrum.band > 0 and kind != "tukey":
+        waves = min(bound, spectrum.band / PASS_FRACTION[kind])
+    radius = max(radius, waves)
+    step = STEP_BINS * per_bin
+    edges = np.arange(0.0, bound + step, step)
+    which = np.minimum(np.searchsorted(edges, rho, side="right") - 1, len(edges) - 2)
+    signal = np.bincount(which, weights=excess, minlength=len(edges) - 1)
+    count = np.bincount(which, minlength=len(edges) - 1).astype(np.float64)
+    above = np.flatnonzero(signal > count * noise)
+    content = float(edges[above[-1] + 1]) if above.size else 0.0
+    reason = (
+        f"matched: least expected map error; the surface's change stands above the noise "
+        f"out to {content:.4f} cycles/pixel, the bound is {bound:.4f}"
+    )
+    if waves and radius == waves:
+        reason += f"; widened to pass the waves detected (|q| up to {spectrum.band:.4f})"
+    return Window(radius, kind, taper, "matched", bound, reason, content, cut)
