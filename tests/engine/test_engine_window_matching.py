@@ -70,7 +70,7 @@ def test_a_radius_rule_other_than_matched_is_left_alone(scenes) -> None:
 def test_a_frame_equal_to_the_last_changes_nothing(scenes) -> None:
     """A stuck camera sends one frame twice: nothing to measure, the windows stay (before:
     InputError 'the spectrum has no noise floor' out of the live maps worker)."""
-    setup, flat, waves = scenes
+    setup, _flat, waves = scenes
     core = _core(setup)
     matcher = WindowMatcher()
     matcher.measure(core, waves[0])
