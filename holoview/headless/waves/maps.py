@@ -15,7 +15,8 @@ down the rows: the maps' own ``x`` and ``y`` coordinates, which start at 0.
 
 The wavenumber cut-off of the maps is the demodulation window's radius
 (``radius_cpp``, cycles per frame pixel; the fused map's smallest):
-``k_cut = 2 pi radius_cpp / pitch`` with the frame's pitch ``pixel_size_m / pixel_step_px``; without those attributes, the map
+``k_cut = 2 pi radius_cpp / pitch`` with the frame's pitch ``pixel_size_m / pixel_step_px``;
+without those attributes, the map
 grid's Nyquist wavenumber. Maps of the relative reference (height steps between
 frames) are summed over time into heights (a pixel untrusted once stays NaN after).
 """
