@@ -22,6 +22,7 @@ from __future__ import annotations
 import numpy as np
 
 from holoview.engine.frame_core import FrameCore
+from holoview.errors import InputError
 from holoview.processing.peaks.matched import SurfaceSpectrum, Window, measure_spectrum
 
 __all__ = ["CHANGE_BINS", "CHANGE_FRACTION", "CONFIRMATIONS", "WindowMatcher"]
@@ -92,7 +93,10 @@ class WindowMatcher:
             return None
         if previous is not None and previous.shape != self._previous.shape:
             return None
-        spectrum = measure_spectrum(frame, None if synthetic else previous, band=band)
+        try:
+            spectrum = measure_spectrum(frame, None if synthetic else previous, band=band)
+        except InputError:
+            return None  # a frame equal to the last (a stuck camera): no change to measure
         self.latest = spectrum
         in_use = core.windows()
         wanted = core.windows_for(spectrum)

@@ -199,19 +199,20 @@ def _matching_spectrum(
 ) -> SurfaceSpectrum:
     """What a run's windows are matched to: the changes its maps show, the waves detected.
 
-    Against the background, the first frame; else the frames
-    :func:`~holoview.engine.frame_core.matching_positions` names after the first good
-    one, against it. Frames that cannot be used are left out (the first alone when none
+    The frames :func:`~holoview.engine.frame_core.matching_positions` names after the
+    first good one, against it; against the background, the first good one and those
+    (a background taken from the run's first frame leaves the others to show the
+    changes). Frames that cannot be used are left out (the first alone when none
     is left, as for synthetic phases).
     """
-    if reference != "synthetic" and background is not None:
-        return measure_spectrum(first, background, band=band)
     start = frames.index(first_index)
     later = []
     for position in matching_positions(reference, len(frames) - start):
         frame = source.read(frames[start + position])
         if frame_problem(frame) is None:
             later.append(frame)
+    if reference != "synthetic" and background is not None:
+        return measure_spectrum([first, *later], background, band=band)
     if not later:
         return measure_spectrum(first, band=band)
     return measure_spectrum(later, first, band=band)

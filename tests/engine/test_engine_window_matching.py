@@ -65,3 +65,16 @@ def test_a_radius_rule_other_than_matched_is_left_alone(scenes) -> None:
         assert matcher.measure(core, frame) is None
     assert _radii(core) and core.spectrum is None
     assert {w.rule for w in core.windows().values()} == {"bound"}
+
+
+def test_a_frame_equal_to_the_last_changes_nothing(scenes) -> None:
+    """A stuck camera sends one frame twice: nothing to measure, the windows stay (before:
+    InputError 'the spectrum has no noise floor' out of the live maps worker)."""
+    setup, _flat, waves = scenes
+    core = _core(setup)
+    matcher = WindowMatcher()
+    matcher.measure(core, waves[0])
+    matcher.measure(core, waves[1])
+    before = core.windows()
+    assert matcher.measure(core, waves[1].copy()) is None
+    assert core.windows() == before

@@ -14,8 +14,9 @@ Positions (a centre) are from the first map pixel's centre, x along the columns 
 down the rows: the maps' own ``x`` and ``y`` coordinates, which start at 0.
 
 The wavenumber cut-off of the maps is the demodulation window's radius
-(``radius_cpp``, cycles per frame pixel): ``k_cut = 2 pi radius_cpp / pitch`` with the
-frame's pitch ``pixel_size_m / pixel_step_px``; without those attributes, the map
+(``radius_cpp``, cycles per frame pixel; the fused map's smallest):
+``k_cut = 2 pi radius_cpp / pitch`` with the frame's pitch ``pixel_size_m / pixel_step_px``;
+without those attributes, the map
 grid's Nyquist wavenumber. Maps of the relative reference (height steps between
 frames) are summed over time into heights (a pixel untrusted once stays NaN after).
 """
@@ -269,11 +270,11 @@ def _open(
         )
     clock = frame_clock(times[first:stop] - times[first])
     step = np.atleast_1d(np.asarray(attrs.get("pixel_step_px", [np.nan]), dtype=np.float64))
-    radius = attrs.get("radius_cpp")
+    radius = _cut_off_radius(attrs.get("radius_cpp"))
     nyquist = min(math.pi / size[0], math.pi / size[1])
-    if radius is not None and np.all(np.isfinite(step)) and float(radius) > 0:
+    if radius is not None and np.all(np.isfinite(step)):
         pitch = size[1] / float(step[-1])
-        k_cut = min(2.0 * math.pi * float(radius) / pitch, nyquist)
+        k_cut = min(2.0 * math.pi * radius / pitch, nyquist)
         source = "the demodulation window (radius_cpp)"
     else:
         k_cut, source = nyquist, "the map grid's Nyquist wavenumber"
@@ -297,3 +298,16 @@ def _open(
         _dataset=dataset,
         _sums=sums,
     )
+
+
+def _cut_off_radius(value: object) -> float | None:
+    """The window radius that bounds a map's waves, cycles/pixel; None where unknown.
+
+    A peak's map carries its own radius; the fused map one per peak it fuses, whose
+    smallest bounds the band every peak passes (beyond it only some contribute).
+    """
+    if value is None:
+        return None
+    radii = np.atleast_1d(np.asarray(value, dtype=np.float64))
+    radii = radii[np.isfinite(radii) & (radii > 0)]
+    return float(radii.min()) if radii.size else None

@@ -266,12 +266,25 @@ def measure_spectrum(
         raise InputError("the frames the windows are matched to differ in shape")
     halves = tuple(_half_spectrum(a, threads) for a in arrays)
     other = None if reference is None else _half_spectrum(reference, threads)
-    change = halves[0] if other is None else halves[0] - other
-    sample = change[::2, 1::2]
-    floor = float(np.median(sample.real**2 + sample.imag**2)) / np.log(2)
-    if not (np.isfinite(floor) and floor > 0):
+    floor = _noise_floor(halves, other)
+    if floor is None:
         raise InputError("the spectrum has no noise floor (constant, equal or non-finite frames)")
     return SurfaceSpectrum(shape, halves, other, floor, float(band))
+
+
+def _noise_floor(halves: tuple[np.ndarray, ...], other: np.ndarray | None) -> float | None:
+    """The noise floor of the changes (power per bin), from the first frame that has one.
+
+    A frame equal to the reference (a background taken from the run's own first frame)
+    changes nothing and has none; None where no frame has one.
+    """
+    for half in halves:
+        change = half if other is None else half - other
+        sample = change[::2, 1::2]
+        floor = float(np.median(sample.real**2 + sample.imag**2)) / np.log(2)
+        if np.isfinite(floor) and floor > 0:
+            return floor
+    return None
 
 
 def _field(flat: np.ndarray, geo: BoxGeometry, plan: pyfftw.FFTW) -> np.ndarray:
