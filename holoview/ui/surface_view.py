@@ -18,7 +18,7 @@ from collections.abc import Iterable, Mapping
 
 import numpy as np
 import pyqtgraph as pg
-from PyQt6.QtCore import QEvent, QObject, Qt, pyqtSignal
+from PyQt6.QtCore import QEvent, QObject, Qt, QTimer, pyqtSignal
 from PyQt6.QtWidgets import (
     QCheckBox,
     QComboBox,
@@ -183,6 +183,11 @@ class SurfaceView(QWidget):
         )
         self.follow_box.setChecked(True)
         self._range_at = -math.inf
+        # "follow": the newest maps ranged once the interval has passed, even when no
+        # more maps come (a replay paused or stepped right after an update)
+        self._follow_timer = QTimer(self)
+        self._follow_timer.setSingleShot(True)
+        self._follow_timer.timeout.connect(self._follow_due)
         self.stats_label = QLabel()
         controls = QHBoxLayout()
         controls.addWidget(QLabel("show"))
@@ -285,6 +290,13 @@ class SurfaceView(QWidget):
         follow = self.follow_box.isChecked() and now - self._range_at >= FOLLOW_INTERVAL_S
         if self._mode == "height" and (self._levels is None or follow):
             self._range_from_maps()
+        elif (
+            self._mode == "height"
+            and self.follow_box.isChecked()
+            and not self._follow_timer.isActive()
+        ):
+            wait = FOLLOW_INTERVAL_S - (now - self._range_at)
+            self._follow_timer.start(max(0, int(wait * 1000)))
         self._draw_maps()
         self._show_shifts(shifts_px or {}, grid_of)
         self._update_profile()
@@ -331,6 +343,11 @@ class SurfaceView(QWidget):
         """Set the height colour range from the maps shown (:func:`colour_range`)."""
         self._range_from_maps()
         self._draw_maps()
+
+    def _follow_due(self) -> None:
+        """Range the maps shown now, if "follow" is still on (the timer's end)."""
+        if self.follow_box.isChecked() and self._mode == "height":
+            self.auto_range()
 
     def _range_from_maps(self) -> None:
         if self._mode == "phase" or not self._data:

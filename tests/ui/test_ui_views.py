@@ -314,3 +314,16 @@ def test_a_reference_frame_s_zero_maps_leave_the_range_to_the_next_maps(qtbot) -
     view.set_maps({"RB1": waves})
     low, high = view.levels
     assert -10.5 < low < -9 and 9 < high < 10.5
+
+
+def test_follow_ranges_the_last_maps_even_when_no_more_come(qtbot) -> None:
+    """Maps that arrive within the follow interval of the last range (a replay stepped or
+    paused right after an update) are ranged once it has passed, with no maps after them
+    (before: the range of the frame before stayed, every map one colour)."""
+    view = SurfaceView()
+    qtbot.addWidget(view)
+    waves = 10e-9 * np.sin(np.linspace(0, 20, 32 * 32)).reshape(32, 32)
+    view.set_maps({"RB1": waves - 150e-9})
+    assert view.levels[1] < -130.0
+    view.set_maps({"RB1": waves})  # within the interval: not ranged yet
+    qtbot.waitUntil(lambda: -10.5 < view.levels[0] < -9 and 9 < view.levels[1] < 10.5, timeout=3000)
