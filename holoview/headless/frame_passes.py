@@ -200,12 +200,15 @@ def measure_frames(
                 t1 = time.perf_counter()
                 data.demod_seconds += t1 - t0
                 if maps is not None:
-                    made = frame_maps(maps[0], frame, measured.values, bits)
-                    t2 = time.perf_counter()
-                    maps[1].record(position, index, made)
-                    data.demod_seconds += t2 - t1
-                    data.maps_seconds += t2 - t1
-                    data.write_seconds += time.perf_counter() - t2
+                    _record_maps(
+                        data,
+                        maps,
+                        frame,
+                        position=position,
+                        index=index,
+                        values=measured.values,
+                        bits=bits,
+                    )
                 done = position + 1
                 if progress is not None:
                     progress(done)
@@ -353,6 +356,26 @@ def frame_maps(
     return step.process(frame, values, estimate=estimate, fuse=fuse)
 
 
+def _record_maps(
+    data: RunData,
+    maps: tuple[MapStep, MapRecord],
+    frame: np.ndarray,
+    *,
+    position: int,
+    index: int,
+    values: np.ndarray,
+    bits: int,
+) -> None:
+    """Make one frame's maps with ``maps``' step, record them, and count the time spent."""
+    t0 = time.perf_counter()
+    made = frame_maps(maps[0], frame, values, bits)
+    t1 = time.perf_counter()
+    maps[1].record(position, index, made)
+    data.demod_seconds += t1 - t0
+    data.maps_seconds += t1 - t0
+    data.write_seconds += time.perf_counter() - t1
+
+
 def maps_pass(
     source: InputFile,
     frames: range,
@@ -397,15 +420,16 @@ def maps_pass(
     try:
         with reader:
             for position, (index, frame) in enumerate(reader):
-                t0 = time.perf_counter()
-                maps = frame_maps(
-                    step, frame, data.values[position], int(data.frame_bits[position])
+                values, bits = data.values[position], int(data.frame_bits[position])
+                _record_maps(
+                    data,
+                    (step, record),
+                    frame,
+                    position=position,
+                    index=index,
+                    values=values,
+                    bits=bits,
                 )
-                t1 = time.perf_counter()
-                record.record(position, index, maps)
-                data.maps_seconds += t1 - t0
-                data.demod_seconds += t1 - t0
-                data.write_seconds += time.perf_counter() - t1
                 done = position + 1
                 if progress is not None:
                     progress(done)
