@@ -85,10 +85,11 @@ def _run(
     runner: ChunkRunner | None,
     reference: str | None = None,
     settings: ProcessSettings | None = None,
+    frames: str | None = None,
     **kwargs: object,
 ) -> ProcessOutcome:
     options = ProcessOptions(
-        settings=settings or ProcessSettings(reference=reference), report=False
+        settings=settings or ProcessSettings(reference=reference), frames=frames, report=False
     )
     return process_file(path, out, options, runner=runner, **kwargs)  # type: ignore[arg-type]
 
@@ -178,6 +179,7 @@ def _assert_same_maps(serial: ProcessOutcome, other: ProcessOutcome, what: str) 
         "aliasing",
         "lost frames",
         "lost, absolute",
+        "frame grid",
     ],
 )
 def test_maps_from_the_workers_are_those_of_one_process(
@@ -195,16 +197,25 @@ def test_maps_from_the_workers_are_those_of_one_process(
     path = injection if case == "aliasing" else tmp_path / "lost.h5" if lost else evaporation.path
     if lost:
         _lose_frames(evaporation.path, path)  # a chunk starts after a damaged frame
-    reference = {"background": "absolute", "lost frames": "relative", "lost, absolute": "absolute"}
+    reference = {
+        "background": "absolute",
+        "lost frames": "relative",
+        "lost, absolute": "absolute",
+        "aliasing": "absolute",
+        "frame grid": "absolute",
+    }
     settings = ProcessSettings(
-        reference=reference.get(case, "absolute" if case == "aliasing" else case),
+        reference=reference.get(case, case),
         maps=True,
+        maps_grid="frame" if case == "frame grid" else "box",
         background="3" if case == "background" else None,
     )
-    serial = _run(path, tmp_path / "serial", None, settings=settings)
+    frames = "0:45" if case == "frame grid" else None  # maps 64 times larger: fewer frames
+    serial = _run(path, tmp_path / "serial", None, settings=settings, frames=frames)
     assert serial.data.demodulated == len(serial.data.frames) - (2 if lost else 0)
     for name, runner in runners.items():
-        other = _run(path, tmp_path / name.replace(" ", "_"), runner, settings=settings)
+        out = tmp_path / name.replace(" ", "_")
+        other = _run(path, out, runner, settings=settings, frames=frames)
         assert other.data.workers == runner.name
         _assert_same_maps(serial, other, f"{case}: {name}")
 
