@@ -85,6 +85,7 @@ def _run(
     runner: ChunkRunner | None,
     reference: str | None = None,
     settings: ProcessSettings | None = None,
+    *,
     frames: str | None = None,
     **kwargs: object,
 ) -> ProcessOutcome:
