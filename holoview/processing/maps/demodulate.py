@@ -86,8 +86,7 @@ from holoview.processing.peaks.radii import (
     check_peaks,
     check_radii,
     distinct_neighbours,
-    fell_back,
-    peak_name,
+    fallback_notes,
     peak_windows,
     radius_rule,
 )
@@ -256,10 +255,8 @@ class Demodulator:
         #: each peak's window radius, cycles/pixel
         self.radii = tuple(w.radius for w in self.windows)
         self._overlapping, warnings = check_radii(self.peaks, self.radii, others)
-        fallbacks = tuple(
-            f"{peak_name(self.peaks, i)}: {w.reason} ({w.radius:.4g} cycles/pixel)"
-            for i, w in enumerate(self.windows)
-            if radius_rule(radius) == "matched" and fell_back(w)
+        fallbacks = (
+            fallback_notes(self.peaks, self.windows) if radius_rule(radius) == "matched" else ()
         )
         #: what the user should know about the windows: a given radius reaching a peak,
         #: a matched window at the bound for want of measurable surface power
