@@ -328,6 +328,13 @@ def test_jobs_are_planned_from_the_cores_and_the_frames(caplog: pytest.LogCaptur
     assert [c.start for c in chunks] == sorted(c.start for c in chunks)
     assert sum(len(c) for c in chunks) == 1000 and chunks[-1].stop == 1000
     assert split_frames(3, 7) == [range(0, 1), range(1, 2), range(2, 3)]
+    # a chunk's maps are held whole: frame-grid maps of 1024^2 and six peaks (29 MB a
+    # frame) come four frames a chunk, box maps (0.9 MB) 32
+    frame_grid = chunk_maps.map_bytes((1024, 1024), 6)
+    assert max(len(c) for c in split_frames(100, 1, maps=True, map_bytes=frame_grid)) <= 4
+    assert frame_grid * 4 <= chunk_maps.MAPS_CHUNK_BYTES
+    box = chunk_maps.map_bytes((180, 180), 6)
+    assert [len(c) for c in split_frames(64, 1, maps=True, map_bytes=box)] == [32, 32]
 
 
 @pytest.mark.parametrize("jobs", ["0", "-2"])
