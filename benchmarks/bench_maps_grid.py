@@ -10,8 +10,9 @@ RB1 and FB1 labelled, the model adding the other families) into a temporary fold
 under /tmp, then prints, with the machine and its load:
 
 1. on frames held in memory: the maps step (:class:`holoview.engine.map_step.MapStep`,
-   the fused map included, displacements fixed as a run's are) per frame on the box's
-   grid and on the frame's (medians), and the bytes of one frame's maps;
+   the fused map included, the peaks moved by fixed displacements as a run's are) per
+   frame on the box's grid and on the frame's (medians), and the bytes of one frame's
+   maps;
 2. ``holoview process --maps`` in a child process on each grid (``--jobs 1``): time per
    frame of the whole run and of its maps (``summary.json``), the peak resident memory
    (RSS), which must not grow with the frames, and the size of ``results.h5``.
@@ -35,11 +36,13 @@ from machine import machine
 
 sys.path.insert(0, str(REPO))
 
+from holoview.engine.map_step import regridded
 from holoview.headless.inputs import InputFile
 from holoview.headless.prepare import prepare_run
 from holoview.headless.selection import parse_assignment
 from holoview.headless.settings import PeakChoice, ProcessOptions
 from holoview.optics.setup import Setup
+from holoview.processing.maps.coregister import Displacement
 
 SHAPE = (1024, 1024)
 
@@ -52,8 +55,18 @@ def step_times(path: Path, labels: list[str], frames: int) -> dict[str, tuple[fl
     with InputFile(path) as source:
         run = prepare_run(source, range(len(source)), options).frames
         held = [source.read(i) for i in range(min(frames, 12))]
+        box = run.spec.core(source.frame_shape, source.saturation).demodulator
+        assert box is not None
+        # every peak but the first moved by (0.4, -0.3) box pixels before fusion, as a
+        # run's co-registration moves them
+        moves = [Displacement((0.4, -0.3), (0.01, 0.01), True, 50) for _ in box.peaks]
+        moves[0] = Displacement((0.0, 0.0), (0.0, 0.0), True, 50)
         for grid in ("box", "frame"):
-            step = replace(run.spec, grid=grid).step(source.frame_shape, source.saturation)
+            shape = box.box_shape if grid == "box" else source.frame_shape
+            spec = replace(
+                run.spec, grid=grid, displacements=tuple(regridded(moves, box.box_shape, shape))
+            )
+            step = spec.step(source.frame_shape, source.saturation)
             demod = step.core.demodulator
             assert demod is not None
             times = []
