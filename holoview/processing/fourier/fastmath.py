@@ -45,10 +45,7 @@ class AngleWorkspace:
     """Scratch buffers for :func:`angle` on maps of one shape (reuse it frame after frame).
 
     Fresh temporaries of a few hundred kilobytes cost page faults that, measured
-    here, made the computation 4 times slower than the arithmetic itself. A workspace
-    also serves maps with fewer rows and as many columns (its leading rows): several
-    maps stacked along the rows take their phases in one call, which on small maps
-    saves the two dozen numpy calls of each (:func:`angle`).
+    here, made the computation 4 times slower than the arithmetic itself.
     """
 
     def __init__(self, shape: tuple[int, int]) -> None:
@@ -76,7 +73,7 @@ def angle(
     out : ndarray of float32, optional
         Where to write the result (shape of ``z``); a new array by default.
     workspace : AngleWorkspace, optional
-        Scratch buffers of ``z``'s columns and at least its rows, to avoid allocating them.
+        Scratch buffers of ``z``'s shape, to avoid allocating them.
 
     Returns
     -------
@@ -84,12 +81,11 @@ def angle(
         Phase (rad), within :data:`MAX_ERROR` of ``np.angle(z)`` plus float32 rounding.
     """
     z = np.ascontiguousarray(z, dtype=np.complex64)
-    rows = z.shape[0]
-    if workspace is None or workspace.shape[1:] != z.shape[1:] or workspace.shape[0] < rows:
+    if workspace is None or workspace.shape != z.shape:
         workspace = AngleWorkspace(z.shape)
     if out is None:
         out = np.empty(z.shape, dtype=np.float32)
-    a, b, u, r = (buffer[:rows] for buffer in workspace._buffers)
+    a, b, u, r = workspace._buffers
     x, y = z.real, z.imag  # strided views, read twice each: cheaper than copying them
     np.abs(x, out=a)
     np.abs(y, out=b)
@@ -109,7 +105,7 @@ def angle(
     # quadrants by sign bits (np.copysign is several times slower): v = pi/2 - theta lies
     # in [0, pi/2], so v with x's sign bit is copysign(v, x); pi/2 - copysign(v, x) is
     # theta for x >= 0 and pi - theta for x < 0, in [0, pi]: then y's sign bit
-    signs = workspace._signs[:rows]
+    signs = workspace._signs
     np.bitwise_and(z.view(np.uint32), _SIGN, out=signs)
     np.subtract(np.float32(np.pi / 4), r, out=r)
     bits = r.view(np.uint32)

@@ -93,19 +93,10 @@ from holoview.processing.peaks.radii import (
 
 logger = logging.getLogger(__name__)
 
-#: A live map's phase until it is taken (:meth:`Demodulator._take_phases`).
-_ZERO_PHASE = np.zeros((0, 0), dtype=np.float32)
-
 __all__ = ["Demodulator"]
 
 #: Box size (bins) from which a box's inverse FFT uses the frame FFT's threads.
 LARGE_BOX = 256 * 256
-
-#: Box pixels whose phases :class:`Demodulator` takes in one call, several peaks' maps
-#: stacked (at least one map): each call of the phase's two dozen numpy passes costs
-#: microseconds on its own, which on 4 maps of 240 x 240 came to a third of the phases'
-#: time (measured, AVX2, loaded). Four such maps, one map of 512 x 512 or more.
-PHASE_BATCH = 4 * 256 * 256
 
 #: A peak with fewer trusted pixels than this fraction of those it could have (inside the
 #: aperture, off the border) is flagged ``"low_amplitude"``.
@@ -320,16 +311,7 @@ class Demodulator:
         n_box = self.box_shape[0] * self.box_shape[1]
         #: boxes of 256 x 256 bins or more are worth FFTW's threads; smaller ones are not
         self._box_threads = self.threads if n_box >= LARGE_BOX else 1
-        by, bx = self.box_shape
-        #: how many peaks' maps take their phases in one call (:data:`PHASE_BATCH`)
-        self._batch = max(1, min(len(self.peaks), PHASE_BATCH // (by * bx)))
-        #: each batch's products (field times the reference's conjugate), stacked
-        self._products = pyfftw.empty_aligned((self._batch, by, bx), dtype="complex64")
-        self._angle_workspace = AngleWorkspace((self._batch * by, bx))
-        #: float32 scratch of the box's shape (``|field|^2``, then the 2 pi offset's weights)
-        #: and of its (re, im) pairs: the phases' scratch, free between batches
-        self._scratch = self._angle_workspace.scratch[:by]
-        self._pairs = self._angle_workspace.pairs[:by]
+        self._angle_workspace = AngleWorkspace(self.box_shape)
         self.background: np.ndarray | None = None
         self._background: list[tuple[np.ndarray, complex]] | None = None
         self._background_floor: np.ndarray | None = None
@@ -575,24 +557,12 @@ class Demodulator:
         floor = self._floor(samples)
         box_plan = ifft2_plan(self.box_shape, threads=self._box_threads)
         given = self._given(values)
-        partial = []
-        pending: list[PhaseMap] = []  # live maps whose products wait for their phases
-        for i in range(len(self.peaks)):
-            part = self._demodulate(
-                i,
-                half,
-                box_plan,
-                mean,
-                floor,
-                value=None if given is None else given[i],
-                product=self._products[len(pending)],
+        partial = [
+            self._demodulate(
+                i, half, box_plan, mean, floor, value=None if given is None else given[i]
             )
-            partial.append(part)
-            if part.live:
-                pending.append(part)
-            if len(pending) == self._batch or (pending and i == len(self.peaks) - 1):
-                self._take_phases(pending)
-                pending = []
+            for i in range(len(self.peaks))
+        ]
         if self.unwrap != "never":
             unwrap_maps(partial, self.peaks, always=self.unwrap == "always")
         results = tuple(self._finish(i, part) for i, part in enumerate(partial))
@@ -624,11 +594,13 @@ class Demodulator:
         """Peak ``i``'s ``|field|^2`` (counts^2), trusted pixels (a new mask) and their count.
 
         A pixel is trusted where ``|field|^2`` reaches the threshold's square (no square
-        roots) inside the aperture and off the border. ``|field|^2`` lives in the phases'
-        scratch: use it up before they are taken (:meth:`_take_phases`).
+        roots) inside the aperture and off the border. ``|field|^2`` lives in the phase's
+        scratch (:attr:`~holoview.processing.fourier.fastmath.AngleWorkspace.scratch`):
+        use it up before the phase is taken.
         """
         peak = self.peaks[i]
-        power, squares = self._scratch, self._pairs
+        workspace = self._angle_workspace
+        power, squares = workspace.scratch, workspace.pairs
         pairs = field.view(np.float32)
         np.multiply(pairs, pairs, out=squares)
         np.add(squares[:, 0::2], squares[:, 1::2], out=power)
@@ -649,13 +621,10 @@ class Demodulator:
         floor: float,
         *,
         value: complex | None,
-        product: np.ndarray,
     ) -> PhaseMap:
-        """Cut, window and invert peak ``i``'s box; its product with the reference's conjugate.
+        """Cut, window and invert peak ``i``'s box; phase against the reference (wrapped).
 
         ``value``: the peak's carrier value given for this frame (else the box's own).
-        ``product``: where the product goes, of the box's shape; the map's phase (wrapped)
-        is taken from it later (:meth:`_take_phases`) when the map is live, else it is 0.
         """
         geo = self._boxes[i]
         field = self._field(i, half, box_plan)
@@ -674,47 +643,39 @@ class Demodulator:
         if step.stepped:
             flags.add("phase_step")
 
-        live = True
+        # the box's spectrum is spent: the product goes where it was (a buffer still in cache)
+        product: np.ndarray | None = box_plan.input_array
         if self.reference == "synthetic":
             np.multiply(field, geo.ramp_conj, out=product)
         elif step.reference:
             flags.add("reference")
             self._ref_conj[i] = np.conj(field)
-            live = False
+            product = None
         else:
             ref_conj = self._ref_conj[i]
             assert ref_conj is not None
             np.multiply(field, ref_conj, out=product)
             if self.reference == "relative":
                 np.conjugate(field, out=ref_conj)
-        noise = 0.0
-        if live:
+        if product is None:
+            phase = np.zeros(field.shape, dtype=np.float32)
+            noise = 0.0
+        else:
             size = self.shape[0] * self.shape[1]
             noise = phase_noise(power, mask, floor, geo.area_fraction, size)
+            phase = angle(product, workspace=self._angle_workspace)
         return PhaseMap(
             field=field,
-            phase=_ZERO_PHASE if live else np.zeros(field.shape, dtype=np.float32),
+            phase=phase,
             mask=mask,
             valid=valid,
             value=value,
             mean_phase=step.mean_phase,
             target=step.target,
             flags=flags,
-            live=live,
+            live=product is not None,
             noise=noise,
         )
-
-    def _take_phases(self, parts: list[PhaseMap]) -> None:
-        """Set the phases of live maps from their products (the first of :attr:`_products`).
-
-        One call for the batch: the phases are views of one new array, one map each.
-        """
-        count = len(parts)
-        by, bx = self.box_shape
-        products = self._products[:count].reshape(count * by, bx)
-        phases = angle(products, workspace=self._angle_workspace).reshape(count, by, bx)
-        for part, phase in zip(parts, phases, strict=True):
-            part.phase = phase
 
     def _finish(self, i: int, part: PhaseMap) -> PeakResult:
         """Set the map's 2 pi offset, estimate the noise, convert to height."""
@@ -725,7 +686,7 @@ class Demodulator:
             if part.valid == phase.size:
                 level = float(phase.sum()) / phase.size
             else:
-                weights = self._scratch.reshape(-1)  # free after the phases
+                weights = self._angle_workspace.scratch.reshape(-1)  # free after the phases
                 np.copyto(weights, part.mask.reshape(-1))
                 level = float(np.dot(phase.reshape(-1), weights)) / part.valid
             offset = TWO_PI * round((part.target - level) / TWO_PI)
