@@ -161,9 +161,7 @@ class HalfSpectrum:
             height = out.shape[0]
             plan = plans.get(height)
             if plan is None:
-                plan = plans[height] = rfft_rows_plan(
-                    (height, self.shape[1]), threads=self.threads
-                )
+                plan = plans[height] = rfft_rows_plan((height, self.shape[1]), threads=self.threads)
             np.copyto(plan.input_array, frame[rows], casting="unsafe")
             plan.update_arrays(plan.input_array, out)
             plan.execute()
@@ -185,8 +183,6 @@ class HalfSpectrum:
             width = columns.shape[1]
             plan = plans.get(width)
             if plan is None:
-                plan = plans[width] = column_fft_plan(
-                    self.half_shape, width, threads=self.threads
-                )
+                plan = plans[width] = column_fft_plan(self.half_shape, width, threads=self.threads)
             plan.update_arrays(columns, columns)
             plan.execute()
