@@ -80,6 +80,7 @@ from holoview.processing.maps.phase_maps import (
     phase_noise,
     unwrap_maps,
 )
+from holoview.processing.maps.unwrap import has_wraps
 from holoview.processing.peaks.detection import Peak
 from holoview.processing.peaks.matched import SurfaceSpectrum, Window
 from holoview.processing.peaks.radii import (
@@ -657,6 +658,7 @@ class Demodulator:
             np.multiply(field, ref_conj, out=product)
             if self.reference == "relative":
                 np.conjugate(field, out=ref_conj)
+        level, wraps = None, None
         if product is None:
             phase = np.zeros(field.shape, dtype=np.float32)
             noise = 0.0
@@ -664,6 +666,11 @@ class Demodulator:
             size = self.shape[0] * self.shape[1]
             noise = phase_noise(power, mask, floor, geo.area_fraction, size)
             phase = angle(product, workspace=self._angle_workspace)
+            if valid:
+                # while the map is in cache: the 2 pi offset's level, whether it wraps
+                level = self._level(phase, mask, valid)
+                if self.unwrap == "auto":
+                    wraps = has_wraps(phase, mask)
         return PhaseMap(
             field=field,
             phase=phase,
@@ -675,20 +682,28 @@ class Demodulator:
             flags=flags,
             live=product is not None,
             noise=noise,
+            wraps=wraps,
+            level=level,
         )
+
+    def _level(self, phase: np.ndarray, mask: np.ndarray, valid: int) -> float:
+        """The mean phase (rad) of the ``valid`` trusted pixels of a map."""
+        if valid == phase.size:
+            return float(phase.sum()) / phase.size
+        weights = self._angle_workspace.scratch.reshape(-1)  # free after the phases
+        np.copyto(weights, mask.reshape(-1))
+        return float(np.dot(phase.reshape(-1), weights)) / valid
 
     def _finish(self, i: int, part: PhaseMap) -> PeakResult:
         """Set the map's 2 pi offset, estimate the noise, convert to height."""
         peak = self.peaks[i]
         phase = part.phase
         if part.live and part.valid:
-            # put the map's 2 pi offset where the time-unwrapped mean phase says
-            if part.valid == phase.size:
-                level = float(phase.sum()) / phase.size
-            else:
-                weights = self._angle_workspace.scratch.reshape(-1)  # free after the phases
-                np.copyto(weights, part.mask.reshape(-1))
-                level = float(np.dot(phase.reshape(-1), weights)) / part.valid
+            # put the map's 2 pi offset where the time-unwrapped mean phase says (the
+            # level taken when demodulated holds unless unwrapping replaced the map)
+            level = part.level
+            if level is None or part.unwrapped:
+                level = self._level(phase, part.mask, part.valid)
             offset = TWO_PI * round((part.target - level) / TWO_PI)
             if offset:
                 phase += np.float32(offset)
