@@ -365,7 +365,7 @@ def map_errors(
     weights = [np.abs(geo.weights[0::2]).astype(np.float64) * size for geo in geos]
     passed = np.array([float(np.sum(w * w)) for w in weights])
     extra = np.array([float(np.sum((weights[-1] - w) ** 2)) for w in weights])
-    borders = [border_mask(box_shape, spectrum.shape, float(r)) for r in radii]
+    inner = border_mask(box_shape, spectrum.shape, MIN_RADIUS_BINS / min(rows, cols))
     reference = None if spectrum.reference is None else spectrum.reference.reshape(-1)
     references = (
         [np.conj(_field(reference, geo, plan)) for geo in geos] if reference is not None else None
@@ -385,7 +385,7 @@ def map_errors(
         unit = spectrum.floor * float(np.mean(1.0 / magnitude[valid] ** 2)) / (2.0 * size * size)
         noise += unit * passed
         for j, product in enumerate(products):
-            trusted = valid & borders[j]
+            trusted = valid & inner
             if not trusted.any():
                 total[j] = np.inf
                 continue
@@ -408,13 +408,24 @@ def _best_radius(
     kind: str,
     taper: float,
 ) -> tuple[float, float, float, float]:
-    """``(weighed error, radius, cut, taper)`` of the radius :func:`matched_window` takes.
+    """``(least weighed error, radius, cut, taper)`` of the radius :func:`matched_window` takes.
 
-    ``span``: the smallest radius and the bound, cycles/pixel.
+    ``span``: the smallest radius (the waves' floor for this shape, where it is larger)
+    and the bound, cycles/pixel. The first value is the
+    least weighed error of any radius tried, by which the tapers are compared (not the
+    one of the radius kept, up to :data:`NEAR_BEST` above it: compared so, a taper with
+    a wider radius as good lost to one without).
     """
     smallest, bound = span
-    coarse = np.geomspace(smallest, bound, CANDIDATES)
     widest = (kind, min(MATCHED_TAPERS)) if kind == "tukey" else None
+    if smallest >= bound:
+        errors, errors_noise = map_errors(
+            spectrum, carrier, np.array([bound]), kind=kind, taper=taper, widest=widest
+        )
+        weighed = _weighed(errors, errors_noise)
+        cut = float(np.sqrt(max(errors[0] - errors_noise[0], 0.0)))
+        return float(weighed[0]), bound, cut, taper
+    coarse = np.geomspace(smallest, bound, CANDIDATES)
     errors, errors_noise = map_errors(
         spectrum, carrier, coarse, kind=kind, taper=taper, widest=widest
     )
@@ -429,7 +440,18 @@ def _best_radius(
     least = float(np.min(weighed))
     chosen = int(np.flatnonzero(weighed <= least + NEAR_BEST * abs(least)).max())
     cut = float(np.sqrt(max(fine_errors[chosen] - fine_noise[chosen], 0.0)))
-    return float(weighed[chosen]), float(fine[chosen]), cut, taper
+    return least, float(fine[chosen]), cut, taper
+
+
+def _waves_floor(band: float, kind: str, taper: float, bound: float) -> float:
+    """The smallest radius (cycles/pixel, at most ``bound``) that passes waves seen at ``band``.
+
+    0 without waves seen.
+    """
+    if band <= 0:
+        return 0.0
+    passing = 1.0 - WAVE_EDGE * taper if kind == "tukey" else PASS_FRACTION[kind]
+    return min(bound, band / passing)
 
 
 def matched_window(
@@ -485,14 +507,17 @@ def matched_window(
             "no measurable change of the surface around the carrier: the bound",
         )
     tapers = (taper, *(t for t in MATCHED_TAPERS if t != taper)) if kind == "tukey" else (taper,)
+    # each shape searched from the radius that passes the waves detected (its own floor):
+    # widening the best of a shape after the shapes were compared chose a sharp edge
+    # (which passes the waves from a smaller radius) widened to where a smoother one
+    # was better
+    floors = {t: _waves_floor(spectrum.band, kind, t, bound) for t in tapers}
     choices = [
-        _best_radius(spectrum, carrier, (smallest, bound), kind=kind, taper=t) for t in tapers
+        _best_radius(spectrum, carrier, (max(smallest, floors[t]), bound), kind=kind, taper=t)
+        for t in tapers
     ]
     _, radius, cut, taper = min(choices)
-    waves = min(bound, spectrum.band / (1.0 - WAVE_EDGE * taper)) if kind == "tukey" else 0.0
-    if spectrum.band > 0 and kind != "tukey":
-        waves = min(bound, spectrum.band / PASS_FRACTION[kind])
-    radius = max(radius, waves)
+    waves = floors[taper]
     step = STEP_BINS * per_bin
     edges = np.arange(0.0, bound + step, step)
     which = np.minimum(np.searchsorted(edges, rho, side="right") - 1, len(edges) - 2)
@@ -504,6 +529,6 @@ def matched_window(
         f"matched: least expected map error; the surface's change stands above the noise "
         f"out to {content:.4f} cycles/pixel, the bound is {bound:.4f}"
     )
-    if waves and radius == waves:
+    if waves > smallest and radius <= waves:
         reason += f"; widened to pass the waves detected (|q| up to {spectrum.band:.4f})"
     return Window(radius, kind, taper, "matched", bound, reason, content, cut)
