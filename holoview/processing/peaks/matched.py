@@ -339,6 +339,7 @@ def map_errors(
     kind: str,
     taper: float,
     widest: tuple[str, float] | None = None,
+    same_pixels: bool = False,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Expected squared map error and its noise (rad^2 per trusted pixel) at each radius.
 
@@ -365,7 +366,10 @@ def map_errors(
     weights = [np.abs(geo.weights[0::2]).astype(np.float64) * size for geo in geos]
     passed = np.array([float(np.sum(w * w)) for w in weights])
     extra = np.array([float(np.sum((weights[-1] - w) ** 2)) for w in weights])
-    inner = border_mask(box_shape, spectrum.shape, MIN_RADIUS_BINS / min(rows, cols))
+    borders = [
+        border_mask(box_shape, spectrum.shape, float(radii.min() if same_pixels else r))
+        for r in radii
+    ]
     reference = None if spectrum.reference is None else spectrum.reference.reshape(-1)
     references = (
         [np.conj(_field(reference, geo, plan)) for geo in geos] if reference is not None else None
@@ -385,7 +389,7 @@ def map_errors(
         unit = spectrum.floor * float(np.mean(1.0 / magnitude[valid] ** 2)) / (2.0 * size * size)
         noise += unit * passed
         for j, product in enumerate(products):
-            trusted = valid & inner
+            trusted = valid & borders[j]
             if not trusted.any():
                 total[j] = np.inf
                 continue
@@ -433,7 +437,7 @@ def _best_radius(
     low, high = coarse[max(best - 1, 0)], coarse[min(best + 1, len(coarse) - 1)]
     fine = np.append(np.linspace(low, high, CANDIDATES), bound)
     fine_errors, fine_noise = map_errors(
-        spectrum, carrier, fine, kind=kind, taper=taper, widest=widest
+        spectrum, carrier, fine, kind=kind, taper=taper, widest=widest, same_pixels=True
     )
     weighed = _weighed(fine_errors, fine_noise)
     # the widest of the radii as good as the best (NEAR_BEST)
