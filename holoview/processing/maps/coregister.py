@@ -73,6 +73,10 @@ MAX_UPDATE_EVERY = 80
 #: pixel count.
 MIN_SIGNIFICANCE = 8.0
 
+#: Width (pixels) of the raised-cosine edge by which the maps fall to zero at the pixels
+#: untrusted in any of them (module documentation).
+EDGE_TAPER_PX = 4.0
+
 #: Pixels over which a map's noise is correlated (the spectral window's footprint);
 #: conservative, so that noise alone is not taken for structure.
 NOISE_AREA = 4.0
@@ -108,6 +112,29 @@ _UNMEASURED = Displacement((0.0, 0.0), (float("inf"), float("inf")), False, 0)
 
 def _hann(n: int) -> np.ndarray:
     return np.hanning(n + 2)[1:-1]  # no zero at the ends: every pixel counts
+
+
+def _edge_taper(trusted: np.ndarray) -> np.ndarray:
+    """A weight rising as a raised cosine from 0 at the untrusted pixels to 1 at
+    :data:`EDGE_TAPER_PX` pixels from them (1 everywhere when all are trusted)."""
+    if trusted.all():
+        return np.ones(trusted.shape)
+    if not trusted.any():
+        return np.zeros(trusted.shape)
+    distance = ndimage.distance_transform_edt(trusted)
+    return 0.5 - 0.5 * np.cos(np.pi * np.clip(distance / (EDGE_TAPER_PX + 1.0), 0.0, 1.0))
+
+
+def _weighted(values: np.ndarray, trusted: np.ndarray, weight: np.ndarray) -> np.ndarray:
+    """``values`` less their weighted mean over ``trusted``, times ``weight``; 0 elsewhere."""
+    total = float(weight[trusted].sum())
+    if not total > 0:
+        return np.zeros(values.shape)
+    # the plain mean first: a constant map is then exactly zero, not rounding residue
+    # that every map of a flat surface shares
+    centred = values - values[trusted].mean()
+    mean = float(np.sum(centred[trusted] * weight[trusted])) / total
+    return np.where(trusted, centred - mean, 0.0) * weight
 
 
 class DisplacementEstimator:
@@ -150,9 +177,8 @@ class DisplacementEstimator:
         self.reference = int(reference)
         self.update_every = int(update_every)
         self._window = np.outer(_hann(rows), _hann(cols))
-        squared = self._window**2
-        #: independent pixels the window leaves, for white noise
-        self._n_eff = float(squared.sum() ** 2 / (squared**2).sum())
+        #: independent pixels the windows of the frames summed leave, for white noise
+        self._independent = 0.0
         self._energy = np.zeros(count)
         spectrum_shape = (rows, cols // 2 + 1)
         self._cross = np.zeros((count, *spectrum_shape), dtype=np.complex128)
@@ -171,15 +197,10 @@ class DisplacementEstimator:
 
     def _start_sums(self) -> None:
         self._summed = 0
+        self._independent = 0.0
         self._cross[...] = 0
         self._power[...] = 0
         self._energy[...] = 0
-
-    def _windowed(self, values: np.ndarray) -> np.ndarray:
-        trusted = np.isfinite(values)
-        if not trusted.any():
-            return np.zeros(self.shape)
-        return np.where(trusted, values - values[trusted].mean(), 0.0) * self._window
 
     def add(self, maps: Sequence[np.ndarray]) -> None:
         """Add one frame's maps (NaN where untrusted; not modified).
@@ -196,9 +217,13 @@ class DisplacementEstimator:
                 raise InputError(
                     f"map of shape {np.shape(values)}; the estimator holds {self.shape}"
                 )
-        windowed = [
-            self._windowed(np.asarray(m, np.float64)) for m in coregister(maps, self._current)
-        ]
+        moved = [np.asarray(m, np.float64) for m in coregister(maps, self._current)]
+        trusted = np.logical_and.reduce([np.isfinite(m) for m in moved])
+        weight = self._window * _edge_taper(trusted)
+        windowed = [_weighted(m, trusted, weight) for m in moved]
+        squared = weight**2
+        if squared.any():
+            self._independent += float(squared.sum() ** 2 / (squared**2).sum())
         spectra = [np.fft.rfft2(w) for w in windowed]
         ref = spectra[self.reference]
         for j, spectrum in enumerate(spectra):
@@ -262,7 +287,9 @@ class DisplacementEstimator:
         correlation = np.fft.irfft2(cross, s=self.shape)
         py, px = np.unravel_index(int(np.argmax(np.abs(correlation))), self.shape)
         peak = abs(float(correlation[py, px])) / np.sqrt(energy)
-        if peak < MIN_SIGNIFICANCE / np.sqrt(self._n_eff * self._summed / NOISE_AREA):
+        if not self._independent > 0:
+            return _UNMEASURED
+        if peak < MIN_SIGNIFICANCE / np.sqrt(self._independent / NOISE_AREA):
             return _UNMEASURED
         if correlation[py, px] < 0:
             cross = -cross
