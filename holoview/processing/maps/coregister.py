@@ -62,6 +62,9 @@ MIN_COHERENCE = 0.5
 #: Fewest coherent bins a fit needs.
 MIN_BINS = 8
 
+#: A measured residual moves the estimate when it is this many standard errors from zero.
+MIN_STEP_SIGMAS = 3.0
+
 #: Frames summed before the first update of the current estimate.
 UPDATE_EVERY = 10
 
@@ -112,6 +115,22 @@ _UNMEASURED = Displacement((0.0, 0.0), (float("inf"), float("inf")), False, 0)
 
 def _hann(n: int) -> np.ndarray:
     return np.hanning(n + 2)[1:-1]  # no zero at the ends: every pixel counts
+
+
+def _moves(residual: Displacement) -> bool:
+    """Whether a residual moves the estimate: measured, and :data:`MIN_STEP_SIGMAS` of its
+    standard errors from zero.
+
+    A residual within its errors of zero confirms the estimate. Added all the same, the
+    residuals of a surface whose structure spans the maps (a mode a box long: the
+    window's pull makes each one mostly noise) walked the estimate away from the truth,
+    update after update (module documentation).
+    """
+    if not residual.measured:
+        return False
+    with np.errstate(divide="ignore", invalid="ignore"):
+        sigmas = np.hypot(*(np.divide(residual.shift, residual.stderr)))
+    return bool(sigmas >= MIN_STEP_SIGMAS) or not np.isfinite(sigmas)
 
 
 def _edge_taper(trusted: np.ndarray) -> np.ndarray:
@@ -178,11 +197,13 @@ class DisplacementEstimator:
         self.update_every = int(update_every)
         self._window = np.outer(_hann(rows), _hann(cols))
         #: independent pixels the windows of the frames summed leave, for white noise
-        self._independent = 0.0
-        self._energy = np.zeros(count)
+        self._independent = np.zeros(count)
+        #: frames each pair of maps added since the last update (with pixels in common)
+        self._paired = np.zeros(count)
+        self._energy = np.zeros((count, 2))
         spectrum_shape = (rows, cols // 2 + 1)
         self._cross = np.zeros((count, *spectrum_shape), dtype=np.complex128)
-        self._power = np.zeros((count, *spectrum_shape), dtype=np.float64)
+        self._power = np.zeros((count, 2, *spectrum_shape), dtype=np.float64)
         self.reset()
 
     def reset(self) -> None:
@@ -197,7 +218,8 @@ class DisplacementEstimator:
 
     def _start_sums(self) -> None:
         self._summed = 0
-        self._independent = 0.0
+        self._independent[...] = 0
+        self._paired[...] = 0
         self._cross[...] = 0
         self._power[...] = 0
         self._energy[...] = 0
@@ -218,18 +240,10 @@ class DisplacementEstimator:
                     f"map of shape {np.shape(values)}; the estimator holds {self.shape}"
                 )
         moved = [np.asarray(m, np.float64) for m in coregister(maps, self._current)]
-        trusted = np.logical_and.reduce([np.isfinite(m) for m in moved])
-        weight = self._window * _edge_taper(trusted)
-        windowed = [_weighted(m, trusted, weight) for m in moved]
-        squared = weight**2
-        if squared.any():
-            self._independent += float(squared.sum() ** 2 / (squared**2).sum())
-        spectra = [np.fft.rfft2(w) for w in windowed]
-        ref = spectra[self.reference]
-        for j, spectrum in enumerate(spectra):
-            self._cross[j] += ref * np.conj(spectrum)
-            self._power[j] += (spectrum * np.conj(spectrum)).real
-            self._energy[j] += float(np.vdot(windowed[j], windowed[j]))
+        reference = moved[self.reference]
+        for j, values in enumerate(moved):
+            if j != self.reference:
+                self._add_pair(j, reference, values)
         self.frames += 1
         self._summed += 1
         self._answer = None
@@ -237,13 +251,36 @@ class DisplacementEstimator:
             self._update()
             self._interval = min(2 * self._interval, max(self.update_every, MAX_UPDATE_EVERY))
 
+    def _add_pair(self, j: int, reference: np.ndarray, values: np.ndarray) -> None:
+        """Add the cross-power of map ``j`` and the reference on the pixels both trust.
+
+        Both fall to zero by the same tapered window (:func:`_edge_taper`) at the pixels
+        either does not trust: the edges of their trusted pixels, which differ from peak
+        to peak (border widths, amplitude), are not taken for structure in common.
+        """
+        trusted = np.isfinite(reference) & np.isfinite(values)
+        weight = self._window * _edge_taper(trusted)
+        squared = weight**2
+        if not squared.any():
+            return
+        pair = (_weighted(reference, trusted, weight), _weighted(values, trusted, weight))
+        ref, spectrum = np.fft.rfft2(pair[0]), np.fft.rfft2(pair[1])
+        self._cross[j] += ref * np.conj(spectrum)
+        self._power[j, 0] += (ref * np.conj(ref)).real
+        self._power[j, 1] += (spectrum * np.conj(spectrum)).real
+        self._energy[j] += (float(np.vdot(pair[0], pair[0])), float(np.vdot(pair[1], pair[1])))
+        self._independent[j] += float(squared.sum() ** 2 / (squared**2).sum())
+        self._paired[j] += 1
+
     def _update(self) -> None:
-        """Add each measured residual to the current estimate; start the sums again."""
+        """Add each measured residual that stands out of its errors to the current
+        estimate (:func:`_moves`); start the sums again."""
         for j, residual in enumerate(self._residuals()):
             if residual.measured:
+                self._last[j] = residual
+            if _moves(residual):
                 dy, dx = self._current[j]
                 self._current[j] = (dy + residual.shift[0], dx + residual.shift[1])
-                self._last[j] = residual
         self._start_sums()
 
     def _residuals(self) -> list[Displacement]:
@@ -270,8 +307,9 @@ class DisplacementEstimator:
             dy, dx = self._current[j]
             last = self._last[j]
             if residual.measured:
-                dy, dx = dy + residual.shift[0], dx + residual.shift[1]
                 last = residual
+            if _moves(residual):
+                dy, dx = dy + residual.shift[0], dx + residual.shift[1]
             out.append(Displacement((dy, dx), last.stderr, last.measured, last.bins))
         self._answer = out
         return list(out)
@@ -279,7 +317,8 @@ class DisplacementEstimator:
     def _fit(self, j: int) -> Displacement:
         rows, cols = self.shape
         cross = self._cross[j]
-        energy = self._energy[self.reference] * self._energy[j]
+        energy = self._energy[j, 0] * self._energy[j, 1]
+        independent = float(self._independent[j])
         if not energy > 0:
             return _UNMEASURED
         # whole pixels: the cross-correlation peaks at -d (see the module documentation),
@@ -287,9 +326,9 @@ class DisplacementEstimator:
         correlation = np.fft.irfft2(cross, s=self.shape)
         py, px = np.unravel_index(int(np.argmax(np.abs(correlation))), self.shape)
         peak = abs(float(correlation[py, px])) / np.sqrt(energy)
-        if not self._independent > 0:
+        if not independent > 0:
             return _UNMEASURED
-        if peak < MIN_SIGNIFICANCE / np.sqrt(self._independent / NOISE_AREA):
+        if peak < MIN_SIGNIFICANCE / np.sqrt(independent / NOISE_AREA):
             return _UNMEASURED
         if correlation[py, px] < 0:
             cross = -cross
@@ -298,7 +337,7 @@ class DisplacementEstimator:
         kx = np.fft.rfftfreq(cols)[None, :]
         residual = cross * np.exp(-2j * np.pi * (ky * d0[0] + kx * d0[1]))
         with np.errstate(invalid="ignore", divide="ignore"):
-            coherence = np.abs(cross) / np.sqrt(self._power[self.reference] * self._power[j])
+            coherence = np.abs(cross) / np.sqrt(self._power[j, 0] * self._power[j, 1])
         use = coherence >= MIN_COHERENCE
         use[0, 0] = False
         n = int(np.count_nonzero(use))
@@ -323,7 +362,10 @@ class DisplacementEstimator:
         misfit = phase - design @ fine
         dof = max(n - 2, 1)
         scale = float(np.sum(weights * misfit**2) / dof)
-        stderr = np.sqrt(np.diag(covariance_unit) * scale)
+        # the window couples neighbouring bins: of the n bins fitted, about n times the
+        # window's independent pixels over all pixels are independent
+        coupled = rows * cols * float(self._paired[j]) / independent
+        stderr = np.sqrt(np.diag(covariance_unit) * scale * coupled)
         shift = (float(d0[0] + fine[0]), float(d0[1] + fine[1]))
         err = (float(stderr[0]), float(stderr[1]))
         measured = bool(np.all(np.isfinite(stderr)) and max(err) < MAX_STDERR)
