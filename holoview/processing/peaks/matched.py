@@ -11,7 +11,15 @@ term: :func:`~holoview.processing.fourier.windows.auto_radii`), as the demodulat
 them, and estimates each one's error from how it differs from the widest
 (:func:`map_errors`): the cut content is what remains of the difference once the noise
 the widest passes in addition is taken off. It keeps the radius of least error, then
-looks again around it. A change whose power stands above the noise is therefore
+looks again around it, there comparing every radius on the same pixels (those the
+narrowest of them trusts: otherwise each wider radius, trusted closer to the frame's
+edge, took in a band of the widest map's own edge error, and the estimate rose in steps
+with the radius). The noise is the quiet part of the spectrum's (:func:`_noise_floor`):
+a wavy surface spreads its change over much of the spectrum, and the median of every
+bin, taken for the noise, made the cut of a weak family's waves look smaller than its
+noise (FB2 of ``benchmarks/bench_wavy.py``). Each edge width searches from the
+smallest radius that passes the waves detection saw with its own edge
+(:func:`_waves_floor`). A change whose power stands above the noise is therefore
 passed: the window never cuts a wave field that the maps show above their noise. What
 a window cuts weighs :data:`CUT_WEIGHT` times its error: it is the same surface content
 missing from every peak's map, which the fused map does not average down as it does
@@ -351,7 +359,8 @@ def map_errors(
     does not: ``D_r = c_r^2 + n^2 sum (W_B - W_r)^2``; its error is ``c_r^2 + n^2 sum
     W_r^2``, ``n^2`` the phase noise per unit of window from the spectrum's noise floor;
     averaged over the frames. What the widest map cuts is not seen: windows of other
-    shapes are compared against one widest map, the one that cuts least.
+    shapes are compared against one widest map, the one that cuts least. With
+    ``same_pixels``, every radius on the pixels the smallest trusts.
     """
     rows, cols = spectrum.shape
     size = float(rows * cols)
@@ -484,7 +493,8 @@ def matched_window(
     Window
         Rule ``"matched"``: the radius of least :func:`map_errors` (what it cuts weighed
         :data:`CUT_WEIGHT` times) among :data:`CANDIDATES` radii spaced evenly in log
-        between :data:`MIN_RADIUS_BINS` bins and the bound, then as many around the best,
+        between :data:`MIN_RADIUS_BINS` bins (or the radius that passes the waves
+        detected, :func:`_waves_floor`) and the bound, then as many around the best,
         the widest within :data:`NEAR_BEST` of the least; for a Tukey window, with
         the edge of :data:`MATCHED_TAPERS` (or ``taper``) that gives the least; the
         bound (rule ``"bound"``, with the reason) where the spectra show no measurable
