@@ -21,6 +21,10 @@ run, and prints medians and extremes:
   before and after (and its vector extensions);
 - the targets of issue 17: the series takes every frame, display >= 25 Hz, map latency
   p95 < 100 ms, longest stall < 100 ms, no dropped frame;
+- with ``--waves LABEL`` (a labelled peak, or ``fused``): the Waves panel open on that
+  map; its worker's maps per second against the camera's, the stride (camera frames per
+  map), frames lost or overwritten before it read them, and whether every camera frame
+  gave a map (issue 24's live target) beside the issue-17 targets;
 - with ``--profile N``: where the GUI thread's time goes over the measured run (cProfile
   of the GUI thread, the N entries of largest cumulative time under pyqtgraph and
   holoview, in ms per displayed frame), and each image's render and paint time by shape.
@@ -132,6 +136,9 @@ def main() -> int:
     parser.add_argument(
         "--profile", type=int, default=0, metavar="N", help="print the GUI thread's N top costs"
     )
+    parser.add_argument(
+        "--waves", metavar="LABEL", help="open the Waves panel on this map (a label or fused)"
+    )
     args = parser.parse_args()
     app = application()
     app.setQuitOnLastWindowClosed(False)
@@ -210,6 +217,16 @@ def main() -> int:
         labels = args.label or window.suggested_labels()
         for name, fx, fy in labels:
             window.label_peak(name, fx, fy)
+        if args.waves:
+            window.show_waves()
+            for _ in range(40):  # the labelled maps are offered once the maps show them
+                run_for(0.5)
+                if window.waves.map_box.findText(args.waves) >= 0:
+                    break
+            window.waves.choose_map(args.waves)
+            if window.waves.map_box.currentText() != args.waves:
+                print(f"no map {args.waves} to open in the Waves panel", file=sys.stderr)
+                return 1
         run_for(args.warmup)
         draws.clear()
         views.clear()
@@ -220,6 +237,9 @@ def main() -> int:
         session = window.session
         cam0, seq0 = session.camera.frames, session.latest().seq
         series0 = session.series_worker.status()
+        waves_worker = session.waves_worker
+        if waves_worker is not None:
+            waves0 = (waves_worker.history.pushed, waves_worker.status(), waves_worker.stride)
         cpu0 = thread_cpu_seconds()
         t0 = time.monotonic()
         profiler = cProfile.Profile()  # the GUI thread only: cProfile hooks the calling thread
@@ -237,6 +257,21 @@ def main() -> int:
         missed = series1.dropped - series0.dropped
         labelled = sorted(session.latest().labelled)
         dropped = session.rates().dropped
+        waves_line, waves_ok = "", True
+        if waves_worker is not None:
+            pushed = waves_worker.history.pushed - waves0[0]
+            status = waves_worker.status()
+            lost = status.dropped - waves0[1].dropped
+            frames = session.camera.frames - cam0
+            stride = waves_worker.stride
+            waves_ok = stride == 1 and waves0[2] == 1 and lost == 0 and pushed >= frames - 2
+            latest = session.waves()
+            fit_s = f", analysis {latest.seconds * 1e3:.0f} ms" if latest is not None else ""
+            waves_line = (
+                f"waves       {pushed / elapsed:6.1f} maps/s of {args.waves} ({pushed} maps for "
+                f"{frames} camera frames; stride {waves0[2]} -> {stride}; {lost} frames "
+                f"overwritten before the waves worker read them{fit_s})"
+            )
         ticker.stop()
         window.close()
     stall = max(gaps) - 0.005 if gaps else float("nan")
@@ -290,6 +325,8 @@ def main() -> int:
         f"(series worker)"
     )
     print(f"longest event-loop stall {stall * 1e3:5.1f} ms; dropped frames {dropped}")
+    if waves_line:
+        print(waves_line)
     p95 = percentile(latencies, 0.95)
     checks = [
         ("series takes every frame", missed == 0 and series_fps >= 0.995 * camera_fps),
@@ -298,6 +335,8 @@ def main() -> int:
         ("longest stall < 100 ms", stall < 0.1),
         ("0 dropped", dropped == 0),
     ]
+    if waves_line:
+        checks.append(("waves map of every camera frame", waves_ok))
     print("targets: " + "; ".join(f"{name} {'met' if ok else 'MISSED'}" for name, ok in checks))
     if args.profile:
         print_profile(profiler, images, len(views), args.profile)

@@ -12,8 +12,10 @@ and the PNGs go to ``OUT/WIDTHxHEIGHT/``. States saved, one PNG each: ``1-start`
 profile), ``3-phase`` (the same maps as phase with the cyclic colour map),
 ``4-recording`` (a recording running, its indicator), ``5-trends`` (the depth series
 and rate), ``6-replay`` (that recording opened as File > Open does: its whole run, the
-frame shown as a cursor, a range fitted). ``--label`` names peaks instead of the
-source's suggestions.
+frame shown as a cursor, a range fitted), ``7-waves`` (the Waves panel on the first
+labelled peak's map, centred on the field; ``--source replay:PATH`` of a ``holoview
+simulate --scenario travelling`` recording shows waves). ``--label`` names peaks
+instead of the source's suggestions.
 """
 
 from __future__ import annotations
@@ -146,6 +148,19 @@ def main() -> int:
             window.close()
             return 1
         save("6-replay")
+        window.show_waves()
+        wait(app, 1.0)
+        labels = [window.waves.map_box.itemText(i) for i in range(window.waves.map_box.count())]
+        window.waves.choose_map(labels[0])
+        wait(app, args.settle * 3)
+        waves = window.session.waves()
+        if waves is not None and waves.latest is not None and waves.pixel_size is not None:
+            rows, cols = waves.latest.shape
+            window.waves.set_centre(
+                (cols // 2 * waves.pixel_size[1], rows // 2 * waves.pixel_size[0])
+            )
+            wait(app, args.settle)
+        save("7-waves")
         window.close()
     return 0
 

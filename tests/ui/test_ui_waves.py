@@ -1,0 +1,210 @@
+"""The Waves panel in the window: a full-speed replay of simulated travelling waves fills it
+from every frame, its fit is the truth's, a click on the field sets the centre; each bad input
+is one line in the panel."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+from PyQt6.QtCore import QPoint, QPointF, Qt
+
+from holoview.acquire.recording import RecordingReader
+from holoview.cli import main
+from holoview.engine.experiment import Experiment
+from holoview.live.wave_window import LiveWaves, WaveHistory, WaveSettings, analyse_window
+from holoview.ui.main_window import MainWindow
+from holoview.ui.waves_view import WavesView, rate_text
+
+pytestmark = [
+    pytest.mark.gui,
+    pytest.mark.qt_log_ignore(r"This plugin does not support (propagateSizeHints|raise)\(\)"),
+]
+
+#: Travelling waves on 1 mm of water with a flow, 300 frames of 256 x 256 at 250 frames/s
+#: (the bench and waves of tests/live/test_live_waves.py).
+SIMULATE = [
+    "--size",
+    "256",
+    "--pixel-pitch-um",
+    "160",
+    "--m-r-mrad",
+    "0.4",
+    "0.025",
+    "--m-b-mrad",
+    "0.025",
+    "0.3",
+    "--reflectivity",
+    "0.1",
+    "--depth-mm",
+    "1",
+    "--scenario",
+    "travelling",
+    "--frames",
+    "300",
+    "--fps",
+    "250",
+    "--seed",
+    "5",
+    "--wave-k",
+    "150",
+    "1500",
+    "--wave-components",
+    "120",
+    "--flow-mm-per-s",
+    "20",
+    "10",
+    "--wave-start-s",
+    "0.002",
+    "--wave-rise-s",
+    "0.01",
+    "--no-truth-maps",
+]
+
+
+@pytest.fixture(scope="module")
+def travelling(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    path = tmp_path_factory.mktemp("waves") / "travelling.h5"
+    assert main(["-q", "simulate", str(path), *SIMULATE]) == 0
+    return path
+
+
+def _window(qtbot, open_windows, tmp_path: Path, recording: Path) -> MainWindow:
+    with RecordingReader(recording) as reader:
+        experiment = Experiment.from_json(reader.experiments()[-1][1])
+    path = tmp_path / "experiment.json"
+    experiment.save(path)
+    window = MainWindow(
+        source=f"replay:{recording}",
+        experiment_path=path,
+        source_options={"loop": False, "speed": "fast"},
+    )
+    qtbot.addWidget(window)
+    open_windows.append(window)
+    window.show()
+    qtbot.waitUntil(lambda: not window.opening, timeout=20000)
+    return window
+
+
+def _click_field(qtbot, view: WavesView, x_m: float, y_m: float) -> None:
+    """Click the field view at map coordinates (m)."""
+    target = view.field.getViewBox().mapViewToScene(QPointF(x_m * 1e3, y_m * 1e3))  # mm
+    point = view.graphics.mapFromScene(target)
+    qtbot.mouseClick(view.graphics.viewport(), Qt.MouseButton.LeftButton, pos=QPoint(point))
+
+
+@pytest.mark.slow
+def test_a_full_speed_replay_fills_the_panel_and_fits_the_truth(
+    qtbot, open_windows, tmp_path, travelling
+) -> None:
+    window = _window(qtbot, open_windows, tmp_path, travelling)
+    qtbot.waitUntil(lambda: window.session is not None, timeout=20000)
+    assert not window.waves_shown  # a tab behind Trends: no worker
+    assert window.session is not None and window.session.waves_worker is None
+    window.show_waves()
+    qtbot.waitUntil(lambda: window.session.waves_worker is not None, timeout=5000)
+    assert window.waves_shown
+    view = window.waves
+    view.length_box.setCurrentIndex(view.length_box.findData(512))
+    qtbot.waitUntil(lambda: window.session.replay.state().held, timeout=60000)
+    qtbot.waitUntil(lambda: view.map_box.findText("RB1") >= 0, timeout=5000)  # offered
+    view.choose_map("RB1")
+    window.session.replay.play()  # from the first frame again: a new record, every frame
+
+    def filled() -> bool:
+        waves = window.session.waves()
+        return (
+            waves is not None
+            and waves.label == "RB1"
+            and waves.frames == 300
+            and waves.fit is not None
+        )
+
+    qtbot.waitUntil(filled, timeout=120000)
+    qtbot.waitUntil(lambda: view._waves is window.session.waves(), timeout=5000)
+    waves = window.session.waves()
+    assert waves.stride == 1 and waves.gaps == 0
+    assert window.session.waves_worker.status().dropped == 0
+    with h5py.File(travelling, "r") as f:
+        truth = dict(f["truth/waves"].attrs)
+    fit = waves.fit
+    assert fit.surface_tension == pytest.approx(truth["sigma_n_per_m"], rel=0.05)
+    assert fit.depth == pytest.approx(truth["depth_m"], rel=0.10)
+    text = view.fit_label.text()
+    assert text.startswith(f"σ = {fit.surface_tension * 1e3:.4g} ± ") and "d = " in text
+    assert "RB1: 300 maps at 250 maps/s; every camera frame; f up to 125 Hz" in (
+        view.rate_label.text()
+    )
+    assert view.omega_k_image.image is not None and view.fit_curve.getData()[0] is not None
+    assert not view.message_label.isVisibleTo(view)
+
+    _click_field(qtbot, view, 0.02, 0.02)  # the centre of the 41 mm field
+    qtbot.waitUntil(
+        lambda: (w := window.session.waves()) is not None and w.mf is not None, timeout=30000
+    )
+    centre = window.session.waves().centre
+    assert centre == pytest.approx((0.02, 0.02), abs=1e-3)
+    qtbot.waitUntil(lambda: view.mf.titleLabel.text.startswith("(m, f) around (20"), timeout=5000)
+
+    view.set_centre((0.2, 0.2))  # 20 cm: off the field
+    qtbot.waitUntil(lambda: "outside the maps" in view.message_label.text(), timeout=30000)
+    assert view.message_label.isVisibleTo(view) and "Traceback" not in view.message_label.text()
+    assert window.session.waves().fit is not None  # the rest goes on
+
+
+def _waves(maps: list[np.ndarray], pixel_size=(5e-4, 5e-4)) -> LiveWaves:
+    history = WaveHistory(len(maps))
+    history.label = "RB1"
+    history.pixel_size = pixel_size
+    for i, frame in enumerate(maps):
+        history.push(frame, i / 500.0, i)
+    window = history.snapshot()
+    assert window is not None
+    return analyse_window(window, WaveSettings(label="RB1", length=64, segment=32))
+
+
+@pytest.mark.parametrize(
+    ("case", "line"),
+    [
+        ("no pixel size", "no omega-k spectrum: the pixel size is not known"),
+        ("too few", "no omega-k spectrum yet: 20 maps without a gap, a segment needs 32"),
+        ("all NaN", "no omega-k spectrum: the RB1 maps are all NaN (untrusted)"),
+    ],
+)
+def test_each_bad_input_is_one_line_in_the_panel(qtbot, case: str, line: str) -> None:
+    view = WavesView()
+    qtbot.addWidget(view)
+    view.show()
+    rng = np.random.default_rng(0)
+    maps = [rng.normal(0, 1e-9, (32, 32)).astype(np.float32) for _ in range(40)]
+    if case == "no pixel size":
+        waves = _waves(maps, pixel_size=None)
+    elif case == "too few":
+        waves = _waves(maps[:20])
+    else:
+        waves = _waves([np.full((32, 32), np.nan, np.float32)] * 40)
+    view.set_waves(waves)
+    assert view.message_label.text().startswith(line) and "\n" not in view.message_label.text()
+    assert view.message_label.isVisibleTo(view)
+    assert view.fit_label.text() == "σ, d, U: no fit"  # no number without its error
+    assert view.omega_k_image.image is None
+
+
+def test_a_map_rate_below_the_camera_says_where_f_is_cut() -> None:
+    waves = LiveWaves(
+        seq=1,
+        label="fused",
+        frames=100,
+        rate=30.0,
+        camera_rate=60.0,
+        stride=2,
+        gaps=1,
+        latest=None,
+        pixel_size=None,
+    )
+    text = rate_text(waves)
+    assert "1 camera frame in 2 of 60 frames/s" in text
+    assert "f is cut at 15 Hz, half the map rate (not the camera's)" in text
+    assert "1 gap (lost frames) left open" in text
