@@ -137,6 +137,7 @@ class WavesWorker(RingWorker[LiveWaves]):
         self._core: FrameCore | None = None
         self._maps_step: MapStep | None = None
         self._radius: tuple[tuple[object, ...], float] | None = None
+        self._fused_labels: frozenset[str | None] | None = None
         self._coregistered_at = -math.inf
         self._continuity = Continuity()
         self._costs: collections.deque[float] = collections.deque(maxlen=16)  # s per map
@@ -308,6 +309,11 @@ class WavesWorker(RingWorker[LiveWaves]):
         """The chosen map of one frame (m), its pixel size (m) and cut-off (rad/m)."""
         label = self.settings.label
         chosen = _chosen(peaks, label)
+        if label == FUSED:  # the peaks fused stay while they are there: a family the model
+            held = self._fused_labels  # adds later would rebuild and restart the window
+            if held is None or not held <= {p.label for p in chosen}:
+                held = self._fused_labels = frozenset(p.label for p in chosen)
+            chosen = [p for p in chosen if p.label in held]
         experiment = replace(experiment, radius=self._window_radius(chosen, peaks, experiment))
         if self._core is None or self._maps_step is None:
             self._core = FrameCore(self.frame_shape, experiment, chosen, saturation=self.saturation)
@@ -350,7 +356,7 @@ class WavesWorker(RingWorker[LiveWaves]):
         """
         if isinstance(experiment.radius, (int, float)):
             return float(experiment.radius)
-        key = (self.settings.label, tuple(p.label for p in peaks))
+        key = (self.settings.label, tuple(p.label for p in chosen))
         if self._radius is None or self._radius[0] != key:
             carriers = np.array([p.carrier for p in peaks], dtype=np.float64)
             radii = peak_radii(self.frame_shape, carriers, None, np.zeros((0, 2)))

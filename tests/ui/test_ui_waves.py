@@ -146,7 +146,8 @@ def test_a_full_speed_replay_fills_the_panel_and_fits_the_truth(
     )
     centre = window.session.waves().centre
     assert centre == pytest.approx((0.02, 0.02), abs=1e-3)
-    qtbot.waitUntil(lambda: view.mf.titleLabel.text.startswith("(m, f) around (20"), timeout=5000)
+    title = f"(m, f) around ({centre[0] * 1e3:.3g}, {centre[1] * 1e3:.3g}) mm"
+    qtbot.waitUntil(lambda: view.mf.titleLabel.text == title, timeout=5000)
 
     view.set_centre((0.2, 0.2))  # 20 cm: off the field
     qtbot.waitUntil(lambda: "outside the maps" in view.message_label.text(), timeout=30000)
@@ -176,7 +177,6 @@ def _waves(maps: list[np.ndarray], pixel_size=(5e-4, 5e-4)) -> LiveWaves:
 def test_each_bad_input_is_one_line_in_the_panel(qtbot, case: str, line: str) -> None:
     view = WavesView()
     qtbot.addWidget(view)
-    view.show()
     rng = np.random.default_rng(0)
     maps = [rng.normal(0, 1e-9, (32, 32)).astype(np.float32) for _ in range(40)]
     if case == "no pixel size":
