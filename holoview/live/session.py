@@ -192,6 +192,7 @@ class LiveSession:
             self.waves_worker = WavesWorker(
                 self.ring, self.worker, shape, self._waves_settings, saturation=saturation
             )
+            self.waves_worker.paced = self._replay_paced
 
     # ---- life cycle --------------------------------------------------------
     def start(self) -> None:
@@ -399,6 +400,7 @@ class LiveSession:
             settings,
             saturation=self.saturation_value,
         )
+        self.waves_worker.paced = self._replay_paced
         if self.camera.started:  # else :meth:`start` starts it
             self.waves_worker.start()
 
@@ -417,10 +419,15 @@ class LiveSession:
         if worker is not None:
             worker.stop()
 
+    def _replay_paced(self) -> bool:
+        """True while the source is a replay played as fast as it reads (it waits for the
+        waves worker)."""
+        return self.replay is not None and self.replay.speed == FASTEST
+
     def _pace_replay(self, stop: threading.Event) -> None:
         """Before each frame: a replay played as fast as it reads waits for the waves worker."""
         worker = self.waves_worker
-        if worker is not None and self.replay is not None and self.replay.speed == FASTEST:
+        if worker is not None and self._replay_paced():
             worker.wait_for_room(stop)
 
     # ---- recording ---------------------------------------------------------

@@ -23,8 +23,13 @@ held, :meth:`WavesWorker._window_radius`), into a
 A second thread (``holoview-waves-fit``) analyses the history at most :data:`WAVES_HZ`
 times a second, and less often when an analysis takes more than :data:`FIT_SHARE` of
 the time (:func:`~holoview.live.wave_window.analyse_window`, the functions of
-``holoview waves``). Both threads run at a lower priority than the series and the
-window (:data:`~holoview.live.worker.YIELDING_NICENESS`).
+``holoview waves``). The map thread runs at the priority of the series and the window,
+which must keep up too (the panel's map of every frame is what it is opened for); the
+maps worker, whose rate is whatever is left, and the analyses run at a lower one
+(:data:`~holoview.live.worker.YIELDING_NICENESS`). A map costs one carrier window of
+one frame: the frame's row FFTs, the column FFTs under that window alone
+(:class:`~holoview.processing.fourier.half_spectrum.HalfSpectrum`) and one box's inverse
+FFT.
 """
 
 from __future__ import annotations
@@ -34,6 +39,7 @@ import logging
 import math
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import replace
 from typing import Any
 
@@ -54,13 +60,21 @@ from holoview.live.wave_window import (
     WaveSettings,
     analyse_window,
 )
-from holoview.live.worker import YIELDING_NICENESS, DemodWorker, RingWorker, yield_to_others
+from holoview.live.worker import DemodWorker, RingWorker, yield_to_others
 from holoview.processing.peaks.detection import Peak
 from holoview.processing.peaks.radii import peak_radii
 
 logger = logging.getLogger(__name__)
 
-__all__ = ["BACKLOG", "FIT_SHARE", "MAX_STRIDE", "TARGET_BUSY", "WAVES_HZ", "WavesWorker"]
+__all__ = [
+    "BACKLOG",
+    "FIT_SHARE",
+    "HOLD_BINS",
+    "MAX_STRIDE",
+    "TARGET_BUSY",
+    "WAVES_HZ",
+    "WavesWorker",
+]
 
 #: Highest rate of the analyses, Hz.
 WAVES_HZ = 1.0
@@ -74,6 +88,9 @@ MAX_STRIDE = 16
 TARGET_BUSY = 0.8
 #: Seconds a smaller stride must have sufficed before the stride halves.
 RELAX_S = 5.0
+#: FFT bins a chosen peak's detected carrier may move before its map is demodulated at
+#: the new carrier (a new demodulator: the window starts again).
+HOLD_BINS = 2.0
 #: Seconds between two frames added to the fused map's displacement estimate: every frame
 #: (at 0.5 s a full-speed replay's 300 frames gave the estimate a handful of frames, the
 #: fused maps moved between them, and sigma came out 14 % low in half the runs).
@@ -116,7 +133,7 @@ class WavesWorker(RingWorker[LiveWaves]):
         Raw value at which the camera saturates.
     """
 
-    niceness = YIELDING_NICENESS
+    niceness = 0  # must keep up (module docstring); its analyses yield
 
     def __init__(
         self,
@@ -138,11 +155,15 @@ class WavesWorker(RingWorker[LiveWaves]):
         self._maps_step: MapStep | None = None
         self._radius: tuple[tuple[object, ...], float] | None = None
         self._fused_labels: frozenset[str | None] | None = None
+        self._held_peaks: list[Peak] | None = None
         self._coregistered_at = -math.inf
         self._continuity = Continuity()
         self._costs: collections.deque[float] = collections.deque(maxlen=16)  # s per map
         self._relaxed_since: float | None = None
-        self._paced_at = -math.inf
+        #: True while the source waits for this worker (a replay played as fast as it
+        #: reads, :meth:`wait_for_room`): every frame is then kept, whatever a map costs,
+        #: also for the frames still in the ring once the replay has reached its end.
+        self.paced: Callable[[], bool] = lambda: False
         self._camera_times: collections.deque[float] = collections.deque(maxlen=65)
         self._problem: str | None = None
         self._room = threading.Condition()
@@ -194,7 +215,6 @@ class WavesWorker(RingWorker[LiveWaves]):
         A replay played as fast as it reads calls it before each frame; meanwhile the
         worker keeps every frame.
         """
-        self._paced_at = time.monotonic()
         with self._room:
             while not stop.is_set() and self.running and self.backlog() >= limit:
                 self._room.wait(0.1)
@@ -265,8 +285,8 @@ class WavesWorker(RingWorker[LiveWaves]):
 
     def _needed_stride(self) -> int:
         """The smallest power-of-two stride at which a map takes :data:`TARGET_BUSY` of the time
-        between two kept frames (1 while a replay waits for this worker)."""
-        if time.monotonic() - self._paced_at < 1.0:
+        between two kept frames (1 while the source waits for this worker, :attr:`paced`)."""
+        if self.paced():
             return 1
         rate = self.camera_rate()
         if len(self._costs) < 4 or rate <= 0:
@@ -314,6 +334,7 @@ class WavesWorker(RingWorker[LiveWaves]):
             if held is None or not held <= {p.label for p in chosen}:
                 held = self._fused_labels = frozenset(p.label for p in chosen)
             chosen = [p for p in chosen if p.label in held]
+        chosen = self._held(chosen)
         experiment = replace(experiment, radius=self._window_radius(chosen, peaks, experiment))
         if self._core is None or self._maps_step is None:
             self._core = FrameCore(self.frame_shape, experiment, chosen, saturation=self.saturation)
@@ -339,6 +360,30 @@ class WavesWorker(RingWorker[LiveWaves]):
         radius = demod.radius if demodulator is None else min(demodulator.radii)
         k_cut = math.inf if pitch is None else 2.0 * math.pi * radius / pitch
         return height, pixel_size, k_cut
+
+    def _held(self, chosen: list[Peak]) -> list[Peak]:
+        """The chosen peaks as first demodulated, while their labels and prefactors stay and
+        no carrier has moved by more than :data:`HOLD_BINS` FFT bins.
+
+        The maps worker snaps the carriers to each detection, which on a wavy surface
+        wanders by a bin; a demodulator rebuilt for that would restart the window. A
+        carrier held a bin off tilts every map by the same plane, which no step between
+        frames and no frequency but zero sees.
+        """
+        held = self._held_peaks
+        rows, cols = self.frame_shape
+        if (
+            held is not None
+            and [(p.label, p.alpha) for p in held] == [(p.label, p.alpha) for p in chosen]
+            and all(
+                abs(p.carrier[0] - q.carrier[0]) * cols <= HOLD_BINS
+                and abs(p.carrier[1] - q.carrier[1]) * rows <= HOLD_BINS
+                for p, q in zip(held, chosen, strict=True)
+            )
+        ):
+            return held
+        self._held_peaks = chosen
+        return chosen
 
     def _window_radius(
         self, chosen: list[Peak], peaks: tuple[Peak, ...], experiment: Experiment
