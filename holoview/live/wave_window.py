@@ -191,12 +191,14 @@ class WaveHistory:
         summed (a pixel untrusted once stays NaN until the run restarts).
         """
         if self._maps and self._maps[-1].shape != height_m.shape:
+            logger.info("waves: maps of another shape, %s; the window starts again", height_m.shape)
             self.clear()
         if self._ids and frame_id - self._ids[-1] > self.stride:
             self.lost += frame_id - self._ids[-1] - self.stride
             self._sum = None
-        if self._times and time_s <= self._times[-1]:
-            self.clear()  # the clock went back (a replay looped): a new record
+        if self._times and time_s <= self._times[-1]:  # a replay looped: a new record
+            logger.info("waves: the frames' clock went back; the window starts again")
+            self.clear()
         if relative:
             if self._sum is None or self._sum.shape != height_m.shape:
                 self._sum = np.zeros(height_m.shape, np.float32)

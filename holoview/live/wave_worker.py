@@ -272,6 +272,13 @@ class WavesWorker(RingWorker[LiveWaves]):
                     )
                 history.clear()
             if pixel_size != history.pixel_size or k_cut != history.k_cut:
+                if len(history):
+                    logger.info(
+                        "waves: the map's pixel size or cut-off changed (%s m, %.4g rad/m); "
+                        "the window starts again",
+                        pixel_size,
+                        k_cut,
+                    )
                 history.clear()
                 history.pixel_size, history.k_cut = pixel_size, k_cut
             history.push(height, t, meta.frame_id, relative=self._core_reference() == "relative")

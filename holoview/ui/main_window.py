@@ -606,8 +606,10 @@ class MainWindow(WavesActions, FileOpening, ExperimentActions, WindowExports, QM
         self.save_layout()
 
     def closeEvent(self, event: QCloseEvent | None) -> None:
-        """Stop every thread and timer, remember the layout, then close."""
+        """Stop every thread and timer, remember the layout, take the Waves plots down
+        (:meth:`~holoview.ui.waves_view.WavesView.release`), then close."""
         self.shut_down()
+        self.waves.release()
         super().closeEvent(event)
 
 

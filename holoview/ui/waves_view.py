@@ -21,6 +21,7 @@ import math
 import numpy as np
 import pyqtgraph as pg
 from PyQt6.QtCore import QPointF, QRectF, Qt, pyqtSignal
+from PyQt6.QtGui import QCloseEvent
 from PyQt6.QtWidgets import (
     QCheckBox,
     QComboBox,
@@ -238,6 +239,33 @@ class WavesView(QWidget):
         for col in (1, 2):
             self.graphics.ci.layout.setColumnStretchFactor(col, 1)
 
+    # ---- life cycle ----------------------------------------------------------
+    @property
+    def released(self) -> bool:
+        """True once :meth:`release` has run (the plots are gone)."""
+        return bool(self.graphics.closed)
+
+    def release(self) -> None:
+        """Take the plots down before the view is deleted; calling it again does nothing.
+
+        A pyqtgraph view deleted with a paint or a range update pending can reach an
+        axis whose C++ side is already gone ("AxisItem has been deleted"), which crashed
+        the process once. So the clicks are disconnected, the items dropped and the scene
+        emptied and detached from its viewport here (:meth:`pyqtgraph.GraphicsView.close`),
+        while every item is still alive; the Qt deletion that follows has nothing to paint.
+        """
+        if self.released:
+            return
+        self.graphics.scene().sigMouseClicked.disconnect(self._clicked)
+        self._waves = None
+        self.graphics.clear()
+        self.graphics.close()
+
+    def closeEvent(self, event: QCloseEvent | None) -> None:
+        """Closed as a window of its own (a test, a script): release the plots first."""
+        self.release()
+        super().closeEvent(event)
+
     # ---- settings ----------------------------------------------------------
     def settings(self) -> WaveSettings:
         """The settings the controls and the centre say."""
@@ -276,10 +304,9 @@ class WavesView(QWidget):
     def set_centre(self, centre: tuple[float, float] | None) -> None:
         """Centre the (m, f) view at ``(x, y)`` m (None: no (m, f) view)."""
         self._centre = centre
-        if centre is None:
-            self.centre_mark.setData([], [])
-        else:
-            self.centre_mark.setData([centre[0] * 1e3], [centre[1] * 1e3])
+        if not self.released:
+            x, y = ([], []) if centre is None else ([centre[0] * 1e3], [centre[1] * 1e3])
+            self.centre_mark.setData(x, y)
         self._emit()
 
     def _clicked(self, event: object) -> None:
@@ -291,7 +318,9 @@ class WavesView(QWidget):
 
     # ---- drawing -------------------------------------------------------------
     def set_waves(self, waves: LiveWaves) -> None:
-        """Draw an analysis: spectra, fit, rates and problems."""
+        """Draw an analysis: spectra, fit, rates and problems (nothing once released)."""
+        if self.released:
+            return
         self._waves = waves
         self.message_label.setText("\n".join(waves.problems))
         self.message_label.setVisible(bool(waves.problems))
@@ -302,6 +331,8 @@ class WavesView(QWidget):
         self._redraw()
 
     def _redraw(self) -> None:
+        if self.released:
+            return
         waves = self._waves
         spectrum = None if waves is None else waves.spectrum
         if waves is None or spectrum is None:

@@ -66,13 +66,14 @@ def assert_close_to_truth(fit, truth: dict, errors: float = 3.0) -> None:
 
 def every_frame_analysed(session: LiveSession, frames: int) -> LiveWaves:
     """Wait until the waves worker has made a map of each of ``frames`` frames and an
-    analysis has been made since the last; return that analysis."""
+    analysis begun after the last has come (the one under way then may hold an older
+    window: analyses are numbered as they begin); return that analysis."""
     worker = session.waves_worker
     assert worker is not None
     wait_for(lambda: worker.history.pushed >= frames)
     done = worker.latest()
-    seq = -1 if done is None else done.seq
-    wait_for(lambda: (w := session.waves()) is not None and w.seq > seq)
+    seq = 0 if done is None else done.seq
+    wait_for(lambda: (w := session.waves()) is not None and w.seq >= seq + 2)
     waves = session.waves()
     assert waves is not None
     return waves
