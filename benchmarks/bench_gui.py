@@ -270,7 +270,9 @@ def main() -> int:
             waves_line = (
                 f"waves       {pushed / elapsed:6.1f} maps/s of {args.waves} ({pushed} maps for "
                 f"{frames} camera frames; stride {waves0[2]} -> {stride}; {lost} frames "
-                f"overwritten before the waves worker read them{fit_s})"
+                f"overwritten before the waves worker read them{fit_s}; a map takes "
+                f"{waves_worker.map_seconds() * 1e3:.1f} ms, a camera frame comes every "
+                f"{1e3 / camera_fps:.1f} ms)"
             )
         ticker.stop()
         window.close()

@@ -266,6 +266,9 @@ class LiveWaves:
         One line per analysis that could not be made (the spectrum's first).
     seconds : float
         Time the analysis took, s.
+    map_seconds : float
+        Time one map takes the waves worker (median of the last 16), s; 0 before it is
+        known. Beside the camera's frame interval it says why ``stride`` is what it is.
     """
 
     seq: int
@@ -283,6 +286,7 @@ class LiveWaves:
     centre: tuple[float, float] | None = None
     problems: tuple[str, ...] = ()
     seconds: float = 0.0
+    map_seconds: float = 0.0
 
     @property
     def nyquist(self) -> float:

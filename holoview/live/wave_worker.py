@@ -13,7 +13,8 @@ held, :meth:`WavesWorker._window_radius`), into a
   interval (``stride`` 1); else every second frame (``frame_id`` even), every fourth,
   ...: the maps stay evenly spaced at ``camera rate / stride`` and the panel says that
   the frequency axis ends at half that rate. Once a smaller stride has sufficed for
-  :data:`RELAX_S` seconds the stride halves.
+  :data:`RELAX_S` seconds the stride becomes the largest that was needed meanwhile (one
+  step: each change of stride starts the window again).
 - a replay played as fast as it reads waits for it (:meth:`WavesWorker.wait_for_room`),
   so a replay at full speed fills the panel from every frame;
 - frames lost before it read them are gaps in the history (by the frame times),
@@ -86,7 +87,9 @@ BACKLOG = 24
 MAX_STRIDE = 16
 #: Most of the time between two kept frames a map may take (median of the last 16).
 TARGET_BUSY = 0.8
-#: Seconds a smaller stride must have sufficed before the stride halves.
+#: Maps timed (since the demodulator was built) before the stride follows their cost.
+MIN_COSTS = 8
+#: Seconds a smaller stride must have sufficed before the stride is lowered to it.
 RELAX_S = 5.0
 #: FFT bins a chosen peak's detected carrier may move before its map is demodulated at
 #: the new carrier (a new demodulator: the window starts again).
@@ -160,6 +163,7 @@ class WavesWorker(RingWorker[LiveWaves]):
         self._continuity = Continuity()
         self._costs: collections.deque[float] = collections.deque(maxlen=16)  # s per map
         self._relaxed_since: float | None = None
+        self._relax_to = 1
         #: True while the source waits for this worker (a replay played as fast as it
         #: reads, :meth:`wait_for_room`): every frame is then kept, whatever a map costs,
         #: also for the frames still in the ring once the replay has reached its end.
@@ -204,6 +208,11 @@ class WavesWorker(RingWorker[LiveWaves]):
         steps = np.diff(times)
         steps = steps[steps > 0]
         return 1.0 / float(np.median(steps)) if steps.size else 0.0
+
+    def map_seconds(self) -> float:
+        """Time one map takes, s (median of the last 16; 0 before any)."""
+        costs = list(self._costs)
+        return float(np.median(costs)) if costs else 0.0
 
     def backlog(self) -> int:
         """Frames waiting in the ring for this worker."""
@@ -282,7 +291,9 @@ class WavesWorker(RingWorker[LiveWaves]):
                 history.clear()
                 history.pixel_size, history.k_cut = pixel_size, k_cut
             history.push(height, t, meta.frame_id, relative=self._core_reference() == "relative")
-        if not built:  # a new demodulator's first frame plans its FFTs: not a map's cost
+        if built:  # a new demodulator's first frame plans its FFTs: not a map's cost
+            self._costs.clear()
+        else:
             self._costs.append(time.perf_counter() - tick)
         self._publish(None)
 
@@ -296,9 +307,9 @@ class WavesWorker(RingWorker[LiveWaves]):
         if self.paced():
             return 1
         rate = self.camera_rate()
-        if len(self._costs) < 4 or rate <= 0:
+        if len(self._costs) < MIN_COSTS or rate <= 0:
             return self.stride
-        per_map = float(np.median(self._costs))
+        per_map = self.map_seconds()
         needed = 1
         while needed < MAX_STRIDE and per_map * rate / needed > TARGET_BUSY:
             needed *= 2
@@ -315,9 +326,10 @@ class WavesWorker(RingWorker[LiveWaves]):
             self._relaxed_since = None
         elif needed < stride:
             if self._relaxed_since is None:
-                self._relaxed_since = now
-            elif now - self._relaxed_since >= RELAX_S:
-                stride //= 2
+                self._relaxed_since, self._relax_to = now, needed
+            self._relax_to = max(self._relax_to, needed)
+            if now - self._relaxed_since >= RELAX_S:  # straight to the largest needed since
+                stride = self._relax_to
                 self._relaxed_since = None
         else:
             self._relaxed_since = None
@@ -472,8 +484,9 @@ class WavesWorker(RingWorker[LiveWaves]):
                 latest=None,
                 pixel_size=None,
                 problems=(why,),
+                map_seconds=self.map_seconds(),
             )
         result = analyse_window(window, settings, seq=self._seq, camera_rate=camera)
         if problem is not None:
             result = replace(result, problems=(problem, *result.problems))
-        return result
+        return replace(result, map_seconds=self.map_seconds())

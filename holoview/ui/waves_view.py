@@ -96,10 +96,16 @@ def rate_text(waves: LiveWaves) -> str:
         )
     else:
         camera = f"{waves.camera_rate:.4g} frames/s" if waves.camera_rate > 0 else "frames"
+        cost = ""
+        if waves.map_seconds > 0 and waves.camera_rate > 0:
+            cost = (
+                f" (a map takes {waves.map_seconds * 1e3:.3g} ms, a frame comes every "
+                f"{1e3 / waves.camera_rate:.3g} ms)"
+            )
         parts.append(
             f"1 camera frame in {waves.stride} of {camera}: this machine cannot demodulate "
-            f"this map at the camera's rate, so f is cut at {waves.nyquist:.4g} Hz, half the "
-            "map rate (not the camera's)"
+            f"this map at the camera's rate{cost}, so f is cut at {waves.nyquist:.4g} Hz, "
+            "half the map rate (not the camera's)"
         )
     if waves.gaps:
         gaps = "1 gap" if waves.gaps == 1 else f"{waves.gaps} gaps"

@@ -168,9 +168,11 @@ def test_a_map_rate_below_the_camera_says_where_f_is_cut() -> None:
         gaps=1,
         latest=None,
         pixel_size=None,
+        map_seconds=0.025,
     )
     text = rate_text(waves)
     assert "1 camera frame in 2 of 60 frames/s" in text
+    assert "(a map takes 25 ms, a frame comes every 16.7 ms)" in text
     assert "f is cut at 15 Hz, half the map rate (not the camera's)" in text
     assert "1 gap (lost frames) left open" in text
 
