@@ -31,6 +31,7 @@ from pathlib import Path
 
 from PyQt6.QtWidgets import QApplication
 
+from holoview.live.replay_control import FASTEST
 from holoview.live.session import RecordRequest
 from holoview.ui.app import application
 from holoview.ui.main_window import MainWindow
@@ -151,8 +152,14 @@ def main() -> int:
         window.show_waves()
         wait(app, 1.0)
         labels = [window.waves.map_box.itemText(i) for i in range(window.waves.map_box.count())]
-        window.waves.choose_map(labels[0])
-        wait(app, args.settle * 3)
+        window.waves.choose_map("RB1" if "RB1" in labels else labels[0])
+        window.waves.length_box.setCurrentIndex(window.waves.length_box.findData(128))
+        replay_control = window.session.replay
+        if replay_control is not None:  # played as fast as it reads: a map of every frame
+            replay_control.set_loop(True)
+            replay_control.set_speed(FASTEST)
+            replay_control.play()
+        until(app, lambda: (w := window.session.waves()) is not None and w.fit is not None, 60)
         waves = window.session.waves()
         if waves is not None and waves.latest is not None and waves.pixel_size is not None:
             rows, cols = waves.latest.shape

@@ -44,6 +44,10 @@ LENGTHS = (128, 256, 512, 1024)
 CURVE_POINTS = 400
 #: The parameters the fit can hold, and their names on the check boxes.
 HOLDS = (("sigma", "σ"), ("depth", "d"), ("flow", "U"))
+#: The plots' titles' size (small: they share a dock with the Trends).
+TITLE_SIZE = "9pt"
+#: The (m, f) plot's title without a centre.
+NO_CENTRE = "(m, f): click the map for a centre"
 #: What the panel says before its first analysis.
 WAITING = "waiting for the first maps (label a peak in the Spectrum)"
 
@@ -62,13 +66,22 @@ def _log_image(power: np.ndarray) -> tuple[np.ndarray, tuple[float, float]]:
     return image, (low, high if high > low else low + 1.0)
 
 
+def with_error(value: float, error: float) -> str:
+    """``value ± error`` with the error to two significant digits and the value to the same
+    decimal place (``76.76, 3.4`` -> ``76.8 ± 3.4``)."""
+    if not (math.isfinite(error) and error > 0):
+        return f"{value:.4g} ± {error:.2g}"
+    decimals = max(0, 1 - math.floor(math.log10(error)))
+    return f"{value:.{decimals}f} ± {error:.{decimals}f}"
+
+
 def _fit_text(fit: DispersionFit) -> str:
     """sigma, d and U with their standard errors (or 'held'), in mN/m, mm, mm/s."""
 
     def value(number: float, error: float, scale: float, unit: str, held: bool) -> str:
         if held:
             return f"{number * scale:.4g} {unit} (held)"
-        return f"{number * scale:.4g} ± {error * scale:.2g} {unit}"
+        return f"{with_error(number * scale, error * scale)} {unit}"
 
     held = set(fit.held)
     sigma = value(fit.surface_tension, fit.surface_tension_stderr, 1e3, "mN/m", "sigma" in held)
@@ -76,10 +89,8 @@ def _fit_text(fit: DispersionFit) -> str:
     if "flow" in held:
         flow = f"({fit.flow[0] * 1e3:.3g}, {fit.flow[1] * 1e3:.3g}) mm/s (held)"
     else:
-        flow = (
-            f"({fit.flow[0] * 1e3:.3g} ± {fit.flow_stderr[0] * 1e3:.2g}, "
-            f"{fit.flow[1] * 1e3:.3g} ± {fit.flow_stderr[1] * 1e3:.2g}) mm/s"
-        )
+        ux, uy = (with_error(fit.flow[i] * 1e3, fit.flow_stderr[i] * 1e3) for i in (0, 1))
+        flow = f"({ux}, {uy}) mm/s"
     return f"σ = {sigma}   d = {depth}   U = {flow}"
 
 
@@ -135,6 +146,7 @@ class WavesView(QWidget):
         super().__init__(parent)
         self._centre: tuple[float, float] | None = None
         self._waves: LiveWaves | None = None
+        self._field_rect = QRectF()
         self.map_box = QComboBox()
         self.map_box.addItem(FUSED)
         self.map_box.setToolTip("the map whose waves are analysed")
@@ -181,6 +193,7 @@ class WavesView(QWidget):
         self.message_label.setWordWrap(True)
         self.message_label.setStyleSheet("color: #b02a37;")
         self.graphics = pg.GraphicsLayoutWidget()
+        self.graphics.setMinimumHeight(180)  # below that the axes' texts overlap
         self._make_plots()
         layout = QVBoxLayout(self)
         layout.setContentsMargins(2, 2, 2, 2)
@@ -200,8 +213,10 @@ class WavesView(QWidget):
         self.graphics.scene().sigMouseClicked.connect(self._clicked)
 
     def _make_plots(self) -> None:
-        self.omega_k = self.graphics.addPlot(row=0, col=0)
-        self.omega_k.setLabel("bottom", "wavenumber along the cut q (rad/m)")
+        # the spectrum on the left, the map and (m, f) stacked on its right: three in a row
+        # widened a window of 1366 pixels past the screen and cut the third off
+        self.omega_k = self.graphics.addPlot(row=0, col=0, rowspan=2)
+        self.omega_k.setLabel("bottom", "q along the cut (rad/m)")
         self.omega_k.setLabel("left", "f (Hz)")
         self.omega_k_image = pg.ImageItem(axisOrder="row-major")
         self.omega_k_image.setColorMap(pg.colormap.get("inferno"))
@@ -220,7 +235,7 @@ class WavesView(QWidget):
         self.field = self.graphics.addPlot(row=0, col=1)
         self.field.setLabel("bottom", "x (mm)")
         self.field.setLabel("left", "y (mm)")
-        self.field.setTitle("newest map (click: centre)")
+        self.field.setTitle("newest map · click: centre", size=TITLE_SIZE)
         self.field.invertY(True)
         self.field.setAspectLocked(True)
         self.field_image = pg.ImageItem(axisOrder="row-major")
@@ -230,20 +245,18 @@ class WavesView(QWidget):
             size=14, symbol="+", pen=pg.mkPen("r", width=2), brush=None
         )
         self.field.addItem(self.centre_mark)
-        self.mf = self.graphics.addPlot(row=0, col=2)
+        self.mf = self.graphics.addPlot(row=1, col=1)
         self.mf.setLabel("bottom", "f (Hz)")
         self.mf.setLabel("left", "m")
-        self.mf.setTitle("(m, f): no centre")
+        self.mf.setTitle(NO_CENTRE, size=TITLE_SIZE)
         self.mf_image = pg.ImageItem(axisOrder="row-major")
         self.mf_image.setColorMap(pg.colormap.get("inferno"))
         self.mf.addItem(self.mf_image)
         for plot in (self.omega_k, self.field, self.mf):
             for side in ("bottom", "left"):
                 plot.getAxis(side).enableAutoSIPrefix(False)
-        # one row: the panel shares a short dock with Trends; the spectrum gets half
-        self.graphics.ci.layout.setColumnStretchFactor(0, 2)
-        for col in (1, 2):
-            self.graphics.ci.layout.setColumnStretchFactor(col, 1)
+        self.graphics.ci.layout.setColumnStretchFactor(0, 3)
+        self.graphics.ci.layout.setColumnStretchFactor(1, 2)
 
     # ---- life cycle ----------------------------------------------------------
     @property
@@ -383,7 +396,8 @@ class WavesView(QWidget):
             self.fit_curve.setData([], [])
             self.nominal_curve.setData(grid, curve(nominal))
         self.omega_k.setTitle(
-            f"omega-k of {waves.label} along {self.direction.value()}° (+q: along the cut)"
+            f"log power of {waves.label}, cut at {self.direction.value()}° (+q along it)",
+            size=TITLE_SIZE,
         )
 
     def _draw_field(self, waves: LiveWaves) -> None:
@@ -400,15 +414,17 @@ class WavesView(QWidget):
         self.field_image.setImage(np.nan_to_num(data, nan=low), levels=(low, max(high, low + 1e-3)))
         rows, cols = data.shape
         dy, dx = (1e-3, 1e-3) if size is None else size  # pixels when the size is not known
-        self.field_image.setRect(
-            QRectF(-dx / 2 * 1e3, -dy / 2 * 1e3, cols * dx * 1e3, rows * dy * 1e3)
-        )
+        rect = QRectF(-dx / 2 * 1e3, -dy / 2 * 1e3, cols * dx * 1e3, rows * dy * 1e3)
+        self.field_image.setRect(rect)
+        if rect != self._field_rect:  # a new field (first map, pixel size known): show it whole
+            self._field_rect = rect
+            self.field.getViewBox().autoRange(items=[self.field_image], padding=0.02)
 
     def _draw_mf(self, waves: LiveWaves) -> None:
         mf = waves.mf
         if mf is None:
             self.mf_image.clear()
-            self.mf.setTitle("(m, f): no centre")
+            self.mf.setTitle(NO_CENTRE, size=TITLE_SIZE)
             return
         image, levels = _log_image(mf.power)
         self.mf_image.setImage(image, levels=levels)
@@ -416,4 +432,4 @@ class WavesView(QWidget):
         m0 = float(mf.m[0])
         self.mf_image.setRect(QRectF(-df / 2, m0 - 0.5, df * mf.frequency.size, float(mf.m.size)))
         x, y = waves.centre or (math.nan, math.nan)
-        self.mf.setTitle(f"(m, f) around ({x * 1e3:.3g}, {y * 1e3:.3g}) mm")
+        self.mf.setTitle(f"(m, f) around ({x * 1e3:.3g}, {y * 1e3:.3g}) mm", size=TITLE_SIZE)

@@ -25,6 +25,10 @@ if TYPE_CHECKING:
     from holoview.live.session import LiveSession
 
 
+#: Share of the window's height the Waves dock is given when it is raised.
+WAVES_HEIGHT = 0.6
+
+
 class WavesActions:
     """The Waves part of the main window (mixed into it)."""
 
@@ -56,6 +60,14 @@ class WavesActions:
         self._place_waves()
         QTimer.singleShot(0, self.docks["Waves"].raise_)  # after the placing's own raise
 
+    def _waves_height(self) -> None:
+        """Give the shown Waves dock :data:`WAVES_HEIGHT` of the window's height at least
+        (its spectra are unreadable in a strip)."""
+        dock = self.docks["Waves"]
+        wanted = int(WAVES_HEIGHT * self.height())  # type: ignore[attr-defined]
+        if not dock.isFloating() and dock.height() < wanted:
+            self.resizeDocks([dock], [wanted], Qt.Orientation.Vertical)  # type: ignore[attr-defined]
+
     def showEvent(self, event: QShowEvent | None) -> None:
         """Once shown, put the Waves dock in the Trends dock's tabs (not raised)."""
         super().showEvent(event)  # type: ignore[misc]
@@ -86,6 +98,8 @@ class WavesActions:
     def _waves_visibility(self, visible: bool) -> None:
         self._waves_shown = visible
         self._waves_session()
+        if visible:  # its tab clicked, or raised: room for the spectra
+            QTimer.singleShot(0, self._waves_height)
 
     def _waves_session(self) -> None:
         """Run the waves worker while the dock is shown and a session runs."""

@@ -15,7 +15,7 @@ from holoview.acquire.recording import RecordingReader
 from holoview.engine.experiment import Experiment
 from holoview.live.wave_window import LiveWaves, WaveHistory, WaveSettings, analyse_window
 from holoview.ui.main_window import MainWindow
-from holoview.ui.waves_view import WavesView, rate_text
+from holoview.ui.waves_view import WavesView, rate_text, with_error
 
 pytestmark = [
     pytest.mark.gui,
@@ -99,8 +99,9 @@ def test_a_full_speed_replay_fills_the_panel_and_fits_the_truth(
     assert abs(fit.depth - depth) < max(0.10 * depth, 3 * fit.depth_stderr)
     qtbot.waitUntil(lambda: view._waves is session.waves(), timeout=10000)  # drawn
     text = view.fit_label.text()
-    assert text.startswith(f"σ = {view._waves.fit.surface_tension * 1e3:.4g} ± ")
-    assert "d = " in text
+    shown = view._waves.fit
+    sigma = with_error(shown.surface_tension * 1e3, shown.surface_tension_stderr * 1e3)
+    assert text.startswith(f"σ = {sigma} mN/m") and "d = " in text
     assert "RB1: 128 maps at 250 maps/s; every camera frame; f up to 125 Hz" in (
         view.rate_label.text()
     )
@@ -211,3 +212,10 @@ def test_closing_the_window_stops_the_waves_worker_then_releases_the_panel(
     window.close()
     assert not worker.running and window.session is None and not window.timer.isActive()
     assert window.waves.released
+
+
+def test_a_value_is_shown_to_the_decimal_place_of_its_error() -> None:
+    assert with_error(76.76, 3.4) == "76.8 ± 3.4"
+    assert with_error(0.8964, 0.076) == "0.896 ± 0.076"
+    assert with_error(1234.5, 120.0) == "1234 ± 120"
+    assert with_error(20.0, 0.0) == "20 ± 0"
