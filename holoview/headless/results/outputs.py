@@ -68,8 +68,12 @@ FORMAT_VERSION = "1.0"
 #: when the disk fills (its index, a few kilobytes).
 CLOSE_RESERVE_BYTES = 1 << 20
 
-#: Frames of maps gathered before one write per dataset (fewer, larger HDF5 writes).
+#: Frames of maps gathered before one write per dataset (fewer, larger HDF5 writes) ...
 MAP_BATCH = 16
+
+#: ... while their buffers stay under this many bytes (maps on the frame's grid, 1024 x
+#: 1024 with six peaks, are written frame by frame).
+MAP_BATCH_BYTES = 32 << 20
 
 #: What each reference mode means, for the map attributes.
 REFERENCE_DESCRIPTIONS = {
@@ -198,7 +202,8 @@ def summary_document(
     creation time);
     ``parameters`` (``wavelength_m``, ``pixel_pitch_m``, ``n1``, ``n2`` and where each
     came from, ``fps_hz`` (mean), ``reference``, ``window``, ``radius`` (``"matched"``,
-    ``"bound"`` or the number given, cycles/pixel), ``unwrap``, ``maps``, ``area_m2``,
+    ``"bound"`` or the number given, cycles/pixel), ``unwrap``, ``maps``, ``maps_grid``,
+    ``area_m2``,
     ``peaks_from``); ``peaks`` (per label: ``window``, the one it was demodulated
     with: ``radius_cpp``, ``kind``, ``taper``, ``rule``, ``bound_cpp``,
     ``content_cpp`` and ``reason``;
@@ -260,6 +265,7 @@ def summary_document(
             "radius": radius_setting(settings.radius),
             "unwrap": settings.unwrap,
             "maps": settings.maps,
+            "maps_grid": settings.maps_grid,
             "area_m2": settings.area_m2,
             "peaks_from": selection_mode,
         },
@@ -354,20 +360,23 @@ class ResultsFile:
                     self._map_dataset(group, f"_peak{j}", n_frames, box_shape)
                     for j in range(len(self._labels))
                 ]
-        # maps of MAP_BATCH frames, written together: one buffer per dataset
+        # maps of a batch of frames, written together: one buffer per dataset (and the
+        # fused map's, which may come)
+        frame_bytes = 4 * box_shape[0] * box_shape[1] * (len(self._labels) + 1)
+        self._batch = max(1, min(MAP_BATCH, MAP_BATCH_BYTES // frame_bytes))
         self._block = -1
         self._n_frames, self._box_shape = n_frames, box_shape
-        self._buffers = [np.empty((MAP_BATCH, *box_shape), np.float32) for _ in self._maps]
+        self._buffers = [np.empty((self._batch, *box_shape), np.float32) for _ in self._maps]
 
     def _buffer(self, position: int) -> int:
         """Make the buffers hold ``position``'s block (writing the previous); return its row."""
-        block = position // MAP_BATCH
+        block = position // self._batch
         if block != self._block:
             self._flush()
             self._block = block
             for buffer in self._buffers:
                 buffer.fill(np.nan)
-        return position - block * MAP_BATCH
+        return position - block * self._batch
 
     def _flush(self) -> None:
         if self._block < 0:
@@ -376,8 +385,8 @@ class ResultsFile:
         self._ensure_room(sum(buffer.nbytes for buffer in self._buffers))
         with self._guard():
             for dataset, buffer in zip(self._maps, self._buffers, strict=True):
-                start = block * MAP_BATCH
-                stop = min(start + MAP_BATCH, dataset.shape[0])
+                start = block * self._batch
+                stop = min(start + self._batch, dataset.shape[0])
                 dataset[start:stop] = buffer[: stop - start]
 
     @staticmethod
@@ -407,7 +416,7 @@ class ResultsFile:
                 self._maps.append(
                     self._map_dataset(self._file["maps"], "fused", self._n_frames, self._box_shape)
                 )
-            self._buffers.append(np.full((MAP_BATCH, *self._box_shape), np.nan, np.float32))
+            self._buffers.append(np.full((self._batch, *self._box_shape), np.nan, np.float32))
         row = self._buffer(position)
         for buffer, values in zip(self._buffers, maps, strict=False):
             buffer[row] = values
@@ -512,6 +521,7 @@ class ResultsFile:
                 else f"each frame against the background hologram {settings.background}"
             ),
             "frame_shape_px": list(frame_shape),
+            "grid": settings.maps_grid,
             "pixel_step_px": list(step),
             "window": settings.window,
             "untrusted": "NaN",
