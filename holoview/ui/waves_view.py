@@ -193,7 +193,6 @@ class WavesView(QWidget):
         self.message_label.setWordWrap(True)
         self.message_label.setStyleSheet("color: #b02a37;")
         self.graphics = pg.GraphicsLayoutWidget()
-        self.graphics.setMinimumHeight(180)  # below that the axes' texts overlap
         self._make_plots()
         layout = QVBoxLayout(self)
         layout.setContentsMargins(2, 2, 2, 2)
