@@ -4,7 +4,7 @@ It draws a :class:`~holoview.live.wave_window.LiveWaves` (computed by the waves 
 :mod:`holoview.live.wave_worker`) and turns its controls into
 :class:`~holoview.live.wave_window.WaveSettings`:
 
-- the omega-k power along a direction (signed wavenumber ``q`` in rad/m: negative for
+- the omega-k power along a direction (signed wavenumber ``q``, drawn in rad/mm: negative for
   waves travelling against the direction; frequency in Hz up to half the map rate),
   the window's cut-off ``+-k_cut`` dashed, the fitted dispersion relation drawn over
   it (the fluid's nominal one, dotted, before a fit);
@@ -21,7 +21,7 @@ import math
 import numpy as np
 import pyqtgraph as pg
 from PyQt6.QtCore import QPointF, QRectF, Qt, pyqtSignal
-from PyQt6.QtGui import QCloseEvent
+from PyQt6.QtGui import QCloseEvent, QResizeEvent
 from PyQt6.QtWidgets import (
     QCheckBox,
     QComboBox,
@@ -44,10 +44,14 @@ LENGTHS = (128, 256, 512, 1024)
 CURVE_POINTS = 400
 #: The parameters the fit can hold, and their names on the check boxes.
 HOLDS = (("sigma", "σ"), ("depth", "d"), ("flow", "U"))
+#: rad/mm per rad/m: wavenumbers are drawn per mm, as the maps' axes (ticks of a few digits).
+PER_MM = 1e-3
+#: Width over height of the plots' area above which they stand in one row.
+ROW_ASPECT = 2.0
 #: The plots' titles' size (small: they share a dock with the Trends).
 TITLE_SIZE = "9pt"
 #: The (m, f) plot's title without a centre.
-NO_CENTRE = "(m, f): click the map for a centre"
+NO_CENTRE = "(m, f): click the map"
 #: What the panel says before its first analysis.
 WAITING = "waiting for the first maps (label a peak in the Spectrum)"
 
@@ -124,7 +128,7 @@ def rate_text(waves: LiveWaves) -> str:
     spectrum = waves.spectrum
     if spectrum is not None:
         parts.append(
-            f"k cut-off {spectrum.k_cut:.4g} rad/m (the demodulation window, dashed); "
+            f"k cut-off {spectrum.k_cut * PER_MM:.3g} rad/mm (the demodulation window, dashed); "
             f"{spectrum.segments} segments of {spectrum.power.shape[0] * 2 - 2} maps"
         )
     return "; ".join(parts)
@@ -212,10 +216,8 @@ class WavesView(QWidget):
         self.graphics.scene().sigMouseClicked.connect(self._clicked)
 
     def _make_plots(self) -> None:
-        # the spectrum on the left, the map and (m, f) stacked on its right: three in a row
-        # widened a window of 1366 pixels past the screen and cut the third off
-        self.omega_k = self.graphics.addPlot(row=0, col=0, rowspan=2)
-        self.omega_k.setLabel("bottom", "q along the cut (rad/m)")
+        self.omega_k = self.graphics.addPlot(row=0, col=0)
+        self.omega_k.setLabel("bottom", "q along the cut (rad/mm); colour: log power")
         self.omega_k.setLabel("left", "f (Hz)")
         self.omega_k_image = pg.ImageItem(axisOrder="row-major")
         self.omega_k_image.setColorMap(pg.colormap.get("inferno"))
@@ -234,7 +236,7 @@ class WavesView(QWidget):
         self.field = self.graphics.addPlot(row=0, col=1)
         self.field.setLabel("bottom", "x (mm)")
         self.field.setLabel("left", "y (mm)")
-        self.field.setTitle("newest map · click: centre", size=TITLE_SIZE)
+        self.field.setTitle("map · click: centre", size=TITLE_SIZE)
         self.field.invertY(True)
         self.field.setAspectLocked(True)
         self.field_image = pg.ImageItem(axisOrder="row-major")
@@ -244,7 +246,7 @@ class WavesView(QWidget):
             size=14, symbol="+", pen=pg.mkPen("r", width=2), brush=None
         )
         self.field.addItem(self.centre_mark)
-        self.mf = self.graphics.addPlot(row=1, col=1)
+        self.mf = self.graphics.addPlot(row=0, col=2)
         self.mf.setLabel("bottom", "f (Hz)")
         self.mf.setLabel("left", "m")
         self.mf.setTitle(NO_CENTRE, size=TITLE_SIZE)
@@ -254,8 +256,37 @@ class WavesView(QWidget):
         for plot in (self.omega_k, self.field, self.mf):
             for side in ("bottom", "left"):
                 plot.getAxis(side).enableAutoSIPrefix(False)
-        self.graphics.ci.layout.setColumnStretchFactor(0, 3)
-        self.graphics.ci.layout.setColumnStretchFactor(1, 2)
+        self._in_row = True
+        self._arrange(in_row=False)
+
+    def _arrange(self, *, in_row: bool) -> None:
+        """The three plots in one row (a wide, short panel), or the spectrum on the left
+        and the map over (m, f) on its right (a taller one): each keeps a readable shape."""
+        if in_row == self._in_row:
+            return
+        self._in_row = in_row
+        layout = self.graphics.ci
+        for plot in (self.omega_k, self.field, self.mf):
+            layout.removeItem(plot)
+        if in_row:
+            layout.addItem(self.omega_k, row=0, col=0)
+            layout.addItem(self.field, row=0, col=1)
+            layout.addItem(self.mf, row=0, col=2)
+            stretches = (2, 1, 1)
+        else:
+            layout.addItem(self.omega_k, row=0, col=0, rowspan=2)
+            layout.addItem(self.field, row=0, col=1)
+            layout.addItem(self.mf, row=1, col=1)
+            stretches = (3, 2, 0)
+        for col, stretch in enumerate(stretches):
+            layout.layout.setColumnStretchFactor(col, stretch)
+
+    def resizeEvent(self, event: QResizeEvent | None) -> None:
+        """Arrange the plots for the panel's shape (:meth:`_arrange`)."""
+        super().resizeEvent(event)
+        if not self.released:
+            size = self.graphics.size()
+            self._arrange(in_row=size.width() > ROW_ASPECT * size.height())
 
     # ---- life cycle ----------------------------------------------------------
     @property
@@ -364,11 +395,12 @@ class WavesView(QWidget):
         q, power = spectrum.along(angle)
         image, levels = _log_image(power)
         self.omega_k_image.setImage(image, levels=levels)
-        dq, df = q[1] - q[0], spectrum.df
+        dq, df = (q[1] - q[0]) * PER_MM, spectrum.df  # q drawn in rad/mm, as the map's mm
         self.omega_k_image.setRect(
-            QRectF(q[0] - dq / 2, -df / 2, dq * q.size, df * spectrum.frequency.size)
+            QRectF(q[0] * PER_MM - dq / 2, -df / 2, dq * q.size, df * spectrum.frequency.size)
         )
-        for line, value in zip(self.cut_lines, (-spectrum.k_cut, spectrum.k_cut), strict=True):
+        cut = spectrum.k_cut * PER_MM
+        for line, value in zip(self.cut_lines, (-cut, cut), strict=True):
             line.setValue(value)
             line.setVisible(True)
         grid = np.linspace(-spectrum.k_cut, spectrum.k_cut, CURVE_POINTS)
@@ -381,7 +413,7 @@ class WavesView(QWidget):
 
         fit = waves.fit
         if fit is not None:
-            self.fit_curve.setData(grid, curve(fit.omega(kx, ky)))
+            self.fit_curve.setData(grid * PER_MM, curve(fit.omega(kx, ky)))
             self.nominal_curve.setData([], [])
         else:
             settings = self.settings()
@@ -393,11 +425,8 @@ class WavesView(QWidget):
                 fluid=settings.fluid,
             )
             self.fit_curve.setData([], [])
-            self.nominal_curve.setData(grid, curve(nominal))
-        self.omega_k.setTitle(
-            f"log power of {waves.label}, cut at {self.direction.value()}° (+q along it)",
-            size=TITLE_SIZE,
-        )
+            self.nominal_curve.setData(grid * PER_MM, curve(nominal))
+        self.omega_k.setTitle(f"{waves.label}, cut at {self.direction.value()}°", size=TITLE_SIZE)
 
     def _draw_field(self, waves: LiveWaves) -> None:
         latest, size = waves.latest, waves.pixel_size
@@ -431,4 +460,4 @@ class WavesView(QWidget):
         m0 = float(mf.m[0])
         self.mf_image.setRect(QRectF(-df / 2, m0 - 0.5, df * mf.frequency.size, float(mf.m.size)))
         x, y = waves.centre or (math.nan, math.nan)
-        self.mf.setTitle(f"(m, f) around ({x * 1e3:.3g}, {y * 1e3:.3g}) mm", size=TITLE_SIZE)
+        self.mf.setTitle(f"(m, f) at ({x * 1e3:.3g}, {y * 1e3:.3g}) mm", size=TITLE_SIZE)

@@ -112,7 +112,7 @@ def test_a_full_speed_replay_fills_the_panel_and_fits_the_truth(
     qtbot.waitUntil(lambda: (w := session.waves()) is not None and w.mf is not None, timeout=30000)
     centre = session.waves().centre
     assert centre == pytest.approx((0.02, 0.02), abs=1e-3)
-    title = f"(m, f) around ({centre[0] * 1e3:.3g}, {centre[1] * 1e3:.3g}) mm"
+    title = f"(m, f) at ({centre[0] * 1e3:.3g}, {centre[1] * 1e3:.3g}) mm"
     qtbot.waitUntil(lambda: view.mf.titleLabel.text == title, timeout=10000)
 
     view.set_centre((0.2, 0.2))  # 20 cm: off the field
