@@ -35,6 +35,7 @@ from __future__ import annotations
 import argparse
 import collections
 import cProfile
+import math
 import os
 import pstats
 import statistics
@@ -71,6 +72,11 @@ def thread_cpu_seconds() -> dict[str, float]:
         utime, stime = (int(v) for v in fields.split()[11:13])
         out[thread.name] = (utime + stime) / ticks
     return out
+
+
+def median(values: list[float]) -> float:
+    """The median of ``values`` (NaN for none: no map drawn on a machine too loaded)."""
+    return statistics.median(values) if values else float("nan")
 
 
 def percentile(values: list[float], q: float) -> float:
@@ -294,22 +300,24 @@ def main() -> int:
     print(f"display     {len(views) / elapsed:6.1f} fps  (the camera view)")
     print(f"maps drawn  {len(draws) / elapsed:6.1f} fps")
     print(
-        f"draw call   maps median {statistics.median(draws) * 1e3:5.1f} ms, "
-        f"p95 {percentile(draws, 0.95) * 1e3:5.1f} ms, max {max(draws) * 1e3:5.1f} ms; "
-        f"camera view median {statistics.median(views) * 1e3:5.1f} ms, "
+        f"draw call   maps median {median(draws) * 1e3:5.1f} ms, "
+        f"p95 {percentile(draws, 0.95) * 1e3:5.1f} ms, "
+        f"max {max(draws, default=math.nan) * 1e3:5.1f} ms; "
+        f"camera view median {median(views) * 1e3:5.1f} ms, "
         f"p95 {percentile(views, 0.95) * 1e3:5.1f} ms"
     )
     print(
-        f"view latency median {statistics.median(view_latencies) * 1e3:5.1f} ms, "
+        f"view latency median {median(view_latencies) * 1e3:5.1f} ms, "
         f"p95 {percentile(view_latencies, 0.95) * 1e3:5.1f} ms (camera frame to screen)"
     )
     print(
-        f"maps work   median {statistics.median(work) * 1e3:5.1f} ms per frame drawn, "
-        f"max {max(work) * 1e3:5.1f} ms"
+        f"maps work   median {median(work) * 1e3:5.1f} ms per frame drawn, "
+        f"max {max(work, default=math.nan) * 1e3:5.1f} ms"
     )
     print(
-        f"map latency median {statistics.median(latencies) * 1e3:5.1f} ms, "
-        f"p95 {percentile(latencies, 0.95) * 1e3:5.1f} ms, max {max(latencies) * 1e3:5.1f} ms"
+        f"map latency median {median(latencies) * 1e3:5.1f} ms, "
+        f"p95 {percentile(latencies, 0.95) * 1e3:5.1f} ms, "
+        f"max {max(latencies, default=math.nan) * 1e3:5.1f} ms"
     )
     shares = ", ".join(
         f"{name} {100 * (cpu1[name] - cpu0.get(name, 0.0)) / elapsed:.0f}%" for name in sorted(cpu1)
