@@ -25,6 +25,7 @@ from PyQt6.QtWidgets import (
     QHBoxLayout,
     QLabel,
     QPushButton,
+    QSizePolicy,
     QSplitter,
     QVBoxLayout,
     QWidget,
@@ -189,6 +190,10 @@ class SurfaceView(QWidget):
         self._follow_timer.setSingleShot(True)
         self._follow_timer.timeout.connect(self._follow_due)
         self.stats_label = QLabel()
+        # what it says grows with the replay ("maps of frame 14 (55 behind)"): it takes
+        # the room left, never widens the dock (a 1366-pixel window grew past its screen)
+        self.stats_label.setSizePolicy(QSizePolicy.Policy.Ignored, QSizePolicy.Policy.Preferred)
+        self.stats_label.setAlignment(Qt.AlignmentFlag.AlignRight | Qt.AlignmentFlag.AlignVCenter)
         controls = QHBoxLayout()
         controls.addWidget(QLabel("show"))
         controls.addWidget(self.mode_box)
@@ -196,8 +201,7 @@ class SurfaceView(QWidget):
         controls.addWidget(self.reference_box)
         controls.addWidget(self.range_button)
         controls.addWidget(self.follow_box)
-        controls.addStretch(1)
-        controls.addWidget(self.stats_label)
+        controls.addWidget(self.stats_label, 1)
 
         self.graphics = pg.GraphicsLayoutWidget()
         self.graphics.ci.setContentsMargins(2, 2, 2, 2)

@@ -30,6 +30,11 @@ window = MainWindow(source="sim", autostart=False)
 window.show()
 for _ in range(20):
     app.processEvents()
+if "waves" in sys.argv:  # the Waves tab raised, the replay's longest caption
+    window.show_waves()
+    window.surface.stats_label.setText("maps of frame 12345 (5432 behind)")
+    for _ in range(40):
+        app.processEvents()
 frame, free = window.frameGeometry(), window.screen().availableGeometry()
 docks = {}
 for name, dock in window.docks.items():
@@ -45,11 +50,11 @@ window.close()
 """
 
 
-def _open(size: str, config: Path) -> dict:
+def _open(size: str, config: Path, *args: str) -> dict:
     env = {**os.environ, "XDG_CONFIG_HOME": str(config)}
     env.pop("QT_QPA_PLATFORM", None)  # a real X display this time
     done = subprocess.run(
-        ["xvfb-run", "-a", "-s", f"-screen 0 {size}x24", sys.executable, "-c", CHILD],
+        ["xvfb-run", "-a", "-s", f"-screen 0 {size}x24", sys.executable, "-c", CHILD, *args],
         check=False, capture_output=True, text=True, timeout=120, env=env,
     )  # fmt: skip
     assert done.returncode == 0, done.stderr[-2000:]
@@ -81,6 +86,20 @@ def test_the_window_fits_the_screen_and_every_dock_is_reachable(
     if layout != "compact":
         assert docks["Hologram"]["visible"] and docks["Surface"]["visible"]
         assert docks["Spectrum"]["height"] >= 250 and docks["Surface"]["height"] >= 400
+
+
+def test_the_waves_panel_and_a_long_caption_keep_the_window_on_a_small_screen(
+    tmp_path: Path,
+) -> None:
+    """The Waves tab raised, with a replay's long caption over the maps: still inside.
+
+    (A replay with its maps drawn and the caption "maps of frame 14 (55 behind)" once
+    widened the window to 1396 px, seen in a screenshot; the caption no longer sizes
+    the Surface dock.)
+    """
+    seen = _open("1366x768", tmp_path, "waves")
+    _check_fits_and_reachable(seen)
+    assert seen["docks"]["Waves"]["visible"]
 
 
 def test_a_layout_saved_on_a_large_screen_is_brought_inside_a_small_one(tmp_path: Path) -> None:
