@@ -45,6 +45,7 @@ from holoview.errors import InputError
 from holoview.processing.fourier.boxes import BoxGeometry, border_mask, box_geometry, box_shape_for
 from holoview.processing.fourier.fftplans import DEFAULT_THREADS, ifft2_plan, rfft2_plan
 from holoview.processing.fourier.frames import check_frame
+from holoview.processing.fourier.windows import radial_window
 
 __all__ = [
     "CENTRE_BINS",
@@ -94,6 +95,11 @@ MATCHED_TAPERS = (0.25, 0.5, 0.75)
 #: taper`` of its radius: the matched radius of a surface with waves seen at ``|q|`` is at
 #: least ``|q| / (1 - WAVE_EDGE taper)``.
 WAVE_EDGE = 0.856
+
+#: Fraction of the power of the content that stands above the noise around a carrier
+#: (annuli of excess power above the noise floor, outside its central bins) that every
+#: matched window passes (``sum W^2 excess``).
+CONTENT_PASS = 0.9
 
 #: Likewise for the other shapes: the fraction of the radius where ``W`` falls to 0.95.
 PASS_FRACTION = {"raised-cosine": 0.144, "top-hat": 1.0}
@@ -469,6 +475,37 @@ def _waves_floor(band: float, kind: str, taper: float, bound: float) -> float:
     return min(bound, band / passing)
 
 
+def _content_floor(
+    annuli: tuple[np.ndarray, np.ndarray],
+    kind: str,
+    taper: float,
+    span: tuple[float, float],
+    step: float,
+) -> float:
+    """The smallest radius (cycles/pixel, in ``span``) passing the content above the noise.
+
+    ``annuli``: the middles (cycles/pixel) and excess powers (counts^2) of the annuli
+    around a carrier whose change stands above the noise floor, outside its central
+    bins. The radius is the smallest, in steps of ``step`` (cycles/pixel), whose window
+    passes :data:`CONTENT_PASS` of their power (``sum W^2 excess``), else the bound;
+    0 without any.
+    Passing a bin whose change stands above the noise costs the map less noise than
+    cutting it costs content; the map error estimate (:func:`map_errors`) sees a cut
+    only as the small difference between two maps' variances, both dominated by the
+    noise of the widest, and missed half of a weak family's ringing mode.
+    """
+    middles, power = annuli
+    smallest, bound = span
+    if middles.size == 0 or smallest >= bound:
+        return 0.0
+    radii = np.append(np.arange(smallest, bound, step), bound)
+    passed = np.array(
+        [float(np.sum(power * radial_window(kind, middles, r, taper=taper) ** 2)) for r in radii]
+    )
+    enough = np.flatnonzero(passed >= CONTENT_PASS * float(np.sum(power)))
+    return float(radii[enough[0]]) if enough.size else bound
+
+
 def matched_window(
     spectrum: SurfaceSpectrum,
     carrier: tuple[float, float],
@@ -527,13 +564,6 @@ def matched_window(
     # widening the best of a shape after the shapes were compared chose a sharp edge
     # (which passes the waves from a smaller radius) widened to where a smoother one
     # was better
-    floors = {t: _waves_floor(spectrum.band, kind, t, bound) for t in tapers}
-    choices = [
-        _best_radius(spectrum, carrier, (max(smallest, floors[t]), bound), kind=kind, taper=t)
-        for t in tapers
-    ]
-    _, radius, cut, taper = min(choices)
-    waves = floors[taper]
     step = STEP_BINS * per_bin
     edges = np.arange(0.0, bound + step, step)
     which = np.minimum(np.searchsorted(edges, rho, side="right") - 1, len(edges) - 2)
@@ -541,10 +571,28 @@ def matched_window(
     count = np.bincount(which, minlength=len(edges) - 1).astype(np.float64)
     above = np.flatnonzero(signal > count * noise)
     content = float(edges[above[-1] + 1]) if above.size else 0.0
+    # the annuli beyond the carrier's central bins whose change stands above the noise
+    middles = edges[:-1] + 0.5 * step
+    standing = above[middles[above] > CENTRE_BINS * per_bin]
+    annuli = (middles[standing], signal[standing])
+    waves = {t: _waves_floor(spectrum.band, kind, t, bound) for t in tapers}
+    floors = {
+        t: max(waves[t], _content_floor(annuli, kind, t, (smallest, bound), step)) for t in tapers
+    }
+    choices = [
+        _best_radius(spectrum, carrier, (max(smallest, floors[t]), bound), kind=kind, taper=t)
+        for t in tapers
+    ]
+    _, radius, cut, taper = min(choices)
     reason = (
         f"matched: least expected map error; the surface's change stands above the noise "
         f"out to {content:.4f} cycles/pixel, the bound is {bound:.4f}"
     )
-    if waves > smallest and radius <= waves:
-        reason += f"; widened to pass the waves detected (|q| up to {spectrum.band:.4f})"
+    if floors[taper] > smallest and radius <= floors[taper]:
+        if waves[taper] >= floors[taper]:
+            reason += f"; widened to pass the waves detected (|q| up to {spectrum.band:.4f})"
+        else:
+            reason += (
+                f"; widened to pass {CONTENT_PASS:.0%} of the power that stands above the noise"
+            )
     return Window(radius, kind, taper, "matched", bound, reason, content, cut)
