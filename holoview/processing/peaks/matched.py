@@ -574,7 +574,7 @@ def matched_window(
     # the annuli beyond the carrier's central bins whose change stands above the noise
     middles = edges[:-1] + 0.5 * step
     standing = above[middles[above] > CENTRE_BINS * per_bin]
-    annuli = (middles[standing], signal[standing])
+    annuli = (middles[standing], signal[standing] - count[standing] * noise)
     waves = {t: _waves_floor(spectrum.band, kind, t, bound) for t in tapers}
     floors = {
         t: max(waves[t], _content_floor(annuli, kind, t, (smallest, bound), step)) for t in tapers
