@@ -19,8 +19,12 @@ a wavy surface spreads its change over much of the spectrum, and the median of e
 bin, taken for the noise, made the cut of a weak family's waves look smaller than its
 noise (FB2 of ``benchmarks/bench_wavy.py``). Each edge width searches from the
 smallest radius that passes the waves detection saw with its own edge
-(:func:`_waves_floor`). A change whose power stands above the noise is therefore
-passed: the window never cuts a wave field that the maps show above their noise. What
+(:func:`_waves_floor`), and :data:`CONTENT_PASS` of what the annuli of the change that
+stand above the noise save when passed (:func:`_content_floor`): the estimate sees a
+cut as the small difference of two variances dominated by the widest map's noise, and
+on a weak family it cut half of a ringing mode that detection saw no sidebands of. A
+change whose power stands above the noise is therefore passed: the window never cuts
+a wave field that the maps show above their noise. What
 a window cuts weighs :data:`CUT_WEIGHT` times its error: it is the same surface content
 missing from every peak's map, which the fused map does not average down as it does
 their noise.
@@ -96,9 +100,10 @@ MATCHED_TAPERS = (0.25, 0.5, 0.75)
 #: least ``|q| / (1 - WAVE_EDGE taper)``.
 WAVE_EDGE = 0.856
 
-#: Fraction of the power of the content that stands above the noise around a carrier
-#: (annuli of excess power above the noise floor, outside its central bins) that every
-#: matched window passes (``sum W^2 excess``).
+#: Fraction of what the content standing above the noise around a carrier saves when
+#: passed (annuli whose excess power over the noise floor is more than the noise they
+#: let in, outside the central bins; :func:`_content_floor`) that every matched window
+#: passes.
 CONTENT_PASS = 0.9
 
 #: Likewise for the other shapes: the fraction of the radius where ``W`` falls to 0.95.
@@ -484,15 +489,19 @@ def _content_floor(
 ) -> float:
     """The smallest radius (cycles/pixel, in ``span``) passing the content above the noise.
 
-    ``annuli``: the middles (cycles/pixel) and excess powers (counts^2) of the annuli
-    around a carrier whose change stands above the noise floor, outside its central
-    bins. The radius is the smallest, in steps of ``step`` (cycles/pixel), whose window
-    passes :data:`CONTENT_PASS` of their power (``sum W^2 excess``), else the bound;
-    0 without any.
-    Passing a bin whose change stands above the noise costs the map less noise than
-    cutting it costs content; the map error estimate (:func:`map_errors`) sees a cut
-    only as the small difference between two maps' variances, both dominated by the
-    noise of the widest, and missed half of a weak family's ringing mode.
+    ``annuli``: the middles (cycles/pixel) and what passing them saves (counts^2) of
+    the annuli around a carrier whose change stands above the noise floor, outside its
+    central bins: their excess power over the floor less the noise they let in (an
+    annulus of a change just above the noise saves little). The radius is the smallest,
+    in steps of ``step`` (cycles/pixel), whose window passes :data:`CONTENT_PASS` of it
+    (``sum W^2 saved``), else the bound; 0 without any such annulus. The map error
+    estimate (:func:`map_errors`) sees a cut only as the small difference between two
+    maps' variances, both dominated by the widest map's noise, and cut half of the
+    power of a weak family's ringing mode (RB2 of ``holoview simulate --scenario
+    ringdown``, ``tests/headless/test_process_ringdown_window.py``). Weighed by the
+    excess alone, the broad low content of a smooth surface (``benchmarks/bench_windows.py``
+    at kmax 0.005) widened the windows past the best: the fused map at 1.11 times the
+    sweep's best; weighed by what passing saves, 1.09.
     """
     middles, power = annuli
     smallest, bound = span
@@ -533,7 +542,8 @@ def matched_window(
         Rule ``"matched"``: the radius of least :func:`map_errors` (what it cuts weighed
         :data:`CUT_WEIGHT` times) among :data:`CANDIDATES` radii spaced evenly in log
         between :data:`MIN_RADIUS_BINS` bins (or the radius that passes the waves
-        detected, :func:`_waves_floor`) and the bound, then as many around the best,
+        detected, :func:`_waves_floor`, and the content above the noise,
+        :func:`_content_floor`, where larger) and the bound, then as many around the best,
         the widest within :data:`NEAR_BEST` of the least; for a Tukey window, with
         the edge of :data:`MATCHED_TAPERS` (or ``taper``) that gives the least; the
         bound (rule ``"bound"``, with the reason) where the spectra show no measurable
