@@ -19,8 +19,13 @@ a wavy surface spreads its change over much of the spectrum, and the median of e
 bin, taken for the noise, made the cut of a weak family's waves look smaller than its
 noise (FB2 of ``benchmarks/bench_wavy.py``). Each edge width searches from the
 smallest radius that passes the waves detection saw with its own edge
-(:func:`_waves_floor`). A change whose power stands above the noise is therefore
-passed: the window never cuts a wave field that the maps show above their noise. What
+(:func:`_waves_floor`); the window chosen is then widened where it passes less than
+:data:`CONTENT_PASS` of what the annuli of the change that stand above the noise save
+when passed (:func:`_content_floor`): the estimate sees a cut as the small difference
+of two variances dominated by the widest map's noise, and on a weak family it cut half
+of a ringing mode that detection saw no sidebands of. A
+change whose power stands above the noise is therefore passed: the window never cuts
+a wave field that the maps show above their noise. What
 a window cuts weighs :data:`CUT_WEIGHT` times its error: it is the same surface content
 missing from every peak's map, which the fused map does not average down as it does
 their noise.
@@ -45,6 +50,7 @@ from holoview.errors import InputError
 from holoview.processing.fourier.boxes import BoxGeometry, border_mask, box_geometry, box_shape_for
 from holoview.processing.fourier.fftplans import DEFAULT_THREADS, ifft2_plan, rfft2_plan
 from holoview.processing.fourier.frames import check_frame
+from holoview.processing.fourier.windows import radial_window
 
 __all__ = [
     "CENTRE_BINS",
@@ -94,6 +100,12 @@ MATCHED_TAPERS = (0.25, 0.5, 0.75)
 #: taper`` of its radius: the matched radius of a surface with waves seen at ``|q|`` is at
 #: least ``|q| / (1 - WAVE_EDGE taper)``.
 WAVE_EDGE = 0.856
+
+#: Fraction of what the content standing above the noise around a carrier saves when
+#: passed (annuli whose excess power over the noise floor is more than the noise they
+#: let in, outside the central bins; :func:`_content_floor`) that every matched window
+#: passes.
+CONTENT_PASS = 0.9
 
 #: Likewise for the other shapes: the fraction of the radius where ``W`` falls to 0.95.
 PASS_FRACTION = {"raised-cosine": 0.144, "top-hat": 1.0}
@@ -469,6 +481,41 @@ def _waves_floor(band: float, kind: str, taper: float, bound: float) -> float:
     return min(bound, band / passing)
 
 
+def _content_floor(
+    annuli: tuple[np.ndarray, np.ndarray],
+    kind: str,
+    taper: float,
+    span: tuple[float, float],
+    step: float,
+) -> float:
+    """The smallest radius (cycles/pixel, in ``span``) passing the content above the noise.
+
+    ``annuli``: the middles (cycles/pixel) and what passing them saves (counts^2) of
+    the annuli around a carrier whose change stands above the noise floor, outside its
+    central bins: their excess power over the floor less the noise they let in (an
+    annulus of a change just above the noise saves little). The radius is the smallest,
+    in steps of ``step`` (cycles/pixel), whose window passes :data:`CONTENT_PASS` of it
+    (``sum W^2 saved``), else the bound; 0 without any such annulus. The map error
+    estimate (:func:`map_errors`) sees a cut only as the small difference between two
+    maps' variances, both dominated by the widest map's noise, and cut half of the
+    power of a weak family's ringing mode (RB2 of ``holoview simulate --scenario
+    ringdown``, ``tests/headless/test_process_ringdown_window.py``). Weighed by the
+    excess alone, the broad low content of a smooth surface (``benchmarks/bench_windows.py``
+    at kmax 0.005) widened the windows past the best: the fused map at 1.11 times the
+    sweep's best; weighed by what passing saves, 1.09.
+    """
+    middles, power = annuli
+    smallest, bound = span
+    if middles.size == 0 or smallest >= bound:
+        return 0.0
+    radii = np.append(np.arange(smallest, bound, step), bound)
+    passed = np.array(
+        [float(np.sum(power * radial_window(kind, middles, r, taper=taper) ** 2)) for r in radii]
+    )
+    enough = np.flatnonzero(passed >= CONTENT_PASS * float(np.sum(power)))
+    return float(radii[enough[0]]) if enough.size else bound
+
+
 def matched_window(
     spectrum: SurfaceSpectrum,
     carrier: tuple[float, float],
@@ -498,7 +545,8 @@ def matched_window(
         between :data:`MIN_RADIUS_BINS` bins (or the radius that passes the waves
         detected, :func:`_waves_floor`) and the bound, then as many around the best,
         the widest within :data:`NEAR_BEST` of the least; for a Tukey window, with
-        the edge of :data:`MATCHED_TAPERS` (or ``taper``) that gives the least; the
+        the edge of :data:`MATCHED_TAPERS` (or ``taper``) that gives the least;
+        widened to pass the content above the noise (:func:`_content_floor`); the
         bound (rule ``"bound"``, with the reason) where the spectra show no measurable
         change around the carrier.
     """
@@ -527,13 +575,6 @@ def matched_window(
     # widening the best of a shape after the shapes were compared chose a sharp edge
     # (which passes the waves from a smaller radius) widened to where a smoother one
     # was better
-    floors = {t: _waves_floor(spectrum.band, kind, t, bound) for t in tapers}
-    choices = [
-        _best_radius(spectrum, carrier, (max(smallest, floors[t]), bound), kind=kind, taper=t)
-        for t in tapers
-    ]
-    _, radius, cut, taper = min(choices)
-    waves = floors[taper]
     step = STEP_BINS * per_bin
     edges = np.arange(0.0, bound + step, step)
     which = np.minimum(np.searchsorted(edges, rho, side="right") - 1, len(edges) - 2)
@@ -541,10 +582,32 @@ def matched_window(
     count = np.bincount(which, minlength=len(edges) - 1).astype(np.float64)
     above = np.flatnonzero(signal > count * noise)
     content = float(edges[above[-1] + 1]) if above.size else 0.0
+    # the annuli beyond the carrier's central bins whose change stands above the noise
+    middles = edges[:-1] + 0.5 * step
+    standing = above[middles[above] > CENTRE_BINS * per_bin]
+    annuli = (middles[standing], signal[standing] - count[standing] * noise)
+    waves = {t: _waves_floor(spectrum.band, kind, t, bound) for t in tapers}
+    choices = [
+        _best_radius(spectrum, carrier, (max(smallest, waves[t]), bound), kind=kind, taper=t)
+        for t in tapers
+    ]
+    _, radius, cut, taper = min(choices)
+    # then widened to pass the content that stands above the noise (searched from there,
+    # the estimate's noise chose narrower windows as often as wider: FB2 of the wavy
+    # surface, seed 6 of tests/processing/test_processing_matched.py, 0.0269 to 0.0219)
+    floor = _content_floor(annuli, kind, taper, (smallest, bound), step)
+    widened = floor > radius
+    if widened:
+        errors, errors_noise = map_errors(
+            spectrum, carrier, np.array([floor, bound]), kind=kind, taper=taper
+        )
+        radius, cut = floor, float(np.sqrt(max(errors[0] - errors_noise[0], 0.0)))
     reason = (
         f"matched: least expected map error; the surface's change stands above the noise "
         f"out to {content:.4f} cycles/pixel, the bound is {bound:.4f}"
     )
-    if waves > smallest and radius <= waves:
+    if waves[taper] > smallest and radius <= waves[taper]:
         reason += f"; widened to pass the waves detected (|q| up to {spectrum.band:.4f})"
+    if widened:
+        reason += f"; widened to pass {CONTENT_PASS:.0%} of the content above the noise"
     return Window(radius, kind, taper, "matched", bound, reason, content, cut)
