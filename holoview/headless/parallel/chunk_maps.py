@@ -27,10 +27,10 @@ serial pass (:func:`~holoview.headless.frame_passes.maps_pass`) to the last bit:
 What comes back is each frame's maps and what a run counts of them
 (:class:`ChunkMaps`), for the parent to write in order. Workers on the parent's machine
 (:attr:`~holoview.headless.parallel.runners.ChunkRunner.shares_files`) write a chunk's
-maps into a file of a folder the parent gives (``MapsWork.spill``, in memory where
-``/dev/shm`` is there) rather than pickling them back: the parent maps the file and
-writes its maps to ``results.h5`` from there (pickling, the pipe and unpickling cost
-about 1.5 ms of CPU a frame of six 180^2 maps between the two processes).
+maps into a file of a folder the parent gives (``MapsWork.spill``, in memory under
+``/dev/shm``) rather than pickling them back: the parent maps the file and writes its
+maps to ``results.h5`` from there (pickling, the pipe and unpickling cost about 1.5 ms
+of CPU a frame of six 180^2 maps between the two processes).
 """
 
 from __future__ import annotations
@@ -235,15 +235,9 @@ class MapMaker:
         self.step = step
         m = len(demod.peaks)
         by, bx = demod.box_shape
-        shape = (frames, m + 1 if fused else m, by, bx)
-        self._spilled = None
-        if spill is None:
-            both = np.empty(shape, np.float32)
-        else:
-            handle, self._spilled = tempfile.mkstemp(suffix=".npy", dir=spill)
-            os.close(handle)
-            both = np.lib.format.open_memmap(self._spilled, "w+", np.float32, shape)
-        both[...] = np.nan
+        self._spill = spill
+        # the maps and the fused maps in one array: one file when spilled
+        both = np.full((frames, m + 1 if fused else m, by, bx), np.nan, np.float32)
         self._both = both
         self._maps = both[:, :m]
         self._fused = both[:, m] if fused else None
@@ -269,11 +263,27 @@ class MapMaker:
         self._noise[k] = maps.noise
         self._peak_bits[k] = [_bits(f, PEAK_RESULT_FLAGS) for f in maps.peak_flags]
 
+    def _spilled(self) -> str | None:
+        """Write the maps into a file of the spill folder; its name (None: not written).
+
+        A plain write, not a mapping of the file: a full disk is an OSError here (the
+        maps then go back pickled), where a mapped page would kill the process.
+        """
+        if self._spill is None:
+            return None
+        handle, path = tempfile.mkstemp(suffix=".npy", dir=self._spill)
+        try:
+            with os.fdopen(handle, "wb") as f:
+                np.save(f, self._both)
+        except OSError:
+            os.unlink(path)
+            return None
+        return path
+
     def result(self) -> ChunkMaps:
-        """The chunk's maps (spilled: the file's name, the maps left in it)."""
-        spilled = self._spilled is not None
-        if spilled:
-            del self._maps, self._fused, self._both  # the file is complete: unmapped here
+        """The chunk's maps (spilled: the file's name, the maps in it alone)."""
+        path = self._spilled()
+        spilled = path is not None
         return ChunkMaps(
             demodulated=self._demodulated,
             has_maps=self._has_maps,
@@ -283,5 +293,5 @@ class MapMaker:
             frame_bits=self._frame_bits,
             maps=None if spilled else self._maps,
             fused=None if spilled else self._fused,
-            spilled=self._spilled,
+            spilled=path,
         )

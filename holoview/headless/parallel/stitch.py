@@ -56,21 +56,29 @@ logger = logging.getLogger(__name__)
 
 __all__ = ["map_chunks", "measure_chunks", "spill_folder"]
 
-#: Where workers on this machine write their chunks' maps: in memory where there.
+#: Where workers on this machine write their chunks' maps: in memory.
 SPILL_ROOT = "/dev/shm"
+
+#: Free bytes ``SPILL_ROOT`` must have to be used (a container's may be 64 MB): the
+#: chunks in flight and those waiting for their turn are there at once.
+SPILL_FREE_BYTES = 2 << 30
 
 
 @contextlib.contextmanager
 def spill_folder(runner: ChunkRunner, maps: bool) -> Iterator[str | None]:
     """A folder for the workers' maps files, removed after the pass (None: pickled back).
 
-    Only for workers that share this machine's files, in a run that makes maps.
+    Only for workers that share this machine's files, in a run that makes maps, where
+    :data:`SPILL_ROOT` is there with :data:`SPILL_FREE_BYTES` free.
     """
-    if not (maps and runner.shares_files):
+    try:
+        free = shutil.disk_usage(SPILL_ROOT).free if os.access(SPILL_ROOT, os.W_OK) else 0
+    except OSError:
+        free = 0
+    if not (maps and runner.shares_files) or free < SPILL_FREE_BYTES:
         yield None
         return
-    root = SPILL_ROOT if os.access(SPILL_ROOT, os.W_OK) else None
-    folder = tempfile.mkdtemp(prefix="holoview-maps-", dir=root)
+    folder = tempfile.mkdtemp(prefix="holoview-maps-", dir=SPILL_ROOT)
     try:
         yield folder
     finally:
