@@ -35,6 +35,7 @@ of CPU a frame of six 180^2 maps between the two processes).
 
 from __future__ import annotations
 
+import contextlib
 import os
 import tempfile
 from collections.abc import Sequence
@@ -271,12 +272,15 @@ class MapMaker:
         """
         if self._spill is None:
             return None
-        handle, path = tempfile.mkstemp(suffix=".npy", dir=self._spill)
+        path = None
         try:
+            handle, path = tempfile.mkstemp(suffix=".npy", dir=self._spill)
             with os.fdopen(handle, "wb") as f:
                 np.save(f, self._both)
         except OSError:
-            os.unlink(path)
+            if path is not None:
+                with contextlib.suppress(OSError):
+                    os.unlink(path)
             return None
         return path
 
