@@ -210,6 +210,7 @@ def test_maps_from_the_workers_are_those_of_one_process(
         _assert_same_maps(serial, other, f"{case}: {name}")
 
 
+@pytest.mark.slow
 def test_maps_handed_over_in_files_are_those_of_one_process(
     evaporation: Simulated,
     runners: dict[str, ChunkRunner],
