@@ -197,6 +197,7 @@ def process(
     unwrap: str | None = None,
     background: str | int | None = None,
     maps: bool = False,
+    maps_grid: str = "box",
     area_m2: float | None = None,
     frames: str | slice | range | None = None,
     threads: int = 1,
@@ -239,6 +240,10 @@ def process(
         The object-free hologram: a frame index of the recording, or a file.
     maps : bool
         Write the height maps (``--maps``).
+    maps_grid : {"box", "frame"}
+        With ``maps``: the maps on the demodulation box's grid (the default) or on the
+        camera frame's pixels (``--maps-grid frame``: the windowed sideband inverted at
+        the frame's size, as a plain Fourier filter gives it).
     area_m2 : float, optional
         Basin area, m^2 (volume rates).
     frames : str, slice or range, optional
@@ -296,6 +301,7 @@ def process(
         radius=radius,
         unwrap=unwrap,
         maps=maps,
+        maps_grid=maps_grid,
         area_m2=area_m2,
         threads=threads,
         background=None if background is None else str(background),

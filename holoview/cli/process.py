@@ -144,6 +144,15 @@ def add_parser(
     )
     parser.add_argument("--maps", action="store_true", help="also write the delta-h maps")
     parser.add_argument(
+        "--maps-grid",
+        choices=("box", "frame"),
+        default="box",
+        help="with --maps: the maps' pixels: 'box' (default), the demodulation box's grid "
+        "(e.g. 48 x 48 for 256 x 256 frames); 'frame', the camera frame's pixels (the "
+        "windowed sideband inverted at the frame's size, as a plain Fourier filter gives "
+        "it, for pixel-for-pixel comparisons; more time and disk per frame)",
+    )
+    parser.add_argument(
         "--report-format",
         choices=FORMATS,
         default="png",
@@ -214,6 +223,7 @@ def run(args: argparse.Namespace) -> int:
         radius=args.radius,
         unwrap=args.unwrap,
         maps=args.maps,
+        maps_grid=args.maps_grid,
         area_m2=args.area,
         threads=args.threads,
         background=args.background,

@@ -172,6 +172,9 @@ class FrameCore:
     windows : sequence of Window, optional
         The windows of the peaks, decided elsewhere (a run's, in its workers): used as
         they are while the peaks' carriers are these.
+    grid : {"box", "frame"}
+        Where the maps are: the demodulation box's grid or the frame's pixels
+        (:class:`~holoview.processing.maps.demodulate.Demodulator`).
 
     Notes
     -----
@@ -193,8 +196,10 @@ class FrameCore:
         neighbours: Sequence[tuple[float, float]] = (),
         spectrum: SurfaceSpectrum | None = None,
         windows: Sequence[Window] | None = None,
+        grid: str = "box",
     ) -> None:
         self.frame_shape = (int(frame_shape[0]), int(frame_shape[1]))
+        self.grid = grid
         self.saturation = saturation
         self.threads = threads
         self.background = background
@@ -333,6 +338,7 @@ class FrameCore:
                 neighbours=self.neighbours,
                 spectrum=self.spectrum,
                 windows=self._fixed_windows(),
+                grid=self.grid,
             )
             self._probe.configure(demod.peaks)
             if self.background is not None and e.reference == "absolute":

@@ -24,6 +24,12 @@ Per frame, in this order, and nowhere else:
    and what the window cuts), a peak that stepped at that frame left out;
 5. the measured shifts in camera pixels (:func:`frame_shift`), for the view and the files.
 
+The maps may be on the frame's pixel grid instead of the demodulation box's (the
+demodulator's ``grid="frame"``: ``process --maps-grid frame``); every step above is
+then on that grid, the displacements measured on box maps and given in frame pixels
+(:func:`regridded`): the estimator's significance rules are made for the box's
+pixels, whose noise is nearly independent from pixel to pixel.
+
 :class:`MapStep` runs them and returns a :class:`FrameMaps`; a caller decides only
 which frames it gives and whether a frame adds to the displacement estimate.
 """
@@ -32,7 +38,7 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -56,6 +62,7 @@ __all__ = [
     "frame_shift",
     "fuse_maps",
     "pixel_step",
+    "regridded",
     "trusted_maps",
 ]
 
@@ -99,6 +106,33 @@ def frame_shift(
     """A displacement's shift ``(dy, dx)`` in camera (frame) pixels."""
     step = pixel_step(frame_shape, box_shape)
     return displacement.shift[0] * step[0], displacement.shift[1] * step[1]
+
+
+def regridded(
+    displacements: Sequence[Displacement],
+    from_shape: tuple[int, int],
+    to_shape: tuple[int, int],
+) -> list[Displacement]:
+    """Displacements measured on maps of ``from_shape``, in pixels of maps of ``to_shape``.
+
+    Both grids cover the frame (:func:`pixel_step`); the shifts and their standard
+    errors scale with the pixel sizes.
+
+    Examples
+    --------
+    >>> d = Displacement((0.5, -1.0), (0.01, 0.02), True, 40)
+    >>> regridded([d], (32, 64), (128, 128))[0].shift
+    (2.0, -2.0)
+    """
+    sy, sx = to_shape[0] / from_shape[0], to_shape[1] / from_shape[1]
+    return [
+        replace(
+            d,
+            shift=(d.shift[0] * sy, d.shift[1] * sx),
+            stderr=(d.stderr[0] * sy, d.stderr[1] * sx),
+        )
+        for d in displacements
+    ]
 
 
 class Coregistration:

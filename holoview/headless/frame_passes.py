@@ -9,7 +9,9 @@
    run (and of the last), through the maps step
    (:class:`~holoview.engine.map_step.MapStep`): the peaks' displacements, measured
    before any map is fused, so that every frame's fused map is co-registered alike;
-   and, without ``--maps``, the last frame's maps for the report.
+   and, without ``--maps``, the last frame's maps for the report. Its maps are on the
+   demodulation box's grid whatever the run's (``--maps-grid``): the displacements of
+   maps on the frame's grid are the box's, in frame pixels.
 3. :func:`maps_pass` (``--maps``): every frame's maps and fused map, through the maps
    step, into the :class:`~holoview.headless.run_data.MapSink` as they come; the maps'
    mean phases follow the series' values of step 1, so that a worker given a chunk of
@@ -32,7 +34,7 @@ import numpy as np
 
 from holoview.engine.experiment import Experiment
 from holoview.engine.frame_core import CarrierCore, FrameCore
-from holoview.engine.map_step import Coregistration, FrameMaps, MapStep
+from holoview.engine.map_step import Coregistration, FrameMaps, MapStep, regridded
 from holoview.headless.inputs import InputFile
 from holoview.headless.reader import DEFAULT_DEPTH, FrameReader
 from holoview.headless.run_data import (
@@ -88,6 +90,9 @@ class MapsSpec:
     windows : tuple of Window
         Each peak's window, decided once for the run (:meth:`matched`; empty: by the
         experiment's rule, the bound or the radius given, from the carriers).
+    grid : {"box", "frame"}
+        Where the maps are (``--maps-grid``): the demodulation box's grid or the
+        frame's pixels.
     """
 
     experiment: Experiment
@@ -98,6 +103,7 @@ class MapsSpec:
     exclude: tuple[bool, ...] = ()
     displacements: tuple[Displacement, ...] = ()
     windows: tuple[Window, ...] = ()
+    grid: str = "box"
 
     def matched(
         self, frame_shape: tuple[int, int], saturation: float | None, spectrum: SurfaceSpectrum
@@ -127,6 +133,7 @@ class MapsSpec:
             background=self.background,
             neighbours=self.neighbours,
             windows=self.windows or None,
+            grid=self.grid,
         )
         core.build()
         return core
@@ -295,7 +302,8 @@ class SpreadMaps:
         self._n = n
         self._data = data
         self._record = record
-        self.step = spec.step(source.frame_shape, source.saturation)
+        # on the box's grid whatever the run's: displacements of frame-grid maps are the box's
+        self.step = replace(spec, grid="box").step(source.frame_shape, source.saturation)
         self._counts = MapRecord(data) if record else None
 
     def take(
@@ -321,8 +329,12 @@ class SpreadMaps:
     def finish(self) -> list[Displacement]:
         """Keep the displacements measured and the fused labels in the run's record."""
         data = self._data
-        measured_shifts = self.step.coregistration.displacements()
-        data.displacements = list(measured_shifts or [])
+        demod = self.step.core.demodulator
+        assert demod is not None
+        measured_shifts = self.step.coregistration.displacements() or []
+        if measured_shifts and data.box_shape != demod.box_shape:
+            measured_shifts = regridded(measured_shifts, demod.box_shape, data.box_shape)
+        data.displacements = list(measured_shifts)
         data.fused_labels = _fused_labels(self.step)
         return data.displacements
 
@@ -353,7 +365,8 @@ def spread_pass(
     data : RunData
         The run's record (:class:`SpreadMaps`).
     spec : MapsSpec
-        The maps step (its displacements are measured here).
+        The maps step (its displacements are measured here, on the box's grid, and
+        given on the spec's).
     record : bool
         Count these frames' maps into ``data`` and keep the last (no ``--maps`` pass).
     read_ahead : int

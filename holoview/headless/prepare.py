@@ -148,6 +148,7 @@ def prepare_run(
         ),
         threads=settings.threads,
         background=background,
+        grid=settings.maps_grid,
     )
     if experiment.radius_rule == "matched":
         spectrum = _matching_spectrum(

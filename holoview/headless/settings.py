@@ -16,6 +16,7 @@ from holoview.errors import InputError
 from holoview.headless.inputs import OpticsOptions
 from holoview.headless.reader import DEFAULT_DEPTH
 from holoview.headless.results.figures import figure_format
+from holoview.processing.maps.demod_results import MAP_GRIDS
 
 __all__ = ["PeakChoice", "ProcessOptions", "ProcessSettings"]
 
@@ -41,6 +42,12 @@ class ProcessSettings:
         Spatial unwrapping of the maps. None: the experiment's.
     maps : bool
         Write the delta-h maps of every frame, and the fused map.
+    maps_grid : {"box", "frame"}
+        Where the maps are: ``"box"``, the demodulation box's grid (the smallest that
+        holds the widest window, e.g. 48 x 48 for 256 x 256 frames); ``"frame"``, the
+        camera frame's pixels (the windowed sideband inverted at the frame's size: a
+        plain Fourier filter's maps, for pixel-for-pixel comparisons; more time and
+        disk). Only with ``maps``.
     area_m2 : float or None
         Basin area, m^2, for volume rates.
     threads : int
@@ -59,6 +66,7 @@ class ProcessSettings:
     radius: float | str | None = None
     unwrap: str | None = None
     maps: bool = False
+    maps_grid: str = "box"
     area_m2: float | None = None
     threads: int = 1
     read_ahead: int = DEFAULT_DEPTH
@@ -155,13 +163,19 @@ class ProcessOptions:
         Raises
         ------
         InputError
-            For an unknown report format, or ``--background`` with a reference other
-            than absolute.
+            For an unknown report format, ``--background`` with a reference other
+            than absolute, or an unknown ``--maps-grid`` or one without ``--maps``.
         """
         report = "png" if self.report is True else self.report or None
         if report:
             figure_format(f"report.{report}", "--report-format")
         settings = self.settings
+        if settings.maps_grid not in MAP_GRIDS:
+            raise InputError(
+                f"unknown --maps-grid {settings.maps_grid!r}; choose one of {', '.join(MAP_GRIDS)}"
+            )
+        if settings.maps_grid != "box" and not settings.maps:
+            raise InputError(f"--maps-grid {settings.maps_grid} places the maps: give --maps too")
         if settings.background is not None:
             if settings.reference not in (None, "absolute"):
                 raise InputError(

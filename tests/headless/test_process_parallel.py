@@ -86,10 +86,12 @@ def _run(
     runner: ChunkRunner | None,
     reference: str | None = None,
     settings: ProcessSettings | None = None,
+    *,
+    frames: str | None = None,
     **kwargs: object,
 ) -> ProcessOutcome:
     options = ProcessOptions(
-        settings=settings or ProcessSettings(reference=reference), report=False
+        settings=settings or ProcessSettings(reference=reference), frames=frames, report=False
     )
     return process_file(path, out, options, runner=runner, **kwargs)  # type: ignore[arg-type]
 
@@ -179,6 +181,7 @@ def _assert_same_maps(serial: ProcessOutcome, other: ProcessOutcome, what: str) 
         "aliasing",
         "lost frames",
         "lost, absolute",
+        "frame grid",
     ],
 )
 def test_maps_from_the_workers_are_those_of_one_process(
@@ -196,16 +199,25 @@ def test_maps_from_the_workers_are_those_of_one_process(
     path = injection if case == "aliasing" else tmp_path / "lost.h5" if lost else evaporation.path
     if lost:
         _lose_frames(evaporation.path, path)  # a chunk starts after a damaged frame
-    reference = {"background": "absolute", "lost frames": "relative", "lost, absolute": "absolute"}
+    reference = {
+        "background": "absolute",
+        "lost frames": "relative",
+        "lost, absolute": "absolute",
+        "aliasing": "absolute",
+        "frame grid": "absolute",
+    }
     settings = ProcessSettings(
-        reference=reference.get(case, "absolute" if case == "aliasing" else case),
+        reference=reference.get(case, case),
         maps=True,
+        maps_grid="frame" if case == "frame grid" else "box",
         background="3" if case == "background" else None,
     )
-    serial = _run(path, tmp_path / "serial", None, settings=settings)
+    frames = "0:20" if case == "frame grid" else None  # maps 64 times larger: 3 chunks
+    serial = _run(path, tmp_path / "serial", None, settings=settings, frames=frames)
     assert serial.data.demodulated == len(serial.data.frames) - (2 if lost else 0)
     for name, runner in runners.items():
-        other = _run(path, tmp_path / name.replace(" ", "_"), runner, settings=settings)
+        out = tmp_path / name.replace(" ", "_")
+        other = _run(path, out, runner, settings=settings, frames=frames)
         assert other.data.workers == runner.name
         _assert_same_maps(serial, other, f"{case}: {name}")
 
@@ -365,6 +377,13 @@ def test_jobs_are_planned_from_the_cores_and_the_frames(caplog: pytest.LogCaptur
     assert [c.start for c in chunks] == sorted(c.start for c in chunks)
     assert sum(len(c) for c in chunks) == 1000 and chunks[-1].stop == 1000
     assert split_frames(3, 7) == [range(0, 1), range(1, 2), range(2, 3)]
+    # a chunk's maps are held whole: frame-grid maps of 1024^2 and six peaks (29 MB a
+    # frame) come four frames a chunk, box maps (0.9 MB) 32
+    frame_grid = chunk_maps.map_bytes((1024, 1024), 6)
+    assert max(len(c) for c in split_frames(100, 1, maps=True, map_bytes=frame_grid)) <= 4
+    assert frame_grid * 4 <= chunk_maps.MAPS_CHUNK_BYTES
+    box = chunk_maps.map_bytes((180, 180), 6)
+    assert [len(c) for c in split_frames(64, 1, maps=True, map_bytes=box)] == [32, 32]
 
 
 @pytest.mark.parametrize("jobs", ["0", "-2"])

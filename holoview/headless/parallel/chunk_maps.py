@@ -52,11 +52,40 @@ from holoview.processing.fourier.frames import frame_damage
 from holoview.processing.maps.demod_results import FRAME_FLAGS, PEAK_RESULT_FLAGS
 from holoview.processing.maps.mean_phases import MeanPhaseState
 
-__all__ = ["MAPS_CHUNK_FRAMES", "ChunkMaps", "MapMaker", "MapsWork"]
+__all__ = [
+    "MAPS_CHUNK_BYTES",
+    "MAPS_CHUNK_FRAMES",
+    "ChunkMaps",
+    "MapMaker",
+    "MapsWork",
+    "chunk_frames",
+    "map_bytes",
+]
 
 #: Most frames in one chunk of a run with ``--maps``: a chunk's maps are held whole
-#: (about 0.9 MB a 1024 x 1024 frame with six peaks), and the parent writes them in order.
+#: (about 0.9 MB a 1024 x 1024 frame with six peaks), and the parent writes them in order ...
 MAPS_CHUNK_FRAMES = 32
+
+#: ... and most bytes of maps in one chunk: maps on the frame's grid (``--maps-grid
+#: frame``, 29 MB a 1024 x 1024 frame with six peaks and the fused map) come four frames
+#: a chunk (each chunk demodulates its reference frame besides: a fifth more work).
+MAPS_CHUNK_BYTES = 128 << 20
+
+
+def chunk_frames(map_bytes: int) -> int:
+    """Most frames in one chunk whose every frame's maps take ``map_bytes`` bytes.
+
+    Examples
+    --------
+    >>> chunk_frames(180 * 180 * 4 * 7), chunk_frames(1024 * 1024 * 4 * 7)
+    (32, 4)
+    """
+    return max(1, min(MAPS_CHUNK_FRAMES, MAPS_CHUNK_BYTES // max(1, map_bytes)))
+
+
+def map_bytes(box_shape: tuple[int, int], peaks: int) -> int:
+    """Bytes of one frame's maps: ``peaks`` maps of ``box_shape`` and the fused one, float32."""
+    return 4 * box_shape[0] * box_shape[1] * (peaks + 1)
 
 
 def _bits(flags: frozenset[str], names: Sequence[str]) -> int:

@@ -115,13 +115,15 @@ def plan_jobs(jobs: int | None, n_frames: int, kind: str, cores: int | None = No
     return jobs
 
 
-def split_frames(n_frames: int, jobs: int, *, maps: bool = False) -> list[range]:
+def split_frames(
+    n_frames: int, jobs: int, *, maps: bool = False, map_bytes: int = 0
+) -> list[range]:
     """Contiguous chunks of positions ``0..n_frames-1``, in order, for ``jobs`` workers.
 
     :data:`CHUNKS_PER_JOB` chunks a job (one with one job), none longer than
-    :data:`MAX_CHUNK_FRAMES` (:data:`~holoview.headless.parallel.chunk_maps.MAPS_CHUNK_FRAMES`
-    when the workers make every frame's ``maps``), their lengths differing by one at
-    most.
+    :data:`MAX_CHUNK_FRAMES` (when the workers make every frame's ``maps``, of
+    ``map_bytes`` bytes a frame: :func:`~holoview.headless.parallel.chunk_maps.chunk_frames`),
+    their lengths differing by one at most.
 
     Examples
     --------
@@ -133,7 +135,7 @@ def split_frames(n_frames: int, jobs: int, *, maps: bool = False) -> list[range]
     if n_frames < 1:
         return []
     count = 1 if jobs <= 1 else jobs * CHUNKS_PER_JOB
-    most = chunk_maps.MAPS_CHUNK_FRAMES if maps else MAX_CHUNK_FRAMES
+    most = chunk_maps.chunk_frames(map_bytes) if maps else MAX_CHUNK_FRAMES
     count = max(count, -(-n_frames // most))
     count = min(count, n_frames)
     edges = np.linspace(0, n_frames, count + 1).round().astype(int)

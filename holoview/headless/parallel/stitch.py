@@ -43,7 +43,7 @@ import numpy as np
 from holoview.headless.frame_passes import MapsSpec
 from holoview.headless.input_identity import InputIdentity
 from holoview.headless.inputs import InputFile
-from holoview.headless.parallel.chunk_maps import MapsWork
+from holoview.headless.parallel.chunk_maps import MapsWork, map_bytes
 from holoview.headless.parallel.chunks import ChunkResult, make_tasks, split_frames
 from holoview.headless.parallel.runners import ChunkRunner
 from holoview.headless.reader import DEFAULT_DEPTH
@@ -250,7 +250,12 @@ def _measure_chunks(
 ) -> RunData:
     n = len(frames)
     data.workers = runner.name
-    chunks = split_frames(n, runner.workers, maps=maps is not None)
+    chunks = split_frames(
+        n,
+        runner.workers,
+        maps=maps is not None,
+        map_bytes=map_bytes(data.box_shape, len(peaks)),
+    )
     works = None
     if maps is not None:
         wisdom = current_wisdom()
@@ -404,7 +409,9 @@ def _map_chunks(
     demod = core.demodulator
     assert demod is not None
     wisdom = current_wisdom()
-    chunks = split_frames(n, runner.workers, maps=True)
+    chunks = split_frames(
+        n, runner.workers, maps=True, map_bytes=map_bytes(data.box_shape, len(demod.peaks))
+    )
     states = chunk_states(data, chunks, spec, demod.phase_state(), demod.reference)
     fused = bool(data.fused_labels)
     works = []

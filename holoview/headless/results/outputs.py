@@ -68,8 +68,12 @@ FORMAT_VERSION = "1.0"
 #: when the disk fills (its index, a few kilobytes).
 CLOSE_RESERVE_BYTES = 1 << 20
 
-#: Frames of maps whose room on the disk is checked at once.
+#: Frames of maps whose room on the disk is checked at once ...
 MAP_BATCH = 16
+
+#: ... while they stay under this many bytes (maps on the frame's grid, 1024 x 1024 with
+#: six peaks, are checked frame by frame).
+MAP_BATCH_BYTES = 32 << 20
 
 #: What each reference mode means, for the map attributes.
 REFERENCE_DESCRIPTIONS = {
@@ -198,7 +202,8 @@ def summary_document(
     creation time);
     ``parameters`` (``wavelength_m``, ``pixel_pitch_m``, ``n1``, ``n2`` and where each
     came from, ``fps_hz`` (mean), ``reference``, ``window``, ``radius`` (``"matched"``,
-    ``"bound"`` or the number given, cycles/pixel), ``unwrap``, ``maps``, ``area_m2``,
+    ``"bound"`` or the number given, cycles/pixel), ``unwrap``, ``maps``, ``maps_grid``,
+    ``area_m2``,
     ``peaks_from``); ``peaks`` (per label: ``window``, the one it was demodulated
     with: ``radius_cpp``, ``kind``, ``taper``, ``rule``, ``bound_cpp``,
     ``content_cpp`` and ``reason``;
@@ -260,6 +265,7 @@ def summary_document(
             "radius": radius_setting(settings.radius),
             "unwrap": settings.unwrap,
             "maps": settings.maps,
+            "maps_grid": settings.maps_grid,
             "area_m2": settings.area_m2,
             "peaks_from": selection_mode,
         },
@@ -356,7 +362,9 @@ class ResultsFile:
                 ]
         # each frame's map is one HDF5 chunk, written as it is (write_direct_chunk: no
         # datatype conversion or selection, half the CPU time of a dataset write); the
-        # disk's room is checked once every MAP_BATCH frames
+        # disk's room is checked once a batch of frames
+        frame_bytes = 4 * box_shape[0] * box_shape[1] * (len(self._labels) + 1)
+        self._batch = max(1, min(MAP_BATCH, MAP_BATCH_BYTES // frame_bytes))
         self._block = -1
         self._n_frames, self._box_shape = n_frames, box_shape
         self._map_bytes = int(np.prod(box_shape)) * np.dtype(np.float32).itemsize
@@ -396,10 +404,10 @@ class ResultsFile:
                 self._maps.append(
                     self._map_dataset(self._file["maps"], "fused", self._n_frames, self._box_shape)
                 )
-        block = position // MAP_BATCH
+        block = position // self._batch
         if block != self._block:
             self._block = block
-            self._ensure_room(MAP_BATCH * len(self._maps) * self._map_bytes)
+            self._ensure_room(self._batch * len(self._maps) * self._map_bytes)
         with self._guard():
             for dataset, values in zip(self._maps, maps, strict=False):
                 self._write_chunk(dataset, position, values)
@@ -503,6 +511,7 @@ class ResultsFile:
                 else f"each frame against the background hologram {settings.background}"
             ),
             "frame_shape_px": list(frame_shape),
+            "grid": settings.maps_grid,
             "pixel_step_px": list(step),
             "window": settings.window,
             "untrusted": "NaN",

@@ -37,9 +37,11 @@ Root attributes
     ``(0, 0)``'s centre at the origin, y down the rows, x along the columns); without a
     pixel pitch, in frame pixels (``units`` ``1``). ``frame`` (time) is a coordinate.
     ``<label>`` per peak and ``fused`` (time, y, x): float32, m, at the demodulation
-    box's resolution, NaN where not trusted; attributes ``units``, ``long_name``,
+    box's resolution, or on the frame's pixels with ``--maps-grid frame``
+    (``pixel_step_px`` 1), NaN where not trusted; attributes ``units``, ``long_name``,
     ``quantity`` (``delta_h``), ``reference`` and ``reference_description``, ``label``,
-    ``alpha``, ``carrier_cpp``, ``frame_shape_px``, ``pixel_step_px``, ``pixel_size_m``
+    ``alpha``, ``carrier_cpp``, ``frame_shape_px``, ``grid`` (``box`` or ``frame``),
+    ``pixel_step_px``, ``pixel_size_m``
     (when the pixel pitch is known), ``window``, per peak the window it was demodulated
     with (``radius_cpp``, its cut-off in cycles/pixel; ``window_taper``,
     ``window_rule``, ``window_bound_cpp``, ``window_content_cpp`` where matched,

@@ -350,8 +350,12 @@ def _along(values: np.ndarray, shift: float, axis: int, kind: str) -> np.ndarray
     if t == 0 and kind != "spline":
         return values
     taps = np.array(_weights(kind, t), dtype=np.float32)
+    # along the array's contiguous axis (a copy when it is not): scipy's correlate1d
+    # across the rows of a 1024^2 map took 8 times as long as along them
+    lined = np.ascontiguousarray(np.moveaxis(values, axis, -1))
     # correlate1d's taps j = 0..3 read offsets j - 2 - origin: origin -1 reads -1..2
-    return ndimage.correlate1d(values, taps, axis=axis, mode="nearest", origin=-1)
+    moved = ndimage.correlate1d(lined, taps, axis=-1, mode="nearest", origin=-1)
+    return np.moveaxis(moved, -1, axis)
 
 
 def _fill_untrusted(array: np.ndarray, trusted: np.ndarray) -> np.ndarray:

@@ -16,6 +16,7 @@ from holoview.processing.peaks.detection import Peak
 
 __all__ = [
     "FRAME_FLAGS",
+    "MAP_GRIDS",
     "PEAK_RESULT_FLAGS",
     "REFERENCE_MODES",
     "UNWRAP_MODES",
@@ -28,6 +29,10 @@ REFERENCE_MODES: tuple[str, ...] = ("synthetic", "absolute", "relative")
 
 #: Spatial unwrapping policies: ``"auto"`` unwraps only maps that have wraps.
 UNWRAP_MODES: tuple[str, ...] = ("auto", "always", "never")
+
+#: The grids the maps come on: ``"box"``, the demodulation box's (pixel ``(p, q)`` at frame
+#: position ``(p rows / by, q cols / bx)``), or ``"frame"``, the camera frame's pixels.
+MAP_GRIDS: tuple[str, ...] = ("box", "frame")
 
 #: Flags a :class:`PeakResult` can carry (see its documentation).
 PEAK_RESULT_FLAGS: tuple[str, ...] = ("reference", "phase_step", "low_amplitude", "overlap")

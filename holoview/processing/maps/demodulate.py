@@ -7,7 +7,11 @@ small box out of the half spectrum with the carrier moved to the origin and the 
 applied (:func:`~holoview.processing.fourier.boxes.cut_box`), then takes an inverse FFT
 of the box only. The complex field per peak therefore comes at the box resolution
 (pixel ``(p, q)`` at frame position ``(p rows / by, q cols / bx)``);
-:meth:`Demodulator.upsample` brings any map to the frame grid.
+:meth:`Demodulator.upsample` brings any map to the frame grid. With ``grid="frame"``
+the box is the frame's size: the windowed sideband, zero beyond the window, is
+inverted in a frame-sized array, which gives the field on the camera's pixels (the
+band-limited interpolation of the box's field, what a plain Fourier filter gives), and
+every later step (trusted pixels, phases, unwrapping) runs on that grid.
 
 Where the time goes: ``benchmarks/bench_demodulation.py --floor``.
 
@@ -61,6 +65,7 @@ from holoview.processing.fourier.half_spectrum import HalfSpectrum
 from holoview.processing.fourier.resample import resample_mask, upsample
 from holoview.processing.fourier.windows import DEFAULT_TAPER, DEFAULT_WINDOW, check_kind
 from holoview.processing.maps.demod_results import (
+    MAP_GRIDS,
     REFERENCE_MODES,
     UNWRAP_MODES,
     DemodResult,
@@ -81,8 +86,7 @@ from holoview.processing.peaks.radii import (
     check_peaks,
     check_radii,
     distinct_neighbours,
-    fell_back,
-    peak_name,
+    fallback_notes,
     peak_windows,
     radius_rule,
 )
@@ -154,6 +158,10 @@ class Demodulator:
     windows : sequence of Window, optional
         Each peak's window, decided elsewhere (the same as another demodulator's);
         ``radius``, ``window``, ``taper`` and ``spectrum`` are then not used.
+    grid : {"box", "frame"}
+        Where the maps are: ``"box"`` (the default), the demodulation box's grid, the
+        smallest that holds the widest window; ``"frame"``, the frame's pixels (module
+        documentation: more time and memory a frame, the same information).
 
     Raises
     ------
@@ -193,6 +201,7 @@ class Demodulator:
         background: np.ndarray | None = None,
         spectrum: SurfaceSpectrum | None = None,
         windows: Sequence[Window] | None = None,
+        grid: str = "box",
     ) -> None:
         if len(shape) != 2 or min(int(shape[0]), int(shape[1])) < MIN_SIDE:
             raise InputError(f"frame shape must be (rows, cols), each >= {MIN_SIDE}; got {shape}")
@@ -207,6 +216,10 @@ class Demodulator:
             raise InputError(
                 f"unknown unwrap mode {unwrap!r}; choose one of {', '.join(UNWRAP_MODES)}"
             )
+        if grid not in MAP_GRIDS:
+            raise InputError(f"unknown map grid {grid!r}; choose one of {', '.join(MAP_GRIDS)}")
+        #: where the maps are (``"box"`` or ``"frame"``)
+        self.grid = grid
         if wavelength is not None and not (np.isfinite(wavelength) and wavelength > 0):
             raise InputError(f"wavelength must be > 0 metres, got {wavelength}")
         if not 0 <= min_amplitude < 1:
@@ -242,10 +255,8 @@ class Demodulator:
         #: each peak's window radius, cycles/pixel
         self.radii = tuple(w.radius for w in self.windows)
         self._overlapping, warnings = check_radii(self.peaks, self.radii, others)
-        fallbacks = tuple(
-            f"{peak_name(self.peaks, i)}: {w.reason} ({w.radius:.4g} cycles/pixel)"
-            for i, w in enumerate(self.windows)
-            if radius_rule(radius) == "matched" and fell_back(w)
+        fallbacks = (
+            fallback_notes(self.peaks, self.windows) if radius_rule(radius) == "matched" else ()
         )
         #: what the user should know about the windows: a given radius reaching a peak,
         #: a matched window at the bound for want of measurable surface power
@@ -254,7 +265,8 @@ class Demodulator:
             logger.warning("%s", line)
         #: the largest window radius (cycles/pixel): it sets the box shape
         self.radius = max(self.radii)
-        self.box_shape = box_shape_for(self.shape, self.radius)
+        #: the maps' shape: the box's, or the frame's with ``grid="frame"``
+        self.box_shape = self.shape if grid == "frame" else box_shape_for(self.shape, self.radius)
         self._boxes = [
             box_geometry(
                 self.shape,
@@ -410,6 +422,7 @@ class Demodulator:
             "threads": self.threads,
             "neighbours": self.neighbours,
             "background": self.background,
+            "grid": self.grid,
         }
         settings.update(changes)
         if settings["reference"] != "absolute" and "background" not in changes:

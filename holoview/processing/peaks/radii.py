@@ -221,6 +221,26 @@ def fell_back(window: Window) -> bool:
     return window.rule == "bound" and window.reason not in (BOUND_REASON, UNMEASURED_REASON)
 
 
+def fallback_notes(peaks: Sequence[Peak], windows: Sequence[Window]) -> tuple[str, ...]:
+    """One note per reason for the matched windows that fell back to the bound.
+
+    Peaks with the same reason share a line (``"RB1, RF and FB1: no measurable change
+    ... (0.0793, 0.0801, 0.0793 cycles/pixel)"``): a flat surface gives one line, not
+    one per peak.
+    """
+    by_reason: dict[str, list[int]] = {}
+    for i, window in enumerate(windows):
+        if fell_back(window):
+            by_reason.setdefault(window.reason, []).append(i)
+    notes = []
+    for reason, which in by_reason.items():
+        names = [peak_name(peaks, i) for i in which]
+        named = names[0] if len(names) == 1 else ", ".join(names[:-1]) + " and " + names[-1]
+        radii = ", ".join(f"{windows[i].radius:.4g}" for i in which)
+        notes.append(f"{named}: {reason} ({radii} cycles/pixel)")
+    return tuple(notes)
+
+
 def peak_radii(
     shape: tuple[int, int],
     carriers: np.ndarray,
