@@ -2,9 +2,9 @@
 
 1. :func:`measure_frames`: every frame's carrier values (the carrier probe,
    :class:`~holoview.engine.frame_core.CarrierCore`, what the live series worker runs)
-   into the run's :class:`~holoview.engine.series.PhaseSeries`, estimated jointly as
-   the frames come where the prefactors are known: all the trends and rates need, at
-   a quarter of a full FFT's time a frame.
+   into the run's :class:`~holoview.engine.series.PhaseSeries` (estimated jointly
+   by the analysis, after the pass: :mod:`holoview.headless.run_passes`): all the
+   trends and rates need, at a quarter of a full FFT's time a frame.
 2. :func:`spread_pass`: the maps of :data:`COREGISTER_FRAMES` frames spread over the
    run (and of the last), through the maps step
    (:class:`~holoview.engine.map_step.MapStep`): the peaks' displacements, measured
@@ -173,7 +173,7 @@ def measure_frames(
     times : ndarray, shape (len(frames),)
         Their times, s.
     data : RunData
-        The run's record (its series set up, a joint estimate tracked where known).
+        The run's record (its series set up).
     peaks : sequence of Peak
         The demodulator's peaks.
     read_ahead : int

@@ -138,7 +138,10 @@ def run_passes(
     total = n * (2 if maps and not together else 1)
     first = None if progress is None else (lambda k: progress(k, total))
     second = None if progress is None else (lambda k: progress(n + k, total))
-    joint = known_joint(run.selection, run.optics)
+    # the joint estimate as the frames come where the parent would otherwise wait for its
+    # workers; in one process it waits for the analysis, which makes it over every frame
+    # done (the same numbers: frame after frame, in order), out of the frame loop's way
+    joint = known_joint(run.selection, run.optics) if runner is not None else None
     if joint is not None:
         joint.track(data.series)
     read_ahead = run.settings.read_ahead
