@@ -21,6 +21,10 @@ run, and prints medians and extremes:
   before and after (and its vector extensions);
 - the targets of issue 17: the series takes every frame, display >= 25 Hz, map latency
   p95 < 100 ms, longest stall < 100 ms, no dropped frame;
+- with ``--waves LABEL`` (a labelled peak, or ``fused``): the Waves panel open on that
+  map; its worker's maps per second against the camera's, the stride (camera frames per
+  map), frames lost or overwritten before it read them, and whether every camera frame
+  gave a map (issue 24's live target) beside the issue-17 targets;
 - with ``--profile N``: where the GUI thread's time goes over the measured run (cProfile
   of the GUI thread, the N entries of largest cumulative time under pyqtgraph and
   holoview, in ms per displayed frame), and each image's render and paint time by shape.
@@ -31,6 +35,7 @@ from __future__ import annotations
 import argparse
 import collections
 import cProfile
+import math
 import os
 import pstats
 import statistics
@@ -67,6 +72,11 @@ def thread_cpu_seconds() -> dict[str, float]:
         utime, stime = (int(v) for v in fields.split()[11:13])
         out[thread.name] = (utime + stime) / ticks
     return out
+
+
+def median(values: list[float]) -> float:
+    """The median of ``values`` (NaN for none: no map drawn on a machine too loaded)."""
+    return statistics.median(values) if values else float("nan")
 
 
 def percentile(values: list[float], q: float) -> float:
@@ -131,6 +141,9 @@ def main() -> int:
     parser.add_argument("--label", action="append", type=parse_label, default=[])
     parser.add_argument(
         "--profile", type=int, default=0, metavar="N", help="print the GUI thread's N top costs"
+    )
+    parser.add_argument(
+        "--waves", metavar="LABEL", help="open the Waves panel on this map (a label or fused)"
     )
     args = parser.parse_args()
     app = application()
@@ -210,6 +223,16 @@ def main() -> int:
         labels = args.label or window.suggested_labels()
         for name, fx, fy in labels:
             window.label_peak(name, fx, fy)
+        if args.waves:
+            window.show_waves()
+            for _ in range(40):  # the labelled maps are offered once the maps show them
+                run_for(0.5)
+                if window.waves.map_box.findText(args.waves) >= 0:
+                    break
+            window.waves.choose_map(args.waves)
+            if window.waves.map_box.currentText() != args.waves:
+                print(f"no map {args.waves} to open in the Waves panel", file=sys.stderr)
+                return 1
         run_for(args.warmup)
         draws.clear()
         views.clear()
@@ -220,6 +243,9 @@ def main() -> int:
         session = window.session
         cam0, seq0 = session.camera.frames, session.latest().seq
         series0 = session.series_worker.status()
+        waves_worker = session.waves_worker
+        if waves_worker is not None:
+            waves0 = (waves_worker.history.pushed, waves_worker.status(), waves_worker.stride)
         cpu0 = thread_cpu_seconds()
         t0 = time.monotonic()
         profiler = cProfile.Profile()  # the GUI thread only: cProfile hooks the calling thread
@@ -237,6 +263,23 @@ def main() -> int:
         missed = series1.dropped - series0.dropped
         labelled = sorted(session.latest().labelled)
         dropped = session.rates().dropped
+        waves_line, waves_ok = "", True
+        if waves_worker is not None:
+            pushed = waves_worker.history.pushed - waves0[0]
+            status = waves_worker.status()
+            lost = status.dropped - waves0[1].dropped
+            frames = session.camera.frames - cam0
+            stride = waves_worker.stride
+            waves_ok = stride == 1 and waves0[2] == 1 and lost == 0 and pushed >= frames - 2
+            latest = session.waves()
+            fit_s = f", analysis {latest.seconds * 1e3:.0f} ms" if latest is not None else ""
+            waves_line = (
+                f"waves       {pushed / elapsed:6.1f} maps/s of {args.waves} ({pushed} maps for "
+                f"{frames} camera frames; stride {waves0[2]} -> {stride}; {lost} frames "
+                f"overwritten before the waves worker read them{fit_s}; a map takes "
+                f"{waves_worker.map_seconds() * 1e3:.1f} ms, a camera frame comes every "
+                f"{1e3 / camera_fps:.1f} ms)"
+            )
         ticker.stop()
         window.close()
     stall = max(gaps) - 0.005 if gaps else float("nan")
@@ -257,22 +300,24 @@ def main() -> int:
     print(f"display     {len(views) / elapsed:6.1f} fps  (the camera view)")
     print(f"maps drawn  {len(draws) / elapsed:6.1f} fps")
     print(
-        f"draw call   maps median {statistics.median(draws) * 1e3:5.1f} ms, "
-        f"p95 {percentile(draws, 0.95) * 1e3:5.1f} ms, max {max(draws) * 1e3:5.1f} ms; "
-        f"camera view median {statistics.median(views) * 1e3:5.1f} ms, "
+        f"draw call   maps median {median(draws) * 1e3:5.1f} ms, "
+        f"p95 {percentile(draws, 0.95) * 1e3:5.1f} ms, "
+        f"max {max(draws, default=math.nan) * 1e3:5.1f} ms; "
+        f"camera view median {median(views) * 1e3:5.1f} ms, "
         f"p95 {percentile(views, 0.95) * 1e3:5.1f} ms"
     )
     print(
-        f"view latency median {statistics.median(view_latencies) * 1e3:5.1f} ms, "
+        f"view latency median {median(view_latencies) * 1e3:5.1f} ms, "
         f"p95 {percentile(view_latencies, 0.95) * 1e3:5.1f} ms (camera frame to screen)"
     )
     print(
-        f"maps work   median {statistics.median(work) * 1e3:5.1f} ms per frame drawn, "
-        f"max {max(work) * 1e3:5.1f} ms"
+        f"maps work   median {median(work) * 1e3:5.1f} ms per frame drawn, "
+        f"max {max(work, default=math.nan) * 1e3:5.1f} ms"
     )
     print(
-        f"map latency median {statistics.median(latencies) * 1e3:5.1f} ms, "
-        f"p95 {percentile(latencies, 0.95) * 1e3:5.1f} ms, max {max(latencies) * 1e3:5.1f} ms"
+        f"map latency median {median(latencies) * 1e3:5.1f} ms, "
+        f"p95 {percentile(latencies, 0.95) * 1e3:5.1f} ms, "
+        f"max {max(latencies, default=math.nan) * 1e3:5.1f} ms"
     )
     shares = ", ".join(
         f"{name} {100 * (cpu1[name] - cpu0.get(name, 0.0)) / elapsed:.0f}%" for name in sorted(cpu1)
@@ -290,6 +335,8 @@ def main() -> int:
         f"(series worker)"
     )
     print(f"longest event-loop stall {stall * 1e3:5.1f} ms; dropped frames {dropped}")
+    if waves_line:
+        print(waves_line)
     p95 = percentile(latencies, 0.95)
     checks = [
         ("series takes every frame", missed == 0 and series_fps >= 0.995 * camera_fps),
@@ -298,6 +345,8 @@ def main() -> int:
         ("longest stall < 100 ms", stall < 0.1),
         ("0 dropped", dropped == 0),
     ]
+    if waves_line:
+        checks.append(("waves map of every camera frame", waves_ok))
     print("targets: " + "; ".join(f"{name} {'met' if ok else 'MISSED'}" for name, ok in checks))
     if args.profile:
         print_profile(profiler, images, len(views), args.profile)

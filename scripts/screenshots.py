@@ -12,8 +12,10 @@ and the PNGs go to ``OUT/WIDTHxHEIGHT/``. States saved, one PNG each: ``1-start`
 profile), ``3-phase`` (the same maps as phase with the cyclic colour map),
 ``4-recording`` (a recording running, its indicator), ``5-trends`` (the depth series
 and rate), ``6-replay`` (that recording opened as File > Open does: its whole run, the
-frame shown as a cursor, a range fitted). ``--label`` names peaks instead of the
-source's suggestions.
+frame shown as a cursor, a range fitted), ``7-waves`` (the Waves panel on the first
+labelled peak's map, centred on the field; ``--source replay:PATH`` of a ``holoview
+simulate --scenario travelling`` recording shows waves). ``--label`` names peaks
+instead of the source's suggestions.
 """
 
 from __future__ import annotations
@@ -29,6 +31,7 @@ from pathlib import Path
 
 from PyQt6.QtWidgets import QApplication
 
+from holoview.live.replay_control import FASTEST
 from holoview.live.session import RecordRequest
 from holoview.ui.app import application
 from holoview.ui.main_window import MainWindow
@@ -146,6 +149,25 @@ def main() -> int:
             window.close()
             return 1
         save("6-replay")
+        window.show_waves()
+        wait(app, 1.0)
+        labels = [window.waves.map_box.itemText(i) for i in range(window.waves.map_box.count())]
+        window.waves.choose_map("RB1" if "RB1" in labels else labels[0])
+        window.waves.length_box.setCurrentIndex(window.waves.length_box.findData(128))
+        replay_control = window.session.replay
+        if replay_control is not None:  # played as fast as it reads: a map of every frame
+            replay_control.set_loop(True)
+            replay_control.set_speed(FASTEST)
+            replay_control.play()
+        until(app, lambda: (w := window.session.waves()) is not None and w.fit is not None, 60)
+        waves = window.session.waves()
+        if waves is not None and waves.latest is not None and waves.pixel_size is not None:
+            rows, cols = waves.latest.shape
+            window.waves.set_centre(
+                (cols // 2 * waves.pixel_size[1], rows // 2 * waves.pixel_size[0])
+            )
+            wait(app, args.settle)
+        save("7-waves")
         window.close()
     return 0
 

@@ -50,3 +50,26 @@ def real_data() -> Path:
     if not REAL_DATA.is_dir():
         pytest.skip(f"real holograms not found at {REAL_DATA}")
     return REAL_DATA
+
+
+#: Travelling waves on 1 mm of water with a flow, as a simulated recording: a bench with
+#: carriers far apart; the waves feel the bottom (k d from 0.15 to 1.5, so the depth is
+#: fitted too); 160 frames of 128 x 128 pixels of 320 um (a 41 mm field) at 250 frames/s,
+#: small enough for the live and window tests of the Waves panel to take seconds.
+TRAVELLING_WAVES = [
+    *("--size", "128", "--pixel-pitch-um", "320", "--depth-mm", "1"),
+    *("--m-r-mrad", "0.4", "0.025", "--m-b-mrad", "0.025", "0.3", "--reflectivity", "0.1"),
+    *("--scenario", "travelling", "--frames", "160", "--fps", "250", "--seed", "5"),
+    *("--wave-k", "150", "1500", "--wave-components", "120", "--flow-mm-per-s", "20", "10"),
+    *("--wave-start-s", "0.002", "--wave-rise-s", "0.01", "--no-truth-maps"),
+]
+
+
+@pytest.fixture(scope="session")
+def travelling_waves(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A recording of :data:`TRAVELLING_WAVES` with its truth (``/truth/waves``), made once."""
+    from holoview.cli import main
+
+    path = tmp_path_factory.mktemp("travelling") / "travelling.h5"
+    assert main(["-q", "simulate", str(path), *TRAVELLING_WAVES]) == 0
+    return path

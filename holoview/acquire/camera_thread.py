@@ -1,11 +1,12 @@
 """The camera thread: fetch, stamp, store into the ring; nothing else.
 
 It runs on a thread named ``holoview-camera``, never waits for a consumer (the
-ring overwrites the oldest frame), passes the source's transport losses on to
-the ring, and closes the ring when it ends, which is the shutdown sentinel every
-consumer sees. An error (a camera unplugged mid-stream) ends the thread cleanly:
-it is kept in :attr:`CameraThread.error` for the caller to show, and the frames
-already in the ring stay readable.
+ring overwrites the oldest frame; only a replay may be paced, :attr:`CameraThread.pace`),
+passes the source's transport losses on to the ring, and closes the ring when it
+ends, which is the shutdown sentinel every consumer sees. An error (a camera
+unplugged mid-stream) ends the thread cleanly: it is kept in
+:attr:`CameraThread.error` for the caller to show, and the frames already in the
+ring stay readable.
 """
 
 from __future__ import annotations
@@ -14,6 +15,7 @@ import collections
 import logging
 import threading
 import time
+from collections.abc import Callable
 
 from holoview.acquire.ring import FrameRing
 from holoview.acquire.source import AcquisitionError, EndOfStream, Source
@@ -66,6 +68,10 @@ class CameraThread:
         self._frames = 0
         self._times: collections.deque[float] = collections.deque(maxlen=64)
         self._lost_seen = 0
+        #: Called with the stop flag before each fetch; it may wait (a replay played as
+        #: fast as it reads waits for a consumer that must see every frame). Never set
+        #: for a camera: the producer of a live stream never waits.
+        self.pace: Callable[[threading.Event], None] | None = None
 
     @property
     def frames(self) -> int:
@@ -122,6 +128,8 @@ class CameraThread:
         source, ring = self.source, self.ring
         try:
             while not self._stop.is_set():
+                if self.pace is not None:
+                    self.pace(self._stop)
                 frame = source.fetch(self.fetch_timeout_s)
                 self._pass_on_losses()
                 if frame is None:

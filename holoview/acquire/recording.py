@@ -86,6 +86,7 @@ from holoview.acquire.durability import (
 from holoview.acquire.frame_times import FrameClock, choose_clock
 from holoview.acquire.hdf5_attributes import plain_value, read_attributes, write_attributes
 from holoview.acquire.hdf5_members import open_member
+from holoview.acquire.hdf5_refresh import refresh_datasets
 from holoview.errors import InputError, OutputError, os_error_text
 
 logger = logging.getLogger(__name__)
@@ -582,8 +583,8 @@ class RecordingReader:
                 f"{where} is damaged: /experiment/changes is {changes.dtype} of shape "
                 f"{changes.shape}, not (n, 3) integers"
             )
-        changes.refresh()  # first: the texts a change names are written before it
-        blob.refresh()
+        # changes first: the texts a change names are written before it
+        refresh_datasets(self._file, (changes, blob))
         rows = np.asarray(changes[()], dtype=np.int64)
         raw = blob[()].tobytes()
         out = []
@@ -631,8 +632,7 @@ class RecordingReader:
 
     def refresh(self) -> int:
         """See frames a live writer has flushed since the last call; return the new count."""
-        for dataset in (self._frames, self._ids, self._t_device, self._t_host):
-            dataset.refresh()
+        refresh_datasets(self._file, (self._frames, self._ids, self._t_device, self._t_host))
         self._n = self._complete_count()
         return self._n
 

@@ -5,7 +5,10 @@ recorder and the workers (:mod:`holoview.live.worker`), each frame processed by
 :class:`~holoview.live.maps_pipeline.MapsPipeline` on the engine's per-frame core. The GUI
 (:mod:`holoview.ui`) only reads the latest result and sends commands; a script or a
 test can do the same without a display; a replay is steered through
-:class:`~holoview.live.replay_control.ReplayControl` (``LiveSession.replay``).
+:class:`~holoview.live.replay_control.ReplayControl` (``LiveSession.replay``). While the
+Waves panel is open, :mod:`holoview.live.wave_worker` demodulates its map from every
+frame and analyses the last N (:mod:`holoview.live.wave_window`;
+``LiveSession.open_waves``).
 """
 
 from holoview.live.maps_pipeline import LiveResult, MapsPipeline

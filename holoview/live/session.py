@@ -11,6 +11,7 @@ ring closes, or a stop flag) and are joined by :meth:`LiveSession.close`.
 from __future__ import annotations
 
 import logging
+import threading
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -29,8 +30,10 @@ from holoview.engine.experiment import Experiment
 from holoview.engine.true_labels import true_experiment
 from holoview.errors import HoloviewError, InputError
 from holoview.live.maps_pipeline import LiveResult, MapsPipeline
-from holoview.live.replay_control import ReplayControl
+from holoview.live.replay_control import FASTEST, ReplayControl
 from holoview.live.series_pipeline import SeriesPipeline, TrendSummary
+from holoview.live.wave_window import LiveWaves, WaveSettings
+from holoview.live.wave_worker import WavesWorker
 from holoview.live.worker import DemodWorker, SeriesWorker
 
 logger = logging.getLogger(__name__)
@@ -137,6 +140,9 @@ class LiveSession:
         self._messages: list[str] = []
         self._closed = False
         self._maps_listener: Callable[[], None] | None = None
+        #: The Waves panel's worker while the panel is open (:meth:`open_waves`).
+        self.waves_worker: WavesWorker | None = None
+        self._waves_settings: WaveSettings | None = None
         try:
             self._build()
         except BaseException:
@@ -180,6 +186,13 @@ class LiveSession:
         self.worker.listener = self._maps_listener
         self.series = SeriesPipeline(shape, saturation=saturation)
         self.series_worker = SeriesWorker(self.ring, self.series, self.worker)
+        self.camera.pace = self._pace_replay
+        self.waves_worker = None
+        if self._waves_settings is not None:
+            self.waves_worker = WavesWorker(
+                self.ring, self.worker, shape, self._waves_settings, saturation=saturation
+            )
+            self.waves_worker.paced = self._replay_paced
 
     # ---- life cycle --------------------------------------------------------
     def start(self) -> None:
@@ -187,6 +200,8 @@ class LiveSession:
         self.camera.start()
         self.worker.start()
         self.series_worker.start()
+        if self.waves_worker is not None:
+            self.waves_worker.start()
 
     def close(self) -> None:
         """Stop recording, the camera and the worker; join them; close the source."""
@@ -195,6 +210,7 @@ class LiveSession:
         self._closed = True
         self.stop_recording()
         self.camera.stop()
+        self._stop_waves()
         self.series_worker.stop()
         self.worker.stop()
         try:
@@ -287,6 +303,7 @@ class LiveSession:
             return self.source.set(name, value)
         self.stop_recording()
         self.camera.stop()
+        self._stop_waves()
         self.series_worker.stop()
         self.worker.stop()
         try:
@@ -368,6 +385,50 @@ class LiveSession:
         out = self.worker.drain_messages() + self.series_worker.drain_messages() + self._messages
         self._messages = []
         return out
+
+    # ---- the Waves panel ---------------------------------------------------
+    def open_waves(self, settings: WaveSettings) -> None:
+        """Start the waves worker on ``settings`` (or hand them to the running one)."""
+        self._waves_settings = settings
+        if self.waves_worker is not None:
+            self.waves_worker.post("settings", settings)
+            return
+        self.waves_worker = WavesWorker(
+            self.ring,
+            self.worker,
+            self.source.frame_shape,
+            settings,
+            saturation=self.saturation_value,
+        )
+        self.waves_worker.paced = self._replay_paced
+        if self.camera.started:  # else :meth:`start` starts it
+            self.waves_worker.start()
+
+    def close_waves(self) -> None:
+        """Stop the waves worker (the panel closed); nothing else changes."""
+        self._waves_settings = None
+        self._stop_waves()
+
+    def waves(self) -> LiveWaves | None:
+        """The Waves panel's newest analysis, or None (panel closed, none yet)."""
+        worker = self.waves_worker
+        return None if worker is None else worker.latest()
+
+    def _stop_waves(self) -> None:
+        worker, self.waves_worker = self.waves_worker, None
+        if worker is not None:
+            worker.stop()
+
+    def _replay_paced(self) -> bool:
+        """True while the source is a replay played as fast as it reads (it waits for the
+        waves worker)."""
+        return self.replay is not None and self.replay.speed == FASTEST
+
+    def _pace_replay(self, stop: threading.Event) -> None:
+        """Before each frame: a replay played as fast as it reads waits for the waves worker."""
+        worker = self.waves_worker
+        if worker is not None and self._replay_paced():
+            worker.wait_for_room(stop)
 
     # ---- recording ---------------------------------------------------------
     def start_recording(self, request: RecordRequest) -> None:

@@ -59,6 +59,7 @@ from holoview.ui.window_layout import (
     initial_size,
     layout_for,
 )
+from holoview.ui.window_waves import WavesActions
 
 logger = logging.getLogger(__name__)
 
@@ -68,7 +69,7 @@ REDRAW_HZ = 30.0
 BANNER_S = 8.0
 
 
-class MainWindow(FileOpening, ExperimentActions, WindowExports, QMainWindow):
+class MainWindow(WavesActions, FileOpening, ExperimentActions, WindowExports, QMainWindow):
     """holoview's live window.
 
     Parameters
@@ -162,6 +163,7 @@ class MainWindow(FileOpening, ExperimentActions, WindowExports, QMainWindow):
         self.resize(initial_size(available))
         self.dock_layout = layout_for(available)
         arrange_docks(self, self.docks, self.dock_layout)
+        self.docks["Waves"] = self._add_waves_dock()  # a tab beside Trends once shown
         self._default_state = self.saveState()
         self._make_actions()
         self._connect()
@@ -343,6 +345,7 @@ class MainWindow(FileOpening, ExperimentActions, WindowExports, QMainWindow):
         self.source_panel.set_streaming(True, self.session.description)
         self.transport.attach(self.session.replay)
         self._attach_run()
+        self._waves_session()
         self.timer.start()
 
     def _attach_run(self) -> None:
@@ -470,6 +473,7 @@ class MainWindow(FileOpening, ExperimentActions, WindowExports, QMainWindow):
             self._draw_camera(newest[1])
             self.display_rate.tick()
         self.draw_maps()
+        self.draw_waves()
         state = session.replay.state() if session.replay is not None else None
         if state is not None:
             maps_index = -1 if self._last_result is None else self._last_result.frame_index
@@ -577,6 +581,7 @@ class MainWindow(FileOpening, ExperimentActions, WindowExports, QMainWindow):
     def reset_layout(self) -> None:
         """Put the docks back where they start."""
         self.restoreState(self._default_state)
+        self._place_waves()
         self._bars_as_they_are()
 
     def _bars_as_they_are(self) -> None:
@@ -601,8 +606,10 @@ class MainWindow(FileOpening, ExperimentActions, WindowExports, QMainWindow):
         self.save_layout()
 
     def closeEvent(self, event: QCloseEvent | None) -> None:
-        """Stop every thread and timer, remember the layout, then close."""
+        """Stop every thread and timer, remember the layout, take the Waves plots down
+        (:meth:`~holoview.ui.waves_view.WavesView.release`), then close."""
         self.shut_down()
+        self.waves.release()
         super().closeEvent(event)
 
 

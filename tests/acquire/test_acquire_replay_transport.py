@@ -10,7 +10,7 @@ import pytest
 
 from holoview.acquire import camera_thread
 from holoview.acquire.camera_thread import CameraThread
-from holoview.acquire.recording import RecordingWriter
+from holoview.acquire.recording import RecordingReader, RecordingWriter
 from holoview.acquire.replay import ReplaySource
 from holoview.acquire.ring import FrameRing
 from holoview.acquire.source import EndOfStream, Frame
@@ -169,6 +169,29 @@ def test_hold_pauses_on_the_last_frame_and_resume_starts_over(tmp_path: Path) ->
         again = fetch(source)
         assert (again.meta.file_index, again.meta.segment) == (0, 1)
         source.stop()
+
+
+def test_a_second_pass_shows_each_frame_while_another_reader_has_the_file_open(
+    tmp_path: Path,
+) -> None:
+    """The replay's end refreshes its file; with the window's whole-run measurement reading
+    the same file meanwhile, HDF5 then gave every frame of the next pass the first one's
+    pixels (the Waves panel's flaky real-window test)."""
+    path = write_h5(tmp_path / "r.h5", 6)
+    with (
+        RecordingReader(path) as measurement,
+        ReplaySource(path, speed="fast", hold=True) as source,
+    ):
+        source.start()
+        first = [int(fetch(source).data[0, 0]) for _ in range(6)]
+        assert source.fetch(timeout=0.1) is None and source.held  # its end: the file refreshed
+        source.resume()
+        second = [fetch(source) for _ in range(6)]
+        source.stop()
+        assert [int(measurement.frame(i)[0, 0]) for i in range(6)] == list(range(6))
+    assert first == list(range(6))
+    assert [int(f.data[0, 0]) for f in second] == list(range(6))
+    assert [f.meta.file_index for f in second] == list(range(6))
 
 
 def test_without_hold_or_loop_the_stream_ends(tmp_path: Path) -> None:

@@ -113,6 +113,21 @@ class HalfSpectrum:
         count = len(range(*floor_cols.indices(self.half_shape[1])))
         self._floor = pyfftw.empty_aligned((self.shape[0], count), "complex64")
         self._half = pyfftw.empty_aligned(self.half_shape, "complex64")
+        rows = self.shape[0]
+        #: the first pass's chunks: rows of the frame and the half spectrum's view of them
+        self._chunks = [
+            (slice(start, min(start + ROW_CHUNK, rows)), self._half[start : start + ROW_CHUNK])
+            for start in range(0, rows, ROW_CHUNK)
+        ]
+        #: the second pass's blocks of columns (views of the half spectrum), each run cut
+        #: into blocks of COLUMN_ALIGN: one plan serves every block of the shape (only the
+        #: last block, at the Nyquist column, may be narrower), so new peaks never wait for
+        #: FFTW to plan a new width (half a second each, measured)
+        self._blocks = [
+            self._half[:, block : min(block + COLUMN_ALIGN, stop)]
+            for start, stop in self.runs
+            for block in range(start, stop, COLUMN_ALIGN)
+        ]
 
     def transform(self, frame: np.ndarray) -> tuple[np.ndarray | None, float, np.ndarray]:
         """Transform a frame (not modified).
@@ -140,14 +155,15 @@ class HalfSpectrum:
 
     def _rows(self, frame: np.ndarray) -> None:
         """The first pass: every row's real FFT, converted to float32 a chunk at a time."""
-        half = self._half
-        rows = self.shape[0]
-        for start in range(0, rows, ROW_CHUNK):
+        plans: dict[int, pyfftw.FFTW] = {}  # by chunk height: each looked up once a frame
+        for rows, out in self._chunks:
             # a few rows at a time: the float32 copy is still in cache when transformed
-            stop = min(start + ROW_CHUNK, rows)
-            plan = rfft_rows_plan((stop - start, self.shape[1]), threads=self.threads)
-            np.copyto(plan.input_array, frame[start:stop], casting="unsafe")
-            plan.update_arrays(plan.input_array, half[start:stop])
+            height = out.shape[0]
+            plan = plans.get(height)
+            if plan is None:
+                plan = plans[height] = rfft_rows_plan((height, self.shape[1]), threads=self.threads)
+            np.copyto(plan.input_array, frame[rows], casting="unsafe")
+            plan.update_arrays(plan.input_array, out)
             plan.execute()
 
     def _floor_samples(self) -> np.ndarray:
@@ -162,14 +178,11 @@ class HalfSpectrum:
 
     def _columns(self) -> None:
         """The second pass, in place, over the runs of columns the boxes read."""
-        half = self._half
-        for start, stop in self.runs:
-            # block by block: one plan serves every block of the shape (only the last
-            # block, at the Nyquist column, may be narrower), so new peaks never wait for
-            # FFTW to plan a new width (half a second each, measured)
-            for block in range(start, stop, COLUMN_ALIGN):
-                width = min(COLUMN_ALIGN, stop - block)
-                plan = column_fft_plan(self.half_shape, width, threads=self.threads)
-                columns = half[:, block : block + width]
-                plan.update_arrays(columns, columns)
-                plan.execute()
+        plans: dict[int, pyfftw.FFTW] = {}  # by width: each looked up once a frame
+        for columns in self._blocks:
+            width = columns.shape[1]
+            plan = plans.get(width)
+            if plan is None:
+                plan = plans[width] = column_fft_plan(self.half_shape, width, threads=self.threads)
+            plan.update_arrays(columns, columns)
+            plan.execute()

@@ -56,14 +56,19 @@ from holoview.processing.fourier.boxes import (
     border_mask,
     box_geometry,
     box_shape_for,
-    cut_box,
 )
-from holoview.processing.fourier.fastmath import TWO_PI, AngleWorkspace, angle
+from holoview.processing.fourier.fastmath import AngleWorkspace, angle
 from holoview.processing.fourier.fftplans import DEFAULT_THREADS, ifft2_plan
 from holoview.processing.fourier.frames import MIN_SIDE
 from holoview.processing.fourier.half_spectrum import HalfSpectrum
 from holoview.processing.fourier.resample import resample_mask, upsample
 from holoview.processing.fourier.windows import DEFAULT_TAPER, DEFAULT_WINDOW, check_kind
+from holoview.processing.maps.box_maps import (
+    invert_box,
+    peak_result,
+    trusted_level,
+    trusted_pixels,
+)
 from holoview.processing.maps.demod_results import (
     MAP_GRIDS,
     REFERENCE_MODES,
@@ -76,10 +81,10 @@ from holoview.processing.maps.phase_maps import (
     PhaseMap,
     floor_grid,
     floor_power,
-    median_magnitude,
     phase_noise,
     unwrap_maps,
 )
+from holoview.processing.maps.unwrap import has_wraps
 from holoview.processing.peaks.detection import Peak
 from holoview.processing.peaks.matched import SurfaceSpectrum, Window
 from holoview.processing.peaks.radii import (
@@ -391,7 +396,7 @@ class Demodulator:
         given = self._given(values)
         kept = []
         for i, geo in enumerate(self._boxes):
-            field = self._field(i, half, box_plan)
+            field = invert_box(half, self._boxes[i], box_plan)
             value = complex(np.vdot(geo.ramp, field)) / field.size if given is None else given[i]
             kept.append((np.conj(field), value))
         array.setflags(write=False)
@@ -470,18 +475,6 @@ class Demodulator:
                 f"{what} has dtype {array.dtype}: expected integer or real pixel values"
             )
         return array
-
-    def _field(self, i: int, half: np.ndarray, box_plan: pyfftw.FFTW) -> np.ndarray:
-        """Cut, window and invert peak ``i``'s box: its field (counts), a new array."""
-        source, scratch = box_plan.input_array, box_plan.output_array
-        cut_box(half, self._boxes[i], source)
-        # the inverse FFT writes the new array itself (no copy); the shared plan then
-        # gets its own buffer back
-        field = pyfftw.empty_aligned(self.box_shape, dtype="complex64")
-        box_plan.update_arrays(source, field)
-        box_plan.execute()
-        box_plan.update_arrays(source, scratch)
-        return field
 
     def _result(
         self, flags: set[str], mean: float, peaks: tuple[PeakResult, ...] = ()
@@ -588,30 +581,6 @@ class Demodulator:
             self._ref_floor = samples
         return 0.0 if reference is None else floor_power(samples, reference)
 
-    def _trusted_pixels(
-        self, i: int, field: np.ndarray, mean: float
-    ) -> tuple[np.ndarray, np.ndarray, int]:
-        """Peak ``i``'s ``|field|^2`` (counts^2), trusted pixels (a new mask) and their count.
-
-        A pixel is trusted where ``|field|^2`` reaches the threshold's square (no square
-        roots) inside the aperture and off the border. ``|field|^2`` lives in the phase's
-        scratch (:attr:`~holoview.processing.fourier.fastmath.AngleWorkspace.scratch`):
-        use it up before the phase is taken.
-        """
-        peak = self.peaks[i]
-        workspace = self._angle_workspace
-        power, squares = workspace.scratch, workspace.pairs
-        pairs = field.view(np.float32)
-        np.multiply(pairs, pairs, out=squares)
-        np.add(squares[:, 0::2], squares[:, 1::2], out=power)
-        expected = peak.amplitude * mean if peak.amplitude > 0 else median_magnitude(power)
-        threshold = np.float32(self.min_amplitude * expected)
-        mask = np.greater_equal(power, threshold * threshold)
-        if not expected > 0:
-            mask[...] = False
-        mask &= self._trusted_box[i]
-        return power, mask, int(np.count_nonzero(mask))
-
     def _demodulate(
         self,
         i: int,
@@ -627,12 +596,19 @@ class Demodulator:
         ``value``: the peak's carrier value given for this frame (else the box's own).
         """
         geo = self._boxes[i]
-        field = self._field(i, half, box_plan)
+        field = invert_box(half, self._boxes[i], box_plan)
         flags: set[str] = set()
         if i in self._overlapping:
             flags.add("overlap")
 
-        power, mask, valid = self._trusted_pixels(i, field, mean)
+        amplitude = self.peaks[i].amplitude
+        power, mask, valid = trusted_pixels(
+            field,
+            amplitude * mean if amplitude > 0 else None,
+            self.min_amplitude,
+            self._trusted_box[i],
+            self._angle_workspace,
+        )
         if valid < MIN_VALID_FRACTION * self._trustable[i]:
             flags.add("low_amplitude")
 
@@ -657,6 +633,7 @@ class Demodulator:
             np.multiply(field, ref_conj, out=product)
             if self.reference == "relative":
                 np.conjugate(field, out=ref_conj)
+        level, wraps = None, None
         if product is None:
             phase = np.zeros(field.shape, dtype=np.float32)
             noise = 0.0
@@ -664,6 +641,11 @@ class Demodulator:
             size = self.shape[0] * self.shape[1]
             noise = phase_noise(power, mask, floor, geo.area_fraction, size)
             phase = angle(product, workspace=self._angle_workspace)
+            if valid:
+                # while the map is in cache: the 2 pi offset's level, whether it wraps
+                level = trusted_level(phase, mask, valid, self._angle_workspace)
+                if self.unwrap == "auto":
+                    wraps = has_wraps(phase, mask)
         return PhaseMap(
             field=field,
             phase=phase,
@@ -675,41 +657,18 @@ class Demodulator:
             flags=flags,
             live=product is not None,
             noise=noise,
+            wraps=wraps,
+            level=level,
         )
 
     def _finish(self, i: int, part: PhaseMap) -> PeakResult:
         """Set the map's 2 pi offset, estimate the noise, convert to height."""
-        peak = self.peaks[i]
-        phase = part.phase
-        if part.live and part.valid:
-            # put the map's 2 pi offset where the time-unwrapped mean phase says
-            if part.valid == phase.size:
-                level = float(phase.sum()) / phase.size
-            else:
-                weights = self._angle_workspace.scratch.reshape(-1)  # free after the phases
-                np.copyto(weights, part.mask.reshape(-1))
-                level = float(np.dot(phase.reshape(-1), weights)) / part.valid
-            offset = TWO_PI * round((part.target - level) / TWO_PI)
-            if offset:
-                phase += np.float32(offset)
-        noise = part.noise
-        error = float(np.hypot(noise, self.windows[i].cut)) if noise > 0 else noise
-        to_height = None
-        if peak.alpha is not None and self.wavelength is not None:
-            to_height = self.wavelength / (4 * np.pi * peak.alpha)
-        return PeakResult(
-            peak=peak,
+        return peak_result(
+            part,
+            self.peaks[i],
             radius=self.radii[i],
-            field=part.field,
-            phase=phase,
-            delta_h=None if to_height is None else phase * np.float32(to_height),
-            carrier_value=part.value,
-            mean_phase=part.mean_phase,
+            cut=self.windows[i].cut,
+            wavelength=self.wavelength,
             mean_phase_unwrapped=float(self._phases.unwrapped(i)),
-            mask=part.mask,
-            noise=noise,
-            noise_height=None if to_height is None else abs(noise * to_height),
-            unwrapped=part.unwrapped,
-            flags=frozenset(part.flags),
-            error_height=None if to_height is None else abs(error * to_height),
+            workspace=self._angle_workspace,
         )

@@ -87,7 +87,14 @@ class PhaseMap:
     noise : float
         Phase noise per trusted pixel (rad, :func:`phase_noise`); 0 when not live.
     unwrapped : bool
-        Whether spatial unwrapping ran on the map.
+        Whether spatial unwrapping ran on the map (only then is :attr:`phase` replaced).
+    wraps : bool or None
+        Whether the map as demodulated has wraps
+        (:func:`~holoview.processing.maps.unwrap.has_wraps`), when checked then (while
+        the map is still in cache); None when not checked.
+    level : float or None
+        The mean phase of the trusted pixels of the map as demodulated (rad), when taken
+        then; None when not.
     """
 
     field: np.ndarray
@@ -101,6 +108,8 @@ class PhaseMap:
     live: bool
     noise: float
     unwrapped: bool = False
+    wraps: bool | None = None
+    level: float | None = None
 
 
 def wrapped_inside(phase: np.ndarray, mask: np.ndarray) -> bool:
@@ -245,9 +254,9 @@ def unwrap_maps(maps: Sequence[PhaseMap], peaks: Sequence[Peak], *, always: bool
         return  # no trusted pixel anywhere: nothing worth unwrapping
     g = maps[guide]
     # where the guide's wraps are (its rectangle is unwrapped), whether the others have any
-    bounds = wrap_bounds(g.phase, g.mask)
+    bounds = None if g.wraps is False else wrap_bounds(g.phase, g.mask)
     need = [
-        m.live and (always or (bounds is not None if i == guide else has_wraps(m.phase, m.mask)))
+        m.live and (always or (bounds is not None if i == guide else _has_wraps(m)))
         for i, m in enumerate(maps)
     ]
     if not any(need):
@@ -269,6 +278,11 @@ def unwrap_maps(maps: Sequence[PhaseMap], peaks: Sequence[Peak], *, always: bool
             m.phase, m.unwrapped = unwrap_in_space(m.phase, m.mask)
         else:
             m.phase, m.unwrapped = guided, True
+
+
+def _has_wraps(part: PhaseMap) -> bool:
+    """Whether a map has wraps: as checked when it was demodulated, else now."""
+    return has_wraps(part.phase, part.mask) if part.wraps is None else part.wraps
 
 
 def floor_grid(shape: tuple[int, int]) -> tuple[slice, slice]:

@@ -11,7 +11,15 @@ term: :func:`~holoview.processing.fourier.windows.auto_radii`), as the demodulat
 them, and estimates each one's error from how it differs from the widest
 (:func:`map_errors`): the cut content is what remains of the difference once the noise
 the widest passes in addition is taken off. It keeps the radius of least error, then
-looks again around it. A change whose power stands above the noise is therefore
+looks again around it, there comparing every radius on the same pixels (those the
+narrowest of them trusts: otherwise each wider radius, trusted closer to the frame's
+edge, took in a band of the widest map's own edge error, and the estimate rose in steps
+with the radius). The noise is the quiet part of the spectrum's (:func:`_noise_floor`):
+a wavy surface spreads its change over much of the spectrum, and the median of every
+bin, taken for the noise, made the cut of a weak family's waves look smaller than its
+noise (FB2 of ``benchmarks/bench_wavy.py``). Each edge width searches from the
+smallest radius that passes the waves detection saw with its own edge
+(:func:`_waves_floor`). A change whose power stands above the noise is therefore
 passed: the window never cuts a wave field that the maps show above their noise. What
 a window cuts weighs :data:`CUT_WEIGHT` times its error: it is the same surface content
 missing from every peak's map, which the fused map does not average down as it does
@@ -67,8 +75,10 @@ CANDIDATES = 12
 #: estimated at 0.0125 cycles/pixel against 0.88 nm true, 0.70 against 0.60 at 0.0229),
 #: and the fused map averages down the noise a wider window passes, not what a narrower
 #: one cuts: keeping the narrowest put the fused map at 1.11 and 1.16 times the sweep's
-#: best at kmax 0.01 and 0.005, the widest at 1.04 and 1.05.
-NEAR_BEST = 0.1
+#: best at kmax 0.01 and 0.005, the widest at 1.04 and 1.05. Since the noise floor is
+#: the quiet part of the spectrum's (lower, so wide windows look cheaper) 0.1 kept too
+#: wide a window (fused 1.18 times the best at kmax 0.005, 4 seeds); 0.05: 1.10.
+NEAR_BEST = 0.05
 
 #: What a window cuts counts this many times its squared error when the radius is chosen:
 #: the cut is the same surface content missing from every peak's map, which fusing them
@@ -93,6 +103,15 @@ MIN_AMPLITUDE = 0.25
 
 #: Smallest matched radius, FFT bins (as the automatic radii's floor).
 MIN_RADIUS_BINS = 4.0
+
+#: Fewest bins of a tile of the spectrum whose median gives one local noise floor.
+FLOOR_TILE_BINS = 1024
+
+#: Most tiles per side of the spectrum for the noise floor.
+FLOOR_TILES = 8
+
+#: The noise floor is this quantile of the tiles' floors (the quiet part of the spectrum).
+FLOOR_QUANTILE = 0.25
 
 #: The rules a window radius is chosen by.
 RULES = ("matched", "bound", "given")
@@ -164,8 +183,8 @@ class SurfaceSpectrum:
         synthetic phases.
     floor : float
         Noise power per bin of what a map shows (the change, or the frame), counts^2:
-        the median over the spectrum over ln 2 (noise power is exponentially
-        distributed, and peaks cover a few percent of it).
+        the quiet quarter of the spectrum's tiles, each tile's median over ln 2 (noise
+        power is exponentially distributed; :func:`_noise_floor`).
     band : float
         The surface's waves as peak detection saw them, cycles/pixel: the largest
         offset of a wave's sidebands (:func:`~holoview.processing.peaks.radii.surface_band`;
@@ -273,18 +292,43 @@ def measure_spectrum(
 
 
 def _noise_floor(halves: tuple[np.ndarray, ...], other: np.ndarray | None) -> float | None:
-    """The noise floor of the changes (power per bin), from the first frame that has one.
+    """The noise floor of the changes (power per bin), averaged over the frames that have one.
+
+    The half spectrum is cut into tiles of at least :data:`FLOOR_TILE_BINS` bins (at most
+    :data:`FLOOR_TILES` a side); each tile's median power over ln 2 is its floor, and the
+    floor is their :data:`FLOOR_QUANTILE` quantile: the quiet part of the spectrum. The
+    change a surface makes is not confined to its peaks' main lobes: the phase
+    modulation's harmonics and the terms between families spread it over much of the
+    spectrum, and the median of every bin stood 22-30 % above the noise of the change
+    (``benchmarks/bench_wavy.py``'s scene, against the same frames without noise), which
+    made the noise a window passes look larger, and so what it cuts smaller (the matched
+    windows too narrow). The quiet quarter of the tiles stood within 0-2 % of it.
 
     A frame equal to the reference (a background taken from the run's own first frame)
     changes nothing and has none; None where no frame has one.
     """
+    floors = []
     for half in halves:
-        change = half if other is None else half - other
-        sample = change[::2, 1::2]
-        floor = float(np.median(sample.real**2 + sample.imag**2)) / np.log(2)
+        change = (half if other is None else half - other)[:, 1:-1]
+        power = change.real.astype(np.float64) ** 2 + change.imag.astype(np.float64) ** 2
+        rows, cols = power.shape
+        side = int(np.clip(np.sqrt(rows * cols / FLOOR_TILE_BINS), 1, FLOOR_TILES))
+        tiles = [
+            float(
+                np.median(
+                    power[
+                        i * rows // side : (i + 1) * rows // side,
+                        k * cols // side : (k + 1) * cols // side,
+                    ]
+                )
+            )
+            for i in range(side)
+            for k in range(side)
+        ]
+        floor = float(np.quantile(tiles, FLOOR_QUANTILE)) / np.log(2)
         if np.isfinite(floor) and floor > 0:
-            return floor
-    return None
+            floors.append(floor)
+    return float(np.mean(floors)) if floors else None
 
 
 def _field(box: np.ndarray, weights: np.ndarray, plan: pyfftw.FFTW) -> np.ndarray:
@@ -303,6 +347,7 @@ def map_errors(
     kind: str,
     taper: float,
     widest: tuple[str, float] | None = None,
+    same_pixels: bool = False,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Expected squared map error and its noise (rad^2 per trusted pixel) at each radius.
 
@@ -314,7 +359,8 @@ def map_errors(
     does not: ``D_r = c_r^2 + n^2 sum (W_B - W_r)^2``; its error is ``c_r^2 + n^2 sum
     W_r^2``, ``n^2`` the phase noise per unit of window from the spectrum's noise floor;
     averaged over the frames. What the widest map cuts is not seen: windows of other
-    shapes are compared against one widest map, the one that cuts least.
+    shapes are compared against one widest map, the one that cuts least. With
+    ``same_pixels``, every radius on the pixels the smallest trusts.
     """
     rows, cols = spectrum.shape
     size = float(rows * cols)
@@ -332,7 +378,10 @@ def map_errors(
     weights = [np.abs(pair[0::2]).astype(np.float64) * size for pair in pairs]
     passed = np.array([float(np.sum(w * w)) for w in weights])
     extra = np.array([float(np.sum((weights[-1] - w) ** 2)) for w in weights])
-    borders = [border_mask(box_shape, spectrum.shape, float(r)) for r in radii]
+    borders = [
+        border_mask(box_shape, spectrum.shape, float(radii.min() if same_pixels else r))
+        for r in radii
+    ]
     reference = None if spectrum.reference is None else spectrum.reference.reshape(-1)
     references = None
     if reference is not None:
@@ -376,13 +425,24 @@ def _best_radius(
     kind: str,
     taper: float,
 ) -> tuple[float, float, float, float]:
-    """``(weighed error, radius, cut, taper)`` of the radius :func:`matched_window` takes.
+    """``(least weighed error, radius, cut, taper)`` of the radius :func:`matched_window` takes.
 
-    ``span``: the smallest radius and the bound, cycles/pixel.
+    ``span``: the smallest radius (the waves' floor for this shape, where it is larger)
+    and the bound, cycles/pixel. The first value is the
+    least weighed error of any radius tried, by which the tapers are compared (not the
+    one of the radius kept, up to :data:`NEAR_BEST` above it: compared so, a taper with
+    a wider radius as good lost to one without).
     """
     smallest, bound = span
-    coarse = np.geomspace(smallest, bound, CANDIDATES)
     widest = (kind, min(MATCHED_TAPERS)) if kind == "tukey" else None
+    if smallest >= bound:
+        errors, errors_noise = map_errors(
+            spectrum, carrier, np.array([bound]), kind=kind, taper=taper, widest=widest
+        )
+        weighed = _weighed(errors, errors_noise)
+        cut = float(np.sqrt(max(errors[0] - errors_noise[0], 0.0)))
+        return float(weighed[0]), bound, cut, taper
+    coarse = np.geomspace(smallest, bound, CANDIDATES)
     errors, errors_noise = map_errors(
         spectrum, carrier, coarse, kind=kind, taper=taper, widest=widest
     )
@@ -390,14 +450,25 @@ def _best_radius(
     low, high = coarse[max(best - 1, 0)], coarse[min(best + 1, len(coarse) - 1)]
     fine = np.append(np.linspace(low, high, CANDIDATES), bound)
     fine_errors, fine_noise = map_errors(
-        spectrum, carrier, fine, kind=kind, taper=taper, widest=widest
+        spectrum, carrier, fine, kind=kind, taper=taper, widest=widest, same_pixels=True
     )
     weighed = _weighed(fine_errors, fine_noise)
     # the widest of the radii as good as the best (NEAR_BEST)
     least = float(np.min(weighed))
     chosen = int(np.flatnonzero(weighed <= least + NEAR_BEST * abs(least)).max())
     cut = float(np.sqrt(max(fine_errors[chosen] - fine_noise[chosen], 0.0)))
-    return float(weighed[chosen]), float(fine[chosen]), cut, taper
+    return least, float(fine[chosen]), cut, taper
+
+
+def _waves_floor(band: float, kind: str, taper: float, bound: float) -> float:
+    """The smallest radius (cycles/pixel, at most ``bound``) that passes waves seen at ``band``.
+
+    0 without waves seen.
+    """
+    if band <= 0:
+        return 0.0
+    passing = 1.0 - WAVE_EDGE * taper if kind == "tukey" else PASS_FRACTION[kind]
+    return min(bound, band / passing)
 
 
 def matched_window(
@@ -426,7 +497,8 @@ def matched_window(
     Window
         Rule ``"matched"``: the radius of least :func:`map_errors` (what it cuts weighed
         :data:`CUT_WEIGHT` times) among :data:`CANDIDATES` radii spaced evenly in log
-        between :data:`MIN_RADIUS_BINS` bins and the bound, then as many around the best,
+        between :data:`MIN_RADIUS_BINS` bins (or the radius that passes the waves
+        detected, :func:`_waves_floor`) and the bound, then as many around the best,
         the widest within :data:`NEAR_BEST` of the least; for a Tukey window, with
         the edge of :data:`MATCHED_TAPERS` (or ``taper``) that gives the least; the
         bound (rule ``"bound"``, with the reason) where the spectra show no measurable
@@ -453,14 +525,17 @@ def matched_window(
             "no measurable change of the surface around the carrier: the bound",
         )
     tapers = (taper, *(t for t in MATCHED_TAPERS if t != taper)) if kind == "tukey" else (taper,)
+    # each shape searched from the radius that passes the waves detected (its own floor):
+    # widening the best of a shape after the shapes were compared chose a sharp edge
+    # (which passes the waves from a smaller radius) widened to where a smoother one
+    # was better
+    floors = {t: _waves_floor(spectrum.band, kind, t, bound) for t in tapers}
     choices = [
-        _best_radius(spectrum, carrier, (smallest, bound), kind=kind, taper=t) for t in tapers
+        _best_radius(spectrum, carrier, (max(smallest, floors[t]), bound), kind=kind, taper=t)
+        for t in tapers
     ]
     _, radius, cut, taper = min(choices)
-    waves = min(bound, spectrum.band / (1.0 - WAVE_EDGE * taper)) if kind == "tukey" else 0.0
-    if spectrum.band > 0 and kind != "tukey":
-        waves = min(bound, spectrum.band / PASS_FRACTION[kind])
-    radius = max(radius, waves)
+    waves = floors[taper]
     step = STEP_BINS * per_bin
     edges = np.arange(0.0, bound + step, step)
     which = np.minimum(np.searchsorted(edges, rho, side="right") - 1, len(edges) - 2)
@@ -472,6 +547,6 @@ def matched_window(
         f"matched: least expected map error; the surface's change stands above the noise "
         f"out to {content:.4f} cycles/pixel, the bound is {bound:.4f}"
     )
-    if waves and radius == waves:
+    if waves > smallest and radius <= waves:
         reason += f"; widened to pass the waves detected (|q| up to {spectrum.band:.4f})"
     return Window(radius, kind, taper, "matched", bound, reason, content, cut)
