@@ -18,16 +18,19 @@ uncompressed 16-bit) in a temporary folder under /tmp, then prints in one run:
    ``--jobs 2``, and written to ``results.h5``): the best wall time of each, their ratio,
    the CPU time both vCPUs spent (from ``/proc/stat``), where the time went, and that
    the two ``results.h5`` hold the same maps (to float32 rounding);
-4. a scaling model to 16 and 64 cores: a worker's time per frame ``c`` (carrier probe
-   and reading from the page cache, from ``--jobs 1``, a process with a core to itself as
-   a worker of a large machine has), the parent's sequential time per frame ``p`` (the
-   series stitched in order with its joint estimate, from ``--jobs 2``), and the
-   read time per frame ``r`` (the frame's bytes over the measured disk rate, or a
-   network's). With ``W`` workers (cores minus one) the frames go at
-   ``min(W / c, 1 / p, 1 / r)`` frames/s, plus the run's fixed part (start, detection,
-   the maps of about 50 frames demodulated in the parent, analysis, outputs). The disk
-   (or network) becomes the limit beyond ``W = c / r`` workers, the parent beyond
-   ``W = c / p``.
+4. a scaling model to 16 and 64 cores, without and with ``--maps``: a worker's time per
+   frame ``c`` (carrier probe, with ``--maps`` the maps and fused map too, and reading
+   from the page cache, from ``--jobs 1``, a process with a core to itself as a worker of
+   a large machine has), the parent's sequential time per frame ``p`` (the series
+   stitched in order with its joint estimate, with ``--maps`` the maps written to
+   ``results.h5`` in order too, from ``--jobs 2``), and the read time per frame ``r``
+   (the frame's bytes over the measured disk rate, or a network's). With ``W`` workers
+   (cores minus one) the frames go at ``min(W / c, 1 / p, 1 / r)`` frames/s, plus the
+   run's fixed part (start, detection, matched windows, the maps of about 50 frames
+   demodulated in the parent, analysis, outputs). The disk (or network) becomes the limit
+   beyond ``W = c / r`` workers, the parent beyond ``W = c / p``. A Dask cluster's
+   workers send each frame's maps back over the network (local workers hand them over
+   in a file): with ``--maps`` the parent's link adds ``R / maps bytes`` frames/s.
 
 The recording and the outputs are deleted at the end.
 """
@@ -93,8 +96,12 @@ def same_maps(a: Path, b: Path, block: int = 100) -> bool:
     return True
 
 
-def bench_maps(work: Path, recording: Path, frames: int, repeat: int) -> None:
-    """Print ``--maps`` with ``--jobs 1`` against ``--jobs 2`` (module documentation)."""
+def bench_maps(work: Path, recording: Path, frames: int, repeat: int) -> dict[str, float]:
+    """Print ``--maps`` with ``--jobs 1`` against ``--jobs 2`` (module documentation).
+
+    Returns the model's figures: a worker's and the parent's seconds a frame, the fixed
+    seconds, and the maps' bytes a frame.
+    """
     runs: dict[int, list[tuple[float, float]]] = {1: [], 2: []}
     for _ in range(repeat):
         for jobs in (1, 2):
@@ -129,6 +136,14 @@ def bench_maps(work: Path, recording: Path, frames: int, repeat: int) -> None:
         f"{two['worker_seconds']:.1f} s, the parent's stitching and writing "
         f"{two['parent_seconds']:.1f} s), the rest {t2 - two['seconds']:.1f} s"
     )
+    with h5py.File(work / "maps1" / "results.h5", "r") as f:
+        maps_bytes = sum(d[0].nbytes for d in f["maps"].values())
+    return {
+        "worker": (one["demodulate_seconds"] + one["read_seconds"]) / frames,
+        "parent": two["parent_seconds"] / frames,
+        "fixed": t2 - two["seconds"],
+        "maps_bytes": float(maps_bytes),
+    }
 
 
 def read_rates(path: Path) -> tuple[float, float]:
@@ -219,24 +234,49 @@ def main() -> None:
             f"{(two['read_seconds']) / n * 1e3:.2f} ms reading, the parent (stitching in "
             f"order, joint estimate) {parent * 1e3:.2f} ms; three processes on two cores"
         )
+        with_maps = None
         if not args.no_maps:
-            bench_maps(work, recording, args.frames, args.repeat)
+            with_maps = bench_maps(work, recording, args.frames, args.repeat)
         print(f"load average at end: {', '.join(f'{x:.2f}' for x in os.getloadavg())}")
+        print("scaling model without --maps:")
         _model(n, worker, parent, fixed=fixed, frame_bytes=frame_bytes, disk=cold)
+        if with_maps is not None:
+            print("scaling model with --maps:")
+            _model(
+                n,
+                with_maps["worker"],
+                with_maps["parent"],
+                fixed=with_maps["fixed"],
+                frame_bytes=frame_bytes,
+                disk=cold,
+                maps_bytes=with_maps["maps_bytes"],
+            )
     finally:
         shutil.rmtree(work, ignore_errors=True)
 
 
 def _model(
-    frames: int, worker: float, parent: float, *, fixed: float, frame_bytes: float, disk: float
+    frames: int,
+    worker: float,
+    parent: float,
+    *,
+    fixed: float,
+    frame_bytes: float,
+    disk: float,
+    maps_bytes: float = 0.0,
 ) -> None:
-    """Print the scaling model (module documentation) for this machine's figures."""
+    """Print the scaling model (module documentation) for this machine's figures.
+
+    ``maps_bytes``: the maps a frame sends back to the parent (with ``--maps``), over
+    the network from a Dask cluster's workers.
+    """
+    back = f", R / {maps_bytes / 1e6:.2f} MB of maps back over a network" if maps_bytes else ""
     print(
-        f"scaling model: W = cores - 1 workers at {worker * 1e3:.2f} ms a frame each, the "
+        f"  W = cores - 1 workers at {worker * 1e3:.2f} ms a frame each, the "
         f"parent's sequential {parent * 1e3:.2f} ms a frame, frames of "
         f"{frame_bytes / 1e6:.2f} MB read at R bytes/s: frames/s = min(W / "
-        f"{worker * 1e3:.2f} ms, 1 / {parent * 1e3:.2f} ms, R / frame), plus {fixed:.1f} s "
-        "fixed"
+        f"{worker * 1e3:.2f} ms, 1 / {parent * 1e3:.2f} ms, R / frame{back}), plus "
+        f"{fixed:.1f} s fixed"
     )
     reads = [("this disk", disk), *NETWORKS]
     print(f"  the parent's stitching limits a run to {1 / parent:.0f} frames/s whatever the cores")
@@ -255,6 +295,8 @@ def _model(
                 "parent": 1 / parent,
                 "read": rate / frame_bytes,
             }
+            if maps_bytes and name != "this disk":  # a Dask cluster sends the maps back
+                bounds["maps back"] = rate / maps_bytes
             bound = min(bounds, key=bounds.__getitem__)
             per_s = bounds[bound]
             parts.append(

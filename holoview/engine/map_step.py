@@ -337,6 +337,7 @@ class MapStep:
         damaged: bool = False,
         estimate: bool = False,
         fuse: bool = True,
+        shifts: bool = True,
     ) -> FrameMaps:
         """The maps of ``frame`` (not modified), advancing the demodulator's reference.
 
@@ -353,6 +354,9 @@ class MapStep:
             Add this frame's maps to the displacement estimate first.
         fuse : bool
             Make the fused map.
+        shifts : bool
+            Give each map's displacement in camera pixels (``shifts_px``, ``grid_of``);
+            without it and without ``fuse``, the displacements are not looked up.
 
         Returns
         -------
@@ -378,7 +382,9 @@ class MapStep:
             self.coregistration.add_maps(
                 labels, result.box_shape, maps, reference="reference" in result.flags
             )
-        displacements = self.coregistration.displacements(labels, result.box_shape)
+        displacements = None
+        if fuse or shifts:
+            displacements = self.coregistration.displacements(labels, result.box_shape)
         fused = None
         if fuse:
             chosen = self.fused_peaks()
@@ -391,13 +397,13 @@ class MapStep:
                 ["phase_step" in r.flags for r in peaks],
                 displacements,
             )
-        shifts: dict[str, tuple[float, float]] = {}
+        shifted: dict[str, tuple[float, float]] = {}
         grid_of = None
-        if displacements is not None:
+        if shifts and displacements is not None:
             grid_of = labels[0] or "?"
             for r, d in zip(peaks, displacements, strict=True):
                 if d.measured:
-                    shifts[r.peak.label or "?"] = frame_shift(
+                    shifted[r.peak.label or "?"] = frame_shift(
                         d, result.frame_shape, result.box_shape
                     )
         return FrameMaps(
@@ -407,7 +413,7 @@ class MapStep:
             noise=tuple(r.noise for r in peaks),
             peak_flags=tuple(r.flags for r in peaks),
             flags=result.flags,
-            shifts_px=shifts,
+            shifts_px=shifted,
             grid_of=grid_of,
             result=result,
         )

@@ -2,9 +2,9 @@
 
 1. :func:`measure_frames`: every frame's carrier values (the carrier probe,
    :class:`~holoview.engine.frame_core.CarrierCore`, what the live series worker runs)
-   into the run's :class:`~holoview.engine.series.PhaseSeries`, estimated jointly as
-   the frames come where the prefactors are known: all the trends and rates need, at
-   a quarter of a full FFT's time a frame.
+   into the run's :class:`~holoview.engine.series.PhaseSeries` (estimated jointly
+   by the analysis, after the pass: :mod:`holoview.headless.run_passes`): all the
+   trends and rates need, at a quarter of a full FFT's time a frame.
 2. :func:`spread_pass`: the maps of :data:`COREGISTER_FRAMES` frames spread over the
    run (and of the last), through the maps step
    (:class:`~holoview.engine.map_step.MapStep`): the peaks' displacements, measured
@@ -54,6 +54,7 @@ logger = logging.getLogger(__name__)
 __all__ = [
     "COREGISTER_FRAMES",
     "MapsSpec",
+    "SpreadMaps",
     "frame_maps",
     "maps_pass",
     "measure_frames",
@@ -159,6 +160,7 @@ def measure_frames(
     read_ahead: int = DEFAULT_DEPTH,
     progress: Callable[[int], None] | None = None,
     maps: tuple[MapStep, MapRecord] | None = None,
+    spread: SpreadMaps | None = None,
 ) -> RunData:
     """Stream ``frames`` of ``source`` into ``data``'s series: each frame's carrier values.
 
@@ -171,7 +173,7 @@ def measure_frames(
     times : ndarray, shape (len(frames),)
         Their times, s.
     data : RunData
-        The run's record (its series set up, a joint estimate tracked where known).
+        The run's record (its series set up).
     peaks : sequence of Peak
         The demodulator's peaks.
     read_ahead : int
@@ -181,6 +183,10 @@ def measure_frames(
     maps : (MapStep, MapRecord), optional
         Make every frame's maps in the same pass (``--maps``, the displacements
         measured before: :func:`spread_pass`), recorded as they come.
+    spread : SpreadMaps, optional
+        Make the spread pass's maps in this pass, as its frames come (peaks known
+        before the run, one process): each frame is read and measured once. Its
+        displacements are kept (:meth:`SpreadMaps.finish`) unless interrupted.
 
     Returns
     -------
@@ -216,6 +222,8 @@ def measure_frames(
                         values=measured.values,
                         bits=bits,
                     )
+                if spread is not None and spread.wanted[position]:
+                    spread.take(position, index, frame, measured.values, bits)
                 done = position + 1
                 if progress is not None:
                     progress(done)
@@ -225,6 +233,8 @@ def measure_frames(
         logger.warning("interrupted after %d of %d frames: results of those", done, n)
         data.truncate(done)
     data.read_seconds += reader.read_seconds
+    if spread is not None and not data.interrupted:
+        spread.finish()
     return check_run(data)
 
 
@@ -253,6 +263,82 @@ def spread_positions(n: int, relative: bool) -> tuple[np.ndarray, int]:
     return np.flatnonzero(wanted), every
 
 
+class SpreadMaps:
+    """The maps of the frames spread over a run (:func:`spread_positions`), as they come.
+
+    Each frame at a measuring position adds its maps to the displacement estimate;
+    with ``record``, the frames' maps are counted into ``data`` and the last one's
+    kept, fused (the report's). Fed by :func:`spread_pass`, or by :func:`measure_frames`
+    where the spread frames' maps are made in the series pass.
+
+    Parameters
+    ----------
+    source : InputFile
+        The input.
+    n : int
+        Frames in the run.
+    data : RunData
+        The run's record: its displacements, fused labels and, with ``record``, its map
+        counts and last maps are this pass's.
+    spec : MapsSpec
+        The maps step (its displacements are measured here).
+    record : bool
+        Count these frames' maps into ``data`` and keep the last (no ``--maps`` pass).
+
+    Attributes
+    ----------
+    positions : ndarray of int
+        The run's positions whose frames are demodulated, in order.
+    wanted : ndarray of bool, shape (n,)
+        The same, as a mask.
+    """
+
+    def __init__(
+        self, source: InputFile, n: int, data: RunData, spec: MapsSpec, *, record: bool
+    ) -> None:
+        self.positions, self._every = spread_positions(n, spec.experiment.reference == "relative")
+        self.wanted = np.zeros(n, dtype=bool)
+        self.wanted[self.positions] = True
+        self._n = n
+        self._data = data
+        self._record = record
+        # on the box's grid whatever the run's: displacements of frame-grid maps are the box's
+        self.step = replace(spec, grid="box").step(source.frame_shape, source.saturation)
+        self._counts = MapRecord(data) if record else None
+
+    def take(
+        self, position: int, index: int, frame: np.ndarray, values: np.ndarray, bits: int
+    ) -> None:
+        """Demodulate the frame at ``position`` (input ``index``), its carrier values and bits."""
+        t0 = time.perf_counter()
+        maps = frame_maps(
+            self.step,
+            frame,
+            values,
+            bits,
+            estimate=position % self._every == 0,
+            fuse=self._record and position == self._n - 1,
+            shifts=False,
+        )
+        if self._counts is not None:
+            self._counts.record(position, index, maps)
+        seconds = time.perf_counter() - t0
+        self._data.maps_seconds += seconds
+        self._data.demod_seconds += seconds
+
+    def finish(self) -> list[Displacement]:
+        """Keep the displacements measured and the fused labels in the run's record."""
+        data = self._data
+        demod = self.step.core.demodulator
+        assert demod is not None
+        measured_shifts = self.step.coregistration.displacements() or []
+        if measured_shifts and data.box_shape != demod.box_shape:
+            measured_shifts = regridded(measured_shifts, demod.box_shape, data.box_shape)
+        data.displacements = list(measured_shifts)
+        data.fused_labels = _fused_labels(self.step)
+        return data.displacements
+
+
 def spread_pass(
     source: InputFile,
     frames: range,
@@ -262,11 +348,13 @@ def spread_pass(
     record: bool,
     read_ahead: int = DEFAULT_DEPTH,
     until: Callable[[int], None] | None = None,
+    measured: bool = False,
 ) -> list[Displacement]:
-    """Measure the displacements over frames spread over the run (:func:`spread_positions`).
+    """Measure the displacements over frames spread over the run (:class:`SpreadMaps`).
 
     The frames' carrier values are measured here (the same probe, the same numbers as
-    the series'), so that the pass may come before the series, or beside it.
+    the series'), so that the pass may come before the series, or beside it; after
+    it (``measured``), the series' values are taken.
 
     Parameters
     ----------
@@ -275,8 +363,7 @@ def spread_pass(
     frames : range
         The run's input frame indices (those of an interrupted run's frames done).
     data : RunData
-        The run's record: its displacements, fused labels and, with ``record``, its map
-        counts and last maps are this pass's.
+        The run's record (:class:`SpreadMaps`).
     spec : MapsSpec
         The maps step (its displacements are measured here, on the box's grid, and
         given on the spec's).
@@ -287,49 +374,42 @@ def spread_pass(
     until : callable, optional
         ``until(position)``: called before the frame at ``position`` is taken (a
         parallel run takes the workers' chunks in meanwhile).
+    measured : bool
+        The series of every frame is in ``data`` already, of the same peaks in the same
+        order: its carrier values and flag bits are used rather than measured again.
 
     Returns
     -------
     list of Displacement
         Also kept in ``data.displacements`` (empty when not measured).
     """
-    n = len(frames)
-    positions, every = spread_positions(n, spec.experiment.reference == "relative")
-    step = replace(spec, grid="box").step(source.frame_shape, source.saturation)
-    demod = step.core.demodulator
-    assert demod is not None
-    probe = CarrierCore(source.frame_shape, source.saturation)
-    probe.configure(demod.peaks)
-    counts = MapRecord(data) if record else None
+    spread = SpreadMaps(source, len(frames), data, spec, record=record)
+    positions = spread.positions
+    probe = None
+    if not measured:
+        demod = spread.step.core.demodulator
+        assert demod is not None
+        probe = CarrierCore(source.frame_shape, source.saturation)
+        probe.configure(demod.peaks)
     reader = FrameReader(source.read, [frames[int(p)] for p in positions], depth=read_ahead)
     with reader:
         for k, (index, frame) in enumerate(reader):
             position = int(positions[k])
             if until is not None:
                 until(position)
-            t0 = time.perf_counter()
-            measured = probe.measure(frame)
-            assert measured is not None
-            maps = frame_maps(
-                step,
-                frame,
-                measured.values,
-                flag_bits(measured.flags),
-                estimate=position % every == 0,
-                fuse=record and position == n - 1,
-            )
-            if counts is not None:
-                counts.record(position, index, maps)
-            seconds = time.perf_counter() - t0
-            data.maps_seconds += seconds
-            data.demod_seconds += seconds
+            if probe is None:
+                values, bits = data.values[position], int(data.frame_bits[position])
+            else:
+                t0 = time.perf_counter()
+                probed = probe.measure(frame)
+                assert probed is not None
+                values, bits = probed.values, flag_bits(probed.flags)
+                seconds = time.perf_counter() - t0
+                data.maps_seconds += seconds
+                data.demod_seconds += seconds
+            spread.take(position, index, frame, values, bits)
     data.read_seconds += reader.read_seconds
-    measured_shifts = step.coregistration.displacements() or []
-    if measured_shifts and data.box_shape != demod.box_shape:
-        measured_shifts = regridded(measured_shifts, demod.box_shape, data.box_shape)
-    data.displacements = list(measured_shifts)
-    data.fused_labels = _fused_labels(step)
-    return data.displacements
+    return spread.finish()
 
 
 def _fused_labels(step: MapStep) -> tuple[str, ...]:
@@ -352,6 +432,7 @@ def frame_maps(
     *,
     estimate: bool = False,
     fuse: bool = True,
+    shifts: bool = True,
 ) -> FrameMaps:
     """The maps step of one frame of a run, given its carrier values and probe flag bits.
 
@@ -363,7 +444,7 @@ def frame_maps(
         return FrameMaps(demodulated=False)
     if bits & NONFINITE_BIT:
         return FrameMaps(demodulated=True, flags=frozenset({"nonfinite"}))
-    return step.process(frame, values, estimate=estimate, fuse=fuse)
+    return step.process(frame, values, estimate=estimate, fuse=fuse, shifts=shifts)
 
 
 def _record_maps(

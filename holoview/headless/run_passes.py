@@ -35,6 +35,7 @@ from holoview.engine.experiment import Experiment
 from holoview.headless.analysis import Naming, known_joint, name_peaks
 from holoview.headless.frame_passes import (
     MapsSpec,
+    SpreadMaps,
     maps_pass,
     measure_frames,
     spread_pass,
@@ -137,7 +138,10 @@ def run_passes(
     total = n * (2 if maps and not together else 1)
     first = None if progress is None else (lambda k: progress(k, total))
     second = None if progress is None else (lambda k: progress(n + k, total))
-    joint = known_joint(run.selection, run.optics)
+    # the joint estimate as the frames come where the parent would otherwise wait for its
+    # workers; in one process it waits for the analysis, which makes it over every frame
+    # done (the same numbers: frame after frame, in order), out of the frame loop's way
+    joint = known_joint(run.selection, run.optics) if runner is not None else None
     if joint is not None:
         joint.track(data.series)
     read_ahead = run.settings.read_ahead
@@ -180,9 +184,21 @@ def run_passes(
                 source, frames, data, spec, record=not maps, read_ahead=read_ahead, until=until
             )
 
+    # known peaks in one process: the spread frames' maps in the series pass (each frame
+    # read and measured once); else after the series, from its values
+    inline = None
+    if known and runner is None and not series_only:
+        inline = SpreadMaps(source, n, data, spec, record=not maps)
     if runner is None:
         measure_frames(
-            source, frames, run.times, data, demod.peaks, read_ahead=read_ahead, progress=first
+            source,
+            frames,
+            run.times,
+            data,
+            demod.peaks,
+            read_ahead=read_ahead,
+            progress=first,
+            spread=inline,
         )
     else:
         measure_chunks(
@@ -207,8 +223,10 @@ def run_passes(
     if series_only:
         return data, naming
     try:
-        if beside is None:
-            spread_pass(source, frames, data, spec, record=not maps, read_ahead=read_ahead)
+        if beside is None and inline is None:
+            spread_pass(
+                source, frames, data, spec, record=not maps, read_ahead=read_ahead, measured=True
+            )
         if sink is not None:
             spec = replace(spec, displacements=tuple(data.displacements))
             record = MapRecord(data, sink, fused=bool(data.fused_labels))

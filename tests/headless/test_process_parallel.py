@@ -8,6 +8,7 @@ are started once per module, so that the module stays within seconds of CPU.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import signal
@@ -24,7 +25,7 @@ from holoview.acquire.recording import RecordingWriter
 from holoview.cli import main
 from holoview.errors import InputError
 from holoview.headless.batch import INDEX_CSV
-from holoview.headless.parallel import chunk_maps
+from holoview.headless.parallel import chunk_maps, stitch
 from holoview.headless.parallel.chunks import (
     ChunkTask,
     make_tasks,
@@ -219,6 +220,54 @@ def test_maps_from_the_workers_are_those_of_one_process(
         other = _run(path, out, runner, settings=settings, frames=frames)
         assert other.data.workers == runner.name
         _assert_same_maps(serial, other, f"{case}: {name}")
+
+
+@pytest.mark.slow
+def test_maps_handed_over_in_files_are_those_of_one_process(
+    evaporation: Simulated,
+    runners: dict[str, ChunkRunner],
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Local workers write each chunk's maps into a file the parent writes from, then deletes.
+
+    A folder the workers cannot write into (gone): the maps come back pickled, the same.
+    """
+    monkeypatch.setattr(chunk_maps, "MAPS_CHUNK_FRAMES", 9)
+    root = tmp_path / "spill"
+    root.mkdir()
+    monkeypatch.setattr(stitch, "SPILL_ROOT", str(root))
+    monkeypatch.setattr(stitch, "SPILL_FREE_BYTES", 0)
+    handed: list[bool] = []
+    opened = chunk_maps.ChunkMaps.opened
+
+    def spy(self: chunk_maps.ChunkMaps) -> chunk_maps.ChunkMaps:
+        handed.append(self.spilled is not None)
+        if self.spilled is not None:
+            assert Path(self.spilled).parent.parent == root
+        return opened(self)
+
+    monkeypatch.setattr(chunk_maps.ChunkMaps, "opened", spy)
+    settings = ProcessSettings(reference="relative", maps=True)
+    serial = _run(evaporation.path, tmp_path / "serial", None, settings=settings)
+    chunks = len(split_frames(evaporation.frames, 2, maps=True))
+    other = _run(evaporation.path, tmp_path / "there", runners["jobs 2"], settings=settings)
+    _assert_same_maps(serial, other, "maps in files")
+    assert handed == [True] * chunks
+    assert list(root.iterdir()) == []  # every file and the folder removed
+    real = stitch.spill_folder
+
+    @contextlib.contextmanager
+    def missing(runner: ChunkRunner, maps: bool) -> Iterator[str | None]:
+        with real(runner, maps) as made:
+            yield None if made is None else os.path.join(made, "missing")
+
+    monkeypatch.setattr(stitch, "spill_folder", missing)
+    handed.clear()
+    other = _run(evaporation.path, tmp_path / "gone", runners["jobs 2"], settings=settings)
+    _assert_same_maps(serial, other, "maps pickled, the folder gone")
+    assert handed == [False] * chunks
+    assert list(root.iterdir()) == []
 
 
 @pytest.mark.slow

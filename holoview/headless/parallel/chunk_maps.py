@@ -25,13 +25,21 @@ serial pass (:func:`~holoview.headless.frame_passes.maps_pass`) to the last bit:
   run makes its maps in the same pass as its series, its workers measuring both.
 
 What comes back is each frame's maps and what a run counts of them
-(:class:`ChunkMaps`), for the parent to write in order.
+(:class:`ChunkMaps`), for the parent to write in order. Workers on the parent's machine
+(:attr:`~holoview.headless.parallel.runners.ChunkRunner.shares_files`) write a chunk's
+maps into a file of a folder the parent gives (``MapsWork.spill``, in memory under
+``/dev/shm``) rather than pickling them back: the parent maps the file and writes its
+maps to ``results.h5`` from there (pickling, the pipe and unpickling cost about 1.5 ms
+of CPU a frame of six 180^2 maps between the two processes).
 """
 
 from __future__ import annotations
 
+import contextlib
+import os
+import tempfile
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -106,10 +114,14 @@ class ChunkMaps:
         Each peak's flags, bits of ``PEAK_RESULT_FLAGS``.
     frame_bits : ndarray of uint8, shape (K,)
         The frame's flags, bits of ``FRAME_FLAGS``.
-    maps : ndarray of float32, shape (K, M, by, bx)
-        The maps (NaN where untrusted, and for a frame without maps).
+    maps : ndarray of float32, shape (K, M, by, bx), or None
+        The maps (NaN where untrusted, and for a frame without maps); None while
+        ``spilled`` (:meth:`opened`).
     fused : ndarray of float32 or None, shape (K, by, bx)
         The fused maps, when the run fuses.
+    spilled : str or None
+        The ``.npy`` file the worker wrote the maps to, shape ``(K, M [+ 1], by, bx)``,
+        the fused maps last; the parent deletes it once written.
     """
 
     demodulated: np.ndarray
@@ -118,11 +130,22 @@ class ChunkMaps:
     noise: np.ndarray
     peak_bits: np.ndarray
     frame_bits: np.ndarray
-    maps: np.ndarray
+    maps: np.ndarray | None
     fused: np.ndarray | None
+    spilled: str | None = None
+
+    def opened(self) -> ChunkMaps:
+        """These maps, those spilled to a file read from it (mapped, not copied)."""
+        if self.spilled is None:
+            return self
+        both = np.load(self.spilled, mmap_mode="r")
+        m = self.noise.shape[1]
+        fused = both[:, m] if both.shape[1] > m else None
+        return replace(self, maps=both[:, :m], fused=fused, spilled=None)
 
     def frame(self, k: int) -> FrameMaps:
         """The ``k``-th frame's maps, as the maps step gave them (views, not copies)."""
+        assert self.maps is not None, "spilled maps: opened() first"
         m = self.maps.shape[1]
         has = bool(self.has_maps[k])
         return FrameMaps(
@@ -163,6 +186,9 @@ class MapsWork:
     before : tuple of int
         Without ``values`` (relative mode): the input indices of the run's frames before
         the chunk, in order; the last demodulated one is the reference.
+    spill : str or None
+        A folder on the parent's machine to write the chunk's maps into (module
+        documentation); None: they go back pickled.
     """
 
     spec: MapsSpec
@@ -174,6 +200,7 @@ class MapsWork:
     reference: int | None = None
     reference_values: np.ndarray | None = None
     before: tuple[int, ...] = ()
+    spill: str | None = None
 
     def maker(
         self,
@@ -194,7 +221,7 @@ class MapsWork:
                 demod.restore_phase_state(self.state)
         elif demod.reference == "relative":
             _previous_frame(step, source, self.before)
-        return MapMaker(step, frames, fused=self.fused)
+        return MapMaker(step, frames, fused=self.fused, spill=self.spill)
 
 
 def _previous_frame(step: MapStep, source: InputFile, before: Sequence[int]) -> None:
@@ -226,16 +253,24 @@ class MapMaker:
         Frames in the chunk.
     fused : bool
         Keep the fused maps.
+    spill : str, optional
+        A folder to write the maps into, a ``.npy`` file of the chunk's (else in memory).
     """
 
-    def __init__(self, step: MapStep, frames: int, *, fused: bool) -> None:
+    def __init__(
+        self, step: MapStep, frames: int, *, fused: bool, spill: str | None = None
+    ) -> None:
         demod = step.core.demodulator
         assert demod is not None
         self.step = step
         m = len(demod.peaks)
         by, bx = demod.box_shape
-        self._maps = np.full((frames, m, by, bx), np.nan, np.float32)
-        self._fused = np.full((frames, by, bx), np.nan, np.float32) if fused else None
+        self._spill = spill
+        # the maps and the fused maps in one array: one file when spilled
+        both = np.full((frames, m + 1 if fused else m, by, bx), np.nan, np.float32)
+        self._both = both
+        self._maps = both[:, :m]
+        self._fused = both[:, m] if fused else None
         self._demodulated = np.zeros(frames, bool)
         self._has_maps = np.zeros(frames, bool)
         self._has_fused = np.zeros(frames, bool)
@@ -258,8 +293,30 @@ class MapMaker:
         self._noise[k] = maps.noise
         self._peak_bits[k] = [_bits(f, PEAK_RESULT_FLAGS) for f in maps.peak_flags]
 
+    def _spilled(self) -> str | None:
+        """Write the maps into a file of the spill folder; its name (None: not written).
+
+        A plain write, not a mapping of the file: a full disk is an OSError here (the
+        maps then go back pickled), where a mapped page would kill the process.
+        """
+        if self._spill is None:
+            return None
+        path = None
+        try:
+            handle, path = tempfile.mkstemp(suffix=".npy", dir=self._spill)
+            with os.fdopen(handle, "wb") as f:
+                np.save(f, self._both)
+        except OSError:
+            if path is not None:
+                with contextlib.suppress(OSError):
+                    os.unlink(path)
+            return None
+        return path
+
     def result(self) -> ChunkMaps:
-        """The chunk's maps."""
+        """The chunk's maps (spilled: the file's name, the maps in it alone)."""
+        path = self._spilled()
+        spilled = path is not None
         return ChunkMaps(
             demodulated=self._demodulated,
             has_maps=self._has_maps,
@@ -267,6 +324,7 @@ class MapMaker:
             noise=self._noise,
             peak_bits=self._peak_bits,
             frame_bits=self._frame_bits,
-            maps=self._maps,
-            fused=self._fused,
+            maps=None if spilled else self._maps,
+            fused=None if spilled else self._fused,
+            spilled=path,
         )

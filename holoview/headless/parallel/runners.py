@@ -159,10 +159,14 @@ class ChunkRunner(ABC):
         Processes measuring chunks at once.
     name : str
         Where, in words (``"4 processes"``, ``"Dask at tcp://..."``).
+    shares_files : bool
+        The workers run on this machine and see its files (``/dev/shm`` among them): a
+        chunk's maps can come back through a file rather than pickled.
     """
 
     workers: int = 1
     name: str = ""
+    shares_files: bool = False
 
     @abstractmethod
     def run(self, tasks: Sequence[ChunkTask]) -> Iterator[ChunkResult]:
@@ -210,6 +214,7 @@ class ProcessRunner(ChunkRunner):
     def __init__(self, jobs: int) -> None:
         self.workers = int(jobs)
         self.name = f"{self.workers} processes"
+        self.shares_files = True
         self._maps = False  # the chunks carry maps (see abort)
         context = multiprocessing.get_context("forkserver")
         context.set_forkserver_preload(PRELOAD)

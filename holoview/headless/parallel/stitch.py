@@ -22,12 +22,18 @@ same numbers, whatever the number of workers or chunks:
   each chunk from the mean phases this process replays from the series up to its start.
 
 This process keeps what depends on the order of the frames (the series, the
-displacements, the mean phases at each chunk's start) and writes the maps in order.
+displacements, the mean phases at each chunk's start) and writes the maps in order;
+workers on this machine hand a chunk's maps over in a file (:func:`spill_folder`,
+:class:`~holoview.headless.parallel.chunk_maps.ChunkMaps`), not pickled.
 """
 
 from __future__ import annotations
 
+import contextlib
 import logging
+import os
+import shutil
+import tempfile
 import time
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import replace
@@ -48,7 +54,45 @@ from holoview.processing.peaks.detection import Peak
 
 logger = logging.getLogger(__name__)
 
-__all__ = ["map_chunks", "measure_chunks"]
+__all__ = ["map_chunks", "measure_chunks", "spill_folder"]
+
+#: Where workers on this machine write their chunks' maps: in memory.
+SPILL_ROOT = "/dev/shm"
+
+#: Free bytes ``SPILL_ROOT`` must have to be used (a container's may be 64 MB): the
+#: chunks in flight and those waiting for their turn are there at once.
+SPILL_FREE_BYTES = 2 << 30
+
+
+@contextlib.contextmanager
+def spill_folder(runner: ChunkRunner, maps: bool) -> Iterator[str | None]:
+    """A folder for the workers' maps files, removed after the pass (None: pickled back).
+
+    Only for workers that share this machine's files, in a run that makes maps, where
+    :data:`SPILL_ROOT` is there with :data:`SPILL_FREE_BYTES` free.
+    """
+    try:
+        free = shutil.disk_usage(SPILL_ROOT).free if os.access(SPILL_ROOT, os.W_OK) else 0
+    except OSError:
+        free = 0
+    if not (maps and runner.shares_files) or free < SPILL_FREE_BYTES:
+        yield None
+        return
+    folder = tempfile.mkdtemp(prefix="holoview-maps-", dir=SPILL_ROOT)
+    try:
+        yield folder
+    finally:
+        shutil.rmtree(folder, ignore_errors=True)
+
+
+def _record_chunk(record: MapRecord, frames: range, result: ChunkResult) -> None:
+    """Count and write a chunk's maps in order; delete the file they came in."""
+    assert result.maps is not None
+    chunk = result.maps.opened()
+    for k in range(len(result)):
+        record.record(result.start + k, frames[result.start + k], chunk.frame(k))
+    if result.maps.spilled is not None:
+        os.unlink(result.maps.spilled)
 
 
 class _Gathered:
@@ -172,6 +216,38 @@ def measure_chunks(
         timings add up the workers'. After an interruption with frames done, the
         frames of the chunks complete from the first, ``interrupted`` set.
     """
+    with spill_folder(runner, maps is not None) as spill:
+        return _measure_chunks(
+            source,
+            frames,
+            times,
+            data,
+            peaks,
+            runner=runner,
+            identity=identity,
+            read_ahead=read_ahead,
+            progress=progress,
+            spread=spread,
+            maps=maps,
+            spill=spill,
+        )
+
+
+def _measure_chunks(
+    source: InputFile,
+    frames: range,
+    times: np.ndarray,
+    data: RunData,
+    peaks: Sequence[Peak],
+    *,
+    runner: ChunkRunner,
+    identity: InputIdentity | None,
+    read_ahead: int,
+    progress: Callable[[int], None] | None,
+    spread: Callable[[Callable[[int], None]], None] | None,
+    maps: tuple[MapsSpec, MapRecord] | None,
+    spill: str | None,
+) -> RunData:
     n = len(frames)
     data.workers = runner.name
     chunks = split_frames(
@@ -185,7 +261,7 @@ def measure_chunks(
         wisdom = current_wisdom()
         fused = bool(data.fused_labels)
         works = [
-            MapsWork(maps[0], wisdom, fused, before=tuple(frames[: chunk.start]))
+            MapsWork(maps[0], wisdom, fused, before=tuple(frames[: chunk.start]), spill=spill)
             for chunk in chunks
         ]
     tasks = make_tasks(
@@ -209,8 +285,7 @@ def measure_chunks(
             series.add(float(times[position]), frames[position], result.measured(k))
             data.frame_bits[position] = result.flags[k]
         if maps is not None and result.maps is not None:
-            for k in range(len(result)):
-                maps[1].record(result.start + k, frames[result.start + k], result.maps.frame(k))
+            _record_chunk(maps[1], frames, result)
         _account(data, result, time.perf_counter() - start)
 
     gathered = _Gathered(runner.run(tasks), [c.start for c in chunks], n, progress, add)
@@ -301,6 +376,34 @@ def map_chunks(
         ``data``; after an interruption with frames done, the frames of the chunks
         complete from the first, ``interrupted`` set.
     """
+    with spill_folder(runner, True) as spill:
+        return _map_chunks(
+            source,
+            frames,
+            data,
+            spec,
+            record,
+            runner=runner,
+            identity=identity,
+            read_ahead=read_ahead,
+            progress=progress,
+            spill=spill,
+        )
+
+
+def _map_chunks(
+    source: InputFile,
+    frames: range,
+    data: RunData,
+    spec: MapsSpec,
+    record: MapRecord,
+    *,
+    runner: ChunkRunner,
+    identity: InputIdentity | None,
+    read_ahead: int,
+    progress: Callable[[int], None] | None,
+    spill: str | None,
+) -> RunData:
     n = len(data.series)
     core = spec.core(source.frame_shape, source.saturation)
     demod = core.demodulator
@@ -323,6 +426,7 @@ def map_chunks(
                 state=state,
                 reference=None if reference is None else frames[reference],
                 reference_values=None if reference is None else data.values[reference].copy(),
+                spill=spill,
             )
         )
     tasks = make_tasks(
@@ -339,9 +443,7 @@ def map_chunks(
 
     def add(result: ChunkResult) -> None:
         start = time.perf_counter()
-        assert result.maps is not None
-        for k in range(len(result)):
-            record.record(result.start + k, frames[result.start + k], result.maps.frame(k))
+        _record_chunk(record, frames, result)
         _account(data, result, time.perf_counter() - start)
 
     gathered = _Gathered(runner.run(tasks), [c.start for c in chunks], n, progress, add)

@@ -120,6 +120,92 @@ def _readonly(array: np.ndarray) -> np.ndarray:
     return array
 
 
+@dataclass(frozen=True)
+class BoxLayout:
+    """Where a peak's box bins come from, before any window (read-only arrays).
+
+    Attributes
+    ----------
+    index : ndarray of intp, shape (by * bx,)
+        Flat indices into the half spectrum, box layout.
+    conjugate : ndarray of bool, shape (by * bx,)
+        The bins read at ``-f`` (conjugated).
+    rho : ndarray, shape (by, bx)
+        Each bin's distance from the carrier, cycles/pixel.
+    """
+
+    index: np.ndarray
+    conjugate: np.ndarray
+    rho: np.ndarray
+
+
+def _layout(
+    frame_shape: tuple[int, int], box_shape: tuple[int, int], carrier: tuple[float, float]
+) -> tuple[BoxLayout, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The box's layout, and its rows, mirrored rows, source columns and direct columns."""
+    rows, cols = frame_shape
+    by, bx = box_shape
+    fx, fy = carrier
+    k0y, k0x = round(fy * rows), round(fx * cols)
+    dy = np.fft.fftfreq(by, 1.0 / by).round().astype(np.int64)
+    dx = np.fft.fftfreq(bx, 1.0 / bx).round().astype(np.int64)
+    ky = (k0y + dy) % rows
+    kx = (k0x + dx) % cols
+    half_cols = cols // 2 + 1
+    direct_x = kx <= cols // 2
+    src_rows = np.where(direct_x[None, :], ky[:, None], (-ky[:, None]) % rows)
+    src_cols = np.where(direct_x, kx, (cols - kx) % cols)
+    index = (src_rows * half_cols + src_cols[None, :]).astype(np.intp).ravel()
+    conjugate = np.broadcast_to(~direct_x[None, :], (by, bx)).ravel()
+    freq_y = wrap_frequency((k0y + dy) / rows - fy)
+    freq_x = wrap_frequency((k0x + dx) / cols - fx)
+    rho = np.hypot(freq_y[:, None], freq_x[None, :])
+    return BoxLayout(index, conjugate, rho), ky, (-ky) % rows, src_cols, direct_x
+
+
+def box_layout(
+    frame_shape: tuple[int, int], box_shape: tuple[int, int], carrier: tuple[float, float]
+) -> BoxLayout:
+    """Return where a peak's box bins come from (not cached: for windows tried once).
+
+    Parameters
+    ----------
+    frame_shape, box_shape : tuple of int
+        ``(rows, cols)`` of the frame and of the box, pixels.
+    carrier : tuple of float
+        ``(fx, fy)``, cycles/pixel.
+    """
+    return _layout(frame_shape, box_shape, carrier)[0]
+
+
+def box_weights(
+    layout: BoxLayout,
+    frame_shape: tuple[int, int],
+    *,
+    kind: str,
+    radius: float,
+    taper: float,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The window on a box's bins, and the box's float32 (re, im) weights of :func:`cut_box`.
+
+    Returns
+    -------
+    w : ndarray, shape (by, bx)
+        The window (:func:`~holoview.processing.fourier.windows.radial_window`).
+    weights : ndarray of float32, shape (2 by bx,)
+        ``(w, w)`` for a bin read directly, ``(w, -w)`` for one read at ``-f`` and
+        conjugated, times 1 / (rows cols) (the box's inverse FFT runs unnormalised, so
+        that the field comes out in counts).
+    """
+    rows, cols = frame_shape
+    w = radial_window(kind, layout.rho, radius, taper=taper)
+    scaled = (w * (1.0 / (rows * cols))).astype(np.float32).ravel()
+    weights = np.empty(2 * scaled.size, dtype=np.float32)
+    weights[0::2] = scaled
+    weights[1::2] = np.where(layout.conjugate, -scaled, scaled)
+    return w, weights
+
+
 @lru_cache(maxsize=256)
 def box_geometry(
     frame_shape: tuple[int, int],
@@ -143,40 +229,18 @@ def box_geometry(
         cycles/pixel.
     """
     rows, cols = frame_shape
-    by, bx = box_shape
     fx, fy = carrier
     k0y, k0x = round(fy * rows), round(fx * cols)
-    dy = np.fft.fftfreq(by, 1.0 / by).round().astype(np.int64)
-    dx = np.fft.fftfreq(bx, 1.0 / bx).round().astype(np.int64)
-    ky = (k0y + dy) % rows
-    kx = (k0x + dx) % cols
-    half_cols = cols // 2 + 1
-    direct_x = kx <= cols // 2
-    src_rows = np.where(direct_x[None, :], ky[:, None], (-ky[:, None]) % rows)
-    src_cols = np.where(direct_x, kx, (cols - kx) % cols)
-    index = (src_rows * half_cols + src_cols[None, :]).astype(np.intp).ravel()
-    conjugate = np.broadcast_to(~direct_x[None, :], (by, bx)).ravel()
-    freq_y = wrap_frequency((k0y + dy) / rows - fy)
-    freq_x = wrap_frequency((k0x + dx) / cols - fx)
-    rho = np.hypot(freq_y[:, None], freq_x[None, :])
-    w = radial_window(kind, rho, radius, taper=taper)
+    layout, ky, ky_mirror, src_cols, direct_x = _layout(frame_shape, box_shape, carrier)
+    w, weights = box_weights(layout, frame_shape, kind=kind, radius=radius, taper=taper)
     area = float((w * w).sum() / (rows * cols))
-    # the box's inverse FFT runs unnormalised (execute): 1 / (by bx) is folded in here too,
-    # so that the field comes out in counts
-    scale = 1.0 / (rows * cols)
-    # window and conjugation in one multiply of the box seen as (re, im) float32 pairs:
-    # (w, w) for a bin read directly, (w, -w) for a bin read at -f and conjugated
-    scaled = (w * scale).astype(np.float32).ravel()
-    weights = np.empty(2 * scaled.size, dtype=np.float32)
-    weights[0::2] = scaled
-    weights[1::2] = np.where(conjugate, -scaled, scaled)
     y, x = box_positions(box_shape, frame_shape)
     sub_y = fy - k0y / rows
     sub_x = fx - k0x / cols
     ramp = np.exp(1j * TWO_PI * (sub_y * y[:, None] + sub_x * x[None, :])).astype(np.complex64)
     return BoxGeometry(
-        index=_readonly(index),
-        blocks=_blocks(ky, (-ky) % rows, src_cols, direct_x),
+        index=_readonly(layout.index),
+        blocks=_blocks(ky, ky_mirror, src_cols, direct_x),
         # the other columns are multiplied by zero: their row pass alone is enough
         columns=_readonly(np.unique(src_cols[(w > 0).any(axis=0)])),
         weights=_readonly(weights),

@@ -47,7 +47,7 @@ import numpy as np
 import pyfftw
 
 from holoview.errors import InputError
-from holoview.processing.fourier.boxes import BoxGeometry, border_mask, box_geometry, box_shape_for
+from holoview.processing.fourier.boxes import border_mask, box_layout, box_shape_for, box_weights
 from holoview.processing.fourier.fftplans import DEFAULT_THREADS, ifft2_plan, rfft2_plan
 from holoview.processing.fourier.frames import check_frame
 from holoview.processing.fourier.windows import radial_window
@@ -343,12 +343,10 @@ def _noise_floor(halves: tuple[np.ndarray, ...], other: np.ndarray | None) -> fl
     return float(np.mean(floors)) if floors else None
 
 
-def _field(flat: np.ndarray, geo: BoxGeometry, plan: pyfftw.FFTW) -> np.ndarray:
-    """A peak's field (counts, box resolution) from a half spectrum: cut, window, invert."""
-    box = plan.input_array.reshape(-1)
-    np.take(flat, geo.index, out=box)
-    pairs = box.view(np.float32)
-    np.multiply(pairs, geo.weights, out=pairs)
+def _field(box: np.ndarray, weights: np.ndarray, plan: pyfftw.FFTW) -> np.ndarray:
+    """A peak's field (counts, box resolution) from its box's bins: window, invert."""
+    pairs = plan.input_array.reshape(-1).view(np.float32)
+    np.multiply(box.view(np.float32), weights, out=pairs)
     plan.execute()
     return plan.output_array.astype(np.complex128)
 
@@ -382,11 +380,14 @@ def map_errors(
     plan = ifft2_plan(box_shape)
     shapes = [(kind, taper)] * len(radii) + [widest or (kind, taper)]
     radii = np.append(radii, radii[-1])
-    geos = [
-        box_geometry(spectrum.shape, box_shape, carrier=carrier, kind=k, radius=float(r), taper=t)
+    # one layout for every radius (the same box and carrier): only the windows differ;
+    # not box_geometry, whose cache would keep every candidate's arrays for the run
+    layout = box_layout(spectrum.shape, box_shape, carrier)
+    pairs = [
+        box_weights(layout, spectrum.shape, kind=k, radius=float(r), taper=t)[1]
         for r, (k, t) in zip(radii, shapes, strict=True)
     ]
-    weights = [np.abs(geo.weights[0::2]).astype(np.float64) * size for geo in geos]
+    weights = [np.abs(pair[0::2]).astype(np.float64) * size for pair in pairs]
     passed = np.array([float(np.sum(w * w)) for w in weights])
     extra = np.array([float(np.sum((weights[-1] - w) ** 2)) for w in weights])
     borders = [
@@ -394,14 +395,15 @@ def map_errors(
         for r in radii
     ]
     reference = None if spectrum.reference is None else spectrum.reference.reshape(-1)
-    references = (
-        [np.conj(_field(reference, geo, plan)) for geo in geos] if reference is not None else None
-    )
+    references = None
+    if reference is not None:
+        box = np.take(reference, layout.index).astype(np.complex64, copy=False)
+        references = [np.conj(_field(box, pair, plan)) for pair in pairs]
     total = np.zeros(len(radii))
     noise = np.zeros(len(radii))
     for half in spectrum.frames:
-        flat = half.reshape(-1)
-        products = [_field(flat, geo, plan) for geo in geos]
+        box = np.take(half.reshape(-1), layout.index).astype(np.complex64, copy=False)
+        products = [_field(box, pair, plan) for pair in pairs]
         magnitude = np.abs(products[-1])
         valid = magnitude >= MIN_AMPLITUDE * float(np.median(magnitude))
         if not valid.any():

@@ -68,6 +68,7 @@ import itertools
 import logging
 import math
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -360,7 +361,7 @@ class JointEstimator:
             return self._x.copy()
         a = self._design[rows]
         w = 1.0 / variance[rows]
-        if np.linalg.matrix_rank(a) < self._dims:
+        if _rank(a) < self._dims:
             # one direction unseen (e.g. only RF): hold the reference phase
             held = self._x.copy()
             target = self._phase[rows] - (a[:, 1:] @ held[1:] if self._dims == 2 else 0.0)
@@ -513,6 +514,17 @@ def _pivots(a: NDArray[np.float64], count: NDArray[np.float64], dims: int) -> li
     for i in order[1:]:
         if len(chosen) == dims:
             break
-        if np.linalg.matrix_rank(a[[*chosen, i]]) == len(chosen) + 1:
+        if _rank(a[[*chosen, i]]) == len(chosen) + 1:
             chosen.append(i)
     return chosen
+
+
+def _rank(a: NDArray[np.float64]) -> int:
+    """``np.linalg.matrix_rank(a)``, remembered: a run's design rows are few, its frames many."""
+    rows = np.ascontiguousarray(a, dtype=np.float64)
+    return _rank_of(rows.tobytes(), rows.shape[0], rows.shape[1])
+
+
+@lru_cache(maxsize=1024)
+def _rank_of(data: bytes, rows: int, cols: int) -> int:
+    return int(np.linalg.matrix_rank(np.frombuffer(data, dtype=np.float64).reshape(rows, cols)))
