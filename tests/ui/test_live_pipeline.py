@@ -74,7 +74,11 @@ def test_maps_are_co_registered_by_their_measured_displacements(monkeypatch) -> 
     for name in ("FB1", "RF", "RB2"):
         image = images.get(name, (0.0, 0.0))
         expected = (images["RB1"][0] - image[0], images["RB1"][1] - image[1])
-        assert last.shifts_px[name] == pytest.approx(expected, abs=0.4), name
+        # 0.6 camera pixel is 0.075 of these maps' pixels (8 camera pixels, 16 x 16 maps):
+        # a residual under 3 standard errors (about 0.035 map pixel here) leaves the
+        # estimate where it is (the ringdown's false shifts), so FB1's 0.0625 map pixel
+        # along y may stay unmeasured within 40 frames
+        assert last.shifts_px[name] == pytest.approx(expected, abs=0.6), name
 
 
 def test_maps_too_small_to_co_register_are_fused_unmoved() -> None:
