@@ -164,7 +164,7 @@ class SurfaceView(QWidget):
         self._mirrored: dict[str, tuple[list[float], list[float]]] = {}
         self.line_roi: pg.LineSegmentROI | None = None
         self._placing = False
-        self._line_placed = False
+        self._line_shape: tuple[int, ...] | None = None  # the map the line is placed on
 
         self.mode_box = QComboBox()
         self.mode_box.addItems(["height (nm)", "phase (rad)"])
@@ -451,7 +451,7 @@ class SurfaceView(QWidget):
         """Put the line on the first map and its dashed mirror on the others."""
         if not self._names:
             return
-        self._line_placed = False
+        self._line_shape = None
         self.line_roi = pg.LineSegmentROI([[0, 0], [1, 0]], pen=pg.mkPen("w", width=2))
         self.plots[self._names[0]].addItem(self.line_roi)
         self.line_roi.sigRegionChanged.connect(self._line_moved)
@@ -493,8 +493,11 @@ class SurfaceView(QWidget):
     def _update_profile(self) -> None:
         if not self._data:
             return
-        if self.line_roi is not None and not self._line_placed:
-            self._line_placed = True
+        first = self._data.get(self._names[0]) if self._names else None
+        if self.line_roi is not None and first is not None and first.shape != self._line_shape:
+            # placed again on maps of another shape (windows matched again): left where
+            # it was, the line stretched the view past a smaller map, drawn small in its cell
+            self._line_shape = first.shape
             self._place_line_roi()
         length = 1.0
         for name, (x, y) in self.profile_curves().items():

@@ -162,6 +162,18 @@ def test_surface_maps_in_nm_profiles_and_cyclic_phase(qtbot) -> None:
     assert view.colour_bar.getAxis("left").labelText == "phase (rad)"
 
 
+def test_the_profile_line_follows_maps_of_a_new_shape(qtbot) -> None:
+    """Maps that shrink (windows matched again) take the line with them: it once stayed at
+    the larger maps' pixels and stretched the first map's view, drawn small in its cell."""
+    view = SurfaceView()
+    qtbot.addWidget(view)
+    view.set_maps({"RB1": np.zeros((64, 64)), "FB1": np.zeros((64, 64))})
+    view.set_maps({"RB1": np.zeros((16, 16)), "FB1": np.zeros((16, 16))})
+    assert view.line_roi is not None
+    ends = [view.line_roi.mapToParent(h.pos()) for h in view.line_roi.getHandles()]
+    assert all(0 <= p.x() <= 16 and 0 <= p.y() <= 16 for p in ends), ends
+
+
 def test_colour_indices_clip_round_and_keep_zero_for_no_value() -> None:
     values = np.array([[-5.0, 0.0, 1.0, 2.0], [np.nan, np.inf, -np.inf, 0.5]], dtype=np.float32)
     indices = colour_indices(values, 0.0, 2.0)
