@@ -6,8 +6,9 @@ import math
 
 import numpy as np
 import pytest
+from wavy_scene import LABELS, true_peaks
 
-from holoview.optics.families import coherent_amplitude, coherent_displacement, predict_families
+from holoview.optics.families import coherent_displacement, predict_families
 from holoview.optics.setup import Setup
 from holoview.optics.synthesis import HologramSynthesizer, pixel_coordinates
 from holoview.optics.wave_fields import DampedMode
@@ -175,18 +176,8 @@ def test_a_ringing_mode_with_no_shift_between_the_peaks_gives_none() -> None:
         mirror_reflectivity=0.1,
     )
     mode = DampedMode(2, 12.0, 0.8, 60e-9, centre=(3e-3, -2e-3), depth=3e-3)
-    families = {f.label: f for f in predict_families(setup, max_order=3, second_order=False)}
-    labels = ("RB1", "RF", "FB1", "RB2", "RB3", "FB2")
-    peaks = [
-        Peak(
-            families[n].observed_carrier,
-            coherent_amplitude(setup, n) / 2,
-            100.0,
-            label=n,
-            alpha=families[n].alpha,
-        )
-        for n in labels
-    ]
+    labels = LABELS
+    peaks = true_peaks(setup, labels)
     synthesizer = HologramSynthesizer(setup, noise="poisson")
     rng = np.random.default_rng(1)
     x, y = pixel_coordinates(setup)
