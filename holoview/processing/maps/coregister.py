@@ -91,6 +91,9 @@ MIN_SIGNIFICANCE = 8.0
 #: untrusted in any of them (module documentation).
 EDGE_TAPER_PX = 4.0
 
+#: Masks of trusted pixels whose pair weights :class:`DisplacementEstimator` keeps.
+WEIGHTS_KEPT = 16
+
 #: Pixels over which a map's noise is correlated (the spectral window's footprint);
 #: conservative, so that noise alone is not taken for structure.
 NOISE_AREA = 4.0
@@ -155,9 +158,13 @@ def _edge_taper(trusted: np.ndarray) -> np.ndarray:
     return 0.5 - 0.5 * np.cos(np.pi * np.clip(distance / (EDGE_TAPER_PX + 1.0), 0.0, 1.0))
 
 
-def _weighted(values: np.ndarray, trusted: np.ndarray, weight: np.ndarray) -> np.ndarray:
-    """``values`` less their weighted mean over ``trusted``, times ``weight``; 0 elsewhere."""
-    total = float(weight[trusted].sum())
+def _weighted(
+    values: np.ndarray, trusted: np.ndarray, weight: np.ndarray, total: float
+) -> np.ndarray:
+    """``values`` less their weighted mean over ``trusted``, times ``weight``; 0 elsewhere.
+
+    ``total``: the sum of ``weight`` over ``trusted``.
+    """
     if not total > 0:
         return np.zeros(values.shape)
     # the plain mean first: a constant map is then exactly zero, not rounding residue
@@ -215,6 +222,9 @@ class DisplacementEstimator:
         spectrum_shape = (rows, cols // 2 + 1)
         self._cross = np.zeros((count, *spectrum_shape), dtype=np.complex128)
         self._power = np.zeros((count, 2, *spectrum_shape), dtype=np.float64)
+        #: per pixels trusted (their mask's bytes): the pair's weight, the sum of the weight
+        #: over them, and the independent pixels it leaves (:meth:`_pair_weight`)
+        self._weights: dict[bytes, tuple[np.ndarray, float, float]] = {}
         self.reset()
 
     def reset(self) -> None:
@@ -252,9 +262,10 @@ class DisplacementEstimator:
                 )
         moved = [np.asarray(m, np.float64) for m in coregister(maps, self._current)]
         reference = moved[self.reference]
+        sides: dict[bytes, tuple[np.ndarray, np.ndarray, float]] = {}
         for j, values in enumerate(moved):
             if j != self.reference:
-                self._add_pair(j, reference, values)
+                self._add_pair(j, reference, values, sides)
         self.frames += 1
         self._summed += 1
         self._answer = None
@@ -262,26 +273,61 @@ class DisplacementEstimator:
             self._update()
             self._interval = min(2 * self._interval, max(self.update_every, MAX_UPDATE_EVERY))
 
-    def _add_pair(self, j: int, reference: np.ndarray, values: np.ndarray) -> None:
+    def _add_pair(
+        self,
+        j: int,
+        reference: np.ndarray,
+        values: np.ndarray,
+        sides: dict[bytes, tuple[np.ndarray, np.ndarray, float]],
+    ) -> None:
         """Add the cross-power of map ``j`` and the reference on the pixels both trust.
 
         Both fall to zero by the same tapered window (:func:`_edge_taper`) at the pixels
         either does not trust: the edges of their trusted pixels, which differ from peak
         to peak (border widths, amplitude), are not taken for structure in common.
+        ``sides``: this frame's reference side of a pair (its spectrum, power and energy)
+        by the pixels trusted, the same for every map that trusts the same pixels.
         """
         trusted = np.isfinite(reference) & np.isfinite(values)
+        key = trusted.tobytes()
+        weight, total, independent = self._pair_weight(trusted, key)
+        if not independent > 0:
+            return
+        side = sides.get(key)
+        if side is None:
+            weighted = _weighted(reference, trusted, weight, total)
+            ref = np.fft.rfft2(weighted)
+            side = sides[key] = (ref, (ref * np.conj(ref)).real, float(np.vdot(weighted, weighted)))
+        ref, ref_power, ref_energy = side
+        weighted = _weighted(values, trusted, weight, total)
+        spectrum = np.fft.rfft2(weighted)
+        self._cross[j] += ref * np.conj(spectrum)
+        self._power[j, 0] += ref_power
+        self._power[j, 1] += (spectrum * np.conj(spectrum)).real
+        self._energy[j] += (ref_energy, float(np.vdot(weighted, weighted)))
+        self._independent[j] += independent
+        self._paired[j] += 1
+
+    def _pair_weight(self, trusted: np.ndarray, key: bytes) -> tuple[np.ndarray, float, float]:
+        """The weight of a pair whose pixels ``trusted`` both trust (Hann window, edge
+        taper), its sum over them, and the independent pixels it leaves for white noise
+        (0: no weight anywhere).
+
+        Kept by mask: the trusted pixels are most often those of earlier frames (the
+        border, the aperture), and the taper's distance transform is the costliest step
+        of adding a pair (the same numbers, computed once). ``key``: ``trusted``'s bytes.
+        """
+        known = self._weights.get(key)
+        if known is not None:
+            return known
         weight = self._window * _edge_taper(trusted)
         squared = weight**2
-        if not squared.any():
-            return
-        pair = (_weighted(reference, trusted, weight), _weighted(values, trusted, weight))
-        ref, spectrum = np.fft.rfft2(pair[0]), np.fft.rfft2(pair[1])
-        self._cross[j] += ref * np.conj(spectrum)
-        self._power[j, 0] += (ref * np.conj(ref)).real
-        self._power[j, 1] += (spectrum * np.conj(spectrum)).real
-        self._energy[j] += (float(np.vdot(pair[0], pair[0])), float(np.vdot(pair[1], pair[1])))
-        self._independent[j] += float(squared.sum() ** 2 / (squared**2).sum())
-        self._paired[j] += 1
+        independent = float(squared.sum() ** 2 / (squared**2).sum()) if squared.any() else 0.0
+        if len(self._weights) >= WEIGHTS_KEPT:
+            self._weights.clear()  # a surface whose masks keep changing: start over
+        known = (weight, float(weight[trusted].sum()), independent)
+        self._weights[key] = known
+        return known
 
     def _update(self) -> None:
         """Add each measured residual that stands out of its errors to the current
