@@ -394,3 +394,18 @@ def test_a_label_goes_where_the_others_leave_room() -> None:
     (edge,) = place_labels([PeakLabel("RB3", 0.49, -0.49)], (0.01, 0.02), view, 0.01)
     left, top = edge.pos[0] - edge.anchor[0] * 0.03, edge.pos[1] - edge.anchor[1] * 0.02
     assert left >= -0.5 and left + 0.03 <= 0.5 and top >= -0.5 and top + 0.02 <= 0.5
+
+
+def test_the_maps_caption_ends_in_an_ellipsis_where_it_has_no_room(qtbot) -> None:
+    view = SurfaceView()
+    qtbot.addWidget(view)
+    label = view.stats_label
+    label.setText("maps of frame 38 (10 behind)")
+    label.resize(90, 20)
+    shown = label.elided()
+    # the start is what is shown (the frame), the rest elided, never cut mid-text
+    assert shown.startswith("maps of") and shown.endswith("…")
+    assert label.toolTip() == "maps of frame 38 (10 behind)"
+    label.resize(400, 20)
+    assert label.elided() == "maps of frame 38 (10 behind)"
+    assert label.sizePolicy().horizontalPolicy().name == "Ignored"
