@@ -6,7 +6,9 @@ spectrum needs them evenly spaced. The waves worker (``holoview-waves``) therefo
 *every* frame from the ring itself and demodulates the one map the panel shows (a
 labelled peak's, or the fused map of every peak with a height) with the engine's
 per-frame core (:class:`~holoview.engine.frame_core.FrameCore`; its window's radius
-held, :meth:`WavesWorker._window_radius`), into a
+held, :meth:`WavesWorker._window_radius`), made in a child process
+(:class:`~holoview.live.wave_maps.MapProcess`: on the GUI's process the map waited for
+the GIL four times as long as it computed), into a
 :class:`~holoview.live.wave_window.WaveHistory`:
 
 - every frame while a map takes less than :data:`TARGET_BUSY` of the camera's frame
@@ -49,11 +51,10 @@ import numpy as np
 from holoview.acquire.ring import FrameRing
 from holoview.acquire.source import FrameMeta
 from holoview.engine.experiment import Experiment
-from holoview.engine.frame_core import FrameCore
-from holoview.engine.map_step import MapStep
 from holoview.engine.series import frame_time
 from holoview.errors import HoloviewError, InputError
 from holoview.live.continuity import Continuity
+from holoview.live.wave_maps import MapProcess, WaveMap
 from holoview.live.wave_window import (
     FUSED,
     LiveWaves,
@@ -134,6 +135,9 @@ class WavesWorker(RingWorker[LiveWaves]):
         The map and the analyses.
     saturation : float, optional
         Raw value at which the camera saturates.
+    child : bool
+        Make the maps in a child process (:class:`~holoview.live.wave_maps.MapProcess`;
+        default); False: on this worker's thread.
     """
 
     niceness = 0  # must keep up (module docstring); its analyses yield
@@ -145,6 +149,8 @@ class WavesWorker(RingWorker[LiveWaves]):
         frame_shape: tuple[int, int],
         settings: WaveSettings,
         saturation: float | None = None,
+        *,
+        child: bool = True,
     ) -> None:
         super().__init__(ring, "holoview-waves", ring.consumer("waves", mode="every"))
         self.maps = maps
@@ -154,14 +160,14 @@ class WavesWorker(RingWorker[LiveWaves]):
         self.history = WaveHistory(settings.length)
         self.history.label = settings.label
         self.stride = 1
-        self._core: FrameCore | None = None
-        self._maps_step: MapStep | None = None
+        self._mapper = MapProcess(frame_shape, saturation, child=child)
         self._radius: tuple[tuple[object, ...], float] | None = None
         self._fused_labels: frozenset[str | None] | None = None
         self._held_peaks: list[Peak] | None = None
         self._coregistered_at = -math.inf
         self._continuity = Continuity()
         self._costs: collections.deque[float] = collections.deque(maxlen=16)  # s per map
+        self._cpu: collections.deque[float] = collections.deque(maxlen=16)  # CPU s per map
         self._relaxed_since: float | None = None
         self._relax_to = 1
         #: True while the source waits for this worker (a replay played as fast as it
@@ -193,6 +199,12 @@ class WavesWorker(RingWorker[LiveWaves]):
         if self._fit_thread.ident is not None:
             self._fit_thread.join(timeout)
 
+    def _run(self) -> None:
+        try:
+            super()._run()
+        finally:  # the thread that makes the maps ends their child process
+            self._mapper.close()
+
     # ---- what the window reads -----------------------------------------------
     def latest(self) -> LiveWaves | None:
         """The newest analysis, or None before the first."""
@@ -212,6 +224,15 @@ class WavesWorker(RingWorker[LiveWaves]):
     def map_seconds(self) -> float:
         """Time one map takes, s (median of the last 16; 0 before any)."""
         costs = list(self._costs)
+        return float(np.median(costs)) if costs else 0.0
+
+    def map_cpu_seconds(self) -> float:
+        """CPU time one map takes where it is made, s (median of the last 16; 0 before any).
+
+        Below :meth:`map_seconds` by the time the map waited for a core (or, made on this
+        worker's thread, for the GIL).
+        """
+        costs = list(self._cpu)
         return float(np.median(costs)) if costs else 0.0
 
     def backlog(self) -> int:
@@ -254,8 +275,8 @@ class WavesWorker(RingWorker[LiveWaves]):
         with self._lock:
             self._camera_times.append(t)
         jumped = self._continuity.breaks(meta)
-        if jumped and self._core is not None:
-            self._core.break_sequence()
+        if jumped:
+            self._mapper.break_sequence()
         self._adapt_stride()
         if meta.frame_id % self.stride:
             return
@@ -263,14 +284,14 @@ class WavesWorker(RingWorker[LiveWaves]):
         if peak_set is None:
             return
         tick = time.perf_counter()
-        demodulator = None if self._core is None else self._core.demodulator
         try:
-            height, pixel_size, k_cut = self._map(pixels, *peak_set)
+            made = self._map(pixels, *peak_set)
         except HoloviewError as exc:  # said in the panel, not the banner
             self._problem = str(exc)
             return
         self._problem = None
-        built = self._core is None or self._core.demodulator is not demodulator
+        height, pixel_size, k_cut = made.height, made.pixel_size, made.k_cut
+        built = made.rebuilt
         with self._lock:
             history = self.history
             if jumped or built:  # a replay's jump; a new demodulator (its reference anew)
@@ -290,16 +311,14 @@ class WavesWorker(RingWorker[LiveWaves]):
                     )
                 history.clear()
                 history.pixel_size, history.k_cut = pixel_size, k_cut
-            history.push(height, t, meta.frame_id, relative=self._core_reference() == "relative")
+            history.push(height, t, meta.frame_id, relative=made.relative)
         if built:  # a new demodulator's first frame plans its FFTs: not a map's cost
             self._costs.clear()
+            self._cpu.clear()
         else:
             self._costs.append(time.perf_counter() - tick)
+            self._cpu.append(made.cpu_s)
         self._publish(None)
-
-    def _core_reference(self) -> str:
-        core = self._core
-        return "absolute" if core is None else core.experiment.reference
 
     def _needed_stride(self) -> int:
         """The smallest power-of-two stride at which a map takes :data:`TARGET_BUSY` of the time
@@ -339,12 +358,9 @@ class WavesWorker(RingWorker[LiveWaves]):
             with self._lock:
                 self.history.clear()
                 self.history.stride = stride
-            if self._core is not None:
-                self._core.break_sequence()
+            self._mapper.break_sequence()
 
-    def _map(
-        self, pixels: np.ndarray, peaks: tuple[Peak, ...], experiment: Experiment
-    ) -> tuple[np.ndarray, tuple[float, float] | None, float]:
+    def _map(self, pixels: np.ndarray, peaks: tuple[Peak, ...], experiment: Experiment) -> WaveMap:
         """The chosen map of one frame (m), its pixel size (m) and cut-off (rad/m)."""
         label = self.settings.label
         chosen = _chosen(peaks, label)
@@ -355,30 +371,15 @@ class WavesWorker(RingWorker[LiveWaves]):
             chosen = [p for p in chosen if p.label in held]
         chosen = self._held(chosen)
         experiment = replace(experiment, radius=self._window_radius(chosen, peaks, experiment))
-        if self._core is None or self._maps_step is None:
-            self._core = FrameCore(self.frame_shape, experiment, chosen, saturation=self.saturation)
-            self._maps_step = MapStep(self._core)
-        self._core.configure(experiment, chosen)
         fused = label == FUSED
         now = time.monotonic()
         estimate = fused and now - self._coregistered_at >= COREGISTER_S
-        maps = self._maps_step.process(pixels, estimate=estimate, fuse=fused)
-        demod = maps.result
-        if demod is None or not maps.maps:
-            raise InputError(f"no map of {label} from this frame ({', '.join(maps.flags)})")
+        made = self._mapper.map(
+            pixels, chosen, experiment, label=label, fused=fused, estimate=estimate
+        )
         if estimate:
             self._coregistered_at = now
-        height = maps.fused if fused else maps.maps[0]
-        if height is None:
-            raise InputError("no fused map: fewer than two peaks give a height on this frame")
-        rows, cols = self.frame_shape
-        by, bx = demod.box_shape
-        pitch = experiment.pixel_pitch_m
-        pixel_size = None if pitch is None else (pitch * rows / by, pitch * cols / bx)
-        demodulator = self._core.demodulator
-        radius = demod.radius if demodulator is None else min(demodulator.radii)
-        k_cut = math.inf if pitch is None else 2.0 * math.pi * radius / pitch
-        return height, pixel_size, k_cut
+        return made
 
     def _held(self, chosen: list[Peak]) -> list[Peak]:
         """The chosen peaks as first demodulated, while their labels and prefactors stay and
