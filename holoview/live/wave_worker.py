@@ -72,6 +72,7 @@ __all__ = [
     "BACKLOG",
     "FIT_SHARE",
     "HOLD_BINS",
+    "MAPS_IN_CHILD",
     "MAX_STRIDE",
     "TARGET_BUSY",
     "WAVES_HZ",
@@ -84,6 +85,10 @@ WAVES_HZ = 1.0
 FIT_SHARE = 0.25
 #: Frames waiting in the ring beyond which a replay played as fast as it reads waits.
 BACKLOG = 24
+#: Make the maps in a child process unless a worker is told otherwise
+#: (:class:`~holoview.live.wave_maps.MapProcess`; False: on the worker's thread, as
+#: ``benchmarks/bench_gui.py --waves-thread`` compares).
+MAPS_IN_CHILD = True
 #: Largest stride (camera frames per map).
 MAX_STRIDE = 16
 #: Most of the time between two kept frames a map may take (median of the last 16).
@@ -135,9 +140,9 @@ class WavesWorker(RingWorker[LiveWaves]):
         The map and the analyses.
     saturation : float, optional
         Raw value at which the camera saturates.
-    child : bool
-        Make the maps in a child process (:class:`~holoview.live.wave_maps.MapProcess`;
-        default); False: on this worker's thread.
+    child : bool, optional
+        Make the maps in a child process (:class:`~holoview.live.wave_maps.MapProcess`);
+        False: on this worker's thread. Default :data:`MAPS_IN_CHILD`.
     """
 
     niceness = 0  # must keep up (module docstring); its analyses yield
@@ -150,7 +155,7 @@ class WavesWorker(RingWorker[LiveWaves]):
         settings: WaveSettings,
         saturation: float | None = None,
         *,
-        child: bool = True,
+        child: bool | None = None,
     ) -> None:
         super().__init__(ring, "holoview-waves", ring.consumer("waves", mode="every"))
         self.maps = maps
@@ -160,7 +165,9 @@ class WavesWorker(RingWorker[LiveWaves]):
         self.history = WaveHistory(settings.length)
         self.history.label = settings.label
         self.stride = 1
-        self._mapper = MapProcess(frame_shape, saturation, child=child)
+        self._mapper = MapProcess(
+            frame_shape, saturation, child=MAPS_IN_CHILD if child is None else child
+        )
         self._radius: tuple[tuple[object, ...], float] | None = None
         self._fused_labels: frozenset[str | None] | None = None
         self._held_peaks: list[Peak] | None = None
@@ -225,6 +232,10 @@ class WavesWorker(RingWorker[LiveWaves]):
         """Time one map takes, s (median of the last 16; 0 before any)."""
         costs = list(self._costs)
         return float(np.median(costs)) if costs else 0.0
+
+    def maps_pid(self) -> int | None:
+        """The process id of the child making the maps (None: none running, or made here)."""
+        return self._mapper.pid
 
     def map_cpu_seconds(self) -> float:
         """CPU time one map takes where it is made, s (median of the last 16; 0 before any).
