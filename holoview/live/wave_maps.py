@@ -223,8 +223,9 @@ class MapProcess:
 
     Notes
     -----
-    Use it from one thread. The child starts with the first frame (its dtype sizes the
-    shared buffer) and takes a second or two to import holoview.
+    Use it from one thread. The child starts with :meth:`launch` or the first frame (its
+    dtype sizes the shared buffer) and takes a second or two to import holoview, which
+    the first map waits for.
     """
 
     def __init__(
@@ -244,13 +245,34 @@ class MapProcess:
         self._frame: np.ndarray | None = None
         self._sent: tuple[tuple[Peak, ...], Experiment] | None = None
         self._broken = False
+        self._ready = False
+        self._path = ""
         #: the child's process id (None: none running)
         self.pid: int | None = None
 
     # ---- the child's life ---------------------------------------------------------
-    def _start(self, dtype: np.dtype) -> None:
+    def launch(self, dtype: np.typing.DTypeLike) -> None:
+        """Start the child for frames of ``dtype`` without waiting for it (nothing if one runs).
+
+        The child imports holoview meanwhile; the first :meth:`map` waits for it.
+
+        Raises
+        ------
+        MapProcessError
+            The system would not start it.
+        """
+        if self._local is not None or self._process is not None:
+            return
+        try:
+            self._launch(np.dtype(dtype))
+        except OSError as exc:  # no shared memory, no process left
+            self.close()
+            raise MapProcessError(f"the waves map process cannot start: {exc}") from exc
+
+    def _launch(self, dtype: np.dtype) -> None:
         nbytes = self.frame_shape[0] * self.frame_shape[1] * dtype.itemsize
         fd, path = tempfile.mkstemp(prefix="holoview-waves-", dir=_shared_folder())
+        self._path = path  # close() removes it
         try:
             os.ftruncate(fd, nbytes)
             self._buffer = mmap.mmap(fd, nbytes)
@@ -267,15 +289,24 @@ class MapProcess:
         )
         try:
             process.start()
+        finally:
             theirs.close()
-            self._process, self._conn = process, ours
+        self._process, self._conn = process, ours
+        self.pid = process.pid
+        self._sent = None
+        self._ready = False
+        self._broken = False  # a new demodulator: nothing to break
+
+    def _wait_ready(self) -> None:
+        """Wait for the launched child's first word (it has mapped the shared buffer)."""
+        try:
             answer = self._receive(START_TIMEOUT_S)
         finally:
-            Path(path).unlink(missing_ok=True)  # both map it now; nothing left on disk
+            Path(self._path).unlink(missing_ok=True)  # both map it now: nothing left on disk
         if answer[0] != "ready":
+            self.close()
             raise MapProcessError(f"the waves map process did not start: {answer!r}")
-        self.pid = int(answer[1])
-        self._sent = None
+        self._ready = True
         logger.info("waves: maps made in process %d", self.pid)
 
     def _receive(self, timeout: float | None = None) -> tuple[Any, ...]:
@@ -306,6 +337,10 @@ class MapProcess:
         conn, process = self._conn, self._process
         self._conn = self._process = None
         self.pid = None
+        self._ready = False
+        if self._path:
+            Path(self._path).unlink(missing_ok=True)
+            self._path = ""
         if conn is not None:
             with contextlib.suppress(OSError):  # a child that ended has closed its end
                 conn.send(None)
@@ -353,8 +388,9 @@ class MapProcess:
             )
         pixels = np.asarray(pixels)
         if self._process is None:
-            self._start(pixels.dtype)
-            self._broken = False  # a new demodulator: nothing to break
+            self.launch(pixels.dtype)
+        if not self._ready:
+            self._wait_ready()
         conn, frame = self._conn, self._frame
         assert conn is not None and frame is not None
         np.copyto(frame, pixels, casting="unsafe")

@@ -208,6 +208,10 @@ class WavesWorker(RingWorker[LiveWaves]):
 
     def _run(self) -> None:
         try:
+            try:
+                self._mapper.launch(self.ring.dtype)  # it imports while the first peaks come
+            except HoloviewError as exc:  # said in the panel; the first frame tries again
+                self._problem = str(exc)
             super()._run()
         finally:  # the thread that makes the maps ends their child process
             self._mapper.close()

@@ -119,6 +119,24 @@ def test_a_broken_sequence_pairs_no_frames_in_the_child_either(scene) -> None:
         mapper.close()
 
 
+def test_a_launched_child_makes_the_first_map_and_ends_with_close(scene) -> None:
+    frames, peaks, experiment = scene
+    mapper = MapProcess(SHAPE)
+    try:
+        mapper.launch(frames[0].dtype)  # returns at once: the child imports meanwhile
+        pid = mapper.pid
+        assert pid is not None
+        made = mapper.map(
+            frames[0], peaks[:1], experiment, label="RB1", fused=False, estimate=False
+        )
+        assert mapper.pid == pid and made.rebuilt
+    finally:
+        mapper.close()
+    assert mapper.pid is None
+    with pytest.raises(ProcessLookupError):
+        wait_until_gone(pid)
+
+
 def test_no_map_from_the_child_is_one_line(scene) -> None:
     frames, _, experiment = scene
     mapper = MapProcess(SHAPE)
