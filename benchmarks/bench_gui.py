@@ -24,11 +24,10 @@ run, and prints medians and extremes:
 - with ``--waves LABEL`` (a labelled peak, or ``fused``): the Waves panel open on that
   map; its worker's maps per second against the camera's, the stride (camera frames per
   map), frames lost or overwritten before it read them, and whether every camera frame
-  gave a map (issue 24's live target) beside the issue-17 targets; a map's time from
-  frame to map and its CPU time where it is made (the rest is waiting for a core, or
-  for the GIL), and the CPU of the child process that makes them; with
-  ``--waves-thread`` the maps are made on the waves worker's thread instead (as before
-  the child process, for comparison);
+  gave a map (issue 24's live target) beside the issue-17 targets, and a map's time
+  beside its CPU time (the rest is waiting for a core or for the GIL);
+- per thread, the share of the run it waited runnable for a core (Linux's schedstat:
+  the machine's other work), beside its CPU share;
 - with ``--profile N``: where the GUI thread's time goes over the measured run (cProfile
   of the GUI thread, the N entries of largest cumulative time under pyqtgraph and
   holoview, in ms per displayed frame), and each image's render and paint time by shape.
@@ -53,7 +52,6 @@ import pyqtgraph as pg
 from machine import machine
 from PyQt6.QtCore import QEventLoop, QTimer
 
-from holoview.live import wave_worker
 from holoview.ui.app import application
 from holoview.ui.main_window import MainWindow
 
@@ -79,16 +77,16 @@ def thread_cpu_seconds() -> dict[str, float]:
     return out
 
 
-def process_cpu_seconds(pid: int | None) -> float:
-    """CPU seconds used so far by process ``pid`` (Linux; 0 for None or a process gone)."""
-    if pid is None:
-        return 0.0
-    try:
-        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1]
-    except OSError:
-        return 0.0
-    utime, stime = (int(v) for v in fields.split()[11:13])
-    return (utime + stime) / os.sysconf("SC_CLK_TCK")
+def thread_queue_seconds() -> dict[str, float]:
+    """Seconds each Python thread of this process has waited runnable for a core (Linux)."""
+    out: dict[str, float] = {}
+    for thread in threading.enumerate():
+        try:
+            fields = Path(f"/proc/self/task/{thread.native_id}/schedstat").read_text().split()
+        except OSError:
+            continue
+        out[thread.name] = int(fields[1]) * 1e-9
+    return out
 
 
 def median(values: list[float]) -> float:
@@ -162,14 +160,7 @@ def main() -> int:
     parser.add_argument(
         "--waves", metavar="LABEL", help="open the Waves panel on this map (a label or fused)"
     )
-    parser.add_argument(
-        "--waves-thread",
-        action="store_true",
-        help="make the Waves panel's maps on its worker's thread, not in a child process",
-    )
     args = parser.parse_args()
-    if args.waves_thread:
-        wave_worker.MAPS_IN_CHILD = False
     app = application()
     app.setQuitOnLastWindowClosed(False)
     load_before = os.getloadavg()
@@ -268,12 +259,9 @@ def main() -> int:
         cam0, seq0 = session.camera.frames, session.latest().seq
         series0 = session.series_worker.status()
         waves_worker = session.waves_worker
-        child = None
         if waves_worker is not None:
             waves0 = (waves_worker.history.pushed, waves_worker.status(), waves_worker.stride)
-            child = waves_worker.maps_pid()
-        cpu0 = thread_cpu_seconds()
-        child0 = process_cpu_seconds(child)
+        cpu0, queue0 = thread_cpu_seconds(), thread_queue_seconds()
         t0 = time.monotonic()
         profiler = cProfile.Profile()  # the GUI thread only: cProfile hooks the calling thread
         with ImageTimes() as images:
@@ -282,8 +270,7 @@ def main() -> int:
             run_for(args.seconds)
             profiler.disable()
         elapsed = time.monotonic() - t0
-        cpu1 = thread_cpu_seconds()
-        child_cpu = process_cpu_seconds(child) - child0
+        cpu1, queue1 = thread_cpu_seconds(), thread_queue_seconds()
         camera_fps = (session.camera.frames - cam0) / elapsed
         processing_fps = (session.latest().seq - seq0) / elapsed
         series1 = session.series_worker.status()
@@ -306,13 +293,8 @@ def main() -> int:
                 f"{frames} camera frames; stride {waves0[2]} -> {stride}; {lost} frames "
                 f"overwritten before the waves worker read them{fit_s}; a map takes "
                 f"{waves_worker.map_seconds() * 1e3:.1f} ms "
-                f"({waves_worker.map_cpu_seconds() * 1e3:.1f} ms of CPU where made), "
-                f"a camera frame comes every {1e3 / camera_fps:.1f} ms"
-                + (
-                    f"; the maps' process {100 * child_cpu / elapsed:.0f}% of one core)"
-                    if child is not None
-                    else "; made on the worker's thread)"
-                )
+                f"({waves_worker.map_cpu_seconds() * 1e3:.1f} ms of CPU), a camera frame comes "
+                f"every {1e3 / camera_fps:.1f} ms)"
             )
         ticker.stop()
         window.close()
@@ -357,6 +339,11 @@ def main() -> int:
         f"{name} {100 * (cpu1[name] - cpu0.get(name, 0.0)) / elapsed:.0f}%" for name in sorted(cpu1)
     )
     print(f"CPU per thread (% of one core): {shares}")
+    queued = ", ".join(
+        f"{name} {100 * (queue1[name] - queue0.get(name, 0.0)) / elapsed:.0f}%"
+        for name in sorted(queue1)
+    )
+    print(f"waiting for a core per thread (% of the run): {queued}")
     gui_cpu = cpu1.get("MainThread", 0.0) - cpu0.get("MainThread", 0.0)
     demod_cpu = cpu1.get("holoview-demod", 0.0) - cpu0.get("holoview-demod", 0.0)
     series_cpu = cpu1.get("holoview-series", 0.0) - cpu0.get("holoview-series", 0.0)

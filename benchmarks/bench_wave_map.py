@@ -1,26 +1,27 @@
-"""The Waves panel's map of one frame: where its time goes, and what the GIL adds.
+"""The Waves panel's map of one frame: where its CPU goes, and what it waits for.
 
 Run from the repository root::
 
     .venv/bin/python benchmarks/bench_wave_map.py [--size 1024] [--maps 200]
 
-On simulated frames (uint16, the simulator's default setup, its RB1 and the other
-families' carriers as the live model places them), the map the Waves panel makes of
-RB1 (:class:`holoview.live.wave_maps.WaveMapper`: the engine's FrameCore and MapStep,
-window at the bound, relative reference), printed with the machine and its load:
+On simulated frames (uint16, the simulator's default setup; RB1 among the carriers the
+live model places), the map the Waves panel makes of RB1 (the waves worker's own map
+step, :meth:`holoview.live.wave_worker.WavesWorker._map`: the engine's FrameCore and
+MapStep, window at the bound, relative reference), printed with the machine and its load:
 
-1. the CPU time per map of each part on one thread (each part's own functions timed
-   with the thread's CPU clock; medians would hide nothing here, means are given);
-2. the wall time per map made on the calling thread and in the child process
-   (:class:`holoview.live.wave_maps.MapProcess`), alone and beside one busy
-   pure-Python thread at a lower priority (the GUI, maps and series workers of the live
-   window hold the GIL so): what waiting for the GIL adds, and what the child saves.
+1. the CPU time per map of each part on one thread (each part's functions timed with
+   the thread's CPU clock, means over the maps), and the history's append;
+2. the time per map on the calling thread, alone and beside one busy pure-Python
+   thread at a lower priority (the GUI, maps and series workers of the live window
+   hold the GIL so), split by Linux's schedstat into CPU, waiting runnable for a core
+   (the machine's other work) and the rest (blocked: waiting for the GIL).
 """
 
 from __future__ import annotations
 
 import argparse
 import collections
+import math
 import os
 import statistics
 import sys
@@ -36,17 +37,20 @@ from machine import machine
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
+from holoview.acquire.ring import FrameRing  # noqa: E402
 from holoview.acquire.simulated import SimulatedSource  # noqa: E402
 from holoview.engine import frame_core, map_step  # noqa: E402
 from holoview.engine.experiment import Experiment  # noqa: E402
 from holoview.live import wave_window  # noqa: E402
-from holoview.live.wave_maps import MapProcess, WaveMapper  # noqa: E402
+from holoview.live.wave_window import WaveSettings  # noqa: E402
+from holoview.live.wave_worker import WavesWorker  # noqa: E402
 from holoview.optics.families import predict_families  # noqa: E402
 from holoview.processing.fourier import half_spectrum  # noqa: E402
 from holoview.processing.maps import demodulate, mean_phases  # noqa: E402
 from holoview.processing.peaks.detection import Peak  # noqa: E402
-from holoview.processing.peaks.radii import peak_radii  # noqa: E402
 
+#: Rounds of section 2 (the cases take turns, so the load falls on each alike).
+ROUNDS = 3
 #: (module or class, function, the part it is) timed in section 1.
 PARTS: list[tuple[Any, str, str]] = [
     (half_spectrum.HalfSpectrum, "_rows", "conversion to float32 + row FFTs"),
@@ -66,8 +70,8 @@ PARTS: list[tuple[Any, str, str]] = [
 ]
 
 
-def scene(size: int) -> tuple[list[np.ndarray], list[Peak], list[Peak], Experiment]:
-    """Frames, the chosen peak (RB1), every carrier placed, and the experiment."""
+def scene(size: int) -> tuple[list[np.ndarray], list[Peak], Experiment]:
+    """Frames, every carrier placed (RB1 first), and the experiment."""
     source = SimulatedSource(shape=(size, size), frame_rate_hz=60.0, seed=3, render="live")
     source.open()
     try:
@@ -81,12 +85,28 @@ def scene(size: int) -> tuple[list[np.ndarray], list[Peak], list[Peak], Experime
         for f in predict_families(setup, max_order=2, second_order=False)
         if f.label != "B2B1"  # FB1's carrier again
     ]
-    carriers = np.array([p.carrier for p in peaks])
-    radius = float(peak_radii((size, size), carriers, None, np.zeros((0, 2)))[0])
-    experiment = Experiment(
-        wavelength_m=setup.wavelength, pixel_pitch_m=setup.pixel_pitch, radius=radius
-    )
-    return frames, peaks[:1], peaks, experiment
+    experiment = Experiment(wavelength_m=setup.wavelength, pixel_pitch_m=setup.pixel_pitch)
+    return frames, peaks, experiment
+
+
+class Mapper:
+    """The waves worker's map step on the calling thread (no ring reading, no thread)."""
+
+    def __init__(self, frames: list[np.ndarray], peaks: list[Peak], experiment: Experiment):
+        shape = (int(frames[0].shape[0]), int(frames[0].shape[1]))
+        ring = FrameRing(2, shape, frames[0].dtype)
+        maps: Any = None  # the worker asks the maps worker for peaks in _step only
+        self.worker = WavesWorker(ring, maps, shape, WaveSettings(label="RB1", length=512))
+        self.frames, self.peaks, self.experiment = frames, tuple(peaks), experiment
+        self.count = 0
+        for _ in range(3):  # plans, the reference
+            self.map()
+
+    def map(self) -> Any:
+        """Map the next frame: the map (m), its pixel size (m) and cut-off (rad/m)."""
+        frame = self.frames[self.count % len(self.frames)]
+        self.count += 1
+        return self.worker._map(frame, self.peaks, self.experiment)
 
 
 def timed_parts(costs: dict[str, float]) -> Callable[[], None]:
@@ -112,31 +132,36 @@ def timed_parts(costs: dict[str, float]) -> Callable[[], None]:
     return undo
 
 
-def parts(frames: list[np.ndarray], chosen: list[Peak], experiment: Experiment, n: int) -> None:
+def parts(mapper: Mapper, n: int) -> None:
     """Section 1: each part's CPU per map, one thread."""
-    mapper = WaveMapper(frames[0].shape)
     history = wave_window.WaveHistory(512)
     costs: dict[str, float] = collections.defaultdict(float)
-    for k in range(3):  # plans, the reference
-        mapper.map(frames[k], chosen, experiment, label="RB1", fused=False, estimate=False)
     undo = timed_parts(costs)
     total = 0.0
     try:
         for k in range(n):
             start = time.thread_time()
-            frame = frames[k % len(frames)]
-            made = mapper.map(frame, chosen, experiment, label="RB1", fused=False, estimate=False)
-            history.push(made.height, k / 60.0, k, relative=made.relative)
+            height, _, _ = mapper.map()
+            history.push(height, k / 60.0, k, relative=True)
             total += time.thread_time() - start
     finally:
         undo()
-    rows, cols = made.height.shape
+    rows, cols = height.shape
     print(f"1. CPU per map of RB1 ({rows} x {cols} map), one thread")
     for part, seconds in sorted(costs.items(), key=lambda kv: -kv[1]):
         print(f"   {part:40s} {seconds / n * 1e3:6.2f} ms")
     rest = total - sum(costs.values())
     print(f"   {'the rest (Python between the parts)':40s} {rest / n * 1e3:6.2f} ms")
     print(f"   {'total':40s} {total / n * 1e3:6.2f} ms")
+
+
+def schedstat(path: str) -> tuple[float, float]:
+    """CPU time and time spent runnable waiting for a core so far, s (Linux's schedstat)."""
+    try:
+        fields = Path(path).read_text().split()
+    except OSError:
+        return math.nan, math.nan
+    return int(fields[0]) * 1e-9, int(fields[1]) * 1e-9
 
 
 def busy(stop: threading.Event) -> None:
@@ -148,47 +173,38 @@ def busy(stop: threading.Event) -> None:
             x += i
 
 
-def walls(frames: list[np.ndarray], chosen: list[Peak], experiment: Experiment, n: int) -> None:
-    """Section 2: wall time per map on this thread and in the child, alone and beside a busy one."""
-    print("2. wall time per map (median; CPU where made), alone and beside a busy Python thread")
-    mappers = {"this thread": MapProcess(frames[0].shape, child=False)}
-    mappers["child process"] = MapProcess(frames[0].shape)
-    try:
-        for mapper in mappers.values():
-            for k in range(3):
-                mapper.map(frames[k], chosen, experiment, label="RB1", fused=False, estimate=False)
-        for round_ in range(2):
-            for beside in (False, True):
-                for where, mapper in mappers.items():
-                    stop = threading.Event()
-                    thread = threading.Thread(target=busy, args=(stop,), daemon=True)
-                    if beside:
-                        thread.start()
-                    wall, cpu = [], []
-                    for k in range(n):
-                        start = time.perf_counter()
-                        made = mapper.map(
-                            frames[k % len(frames)],
-                            chosen,
-                            experiment,
-                            label="RB1",
-                            fused=False,
-                            estimate=False,
-                        )
-                        wall.append(time.perf_counter() - start)
-                        cpu.append(made.cpu_s)
-                    stop.set()
-                    if beside:
-                        thread.join()
-                    print(
-                        f"   round {round_ + 1}, {where:13s} "
-                        f"{'beside a busy thread' if beside else 'alone':20s} "
-                        f"{statistics.median(wall) * 1e3:6.2f} ms "
-                        f"(CPU {statistics.median(cpu) * 1e3:5.2f} ms)"
-                    )
-    finally:
-        for mapper in mappers.values():
-            mapper.close()
+def walls(mapper: Mapper, n: int) -> None:
+    """Section 2: time per map on this thread, alone and beside a busy Python thread."""
+    print(
+        "2. time per map on this thread (medians), alone and beside a busy Python thread:\n"
+        "   wall = CPU + waiting for a core (Linux's run queue) + the rest (the GIL)"
+    )
+    stat = f"/proc/self/task/{threading.get_native_id()}/schedstat"
+    for round_ in range(ROUNDS):
+        for beside in (False, True):
+            stop = threading.Event()
+            thread = threading.Thread(target=busy, args=(stop,), daemon=True)
+            if beside:
+                thread.start()
+            wall, cpu, queued, rest = [], [], [], []
+            for _ in range(n):
+                before = schedstat(stat)
+                start = time.perf_counter()
+                mapper.map()
+                took = time.perf_counter() - start
+                after = schedstat(stat)
+                wall.append(took)
+                cpu.append(after[0] - before[0])
+                queued.append(after[1] - before[1])
+                rest.append(took - cpu[-1] - queued[-1])
+            stop.set()
+            if beside:
+                thread.join()
+            w, c, q, r = (statistics.median(v) * 1e3 for v in (wall, cpu, queued, rest))
+            print(
+                f"   round {round_ + 1}, {'beside a busy thread' if beside else 'alone':20s} "
+                f"wall {w:6.2f} ms = CPU {c:5.2f} + core wait {q:5.2f} + GIL {r:5.2f}"
+            )
 
 
 def main() -> int:
@@ -197,10 +213,11 @@ def main() -> int:
     parser.add_argument("--maps", type=int, default=200, help="maps timed per case")
     args = parser.parse_args()
     print(machine())
-    frames, chosen, _, experiment = scene(args.size)
-    print(f"{args.size} x {args.size} uint16 frames; RB1's window radius {experiment.radius:.4f}")
-    parts(frames, chosen, experiment, args.maps)
-    walls(frames, chosen, experiment, max(20, args.maps // 4))
+    mapper = Mapper(*scene(args.size))
+    radius = mapper.worker._radius[1] if mapper.worker._radius else float("nan")
+    print(f"{args.size} x {args.size} uint16 frames; RB1's window radius {radius:.4f}")
+    parts(mapper, args.maps)
+    walls(mapper, max(20, args.maps // 4))
     print(f"load average after {os.getloadavg()[0]:.2f}")
     return 0
 

@@ -6,9 +6,7 @@ spectrum needs them evenly spaced. The waves worker (``holoview-waves``) therefo
 *every* frame from the ring itself and demodulates the one map the panel shows (a
 labelled peak's, or the fused map of every peak with a height) with the engine's
 per-frame core (:class:`~holoview.engine.frame_core.FrameCore`; its window's radius
-held, :meth:`WavesWorker._window_radius`), made in a child process
-(:class:`~holoview.live.wave_maps.MapProcess`: on the GUI's process the map waited for
-the GIL four times as long as it computed), into a
+held, :meth:`WavesWorker._window_radius`), into a
 :class:`~holoview.live.wave_window.WaveHistory`:
 
 - every frame while a map takes less than :data:`TARGET_BUSY` of the camera's frame
@@ -51,10 +49,11 @@ import numpy as np
 from holoview.acquire.ring import FrameRing
 from holoview.acquire.source import FrameMeta
 from holoview.engine.experiment import Experiment
+from holoview.engine.frame_core import FrameCore
+from holoview.engine.map_step import MapStep
 from holoview.engine.series import frame_time
 from holoview.errors import HoloviewError, InputError
 from holoview.live.continuity import Continuity
-from holoview.live.wave_maps import MapProcess, WaveMap
 from holoview.live.wave_window import (
     FUSED,
     LiveWaves,
@@ -72,7 +71,6 @@ __all__ = [
     "BACKLOG",
     "FIT_SHARE",
     "HOLD_BINS",
-    "MAPS_IN_CHILD",
     "MAX_STRIDE",
     "TARGET_BUSY",
     "WAVES_HZ",
@@ -85,10 +83,6 @@ WAVES_HZ = 1.0
 FIT_SHARE = 0.25
 #: Frames waiting in the ring beyond which a replay played as fast as it reads waits.
 BACKLOG = 24
-#: Make the maps in a child process unless a worker is told otherwise
-#: (:class:`~holoview.live.wave_maps.MapProcess`; False: on the worker's thread, as
-#: ``benchmarks/bench_gui.py --waves-thread`` compares).
-MAPS_IN_CHILD = True
 #: Largest stride (camera frames per map).
 MAX_STRIDE = 16
 #: Most of the time between two kept frames a map may take (median of the last 16).
@@ -140,9 +134,6 @@ class WavesWorker(RingWorker[LiveWaves]):
         The map and the analyses.
     saturation : float, optional
         Raw value at which the camera saturates.
-    child : bool, optional
-        Make the maps in a child process (:class:`~holoview.live.wave_maps.MapProcess`);
-        False: on this worker's thread. Default :data:`MAPS_IN_CHILD`.
     """
 
     niceness = 0  # must keep up (module docstring); its analyses yield
@@ -154,8 +145,6 @@ class WavesWorker(RingWorker[LiveWaves]):
         frame_shape: tuple[int, int],
         settings: WaveSettings,
         saturation: float | None = None,
-        *,
-        child: bool | None = None,
     ) -> None:
         super().__init__(ring, "holoview-waves", ring.consumer("waves", mode="every"))
         self.maps = maps
@@ -165,9 +154,8 @@ class WavesWorker(RingWorker[LiveWaves]):
         self.history = WaveHistory(settings.length)
         self.history.label = settings.label
         self.stride = 1
-        self._mapper = MapProcess(
-            frame_shape, saturation, child=MAPS_IN_CHILD if child is None else child
-        )
+        self._core: FrameCore | None = None
+        self._maps_step: MapStep | None = None
         self._radius: tuple[tuple[object, ...], float] | None = None
         self._fused_labels: frozenset[str | None] | None = None
         self._held_peaks: list[Peak] | None = None
@@ -206,16 +194,6 @@ class WavesWorker(RingWorker[LiveWaves]):
         if self._fit_thread.ident is not None:
             self._fit_thread.join(timeout)
 
-    def _run(self) -> None:
-        try:
-            try:
-                self._mapper.launch(self.ring.dtype)  # it imports while the first peaks come
-            except HoloviewError as exc:  # said in the panel; the first frame tries again
-                self._problem = str(exc)
-            super()._run()
-        finally:  # the thread that makes the maps ends their child process
-            self._mapper.close()
-
     # ---- what the window reads -----------------------------------------------
     def latest(self) -> LiveWaves | None:
         """The newest analysis, or None before the first."""
@@ -237,15 +215,11 @@ class WavesWorker(RingWorker[LiveWaves]):
         costs = list(self._costs)
         return float(np.median(costs)) if costs else 0.0
 
-    def maps_pid(self) -> int | None:
-        """The process id of the child making the maps (None: none running, or made here)."""
-        return self._mapper.pid
-
     def map_cpu_seconds(self) -> float:
-        """CPU time one map takes where it is made, s (median of the last 16; 0 before any).
+        """CPU time one map takes this worker's thread, s (median of the last 16; 0 before any).
 
-        Below :meth:`map_seconds` by the time the map waited for a core (or, made on this
-        worker's thread, for the GIL).
+        :meth:`map_seconds` less this is the time the map waited: for a core (the
+        machine's other work) or for the GIL (this process's other threads).
         """
         costs = list(self._cpu)
         return float(np.median(costs)) if costs else 0.0
@@ -290,23 +264,23 @@ class WavesWorker(RingWorker[LiveWaves]):
         with self._lock:
             self._camera_times.append(t)
         jumped = self._continuity.breaks(meta)
-        if jumped:
-            self._mapper.break_sequence()
+        if jumped and self._core is not None:
+            self._core.break_sequence()
         self._adapt_stride()
         if meta.frame_id % self.stride:
             return
         peak_set = self.maps.peak_set()
         if peak_set is None:
             return
-        tick = time.perf_counter()
+        tick, cpu = time.perf_counter(), time.thread_time()
+        demodulator = None if self._core is None else self._core.demodulator
         try:
-            made = self._map(pixels, *peak_set)
+            height, pixel_size, k_cut = self._map(pixels, *peak_set)
         except HoloviewError as exc:  # said in the panel, not the banner
             self._problem = str(exc)
             return
         self._problem = None
-        height, pixel_size, k_cut = made.height, made.pixel_size, made.k_cut
-        built = made.rebuilt
+        built = self._core is None or self._core.demodulator is not demodulator
         with self._lock:
             history = self.history
             if jumped or built:  # a replay's jump; a new demodulator (its reference anew)
@@ -326,14 +300,18 @@ class WavesWorker(RingWorker[LiveWaves]):
                     )
                 history.clear()
                 history.pixel_size, history.k_cut = pixel_size, k_cut
-            history.push(height, t, meta.frame_id, relative=made.relative)
+            history.push(height, t, meta.frame_id, relative=self._core_reference() == "relative")
         if built:  # a new demodulator's first frame plans its FFTs: not a map's cost
             self._costs.clear()
             self._cpu.clear()
         else:
             self._costs.append(time.perf_counter() - tick)
-            self._cpu.append(made.cpu_s)
+            self._cpu.append(time.thread_time() - cpu)
         self._publish(None)
+
+    def _core_reference(self) -> str:
+        core = self._core
+        return "absolute" if core is None else core.experiment.reference
 
     def _needed_stride(self) -> int:
         """The smallest power-of-two stride at which a map takes :data:`TARGET_BUSY` of the time
@@ -373,9 +351,12 @@ class WavesWorker(RingWorker[LiveWaves]):
             with self._lock:
                 self.history.clear()
                 self.history.stride = stride
-            self._mapper.break_sequence()
+            if self._core is not None:
+                self._core.break_sequence()
 
-    def _map(self, pixels: np.ndarray, peaks: tuple[Peak, ...], experiment: Experiment) -> WaveMap:
+    def _map(
+        self, pixels: np.ndarray, peaks: tuple[Peak, ...], experiment: Experiment
+    ) -> tuple[np.ndarray, tuple[float, float] | None, float]:
         """The chosen map of one frame (m), its pixel size (m) and cut-off (rad/m)."""
         label = self.settings.label
         chosen = _chosen(peaks, label)
@@ -386,15 +367,30 @@ class WavesWorker(RingWorker[LiveWaves]):
             chosen = [p for p in chosen if p.label in held]
         chosen = self._held(chosen)
         experiment = replace(experiment, radius=self._window_radius(chosen, peaks, experiment))
+        if self._core is None or self._maps_step is None:
+            self._core = FrameCore(self.frame_shape, experiment, chosen, saturation=self.saturation)
+            self._maps_step = MapStep(self._core)
+        self._core.configure(experiment, chosen)
         fused = label == FUSED
         now = time.monotonic()
         estimate = fused and now - self._coregistered_at >= COREGISTER_S
-        made = self._mapper.map(
-            pixels, chosen, experiment, label=label, fused=fused, estimate=estimate
-        )
+        maps = self._maps_step.process(pixels, estimate=estimate, fuse=fused)
+        demod = maps.result
+        if demod is None or not maps.maps:
+            raise InputError(f"no map of {label} from this frame ({', '.join(maps.flags)})")
         if estimate:
             self._coregistered_at = now
-        return made
+        height = maps.fused if fused else maps.maps[0]
+        if height is None:
+            raise InputError("no fused map: fewer than two peaks give a height on this frame")
+        rows, cols = self.frame_shape
+        by, bx = demod.box_shape
+        pitch = experiment.pixel_pitch_m
+        pixel_size = None if pitch is None else (pitch * rows / by, pitch * cols / bx)
+        demodulator = self._core.demodulator
+        radius = demod.radius if demodulator is None else min(demodulator.radii)
+        k_cut = math.inf if pitch is None else 2.0 * math.pi * radius / pitch
+        return height, pixel_size, k_cut
 
     def _held(self, chosen: list[Peak]) -> list[Peak]:
         """The chosen peaks as first demodulated, while their labels and prefactors stay and
@@ -501,8 +497,11 @@ class WavesWorker(RingWorker[LiveWaves]):
                 pixel_size=None,
                 problems=(why,),
                 map_seconds=self.map_seconds(),
+                map_cpu_seconds=self.map_cpu_seconds(),
             )
         result = analyse_window(window, settings, seq=self._seq, camera_rate=camera)
         if problem is not None:
             result = replace(result, problems=(problem, *result.problems))
-        return replace(result, map_seconds=self.map_seconds())
+        return replace(
+            result, map_seconds=self.map_seconds(), map_cpu_seconds=self.map_cpu_seconds()
+        )
