@@ -14,7 +14,10 @@ MapStep, window at the bound, relative reference), printed with the machine and 
 2. the time per map on the calling thread, alone and beside one busy pure-Python
    thread at a lower priority (the GUI, maps and series workers of the live window
    hold the GIL so), split by Linux's schedstat into CPU, waiting runnable for a core
-   (the machine's other work) and the rest (blocked: waiting for the GIL).
+   (the machine's other work) and the rest (blocked: waiting for the GIL);
+3. the CPU time of one analysis of the panel's default window (256 maps: the omega-k
+   spectrum and the dispersion fit), which the analysis thread takes at most
+   ``FIT_SHARE`` of the time (``FIT_SHARE_BEHIND`` while frames are skipped).
 """
 
 from __future__ import annotations
@@ -207,6 +210,28 @@ def walls(mapper: Mapper, n: int) -> None:
             )
 
 
+def analysis(mapper: Mapper) -> None:
+    """Section 3: one analysis of 256 maps, CPU time (median of 3)."""
+    settings = WaveSettings(label="RB1")
+    history = wave_window.WaveHistory(settings.length)
+    for k in range(settings.length):
+        height, pixel_size, k_cut = mapper.map()
+        history.pixel_size, history.k_cut = pixel_size, k_cut
+        history.push(height, k / 60.0, k, relative=True)
+    window = history.snapshot()
+    assert window is not None
+    cpu = []
+    for _ in range(3):
+        start = time.thread_time()
+        wave_window.analyse_window(window, settings, camera_rate=60.0)
+        cpu.append(time.thread_time() - start)
+    rows, cols = window.maps[0].shape
+    print(
+        f"3. one analysis of {len(window.maps)} maps of {rows} x {cols} (segments of "
+        f"{settings.segment}): {statistics.median(cpu) * 1e3:.0f} ms of CPU"
+    )
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--size", type=int, default=1024, help="frame side, pixels")
@@ -218,6 +243,7 @@ def main() -> int:
     print(f"{args.size} x {args.size} uint16 frames; RB1's window radius {radius:.4f}")
     parts(mapper, args.maps)
     walls(mapper, max(20, args.maps // 4))
+    analysis(mapper)
     print(f"load average after {os.getloadavg()[0]:.2f}")
     return 0
 

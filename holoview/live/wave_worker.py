@@ -23,7 +23,8 @@ held, :meth:`WavesWorker._window_radius`), into a
 
 A second thread (``holoview-waves-fit``) analyses the history at most :data:`WAVES_HZ`
 times a second, and less often when an analysis takes more than :data:`FIT_SHARE` of
-the time (:func:`~holoview.live.wave_window.analyse_window`, the functions of
+the time (:data:`FIT_SHARE_BEHIND` while the maps keep fewer frames than the camera's:
+the cores go to the maps first) (:func:`~holoview.live.wave_window.analyse_window`, the functions of
 ``holoview waves``). The map thread runs at the priority of the series and the window,
 which must keep up too (the panel's map of every frame is what it is opened for); the
 maps worker, whose rate is whatever is left, and the analyses run at a lower one
@@ -70,6 +71,7 @@ logger = logging.getLogger(__name__)
 __all__ = [
     "BACKLOG",
     "FIT_SHARE",
+    "FIT_SHARE_BEHIND",
     "HOLD_BINS",
     "MAX_STRIDE",
     "TARGET_BUSY",
@@ -81,6 +83,11 @@ __all__ = [
 WAVES_HZ = 1.0
 #: Most of the time the analyses may take (they run less often when slower).
 FIT_SHARE = 0.25
+#: Most of the time the analyses may take while the stride is above 1. An analysis of 256
+#: maps of 180 x 180 takes 0.32 s of CPU (2-core AVX2, ``benchmarks/bench_wave_map.py``):
+#: at FIT_SHARE a quarter of a core, most of what a 60 frames/s camera's maps need beside
+#: the series and the window on two cores.
+FIT_SHARE_BEHIND = 0.1
 #: Frames waiting in the ring beyond which a replay played as fast as it reads waits.
 BACKLOG = 24
 #: Largest stride (camera frames per map).
@@ -449,7 +456,7 @@ class WavesWorker(RingWorker[LiveWaves]):
         last = -math.inf
         cost = 0.0
         while not self._stop.is_set():
-            wait = max(1.0 / WAVES_HZ, cost / FIT_SHARE) - (time.monotonic() - last)
+            wait = self.fit_period(cost) - (time.monotonic() - last)
             if wait > 0:
                 self._fit_wake.wait(wait)
                 self._fit_wake.clear()
@@ -470,6 +477,11 @@ class WavesWorker(RingWorker[LiveWaves]):
                     self._waves = result
                 if self.listener is not None:
                     self.listener()
+
+    def fit_period(self, cost: float) -> float:
+        """Seconds between the starts of two analyses that take ``cost`` seconds each."""
+        share = FIT_SHARE if self.stride == 1 else FIT_SHARE_BEHIND
+        return max(1.0 / WAVES_HZ, cost / share)
 
     def _analyse(self) -> LiveWaves | None:
         with self._lock:
