@@ -160,6 +160,13 @@ def main() -> int:
     parser.add_argument(
         "--waves", metavar="LABEL", help="open the Waves panel on this map (a label or fused)"
     )
+    parser.add_argument(
+        "--waves-wait",
+        type=float,
+        default=20.0,
+        metavar="S",
+        help="seconds to wait for the labelled map to be offered in the Waves panel",
+    )
     args = parser.parse_args()
     app = application()
     app.setQuitOnLastWindowClosed(False)
@@ -240,7 +247,7 @@ def main() -> int:
             window.label_peak(name, fx, fy)
         if args.waves:
             window.show_waves()
-            for _ in range(40):  # the labelled maps are offered once the maps show them
+            for _ in range(round(2 * args.waves_wait)):  # offered once the maps show them
                 run_for(0.5)
                 if window.waves.map_box.findText(args.waves) >= 0:
                     break
