@@ -22,14 +22,15 @@ held, :meth:`WavesWorker._window_radius`), into a
   starts again), starts the history again.
 
 A second thread (``holoview-waves-fit``) analyses the history at most :data:`WAVES_HZ`
-times a second, and less often when an analysis takes more than :data:`FIT_SHARE` of
-the time (:data:`FIT_SHARE_BEHIND` while the maps keep fewer frames than the camera's:
-the cores go to the maps first) (:func:`~holoview.live.wave_window.analyse_window`, the functions of
-``holoview waves``). The map thread runs at the priority of the series and the window,
-which must keep up too (the panel's map of every frame is what it is opened for); the
-maps worker, whose rate is whatever is left, and the analyses run at a lower one
-(:data:`~holoview.live.worker.YIELDING_NICENESS`). A map costs one carrier window of
-one frame: the frame's row FFTs, the column FFTs under that window alone
+times a second, and less often when an analysis takes more than :data:`FIT_SHARE` of the
+time, or :data:`FIT_SHARE_BEHIND` while the maps keep fewer frames than the camera gives
+(the cores go to the maps first); the analyses are
+:func:`~holoview.live.wave_window.analyse_window`, the functions of ``holoview waves``.
+The map thread runs at the priority of the series and the window, which must keep up too
+(the panel's map of every frame is what it is opened for); the maps worker, whose rate
+is whatever is left, and the analyses run at a lower one
+(:data:`~holoview.live.worker.YIELDING_NICENESS`). A map costs one carrier window of one
+frame: the frame's row FFTs, the column FFTs under that window alone
 (:class:`~holoview.processing.fourier.half_spectrum.HalfSpectrum`) and one box's inverse
 FFT.
 """
