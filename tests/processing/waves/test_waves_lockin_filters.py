@@ -49,7 +49,7 @@ def test_amplitude_and_phase_maps_of_the_drive_and_its_harmonic_with_gaps_and_ma
     assert result.frames[0, 0] == times.size
 
 
-def plain_lockin(maps, times, frequency, harmonics, span, flat):
+def plain_lockin(maps, times, frequency, harmonics, *, span, flat):
     """A_n = 2 sum w (h - mean) e^{+i n w t} / sum w per pixel, over its finite frames."""
     phase = (times - span[0]) / (span[1] - span[0])
     inside = (phase >= 0) & (phase <= 1)
@@ -89,7 +89,7 @@ def test_lockins_fed_together_give_each_its_own_maps():
         push_lockins(lockins, maps[start : start + 64], times[start : start + 64])
     for lockin, (f, n, span, flat) in zip(lockins, plans, strict=True):
         result = lockin.result()
-        expected, frames = plain_lockin(maps, times, f, n, span, flat)
+        expected, frames = plain_lockin(maps, times, f, n, span=span, flat=flat)
         kept = np.isfinite(expected)
         assert np.array_equal(np.isfinite(result.amplitude), kept)
         np.testing.assert_allclose(result.amplitude[kept], expected[kept], rtol=0, atol=2e-14)
