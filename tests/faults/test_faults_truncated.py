@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from faults_helpers import REPO, child_env, one_line_error, run_holoview
 
-from holoview.acquire.recording import RecordingReader
+from holoview.acquire.recording_reader import RecordingReader
 from holoview.acquire.replay_files import open_frame_file
 from holoview.errors import InputError
 
@@ -76,7 +76,7 @@ def killed_recording(path: Path, seconds: float) -> Path:
 
 READ_ALL = """
 import sys
-from holoview.acquire.recording import RecordingReader
+from holoview.acquire.recording_reader import RecordingReader
 from holoview.errors import InputError
 try:
     with RecordingReader(sys.argv[1]) as reader:

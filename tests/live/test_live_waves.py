@@ -13,7 +13,7 @@ import h5py
 import numpy as np
 import pytest
 
-from holoview.acquire.recording import RecordingReader
+from holoview.acquire.recording_reader import RecordingReader
 from holoview.acquire.ring import FrameRing
 from holoview.engine.experiment import Experiment
 from holoview.errors import InputError

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from PyQt6.QtCore import QPoint, QPointF, Qt
 
-from holoview.acquire.recording import RecordingReader
+from holoview.acquire.recording_reader import RecordingReader
 from holoview.engine.experiment import Experiment
 from holoview.live.wave_window import LiveWaves, WaveHistory, WaveSettings, analyse_window
 from holoview.ui.main_window import MainWindow
