@@ -2,7 +2,8 @@
 
 The offline replay and test mode of docs/design.md: the same processing as the GUI, no
 display (:mod:`holoview.headless`). Output files and their layout are documented in
-:mod:`holoview.headless.results.outputs` and the README. ``--jobs`` and ``--scheduler`` spread
+:mod:`holoview.headless.results.outputs`, :mod:`holoview.headless.results.results_layout`
+and the README. ``--jobs`` and ``--scheduler`` spread
 the frames over processes or a Dask cluster (:mod:`holoview.headless.parallel.runners`); a
 folder of recordings or a glob is a batch (:mod:`holoview.headless.batch`).
 """
