@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from holoview.errors import InputError
-from holoview.processing.maps.coregister import MAX_STDERR, DisplacementEstimator, coregister
+from holoview.processing.maps.coregister import MAX_STDERR, DisplacementEstimator
+from holoview.processing.maps.map_moves import coregister
 
 SHAPE = (96, 80)
 YY, XX = np.mgrid[: SHAPE[0], : SHAPE[1]].astype(float)
