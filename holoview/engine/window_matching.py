@@ -29,6 +29,7 @@ import numpy as np
 from holoview.engine.frame_core import FrameCore
 from holoview.errors import InputError
 from holoview.processing.peaks.matched import Window
+from holoview.processing.peaks.radii import distinct_neighbours
 from holoview.processing.peaks.surface_spectrum import (
     MEAN_FRAMES,
     ChangeAverage,
@@ -148,7 +149,13 @@ class WindowMatcher:
             self._average = None
             return None
         if average is None or average.carriers != carriers or average.shape != frame.shape:
-            average = self._average = ChangeAverage(frame.shape, carriers, horizon=MEAN_FRAMES)
+            others = distinct_neighbours(frame.shape, np.array(carriers), core.neighbours)
+            average = self._average = ChangeAverage(
+                frame.shape,
+                carriers,
+                neighbours=[(float(o[0]), float(o[1])) for o in others],
+                horizon=MEAN_FRAMES,
+            )
         average.add(frame, reference)
         return average.result()
 

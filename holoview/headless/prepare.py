@@ -37,7 +37,7 @@ from holoview.headless.run_passes import RunFrames
 from holoview.headless.selection import Selection, select_auto, select_from_experiment
 from holoview.headless.settings import PeakChoice, ProcessOptions, ProcessSettings
 from holoview.processing.peaks.detection import Peak, find_peaks
-from holoview.processing.peaks.radii import surface_band, window_neighbours
+from holoview.processing.peaks.radii import distinct_neighbours, surface_band, window_neighbours
 from holoview.processing.peaks.surface_spectrum import (
     SurfaceSpectrum,
     average_change,
@@ -165,6 +165,7 @@ def prepare_run(
             background=background,
             band=surface_band(detected),
             carriers=[p.carrier for p in selection.peaks],
+            neighbours=spec.neighbours,
         )
         spec = spec.matched(source.frame_shape, source.saturation, spectrum)
     core = spec.core(source.frame_shape, source.saturation)
@@ -204,6 +205,7 @@ def _matching_spectrum(
     background: np.ndarray | None,
     band: float,
     carriers: list[tuple[float, float]],
+    neighbours: tuple[tuple[float, float], ...],
 ) -> SurfaceSpectrum:
     """What a run's windows are matched to: the changes its maps show, the waves detected.
 
@@ -211,7 +213,8 @@ def _matching_spectrum(
     first good one, against it; against the background, the first good one and those
     (a background taken from the run's first frame leaves the others to show the
     changes). Frames that cannot be used are left out (the first alone when none
-    is left, as for synthetic phases). The change around the ``carriers`` averaged
+    is left, as for synthetic phases). The change around the ``carriers`` (their windows
+    bounded by the ``neighbours`` too) averaged
     over the frames :func:`~holoview.engine.frame_core.mean_positions` names
     (:class:`~holoview.processing.peaks.surface_spectrum.ChangeAverage`), against the
     same reference (relative maps: each against the frame before it).
@@ -234,7 +237,10 @@ def _matching_spectrum(
             if frame_problem(frame) is None and frame_problem(against) is None:
                 yield frame, against
 
-    mean = average_change(first.shape, carriers, pairs()) if positions and carriers else None
+    mean = None
+    if positions and carriers:
+        others = distinct_neighbours(first.shape, np.array(carriers), neighbours)
+        mean = average_change(first.shape, carriers, pairs(), neighbours=[tuple(o) for o in others])
     if reference != "synthetic" and background is not None:
         return measure_spectrum([first, *later], background, band=band, mean=mean)
     if not later:

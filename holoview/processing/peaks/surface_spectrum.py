@@ -57,6 +57,10 @@ MEASURABLE_SIGMAS = 5.0
 #: wave field is judged against the noise of a mean over this many frames.
 MEAN_FRAMES = 32
 
+#: Fraction of its widest window (and :data:`CENTRE_BINS` bins) kept around each carrier
+#: beyond that window, so that the bound of a carrier measured again stays inside.
+REACH_MARGIN = 0.1
+
 #: Fewest bins of a tile of the spectrum whose median gives one local noise floor.
 FLOOR_TILE_BINS = 1024
 
@@ -156,7 +160,10 @@ class ChangeAverage:
         Frame shape ``(rows, cols)``.
     carriers : sequence of (float, float)
         The carriers whose maps are made, cycles/pixel: the bins within each one's widest
-        window (:func:`~holoview.processing.fourier.windows.auto_radii` of them) are kept.
+        window (:func:`~holoview.processing.fourier.windows.auto_radii` of them and the
+        ``neighbours``, and :data:`REACH_MARGIN`) are kept.
+    neighbours : sequence of (float, float)
+        Other peaks (not the carriers nor their twins) that bound the windows.
     horizon : int, optional
         Live: the older frames weigh less, as ``(1 - 1 / horizon)`` per frame added, so
         that the mean follows the last ``horizon`` or so; None (headless) weighs every
@@ -175,6 +182,7 @@ class ChangeAverage:
         shape: tuple[int, int],
         carriers: Sequence[tuple[float, float]],
         *,
+        neighbours: Sequence[tuple[float, float]] = (),
         horizon: int | None = None,
         threads: int | None = None,
     ) -> None:
@@ -182,7 +190,9 @@ class ChangeAverage:
         self.carriers = tuple((float(c[0]), float(c[1])) for c in carriers)
         if not self.carriers:
             raise InputError("no carrier to average the change around")
-        self.reach = tuple(float(r) for r in auto_radii(self.carriers))
+        widest = auto_radii(self.carriers, neighbours=neighbours)
+        margin = CENTRE_BINS / min(self.shape)
+        self.reach = tuple(float(r) * (1.0 + REACH_MARGIN) + margin for r in widest)
         self.horizon = horizon
         self.threads = threads
         rows, cols = self.shape
@@ -263,13 +273,14 @@ def average_change(
     carriers: Sequence[tuple[float, float]],
     pairs: Iterable[tuple[np.ndarray, np.ndarray | None]],
     *,
+    neighbours: Sequence[tuple[float, float]] = (),
     threads: int | None = None,
 ) -> MeanChange | None:
     """The change around ``carriers`` over ``(frame, reference)`` pairs, equally weighed.
 
     See :class:`ChangeAverage` (None under two pairs or without a noise floor).
     """
-    average = ChangeAverage(shape, carriers, threads=threads)
+    average = ChangeAverage(shape, carriers, neighbours=neighbours, threads=threads)
     for frame, reference in pairs:
         average.add(frame, reference)
     return average.result()
