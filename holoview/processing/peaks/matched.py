@@ -14,28 +14,27 @@ the widest passes in addition is taken off. It keeps the radius of least error, 
 looks again around it, there comparing every radius on the same pixels (those the
 narrowest of them trusts: otherwise each wider radius, trusted closer to the frame's
 edge, took in a band of the widest map's own edge error, and the estimate rose in steps
-with the radius). The noise is the quiet part of the spectrum's (:func:`_noise_floor`):
-a wavy surface spreads its change over much of the spectrum, and the median of every
-bin, taken for the noise, made the cut of a weak family's waves look smaller than its
-noise (FB2 of ``benchmarks/bench_wavy.py``). Each edge width searches from the
+with the radius). The noise is the quiet part of the spectrum's
+(:mod:`holoview.processing.peaks.surface_spectrum`). Each edge width searches from the
 smallest radius that passes the waves detection saw with its own edge
-(:func:`_waves_floor`); the window chosen is then widened where it passes less than
-:data:`CONTENT_PASS` of what the annuli of the change that stand above the noise save
-when passed (:func:`_content_floor`): the estimate sees a cut as the small difference
-of two variances dominated by the widest map's noise, and on a weak family it cut half
-of a ringing mode that detection saw no sidebands of. A
-change whose power stands above the noise is therefore passed: the window never cuts
-a wave field that the maps show above their noise. What
-a window cuts weighs :data:`CUT_WEIGHT` times its error: it is the same surface content
-missing from every peak's map, which the fused map does not average down as it does
-their noise.
+(:func:`_waves_floor`), and the waves that only many frames show
+(:func:`_varying_annuli`: a change one frame shows below its noise, whose variance over
+many frames stands above the noise of their mean), kept at :data:`WAVE_LEVEL` of their
+amplitude (:func:`_level_floor`); the window chosen is then widened where it passes
+less than :data:`CONTENT_PASS` of what the annuli of the change that stand above the
+noise save when passed (:func:`_content_floor`): the estimate sees a cut as the small
+difference of two variances dominated by the widest map's noise, and on a weak family
+it cut half of a ringing mode that detection saw no sidebands of. What a window cuts
+weighs :data:`CUT_WEIGHT` times its error: it is the same surface content missing from
+every peak's map, which the fused map does not average down as it does their noise.
 
 What the map must show is measured on the frames the demodulator itself sees
-(:func:`measure_spectrum`): a frame and the reference the maps are taken against (the
-change), or a frame alone for synthetic phases. Without measurable change around a
-carrier (a flat surface: the excess power of the change outside the carrier's central
-bins within :data:`MEASURABLE_SIGMAS` standard errors of zero), the radius is the
-bound, with a note: nothing says how narrow the surface's spectrum is.
+(:func:`~holoview.processing.peaks.surface_spectrum.measure_spectrum`). Without
+measurable change around a carrier (a flat surface: the excess power of the change
+outside the carrier's central bins within
+:data:`~holoview.processing.peaks.surface_spectrum.MEASURABLE_SIGMAS` standard errors of
+zero), the radius is the bound, with a note: nothing says how narrow the surface's
+spectrum is.
 """
 
 from __future__ import annotations

@@ -173,7 +173,7 @@ class ChangeAverage:
 
     Notes
     -----
-    Memory: two half spectra of float64 (the floor of the variance, from its quiet
+    Memory: a complex and a real half spectrum (the floor of the variance, from its quiet
     tiles) and a few numbers per bin kept around each carrier.
     """
 
