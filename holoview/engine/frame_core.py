@@ -14,7 +14,9 @@ the same numbers on the same frames:
   values can tell a worker where the maps' 2 pi offsets stand; its windows are
   matched to the spectrum it was given (:meth:`FrameCore.match`), or at the bound, or
   given;
-- :func:`matching_positions`: the frames of a run its windows are matched to.
+- :func:`matching_positions`: the frames of a run its windows are matched to, and
+  :func:`mean_positions`, those whose change is averaged to judge waves against the
+  noise of many frames.
 
 What follows from the maps (trusted maps, phase steps, co-registration, fusion) is
 :mod:`holoview.engine.map_step`; the mean-phase series, depths and rates are
@@ -34,8 +36,9 @@ from holoview.processing.fourier.frames import DamagedFrameError, frame_damage
 from holoview.processing.maps.demod_results import DemodResult
 from holoview.processing.maps.demodulate import Demodulator
 from holoview.processing.peaks.detection import Peak
-from holoview.processing.peaks.matched import SurfaceSpectrum, Window
+from holoview.processing.peaks.matched import Window
 from holoview.processing.peaks.radii import distinct_neighbours, peak_radii, peak_windows
+from holoview.processing.peaks.surface_spectrum import MEAN_FRAMES, SurfaceSpectrum
 from holoview.processing.series.carrier_probe import CarrierProbe, CarrierValues
 
 logger = logging.getLogger(__name__)
@@ -46,6 +49,7 @@ __all__ = [
     "CarrierCore",
     "FrameCore",
     "matching_positions",
+    "mean_positions",
     "series_key",
 ]
 
@@ -73,6 +77,20 @@ def matching_positions(reference: str, n: int) -> list[int]:
         return [1]
     positions = {max(1, n * k // MATCHING_FRAMES) for k in range(1, MATCHING_FRAMES)}
     return sorted(positions | {n - 1})
+
+
+def mean_positions(reference: str, n: int) -> list[int]:
+    """Positions in a run of ``n`` frames whose change is averaged (the waves' test).
+
+    Up to :data:`~holoview.processing.peaks.surface_spectrum.MEAN_FRAMES` frames after
+    the first, evenly spread over the run (each against the first frame; relative
+    maps, against the frame before it); none for synthetic phases or under three
+    frames (no variance over frames to measure).
+    """
+    if reference == "synthetic" or n < 3:
+        return []
+    count = min(MEAN_FRAMES, n - 1)
+    return sorted({int(p) for p in np.linspace(1, n - 1, count).round()})
 
 
 def series_key(peaks: Sequence[Peak]) -> tuple[object, ...]:

@@ -15,6 +15,11 @@ maps) only:
 
 Each match returns one line for the operator (the windows changed, the maps restart),
 so that the maps' continuity is never broken silently.
+
+The changes measured at the detections are also accumulated around the carriers in use
+(:class:`~holoview.processing.peaks.surface_spectrum.ChangeAverage`, the last
+:data:`~holoview.processing.peaks.surface_spectrum.MEAN_FRAMES` or so weighing most):
+waves that stand above the noise only over many frames are passed whole, as headless.
 """
 
 from __future__ import annotations
@@ -23,7 +28,15 @@ import numpy as np
 
 from holoview.engine.frame_core import FrameCore
 from holoview.errors import InputError
-from holoview.processing.peaks.matched import SurfaceSpectrum, Window, measure_spectrum
+from holoview.processing.peaks.matched import Window
+from holoview.processing.peaks.radii import distinct_neighbours
+from holoview.processing.peaks.surface_spectrum import (
+    MEAN_FRAMES,
+    ChangeAverage,
+    MeanChange,
+    SurfaceSpectrum,
+    measure_spectrum,
+)
 
 __all__ = ["CHANGE_BINS", "CHANGE_FRACTION", "CONFIRMATIONS", "WindowMatcher"]
 
@@ -50,6 +63,7 @@ class WindowMatcher:
 
     def __init__(self) -> None:
         self._previous: np.ndarray | None = None
+        self._average: ChangeAverage | None = None
         self._requested = False
         self._streak = 0
         #: The newest measurement (None before one).
@@ -62,6 +76,7 @@ class WindowMatcher:
     def forget(self) -> None:
         """Start over (new frame shape, a replay that jumped): the next pair is measured afresh."""
         self._previous = None
+        self._average = None
         self._streak = 0
 
     def measure(self, core: FrameCore, frame: np.ndarray, band: float = 0.0) -> str | None:
@@ -94,7 +109,10 @@ class WindowMatcher:
         if previous is not None and previous.shape != self._previous.shape:
             return None
         try:
-            spectrum = measure_spectrum(frame, None if synthetic else previous, band=band)
+            mean = self._accumulate(core, frame, None if synthetic else previous)
+            spectrum = measure_spectrum(
+                frame, None if synthetic else previous, band=band, mean=mean
+            )
         except InputError:
             return None  # a frame equal to the last (a stuck camera): no change to measure
         self.latest = spectrum
@@ -120,6 +138,26 @@ class WindowMatcher:
             if label in moved
         )
         return f"{note}: {changes} cycles/px" if changes else note
+
+    def _accumulate(
+        self, core: FrameCore, frame: np.ndarray, reference: np.ndarray | None
+    ) -> MeanChange | None:
+        """Add this detection's change around ``core``'s carriers; the mean so far."""
+        carriers = tuple(p.carrier for p in core.peaks)
+        average = self._average
+        if not carriers:
+            self._average = None
+            return None
+        if average is None or average.carriers != carriers or average.shape != frame.shape:
+            others = distinct_neighbours(frame.shape, np.array(carriers), core.neighbours)
+            average = self._average = ChangeAverage(
+                frame.shape,
+                carriers,
+                neighbours=[(float(o[0]), float(o[1])) for o in others],
+                horizon=MEAN_FRAMES,
+            )
+        average.add(frame, reference)
+        return average.result()
 
     def _match(self, core: FrameCore, spectrum: SurfaceSpectrum, why: str | None) -> str:
         first = core.spectrum is None

@@ -152,8 +152,7 @@ def test_process_maps_waves_in_one_run(
     assert (out / "results.h5").is_file() and (out / "waves.json").is_file()
     assert stdout.count(str(out)) == 2  # one line each
     summary = json.loads((out / "summary.json").read_text())
-    assert summary["parameters"]["radius"] == "bound"  # no window cuts the waves
-    assert {p["window"]["rule"] for p in summary["peaks"].values()} == {"bound"}
+    assert summary["parameters"]["radius"] == "matched"  # one rule: the default everywhere
     with h5py.File(out / "waves.h5", "r") as f:
         filtered = f["filtered/height"]
         assert filtered.shape[0] == 140 and filtered.attrs["unit"] == "m"
