@@ -25,17 +25,24 @@ from __future__ import annotations
 
 import logging
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
+from dataclasses import replace
 
 import numpy as np
 
 from holoview.engine.experiment import Experiment
 from holoview.processing.fourier.frames import DamagedFrameError, frame_damage
+from holoview.processing.fourier.windows import DEFAULT_TAPER
 from holoview.processing.maps.demod_results import DemodResult
 from holoview.processing.maps.demodulate import Demodulator
 from holoview.processing.peaks.detection import Peak
 from holoview.processing.peaks.matched import SurfaceSpectrum, Window
-from holoview.processing.peaks.radii import distinct_neighbours, peak_radii, peak_windows
+from holoview.processing.peaks.radii import (
+    UNMEASURED_REASON,
+    distinct_neighbours,
+    peak_radii,
+    peak_windows,
+)
 from holoview.processing.series.carrier_probe import CarrierProbe, CarrierValues
 
 logger = logging.getLogger(__name__)
@@ -209,6 +216,7 @@ class FrameCore:
         #: the spectrum the windows are matched to (None: not measured)
         self.spectrum = spectrum
         self._fixed = None if windows is None else (_carriers(self.peaks), tuple(windows))
+        self._chosen: dict[str, Window] | None = None
         self._demod: Demodulator | None = None
         self._probe = CarrierCore(self.frame_shape, saturation)
 
@@ -227,9 +235,19 @@ class FrameCore:
         if neighbours is not None:
             self.neighbours = tuple(neighbours)
 
-    def match(self, spectrum: SurfaceSpectrum | None) -> None:
-        """Match the windows to ``spectrum`` from the next frame (the maps restart)."""
+    def match(
+        self, spectrum: SurfaceSpectrum | None, windows: Mapping[str, Window] | None = None
+    ) -> None:
+        """Match the windows to ``spectrum`` from the next frame (the maps restart).
+
+        ``windows``: the windows ``spectrum`` gives, by peak label, measured elsewhere
+        (the live match thread: :mod:`holoview.engine.window_matching`). The
+        demodulator is then built with them (each within its peak's bound as it is
+        then) and measures nothing, also when later rebuilt for moved carriers; without
+        them it matches its windows to ``spectrum`` itself (seconds on a large frame).
+        """
         self.spectrum = spectrum
+        self._chosen = None if windows is None or spectrum is None else dict(windows)
 
     def windows_for(self, spectrum: SurfaceSpectrum) -> tuple[Window, ...] | None:
         """The windows ``spectrum`` would give the peaks in use (None before a frame)."""
@@ -311,6 +329,36 @@ class FrameCore:
             return None
         return self._fixed[1]
 
+    def _chosen_windows(self) -> tuple[Window, ...] | None:
+        """The windows matched elsewhere (:meth:`match`), each within its bound as it is now.
+
+        A peak the match did not see (a new label) gets its bound, as a window with no
+        spectrum does; a window at the bound follows it.
+        """
+        if self._chosen is None or self.experiment.radius_rule != "matched":
+            return None
+        carriers = np.array([p.carrier for p in self.peaks], dtype=np.float64)
+        others = distinct_neighbours(self.frame_shape, carriers, self.neighbours)
+        bounds = peak_windows(
+            self.frame_shape,
+            carriers,
+            "bound",
+            others,
+            kind=self.experiment.window,
+            taper=DEFAULT_TAPER,
+        )
+        out = []
+        for i, (peak, bound) in enumerate(zip(self.peaks, bounds, strict=True)):
+            chosen = self._chosen.get(peak.label or f"#{i}")
+            if chosen is None:
+                out.append(replace(bound, reason=UNMEASURED_REASON))
+            else:
+                radius = min(chosen.radius, bound.radius)
+                if chosen.rule == "bound":
+                    radius = bound.radius
+                out.append(replace(chosen, radius=radius, bound=bound.radius, kind=bound.kind))
+        return tuple(out)
+
     def build(self) -> Demodulator | None:
         """Return the demodulator for the current settings, rebuilding it when stale.
 
@@ -337,7 +385,7 @@ class FrameCore:
                 threads=self.threads,
                 neighbours=self.neighbours,
                 spectrum=self.spectrum,
-                windows=self._fixed_windows(),
+                windows=self._fixed_windows() or self._chosen_windows(),
                 grid=self.grid,
             )
             self._probe.configure(demod.peaks)

@@ -8,7 +8,12 @@ maps step (:class:`holoview.engine.map_step.MapStep`: every peak's map, the phas
 rule, the displacements, added to at most :data:`COREGISTER_HZ`, and the fused map); at
 each detection the windows' match to the surface is checked
 (:class:`holoview.engine.window_matching.WindowMatcher`: matched again when the operator
-asks or the surface's bandwidth changed, with a note shown for :data:`NOTE_SECONDS`). The
+asks or the surface's bandwidth changed, with a note shown for :data:`NOTE_SECONDS`).
+A measurement takes seconds: the live worker runs it on a thread of its own
+(:meth:`MapsPipeline.match_job`, :meth:`MapsPipeline.use_match`) and the new windows
+are taken between two frames; the maps restart then, said by the note, and the first
+frame after any restart, the new reference, is marked (:attr:`LiveResult.reference`:
+its maps are zeros against themselves, which the window does not draw). The
 demodulator's peaks (:attr:`MapsPipeline.peaks`) go to the series worker, which takes
 every frame (:mod:`holoview.live.series_pipeline`). Every number comes from the engine, the same
 code ``holoview process`` runs; this module only decides when to call what, and packs
@@ -29,7 +34,7 @@ from holoview.engine.experiment import Experiment
 from holoview.engine.frame_core import FFT_THREADS, FrameCore
 from holoview.engine.map_step import MapStep
 from holoview.engine.resolve import Resolution, on_lattice, resolve_peaks
-from holoview.engine.window_matching import WindowMatcher
+from holoview.engine.window_matching import MatchJob, Rematch, WindowMatcher, windows_in_use
 from holoview.live.continuity import Continuity
 from holoview.processing.fourier.spectrum import display_spectrum
 from holoview.processing.maps.demodulate import Demodulator
@@ -71,6 +76,8 @@ class LiveResult:
     ``segment`` its unbroken run of frames (:mod:`holoview.live.continuity`).
     ``contradiction`` names a label the carrier lattice contradicts (the engine's rule,
     :func:`holoview.engine.resolve.resolve_peaks`; an error headless), None when none.
+    ``reference``: the maps restarted at this frame (new peaks or windows, a reset):
+    it is their new reference, and its maps are zeros by construction.
     """
 
     seq: int
@@ -93,6 +100,7 @@ class LiveResult:
     frame_index: int = -1
     segment: int = 0
     contradiction: str | None = None
+    reference: bool = False
 
 
 def block_max(image: np.ndarray, limit: int) -> np.ndarray:
@@ -143,6 +151,10 @@ class MapsPipeline:
         #: detection is always made inline, so the first frame is demodulated at the
         #: detected carriers, as ``holoview process`` does).
         self.detect_inline = True
+        #: Match the windows to the surface inside :meth:`process` when due; the live
+        #: worker turns this off and runs :meth:`match_job` on its match thread instead,
+        #: handing the result back with :meth:`use_match`.
+        self.match_inline = True
         self._seq = 0
         self._spectrum: np.ndarray | None = None
         self._spectrum_at = -math.inf
@@ -158,6 +170,7 @@ class MapsPipeline:
         self._continuity = Continuity()
         self._matcher = WindowMatcher()
         self._measure_due = False
+        self._match_requested = False
         self._window_note: tuple[str, float] | None = None
 
     # ---- commands ----------------------------------------------------------
@@ -168,13 +181,15 @@ class MapsPipeline:
             if not isinstance(value, Experiment):
                 raise TypeError(f"experiment command needs an Experiment, not {value!r}")
             radius_changed = value.radius != self.experiment.radius
+            if radius_changed or value.window != self.experiment.window:
+                self._core.match(None)  # windows of another rule or shape: matched afresh
             self.experiment = value
             if radius_changed:
                 self._peaks_at = -math.inf  # detect again with the new radius
         elif name == "reset":
             self._core.reset_reference()
         elif name == "match":
-            self._matcher.request()
+            self._match_requested = True
             self._measure_due = True
         else:
             raise ValueError(f"unknown command {name!r}")
@@ -260,12 +275,10 @@ class MapsPipeline:
         detected = self._peaks or []
         placed = on_lattice(resolution.labelling, len(detected))
         self._core.configure(self.experiment, resolution.peaks, window_neighbours(detected, placed))
-        if self._measure_due:
-            self._measure_due = False
-            note = self._matcher.measure(self._core, frame, surface_band(detected))
-            if note is not None:
-                logger.info("%s", note)
-                self._window_note = (note, now)
+        if self.match_inline:
+            job = self.match_job(frame, copy=False)
+            if job is not None:
+                self.use_match(job.run(self._matcher), now)
         estimate = now - self._coregistered_at >= 1.0 / COREGISTER_HZ
         maps = self._maps.process(frame, estimate=estimate)
         if estimate and maps.maps:
@@ -300,4 +313,38 @@ class MapsPipeline:
             frame_index=meta.file_index,
             segment=meta.segment,
             contradiction=resolution.contradiction,
+            reference=maps.result is not None and "reference" in maps.result.flags,
         )
+
+    # ---- windows matched to the surface --------------------------------------
+    @property
+    def matcher(self) -> WindowMatcher:
+        """The matcher (its state: the last frame measured); one thread uses it at a time."""
+        return self._matcher
+
+    def match_job(self, frame: np.ndarray, copy: bool = True) -> MatchJob | None:
+        """The measurement due at ``frame`` (a detection came, or the operator asked); None
+        when none is. Each due measurement is handed out once.
+
+        Call it after :meth:`process` has taken ``frame`` (the windows in use are the
+        core's then). ``copy``: the job takes a copy of ``frame`` (it runs on another
+        thread while the caller goes on).
+        """
+        if not self._measure_due:
+            return None
+        self._measure_due = False
+        requested, self._match_requested = self._match_requested, False
+        return MatchJob(
+            windows_in_use(self._core),
+            np.array(frame, copy=True) if copy else frame,
+            surface_band(self._peaks or []),
+            requested,
+        )
+
+    def use_match(self, rematch: Rematch | None, now: float | None = None) -> None:
+        """Use windows matched again from the next frame (the maps restart, said by a note)."""
+        if rematch is None:
+            return
+        rematch.apply(self._core)
+        logger.info("%s", rematch.note)
+        self._window_note = (rematch.note, time.monotonic() if now is None else now)
