@@ -543,6 +543,7 @@ class MainWindow(WavesActions, FileOpening, ExperimentActions, WindowExports, QM
                 result.phases_rad,
                 result.shifts_px,
                 result.grid_of,
+                reference=result.reference,
             )
 
     # ---- layout ------------------------------------------------------------
