@@ -9,9 +9,10 @@
   asked (scripted runs, the parity test), and runs a
   :class:`~holoview.live.maps_pipeline.MapsPipeline` on it: the maps, at whatever rate is
   left. It hands the demodulator's peaks to the series worker.
-- Peak detection (``holoview-peaks``) and the windows' match to the surface
-  (``holoview-match``), each much slower than a frame, run beside them at a lower
-  priority (:class:`SideWorker`); the maps worker takes their results between frames.
+- Peak detection (``holoview-peaks``), the windows' match to the surface
+  (``holoview-match``) and the maps' displacement estimate (``holoview-coregister``),
+  each much slower than a frame, run beside them at a lower priority
+  (:class:`SideWorker`); the maps worker takes their results between frames.
 
 Each publishes its newest result under a lock; all stop with a flag (or the ring
 closing) and are joined by their ``stop``.
@@ -35,9 +36,10 @@ from holoview.acquire.ring import CLOSED, FrameRing, RingConsumer, RingStatus
 from holoview.acquire.source import FrameMeta
 from holoview.engine.experiment import Experiment
 from holoview.engine.frame_core import FFT_THREADS
+from holoview.engine.map_step import Coregistration
 from holoview.engine.window_matching import MatchJob, Rematch, WindowMatcher
 from holoview.errors import HoloviewError
-from holoview.live.maps_pipeline import LiveResult, MapsPipeline
+from holoview.live.maps_pipeline import CoregistrationJob, LiveResult, MapsPipeline
 from holoview.live.series_pipeline import SeriesPipeline, TrendSummary
 from holoview.processing.peaks.detection import Peak, find_peaks
 
@@ -186,6 +188,17 @@ def matcher_work(matcher: WindowMatcher) -> Callable[[MatchJob], Rematch | None]
 
     def work(job: MatchJob) -> Rematch | None:
         return job.run(matcher)
+
+    return work
+
+
+def coregistration_work(
+    coregistration: Coregistration,
+) -> Callable[[CoregistrationJob], Coregistration | None]:
+    """The co-registration thread's work: add each job's maps to ``coregistration``."""
+
+    def work(job: CoregistrationJob) -> Coregistration | None:
+        return job.run(coregistration)
 
     return work
 
@@ -369,19 +382,27 @@ class DemodWorker(RingWorker[LiveResult]):
         self.peaks = PeakWorker()
         pipeline.match_inline = False
         self.matches = MatchWorker(pipeline.matcher)
+        pipeline.coregister_inline = False
+        self.coregistration: SideWorker[CoregistrationJob, Coregistration | None] = SideWorker(
+            "holoview-coregister",
+            coregistration_work(Coregistration(None)),
+            "co-registration",
+        )
         self._peak_set: tuple[tuple[Peak, ...], Experiment] | None = None
 
     def start(self) -> None:
-        """Start the thread and its peak and match threads."""
+        """Start the thread and its side threads."""
         self.peaks.start()
         self.matches.start()
+        self.coregistration.start()
         super().start()
 
     def stop(self, timeout: float = 5.0) -> None:
-        """Stop and join the thread and its peak and match threads."""
+        """Stop and join the thread and its side threads."""
         super().stop(timeout)
         self.peaks.stop(timeout)
         self.matches.stop(timeout)
+        self.coregistration.stop(timeout)
 
     def latest(self) -> LiveResult | None:
         """The newest result, or None before the first."""
@@ -419,12 +440,20 @@ class DemodWorker(RingWorker[LiveResult]):
     def _step(self, pixels: np.ndarray, meta: FrameMeta) -> None:
         self._exchange_peaks(pixels)
         self._take_match()
+        found = self.coregistration.take()
+        if isinstance(found, str):
+            self._report(found)
+        elif found is not None:
+            self.pipeline.use_coregistration(found[0])
         try:
             result = self.pipeline.process(pixels, meta)
         finally:
             with self._lock:
                 self._peak_set = (self.pipeline.peaks, self.pipeline.experiment)
         self._publish(result)
+        coregistration = self.pipeline.coregistration_job()
+        if coregistration is not None:
+            self.coregistration.submit(coregistration)  # dropped while one is under way
         if not self.matches.busy:  # the measurement due, if any, after the maps are out
             job = self.pipeline.match_job(pixels)
             if job is not None:

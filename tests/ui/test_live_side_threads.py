@@ -1,10 +1,12 @@
-"""Live windows matched again off the maps worker: maps keep coming; a restart shows no zeros.
+"""The live maps worker's side threads: maps keep coming while windows are matched again and
+maps co-registered; a restart shows no zeros.
 
 Qt-free: the maps worker on a real ring fed by a producer thread, and the maps pipeline.
 """
 
 from __future__ import annotations
 
+import math
 import threading
 import time
 from collections.abc import Callable
@@ -15,10 +17,13 @@ from holoview.acquire.ring import FrameRing
 from holoview.acquire.source import FrameMeta
 from holoview.engine import window_matching
 from holoview.engine.experiment import Experiment, LabelledPeak
+from holoview.engine.map_step import Coregistration
+from holoview.live import maps_pipeline
 from holoview.live.maps_pipeline import MapsPipeline
 from holoview.live.worker import DemodWorker
 
 from .holograms import FB1, N1, N2, RB1, WAVELENGTH_M, hologram_stack
+from .test_live_pipeline import _experiment as _given_radius
 
 SHAPE = (128, 128)
 
@@ -43,6 +48,27 @@ def _eventually(check: Callable[[], bool], seconds: float = 120.0) -> bool:
     return True
 
 
+class Producer:
+    """Put ``frames`` into ``ring`` over and over on a thread (about 50 frames/s)."""
+
+    def __init__(self, ring: FrameRing, frames: np.ndarray) -> None:
+        self._stop = threading.Event()
+
+        def produce() -> None:
+            i = 0
+            while not self._stop.is_set():
+                ring.put(frames[i % len(frames)], FrameMeta(i, i / 50, time.time()))
+                i += 1
+                self._stop.wait(0.02)
+
+        self._thread = threading.Thread(target=produce, daemon=True)
+        self._thread.start()
+
+    def stop(self) -> None:
+        self._stop.set()
+        self._thread.join()
+
+
 def test_maps_keep_coming_while_the_windows_are_measured(monkeypatch) -> None:
     """A measurement of the windows (seconds on a large frame) is held until the test lets
     it go: the maps worker goes on publishing maps meanwhile, then takes the new windows
@@ -60,18 +86,8 @@ def test_maps_keep_coming_while_the_windows_are_measured(monkeypatch) -> None:
     frames = hologram_stack(12, SHAPE)
     ring = FrameRing(4, SHAPE, np.uint16)
     worker = DemodWorker(ring, MapsPipeline(_experiment(), SHAPE))
-    stop = threading.Event()
-
-    def produce() -> None:
-        i = 0
-        while not stop.is_set():
-            ring.put(frames[i % len(frames)], FrameMeta(i, i / 50, time.time()))
-            i += 1
-            stop.wait(0.02)
-
-    producer = threading.Thread(target=produce, daemon=True)
     worker.start()
-    producer.start()
+    producer = Producer(ring, frames)
     try:
         # the second detection (about a second after the first) starts a measurement
         assert entered.wait(120), "no measurement of the windows started"
@@ -86,8 +102,7 @@ def test_maps_keep_coming_while_the_windows_are_measured(monkeypatch) -> None:
         assert {w.rule for w in worker.pipeline._core.windows().values()} <= {"matched", "bound"}
     finally:
         release.set()
-        stop.set()
-        producer.join()
+        producer.stop()
         ring.close()
         worker.stop()
     assert not worker.matches._thread.is_alive()
@@ -127,3 +142,51 @@ def test_the_restart_s_reference_frame_is_marked_and_the_next_maps_are_not_zero(
     assert all(windows[k].radius <= rematch.windows[k].radius + 1e-12 for k in windows)
     pipeline.apply("reset", None)
     assert pipeline.process(frames[8], _meta(8)).reference
+
+
+def test_displacements_measured_off_the_maps_worker_move_the_fused_map(monkeypatch) -> None:
+    """The maps' displacements are measured on a thread of their own (adding a frame's maps
+    took 140-290 ms on the maps worker at 1024 x 1024); their estimate, held until the test
+    lets it go, lets the maps come meanwhile, then reaches the maps and their fusion."""
+    monkeypatch.setattr(maps_pipeline, "COREGISTER_HZ", math.inf)  # every frame it can
+    entered, release = threading.Event(), threading.Event()
+    add_maps = Coregistration.add_maps
+
+    def held(self, *args, **kwargs):  # the real estimate, made to wait for the test
+        entered.set()
+        release.wait(300)
+        return add_maps(self, *args, **kwargs)
+
+    monkeypatch.setattr(Coregistration, "add_maps", held)
+    images = {"RB1": (0.5, -0.5), "RF": (3.0, -2.0), "RB2": (-2.0, 1.5)}
+    frames = hologram_stack(40, SHAPE, shifts=images)
+    ring = FrameRing(4, SHAPE, np.uint16)
+    worker = DemodWorker(ring, MapsPipeline(_given_radius(), SHAPE))
+    worker.start()
+    producer = Producer(ring, frames)
+    try:
+        assert entered.wait(120), "no maps were added to the estimate"
+        held_at = worker.latest()
+        assert held_at is not None
+        assert _eventually(lambda: worker.latest().seq >= held_at.seq + 10), (
+            "no maps came while the displacements were estimated"
+        )
+        release.set()
+
+        def measured() -> bool:
+            shifts = worker.latest().shifts_px
+            return all(
+                name in shifts
+                and abs(shifts[name][0] - (images["RB1"][0] - image[0])) < 0.6
+                and abs(shifts[name][1] - (images["RB1"][1] - image[1])) < 0.6
+                for name, image in images.items()
+                if name != "RB1"
+            )
+
+        assert _eventually(measured), worker.latest().shifts_px
+        assert worker.latest().grid_of == "RB1" and worker.latest().fused_m is not None
+    finally:
+        release.set()
+        producer.stop()
+        ring.close()
+        worker.stop()
