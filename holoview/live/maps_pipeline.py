@@ -43,7 +43,7 @@ from holoview.processing.peaks.radii import surface_band, window_neighbours
 
 logger = logging.getLogger(__name__)
 
-__all__ = ["CoregistrationJob", "LiveResult", "MapsPipeline", "block_max"]
+__all__ = ["CoregistrationJob", "LiveResult", "MapsPipeline", "block_max", "spectrum_image"]
 
 #: Highest rate of the display spectrum, Hz.
 SPECTRUM_HZ = 10.0
@@ -126,6 +126,12 @@ class CoregistrationJob:
         return None if found is None else Coregistration((self.labels, self.box_shape, found))
 
 
+def spectrum_image(frame: np.ndarray) -> np.ndarray:
+    """The spectrum image the window shows of ``frame`` (block maxima to at most
+    :data:`SPECTRUM_DISPLAY_MAX` a side)."""
+    return block_max(display_spectrum(frame, threads=FFT_THREADS), SPECTRUM_DISPLAY_MAX)
+
+
 def block_max(image: np.ndarray, limit: int) -> np.ndarray:
     """Shrink ``image`` by an integer factor with block maxima so no side exceeds ``limit``.
 
@@ -174,14 +180,14 @@ class MapsPipeline:
         #: detection is always made inline, so the first frame is demodulated at the
         #: detected carriers, as ``holoview process`` does).
         self.detect_inline = True
-        #: Match the windows to the surface inside :meth:`process` when due; the live
-        #: worker turns this off and runs :meth:`match_job` on its match thread instead,
-        #: handing the result back with :meth:`use_match`.
-        self.match_inline = True
-        #: Add maps to the displacement estimate inside :meth:`process`; the live worker
-        #: turns this off and runs :meth:`coregistration_job` on a thread of its own,
-        #: handing the displacements back with :meth:`use_coregistration`.
-        self.coregister_inline = True
+        #: Do the work much slower than a frame's maps inside :meth:`process` when due:
+        #: the display spectrum, the windows' match to the surface, adding maps to the
+        #: displacement estimate. The live worker turns this off and runs each on a
+        #: thread of its own (:meth:`spectrum_job`, :meth:`match_job`,
+        #: :meth:`coregistration_job`), handing the results back between frames
+        #: (:meth:`use_spectrum`, :meth:`use_match`, :meth:`use_coregistration`).
+        self.side_work_inline = True
+        self._spectrum_due: np.ndarray | None = None
         self._coregistration_due: CoregistrationJob | None = None
         self._seq = 0
         self._spectrum: np.ndarray | None = None
@@ -291,27 +297,27 @@ class MapsPipeline:
             self._core.break_sequence()
         now = time.monotonic()
         if now - self._spectrum_at >= max(1.0 / SPECTRUM_HZ, self._spectrum_cost / SIDE_SHARE):
-            tick = time.perf_counter()
-            self._spectrum = block_max(
-                display_spectrum(frame, threads=FFT_THREADS), SPECTRUM_DISPLAY_MAX
-            )
-            self._spectrum_cost = time.perf_counter() - tick
             self._spectrum_at = now
+            if self.side_work_inline:
+                tick = time.perf_counter()
+                self.use_spectrum(spectrum_image(frame), time.perf_counter() - tick)
+            else:
+                self._spectrum_due = frame
         if self._peaks is None or (self.detect_inline and self.peaks_due(now)):
             self._detect(frame)
         resolution = self.resolution()
         detected = self._peaks or []
         placed = on_lattice(resolution.labelling, len(detected))
         self._core.configure(self.experiment, resolution.peaks, window_neighbours(detected, placed))
-        if self.match_inline:
+        if self.side_work_inline:
             job = self.match_job(frame, copy=False)
             if job is not None:
                 self.use_match(job.run(self._matcher), now)
         estimate = now - self._coregistered_at >= 1.0 / COREGISTER_HZ
-        maps = self._maps.process(frame, estimate=estimate and self.coregister_inline)
+        maps = self._maps.process(frame, estimate=estimate and self.side_work_inline)
         if estimate and maps.maps:
             self._coregistered_at = now
-            if not self.coregister_inline and maps.result is not None:
+            if not self.side_work_inline and maps.result is not None:
                 self._coregistration_due = CoregistrationJob(
                     tuple(r.peak.label for r in maps.result.peaks),
                     maps.result.box_shape,
@@ -350,6 +356,18 @@ class MapsPipeline:
             contradiction=resolution.contradiction,
             reference=maps.result is not None and "reference" in maps.result.flags,
         )
+
+    # ---- the display spectrum made on another thread -------------------------
+    def spectrum_job(self) -> np.ndarray | None:
+        """The frame whose display spectrum is due (:func:`spectrum_image`; once); None."""
+        frame, self._spectrum_due = self._spectrum_due, None
+        return frame
+
+    def use_spectrum(self, image: np.ndarray, cost_s: float) -> None:
+        """Show ``image`` as the spectrum from the next result on; it took ``cost_s`` seconds
+        to make (which spaces the next one: :data:`SIDE_SHARE`)."""
+        self._spectrum = image
+        self._spectrum_cost = cost_s
 
     # ---- displacements measured on another thread ----------------------------
     def coregistration_job(self) -> CoregistrationJob | None:

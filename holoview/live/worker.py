@@ -9,10 +9,11 @@
   asked (scripted runs, the parity test), and runs a
   :class:`~holoview.live.maps_pipeline.MapsPipeline` on it: the maps, at whatever rate is
   left. It hands the demodulator's peaks to the series worker.
-- Peak detection (``holoview-peaks``), the windows' match to the surface
-  (``holoview-match``) and the maps' displacement estimate (``holoview-coregister``),
-  each much slower than a frame, run beside them at a lower priority
-  (:class:`SideWorker`); the maps worker takes their results between frames.
+- Peak detection (``holoview-peaks``), the display spectrum (``holoview-spectrum``),
+  the windows' match to the surface (``holoview-match``) and the maps' displacement
+  estimate (``holoview-coregister``), each slower than a frame's maps, run beside them
+  at a lower priority (:class:`SideWorker`); the maps worker takes their results between
+  frames, so that no frame's maps wait for them.
 
 Each publishes its newest result under a lock; all stop with a flag (or the ring
 closing) and are joined by their ``stop``.
@@ -39,7 +40,12 @@ from holoview.engine.frame_core import FFT_THREADS
 from holoview.engine.map_step import Coregistration
 from holoview.engine.window_matching import MatchJob, Rematch, WindowMatcher
 from holoview.errors import HoloviewError
-from holoview.live.maps_pipeline import CoregistrationJob, LiveResult, MapsPipeline
+from holoview.live.maps_pipeline import (
+    CoregistrationJob,
+    LiveResult,
+    MapsPipeline,
+    spectrum_image,
+)
 from holoview.live.series_pipeline import SeriesPipeline, TrendSummary
 from holoview.processing.peaks.detection import Peak, find_peaks
 
@@ -380,9 +386,11 @@ class DemodWorker(RingWorker[LiveResult]):
         self.pipeline = pipeline
         pipeline.detect_inline = False
         self.peaks = PeakWorker()
-        pipeline.match_inline = False
+        pipeline.side_work_inline = False
+        self.spectra: SideWorker[np.ndarray, np.ndarray] = SideWorker(
+            "holoview-spectrum", spectrum_image, "the spectrum"
+        )
         self.matches = MatchWorker(pipeline.matcher)
-        pipeline.coregister_inline = False
         self.coregistration: SideWorker[CoregistrationJob, Coregistration | None] = SideWorker(
             "holoview-coregister",
             coregistration_work(Coregistration(None)),
@@ -394,6 +402,7 @@ class DemodWorker(RingWorker[LiveResult]):
         """Start the thread and its side threads."""
         self.peaks.start()
         self.matches.start()
+        self.spectra.start()
         self.coregistration.start()
         super().start()
 
@@ -402,6 +411,7 @@ class DemodWorker(RingWorker[LiveResult]):
         super().stop(timeout)
         self.peaks.stop(timeout)
         self.matches.stop(timeout)
+        self.spectra.stop(timeout)
         self.coregistration.stop(timeout)
 
     def latest(self) -> LiveResult | None:
@@ -445,15 +455,24 @@ class DemodWorker(RingWorker[LiveResult]):
             self._report(found)
         elif found is not None:
             self.pipeline.use_coregistration(found[0])
+        image = self.spectra.take()
+        if isinstance(image, str):
+            self._report(image)
+        elif image is not None:
+            self.pipeline.use_spectrum(*image)
         try:
             result = self.pipeline.process(pixels, meta)
         finally:
             with self._lock:
                 self._peak_set = (self.pipeline.peaks, self.pipeline.experiment)
         self._publish(result)
+        # the side work due, each dropped while its thread is busy (due again soon)
         coregistration = self.pipeline.coregistration_job()
         if coregistration is not None:
-            self.coregistration.submit(coregistration)  # dropped while one is under way
+            self.coregistration.submit(coregistration)
+        spectrum = self.pipeline.spectrum_job()
+        if spectrum is not None:
+            self.spectra.submit(spectrum)
         if not self.matches.busy:  # the measurement due, if any, after the maps are out
             job = self.pipeline.match_job(pixels)
             if job is not None:

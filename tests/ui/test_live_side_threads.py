@@ -117,7 +117,7 @@ def test_the_restart_s_reference_frame_is_marked_and_the_next_maps_are_not_zero(
     reference: its maps are zeros, marked so the window does not show them; the next
     frame's are the change again."""
     pipeline = MapsPipeline(_experiment(), SHAPE)
-    pipeline.match_inline = False
+    pipeline.side_work_inline = False
     frames = hologram_stack(10, SHAPE)
     results = [pipeline.process(frames[i], _meta(i)) for i in range(3)]
     assert [r.reference for r in results] == [True, False, False]
