@@ -62,6 +62,8 @@ __all__ = [
 FFT_THREADS = 1
 
 
+Carrier = tuple[float, float]
+
 #: Frames of a run after its first that its windows are matched to (absolute maps).
 MATCHING_FRAMES = 3
 
@@ -217,6 +219,7 @@ class FrameCore:
         self.spectrum = spectrum
         self._fixed = None if windows is None else (_carriers(self.peaks), tuple(windows))
         self._chosen: dict[str, Window] | None = None
+        self._bounds_checked: tuple[Demodulator, tuple[Carrier, ...], bool] | None = None
         self._demod: Demodulator | None = None
         self._probe = CarrierCore(self.frame_shape, saturation)
 
@@ -314,13 +317,24 @@ class FrameCore:
             return False
         if demod.spectrum is not self.spectrum:
             return True
+        return self._bounds_moved(demod)
+
+    def _bounds_moved(self, demod: Demodulator) -> bool:
+        """Whether the neighbours moved a window's bound by a whole bin (kept per
+        demodulator and neighbours: 1-2 ms of every live frame's maps, twice)."""
+        if self._bounds_checked is not None:
+            checked, neighbours, moved = self._bounds_checked
+            if checked is demod and neighbours == self.neighbours:
+                return moved
         carriers = np.array([p.carrier for p in demod.peaks], dtype=np.float64)
         others = distinct_neighbours(self.frame_shape, carriers, self.neighbours)
         bounds = peak_radii(self.frame_shape, carriers, None, others)
-        return any(
-            abs(a - w.bound) * min(rows, cols) > 1.0
+        moved = any(
+            abs(a - w.bound) * min(self.frame_shape) > 1.0
             for a, w in zip(bounds, demod.windows, strict=True)
         )
+        self._bounds_checked = (demod, self.neighbours, moved)
+        return moved
 
     def _fixed_windows(self) -> tuple[Window, ...] | None:
         """The windows given at construction, while the carriers are the ones they were for
