@@ -36,7 +36,7 @@ from PyQt6.QtWidgets import (
 
 from holoview.engine.experiment import PEAK_LABELS
 from holoview.processing.maps.demod_results import REFERENCE_MODES
-from holoview.ui.colour_index import colour_indices, colour_table
+from holoview.ui.colour_index import colour_indices, colour_table, rgba
 from holoview.ui.legends import FUSED, curve_pen, side_legend
 
 #: Colour map of heights (perceptual) and of phases (cyclic).
@@ -362,7 +362,7 @@ class SurfaceView(QWidget):
         for name, image in self.images.items():
             if name in self._data:
                 indices = colour_indices(self._data[name], low, high)
-                image.setImage(self._table[indices], autoLevels=False)
+                image.setImage(rgba(self._table, indices), autoLevels=False)
 
     def _show_shifts(
         self, shifts_px: Mapping[str, tuple[float, float]], grid_of: str | None
