@@ -343,15 +343,16 @@ def main() -> int:
     if not maps_ok:
         cores = os.cpu_count() or 1
         busy = sum(cpu1[n] - cpu0.get(n, 0.0) for n in cpu1) / elapsed
-        reason = (
-            f"a map takes {per_frame * 1e3:.1f} ms of the maps worker's CPU, over the "
-            f"{interval * 1e3:.1f} ms between camera frames"
-            if per_frame > interval
-            else f"a map takes {per_frame * 1e3:.1f} ms of CPU, under the {interval * 1e3:.1f} "
-            f"ms between camera frames, but the maps worker got {100 * demod_cpu / elapsed:.0f}"
-            f"% of a core: this process used {100 * busy:.0f}% of the {cores} cores, the "
-            f"machine's load was {os.getloadavg()[0]:.1f}"
+        cost = (
+            f"a map takes {per_frame * 1e3:.1f} ms of the maps worker's CPU, "
+            f"{'over' if per_frame > interval else 'under'} the {interval * 1e3:.1f} ms "
+            "between camera frames"
         )
+        share = (
+            f"the maps worker got {100 * demod_cpu / elapsed:.0f}% of a core, this process "
+            f"{100 * busy:.0f}% of the {cores} cores (machine load {os.getloadavg()[0]:.1f})"
+        )
+        reason = f"{cost}; {share}"
         print(f"maps behind the camera: {reason}")
     if waves_line:
         print(waves_line)
