@@ -16,7 +16,8 @@ run, and prints medians and extremes:
 - the longest event-loop stall: the largest gap between ticks of a 5 ms QTimer,
   minus 5 ms (the GUI is frozen that long);
 - latency from the frame's host timestamp to the end of its draw call, for the maps
-  and for the camera view;
+  and for the camera view; the maps' in parts: the newest frame's wait for the maps
+  worker, the work, the maps' wait for the GUI thread, the draw call;
 - the time per draw call, each worker's CPU per frame, and the machine's load average
   before and after (and its vector extensions);
 - the targets of issue 17 (the series takes every frame, display >= 25 Hz, longest
@@ -175,6 +176,7 @@ def main() -> int:
         draws: list[float] = []
         work: list[float] = []
         latencies: list[float] = []
+        waits: list[tuple[float, float]] = []  # (for the maps worker, for the GUI) per map
         views: list[float] = []
         view_latencies: list[float] = []
         original_draw = window._draw
@@ -182,6 +184,10 @@ def main() -> int:
 
         def timed_draw(result: object) -> None:
             start = time.perf_counter()
+            begun = time.time()
+            done = result.t_done  # type: ignore[attr-defined]
+            taken = done - result.processing_s  # type: ignore[attr-defined]
+            waits.append((taken - result.t_host, begun - done))  # type: ignore[attr-defined]
             original_draw(result)  # type: ignore[arg-type]
             draws.append(time.perf_counter() - start)
             latencies.append(time.time() - result.t_host)  # type: ignore[attr-defined]
@@ -242,6 +248,7 @@ def main() -> int:
         view_latencies.clear()
         work.clear()
         latencies.clear()
+        waits.clear()
         gaps.clear()
         session = window.session
         cam0, seq0 = session.camera.frames, session.latest().seq
@@ -322,6 +329,14 @@ def main() -> int:
         f"p95 {percentile(latencies, 0.95) * 1e3:5.1f} ms, "
         f"max {max(latencies, default=math.nan) * 1e3:5.1f} ms"
     )
+    for name, part in (
+        ("the newest frame waits for the maps worker", [w[0] for w in waits]),
+        ("the maps wait for the GUI thread", [w[1] for w in waits]),
+    ):
+        print(
+            f"  of which {name}: median {median(part) * 1e3:5.1f} ms, "
+            f"p95 {percentile(part, 0.95) * 1e3:5.1f} ms"
+        )
     shares = ", ".join(
         f"{name} {100 * (cpu1[name] - cpu0.get(name, 0.0)) / elapsed:.0f}%" for name in sorted(cpu1)
     )

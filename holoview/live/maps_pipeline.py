@@ -77,7 +77,9 @@ class LiveResult:
     ``contradiction`` names a label the carrier lattice contradicts (the engine's rule,
     :func:`holoview.engine.resolve.resolve_peaks`; an error headless), None when none.
     ``reference``: the maps restarted at this frame (new peaks or windows, a reset):
-    it is their new reference, and its maps are zeros by construction.
+    it is their new reference, and its maps are zeros by construction. ``t_done``: the
+    host time (``time.time()``, as ``t_host``) the maps were done: the frame waited
+    ``t_done - processing_s - t_host`` for the maps worker.
     """
 
     seq: int
@@ -101,6 +103,7 @@ class LiveResult:
     segment: int = 0
     contradiction: str | None = None
     reference: bool = False
+    t_done: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -355,6 +358,7 @@ class MapsPipeline:
             segment=meta.segment,
             contradiction=resolution.contradiction,
             reference=maps.result is not None and "reference" in maps.result.flags,
+            t_done=time.time(),
         )
 
     # ---- the display spectrum made on another thread -------------------------
