@@ -30,6 +30,7 @@ from PyQt6.QtWidgets import (
 from holoview.engine.experiment import PEAK_LABELS
 from holoview.engine.peak_geometry import Carrier, swallowed_neighbour, window_warnings
 from holoview.processing.peaks.snapping import SNAP_BINS, snap
+from holoview.ui.label_layout import PeakLabel, place_labels
 
 if TYPE_CHECKING:
     from pyqtgraph.GraphicsScene.mouseEvents import MouseClickEvent
@@ -38,6 +39,8 @@ if TYPE_CHECKING:
 LABEL_COLOUR = "#33ddff"
 #: Pen colour of model-predicted carriers.
 PREDICTED_COLOUR = "#ffd24d"
+#: Size of a labelled peak's marker, pixels.
+LABEL_MARKER_PX = 12
 #: Pen colour of the labels a source suggests before the operator accepts them.
 SUGGESTED_COLOUR = "#b0b0b0"
 #: What the spectrum says while no peak is labelled.
@@ -111,6 +114,7 @@ class SpectrumView(QWidget):
         self._levels: tuple[float, float] | None = None
         self._circles: dict[str, pg.CircleROI] = {}
         self._texts: list[pg.TextItem] = []
+        self._text_peaks: list[PeakLabel] = []
         self._suggested: dict[str, Carrier] = {}
         self._suggested_from = ""
         self._suggestion_items: list[pg.GraphicsObject] = []
@@ -123,6 +127,7 @@ class SpectrumView(QWidget):
         m = SPECTRUM_MARGIN_PX
         self.graphics.ci.setContentsMargins(m, m, m, m)
         self.plot.getViewBox().sigResized.connect(self._keep_square)
+        self.plot.getViewBox().sigTransformChanged.connect(self._place_texts)
         self.plot.invertY(True)
         self.plot.setLabel("bottom", "fx", units="cycles/px")
         self.plot.setLabel("left", "fy", units="cycles/px")
@@ -135,7 +140,7 @@ class SpectrumView(QWidget):
             symbol="o", size=14, pen=pg.mkPen("w", width=1), brush=None
         )
         self.labelled_markers = pg.ScatterPlotItem(
-            symbol="o", size=12, pen=pg.mkPen(LABEL_COLOUR, width=2), brush=None
+            symbol="o", size=LABEL_MARKER_PX, pen=pg.mkPen(LABEL_COLOUR, width=2), brush=None
         )
         self.predicted_markers = pg.ScatterPlotItem(
             symbol="x", size=14, pen=pg.mkPen(PREDICTED_COLOUR, width=2), brush=PREDICTED_COLOUR
@@ -289,12 +294,13 @@ class SpectrumView(QWidget):
             self.predicted_markers.setData(pos=pred)
             for text in self._texts:
                 self.plot.removeItem(text)
-            self._texts = []
+            self._texts, self._text_peaks = [], []
             for name, (fx, fy) in self._labelled.items():
-                self._add_text(name, fx, fy, LABEL_COLOUR)
+                self._add_text(PeakLabel(name, fx, fy), LABEL_COLOUR)
             for name, (fx, fy) in self._predicted.items():
                 if name not in self._labelled:
-                    self._add_text(f"{name}?", fx, fy, PREDICTED_COLOUR)
+                    self._add_text(PeakLabel(f"{name}?", fx, fy), PREDICTED_COLOUR)
+            self._place_texts()
             for name in list(self._circles):
                 if name not in self._labelled:
                     self.plot.removeItem(self._circles.pop(name))
@@ -368,12 +374,42 @@ class SpectrumView(QWidget):
                 self.plot.addItem(item)
                 self._suggestion_items.append(item)
 
-    def _add_text(self, text: str, fx: float, fy: float, colour: str) -> None:
-        item = pg.TextItem(text, color=colour, anchor=(0, 1))
-        item.setPos(fx + 0.01, fy - 0.01)
+    def _add_text(self, label: PeakLabel, colour: str) -> None:
+        item = pg.TextItem(label.text, color=colour, anchor=(0, 1))
+        item.textItem.document().setDocumentMargin(1)  # the box drawn is the text's own
         item.setZValue(25)
         self.plot.addItem(item)
         self._texts.append(item)
+        self._text_peaks.append(label)
+
+    def _place_texts(self) -> None:
+        """Set each peak label beside its peak, clear of the other labels and peaks."""
+        if not self._texts:
+            return
+        px, py = self.plot.getViewBox().viewPixelSize()
+        (x0, x1), (y0, y1) = self.plot.getViewBox().viewRange()
+        height = max(item.boundingRect().height() for item in self._texts)
+        width = max(
+            item.boundingRect().width() / max(len(peak.text), 1)
+            for peak, item in zip(self._text_peaks, self._texts, strict=True)
+        )
+        spots = place_labels(
+            self._text_peaks,
+            char_size=(width * px, height * py),
+            view=(x0, y0, x1, y1),
+            marker=LABEL_MARKER_PX / 2 * px,
+        )
+        for item, spot in zip(self._texts, spots, strict=True):
+            item.setAnchor(spot.anchor)
+            item.setPos(*spot.pos)
+
+    @property
+    def label_boxes(self) -> dict[str, QRectF]:
+        """Each peak label's box as drawn, in scene coordinates."""
+        return {
+            peak.text: item.mapRectToScene(item.boundingRect())
+            for peak, item in zip(self._text_peaks, self._texts, strict=True)
+        }
 
     def set_notes(self, notes: tuple[str, ...]) -> None:
         """Show ``notes`` (from the labelling) under the window warnings."""

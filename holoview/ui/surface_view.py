@@ -28,7 +28,6 @@ from PyQt6.QtWidgets import (
     QHBoxLayout,
     QLabel,
     QPushButton,
-    QSizePolicy,
     QSplitter,
     QVBoxLayout,
     QWidget,
@@ -37,6 +36,7 @@ from PyQt6.QtWidgets import (
 from holoview.engine.experiment import PEAK_LABELS
 from holoview.processing.maps.demod_results import REFERENCE_MODES
 from holoview.ui.colour_index import colour_indices, colour_table, rgba
+from holoview.ui.elided_label import ElidedLabel
 from holoview.ui.legends import FUSED, curve_pen, side_legend
 
 #: Colour map of heights (perceptual) and of phases (cyclic).
@@ -231,11 +231,9 @@ class SurfaceView(QWidget):
         self._follow_timer = QTimer(self)
         self._follow_timer.setSingleShot(True)
         self._follow_timer.timeout.connect(self._follow_due)
-        self.stats_label = QLabel()
         # what it says grows with the replay ("maps of frame 14 (55 behind)"): it takes
         # the room left, never widens the dock (a 1366-pixel window grew past its screen)
-        self.stats_label.setSizePolicy(QSizePolicy.Policy.Ignored, QSizePolicy.Policy.Preferred)
-        self.stats_label.setAlignment(Qt.AlignmentFlag.AlignRight | Qt.AlignmentFlag.AlignVCenter)
+        self.stats_label = ElidedLabel()
         controls = QHBoxLayout()
         controls.addWidget(QLabel("show"))
         controls.addWidget(self.mode_box)

@@ -12,6 +12,7 @@ pytest.importorskip("pyqtgraph")
 from holoview.processing.series.rate_fits import format_rate
 from holoview.ui.colour_index import colour_indices, colour_table
 from holoview.ui.hologram_view import HologramView
+from holoview.ui.label_layout import PeakLabel, place_labels
 from holoview.ui.spectrum_view import CLEAR, SpectrumView
 from holoview.ui.surface_view import FUSED, SurfaceView, colour_range, sample_line
 from holoview.ui.trends_view import TrendsView
@@ -339,3 +340,72 @@ def test_follow_ranges_the_last_maps_even_when_no_more_come(qtbot) -> None:
     assert view.levels[1] < -130.0
     view.set_maps({"RB1": waves})  # within the interval: not ranged yet
     qtbot.waitUntil(lambda: -10.5 < view.levels[0] < -9 and 9 < view.levels[1] < 10.5, timeout=3000)
+
+
+#: Carriers of six labelled peaks crowded as the simulator's are (one quadrant of the
+#: spectrum, 0.1-0.15 cycles/px apart), and a predicted one.
+CROWDED = {
+    "RB1": (-0.19, 0.07),
+    "FB1": (-0.06, 0.16),
+    "RF": (0.15, 0.09),
+    "RB2": (-0.24, 0.2),
+    "FB2": (-0.09, 0.29),
+    "RB3": (-0.29, 0.36),
+}
+
+
+@pytest.mark.qt_log_ignore(r"This plugin does not support propagateSizeHints\(\)")
+def test_crowded_peak_labels_cover_no_other_label_or_peak(qtbot) -> None:
+    from PyQt6.QtCore import QPointF
+
+    view, _ = _spectrum_view(qtbot)
+    view.resize(460, 260)  # the spectrum panel's size in the window at 1366x768
+    view.show()
+    qtbot.waitExposed(view)
+    view.set_model(CROWDED, {"FB3": (-0.13, 0.45)}, 0.08)
+    qtbot.waitUntil(lambda: view.plot.getViewBox().width() > 100)
+    boxes = view.label_boxes
+    assert set(boxes) == {*CROWDED, "FB3?"}
+    names = sorted(boxes)
+    for i, a in enumerate(names):
+        for b in names[i + 1 :]:
+            assert not boxes[a].intersects(boxes[b]), (a, b)
+    box = view.plot.getViewBox()
+    for name, box_rect in boxes.items():
+        for other, (fx, fy) in CROWDED.items():
+            if other != name:
+                centre = box.mapViewToScene(QPointF(fx, fy))
+                assert not box_rect.contains(centre), (name, other)
+
+
+def test_a_label_goes_where_the_others_leave_room() -> None:
+    labels = [PeakLabel("RB1", 0.0, 0.0), PeakLabel("RB2", 0.05, -0.02)]
+    spots = place_labels(labels, char_size=(0.01, 0.02), view=(-0.5, -0.5, 0.5, 0.5), marker=0.01)
+    # the first takes the preferred side (up and to the right of its peak) ...
+    assert spots[0].anchor == (0.0, 1.0)
+    assert spots[0].pos == pytest.approx((0.01, -0.01))
+    # ... which the second peak's marker and label would cover: it takes another
+    first = (0.01, -0.03, 0.04, -0.01)
+    x, y = spots[1].pos
+    left, top = x - spots[1].anchor[0] * 0.03, y - spots[1].anchor[1] * 0.02
+    assert left >= first[2] or left + 0.03 <= first[0] or top >= first[3] or top + 0.02 <= first[1]
+    # a label at the view's corner turns inwards
+    view = (-0.5, -0.5, 0.5, 0.5)
+    (edge,) = place_labels([PeakLabel("RB3", 0.49, -0.49)], (0.01, 0.02), view, 0.01)
+    left, top = edge.pos[0] - edge.anchor[0] * 0.03, edge.pos[1] - edge.anchor[1] * 0.02
+    assert left >= -0.5 and left + 0.03 <= 0.5 and top >= -0.5 and top + 0.02 <= 0.5
+
+
+def test_the_maps_caption_ends_in_an_ellipsis_where_it_has_no_room(qtbot) -> None:
+    view = SurfaceView()
+    qtbot.addWidget(view)
+    label = view.stats_label
+    label.setText("maps of frame 38 (10 behind)")
+    label.resize(90, 20)
+    shown = label.elided()
+    # the start is what is shown (the frame), the rest elided, never cut mid-text
+    assert shown.startswith("maps of") and shown.endswith("…")
+    assert label.toolTip() == "maps of frame 38 (10 behind)"
+    label.resize(400, 20)
+    assert label.elided() == "maps of frame 38 (10 behind)"
+    assert label.sizePolicy().horizontalPolicy().name == "Ignored"
