@@ -7,7 +7,8 @@ frames of two detections, about a second apart, at every detection, and matches 
 windows again (:meth:`~holoview.engine.frame_core.FrameCore.match`, which restarts the
 maps) only:
 
-- the first time a change is measured;
+- the first time a change is measured (with a peak demodulated);
+- when a peak was added since (its window at the bound, not measured);
 - when the operator asks (:meth:`WindowMatcher.request`);
 - when the radii the new measurement gives differ from those in use by more than
   :data:`CHANGE_FRACTION` (and :data:`CHANGE_BINS` FFT bins) on
@@ -37,7 +38,7 @@ from holoview.engine.experiment import Experiment
 from holoview.engine.frame_core import FrameCore
 from holoview.errors import InputError
 from holoview.processing.peaks.matched import SurfaceSpectrum, Window, measure_spectrum
-from holoview.processing.peaks.radii import distinct_neighbours, peak_windows
+from holoview.processing.peaks.radii import UNMEASURED_REASON, distinct_neighbours, peak_windows
 
 __all__ = [
     "CHANGE_BINS",
@@ -146,15 +147,14 @@ class Rematch:
     ----------
     spectrum : SurfaceSpectrum
         The spectrum the windows were matched to.
-    windows : mapping of str to Window, or None
-        The new window of each peak, by label (None: measured before the first
-        demodulator; the core then matches its windows itself when it builds one).
+    windows : mapping of str to Window
+        The new window of each peak, by label.
     note : str
         The line for the operator (the windows changed, the maps restart).
     """
 
     spectrum: SurfaceSpectrum
-    windows: Mapping[str, Window] | None
+    windows: Mapping[str, Window]
     note: str
 
     def apply(self, core: FrameCore) -> None:
@@ -275,9 +275,13 @@ class WindowMatcher:
         self.latest = spectrum
         current = in_use.windows or {}
         wanted = in_use.windows_for(spectrum)
-        if not in_use.matched or self._requested or not current or wanted is None:
+        if wanted is None:
+            return None  # no peak demodulated yet: nothing to match (a request waits)
+        if not in_use.matched or self._requested or not current:
             why = "on request" if self._requested else None
             return self._rematch(spectrum, wanted, why, not in_use.matched)
+        if any(w.reason == UNMEASURED_REASON for w in current.values()):
+            return self._rematch(spectrum, wanted, "new peaks", False)
         bins = float(min(in_use.frame_shape))
         moved = [
             label
@@ -299,7 +303,7 @@ class WindowMatcher:
     def _rematch(
         self,
         spectrum: SurfaceSpectrum,
-        windows: Mapping[str, Window] | None,
+        windows: Mapping[str, Window],
         why: str | None,
         first: bool,
     ) -> Rematch:

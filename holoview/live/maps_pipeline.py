@@ -410,8 +410,12 @@ class MapsPipeline:
         )
 
     def use_match(self, rematch: Rematch | None, now: float | None = None) -> None:
-        """Use windows matched again from the next frame (the maps restart, said by a note)."""
-        if rematch is None:
+        """Use windows matched again from the next frame (the maps restart, said by a note).
+
+        Dropped when the experiment no longer matches its windows (a radius given while
+        the match was measured).
+        """
+        if rematch is None or self.experiment.radius_rule != "matched":
             return
         rematch.apply(self._core)
         logger.info("%s", rematch.note)
