@@ -57,9 +57,10 @@ MAX_MESSAGES = 20
 #: on a machine with fewer cores than busy threads the series and the window, which
 #: must keep up, get the cores first.
 YIELDING_NICENESS = 5
-#: Niceness added to the window-matching thread: below the maps, whose latency it
-#: must not lengthen (its result may come seconds late; the windows wait for it).
-MATCH_NICENESS = 10
+#: Niceness added to the maps worker's side threads (display spectrum, window matching,
+#: displacement estimate): below the maps, whose latency they must not lengthen (their
+#: results may come late; the maps use the last ones meanwhile).
+SIDE_NICENESS = 10
 
 
 def yield_to_others(increment: int = YIELDING_NICENESS) -> None:
@@ -103,7 +104,7 @@ class SideWorker(Generic[J, T]):
     """
 
     def __init__(
-        self, name: str, work: Callable[[J], T], what: str, niceness: int = YIELDING_NICENESS
+        self, name: str, work: Callable[[J], T], what: str, niceness: int = SIDE_NICENESS
     ) -> None:
         self._work = work
         self._what = what
@@ -186,7 +187,7 @@ class PeakWorker(SideWorker[tuple[np.ndarray, float | None], list[Peak]]):
     """Find the peaks of one frame at a time on a thread named ``holoview-peaks``."""
 
     def __init__(self) -> None:
-        super().__init__("holoview-peaks", _detect, "peak detection")
+        super().__init__("holoview-peaks", _detect, "peak detection", YIELDING_NICENESS)
 
 
 def matcher_work(matcher: WindowMatcher) -> Callable[[MatchJob], Rematch | None]:
@@ -215,11 +216,11 @@ class MatchWorker(SideWorker[MatchJob, Rematch | None]):
     A measurement takes seconds on a large frame; the maps worker hands a
     :class:`~holoview.engine.window_matching.MatchJob` over (its own copy of the frame)
     and goes on with the maps; the new windows come back through :meth:`take`. The
-    thread yields to every other (:data:`MATCH_NICENESS`): its result may come late.
+    thread yields to every other (:data:`SIDE_NICENESS`): its result may come late.
     """
 
     def __init__(self, matcher: WindowMatcher) -> None:
-        super().__init__("holoview-match", matcher_work(matcher), "window matching", MATCH_NICENESS)
+        super().__init__("holoview-match", matcher_work(matcher), "window matching")
 
 
 #: The type of a worker's results.
