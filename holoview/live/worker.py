@@ -86,8 +86,9 @@ T = TypeVar("T")
 class SideWorker(Generic[J, T]):
     """Run ``work`` on one job at a time on a thread of its own, at a lower priority.
 
-    For work much slower than a frame (peak detection, matching the windows): on its
-    own thread it never holds up the frames behind it. :meth:`submit` hands over a job
+    For work slower than a frame's maps (peak detection, the display spectrum, matching
+    the windows, the displacement estimate): on its own thread it never holds up the
+    frames behind it. :meth:`submit` hands over a job
     when the thread is idle; :meth:`take` returns each result once.
 
     Parameters
