@@ -56,6 +56,11 @@ SIDE_SHARE = 0.1
 SPECTRUM_DISPLAY_MAX = 512
 #: Highest rate at which maps are added to the displacement estimate, Hz.
 COREGISTER_HZ = 2.0
+#: Most of the time the windows' match to the surface may take (a measurement takes
+#: seconds on a large frame: the next waits until this share of the time since the
+#: last one has passed, unless the operator asks). It runs on a thread of its own
+#: beside the maps, which it would otherwise hold up through the interpreter's lock.
+MATCH_SHARE = 0.25
 #: How long a note that the windows changed stays shown, seconds.
 NOTE_SECONDS = 10.0
 
@@ -208,6 +213,8 @@ class MapsPipeline:
         self._matcher = WindowMatcher()
         self._measure_due = False
         self._match_requested = False
+        self._matched_at = -math.inf
+        self._match_cost = 0.0
         self._window_note: tuple[str, float] | None = None
 
     # ---- commands ----------------------------------------------------------
@@ -315,7 +322,9 @@ class MapsPipeline:
         if self.side_work_inline:
             job = self.match_job(frame, copy=False)
             if job is not None:
-                self.use_match(job.run(self._matcher), now)
+                tick = time.perf_counter()
+                rematch = job.run(self._matcher)
+                self.use_match(rematch, time.perf_counter() - tick, now)
         estimate = now - self._coregistered_at >= 1.0 / COREGISTER_HZ
         maps = self._maps.process(frame, estimate=estimate and self.side_work_inline)
         if estimate and maps.maps:
@@ -392,15 +401,19 @@ class MapsPipeline:
 
     def match_job(self, frame: np.ndarray, copy: bool = True) -> MatchJob | None:
         """The measurement due at ``frame`` (a detection came, or the operator asked); None
-        when none is. Each due measurement is handed out once.
+        when none is. Each due measurement is handed out once; one that is not asked for
+        waits until the last took at most :data:`MATCH_SHARE` of the time since it began.
 
         Call it after :meth:`process` has taken ``frame`` (the windows in use are the
         core's then). ``copy``: the job takes a copy of ``frame`` (it runs on another
         thread while the caller goes on).
         """
-        if not self._measure_due:
+        now = time.monotonic()
+        spaced = now - self._matched_at >= self._match_cost / MATCH_SHARE
+        if not self._measure_due or not (spaced or self._match_requested):
             return None
         self._measure_due = False
+        self._matched_at = now
         requested, self._match_requested = self._match_requested, False
         return MatchJob(
             windows_in_use(self._core),
@@ -409,12 +422,16 @@ class MapsPipeline:
             requested,
         )
 
-    def use_match(self, rematch: Rematch | None, now: float | None = None) -> None:
+    def use_match(
+        self, rematch: Rematch | None, cost_s: float = 0.0, now: float | None = None
+    ) -> None:
         """Use windows matched again from the next frame (the maps restart, said by a note).
 
-        Dropped when the experiment no longer matches its windows (a radius given while
-        the match was measured).
+        ``cost_s``: the seconds the measurement took (it spaces the next one). A match is
+        dropped when the experiment no longer matches its windows (a radius given while
+        it was measured).
         """
+        self._match_cost = cost_s
         if rematch is None or self.experiment.radius_rule != "matched":
             return
         rematch.apply(self._core)

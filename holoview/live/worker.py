@@ -447,7 +447,7 @@ class DemodWorker(RingWorker[LiveResult]):
         if isinstance(found, str):
             self._report(found)
         elif found is not None:
-            self.pipeline.use_match(found[0])
+            self.pipeline.use_match(*found)
 
     def _step(self, pixels: np.ndarray, meta: FrameMeta) -> None:
         self._exchange_peaks(pixels)

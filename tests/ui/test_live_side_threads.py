@@ -189,3 +189,23 @@ def test_displacements_measured_off_the_maps_worker_move_the_fused_map(monkeypat
         producer.stop()
         ring.close()
         worker.stop()
+
+
+def test_a_long_measurement_spaces_the_next_unless_the_operator_asks() -> None:
+    """Measurements take seconds (their thread would hold the interpreter's lock most of
+    the time at one a detection): the next waits for MATCH_SHARE of the time, a request
+    does not."""
+    pipeline = MapsPipeline(_experiment(), SHAPE)
+    pipeline.side_work_inline = False
+    frames = hologram_stack(4, SHAPE)
+    pipeline.process(frames[0], _meta(0))
+    pipeline.set_peaks(pipeline._peaks or [])  # a detection: a measurement is due
+    job = pipeline.match_job(frames[0])
+    assert job is not None
+    pipeline.use_match(job.run(pipeline.matcher), cost_s=1e6)  # a very long measurement
+    pipeline.process(frames[1], _meta(1))
+    pipeline.set_peaks(pipeline._peaks or [])
+    assert pipeline.match_job(frames[1]) is None  # spaced: not yet
+    pipeline.apply("match", None)
+    asked = pipeline.match_job(frames[1])
+    assert asked is not None and asked.requested
