@@ -5,8 +5,9 @@ Per frame: the display spectrum (at most :data:`SPECTRUM_HZ`), peak detection (a
 of the worker's time), the experiment's labels snapped to the detected peaks and the
 model's families added (:func:`holoview.engine.resolve.resolve_peaks`), and the
 maps step (:class:`holoview.engine.map_step.MapStep`: every peak's map, the phase-step
-rule, the displacements, added to at most :data:`COREGISTER_HZ`, and the fused map); at
-each detection the windows' match to the surface is checked
+rule, the displacements, added to at most :data:`COREGISTER_HZ` and a :data:`SIDE_SHARE`
+of the time, and the fused map); at each detection, at most a :data:`SIDE_SHARE` of the
+time unless the operator asks, the windows' match to the surface is checked
 (:class:`holoview.engine.window_matching.WindowMatcher`: matched again when the operator
 asks or the surface's bandwidth changed, with a note shown for :data:`NOTE_SECONDS`).
 A measurement takes seconds: the live worker runs it on a thread of its own
@@ -56,11 +57,6 @@ SIDE_SHARE = 0.1
 SPECTRUM_DISPLAY_MAX = 512
 #: Highest rate at which maps are added to the displacement estimate, Hz.
 COREGISTER_HZ = 2.0
-#: Most of the time the windows' match to the surface may take (a measurement takes
-#: seconds on a large frame: the next waits until this share of the time since the
-#: last one has passed, unless the operator asks). It runs on a thread of its own
-#: beside the maps, which it would otherwise hold up through the interpreter's lock.
-MATCH_SHARE = 0.25
 #: How long a note that the windows changed stays shown, seconds.
 NOTE_SECONDS = 10.0
 
@@ -207,6 +203,7 @@ class MapsPipeline:
         self._core = FrameCore(frame_shape, experiment, saturation=saturation)
         self._maps = MapStep(self._core)
         self._coregistered_at = -math.inf
+        self._coregistration_cost = 0.0
         self._resolution_key: tuple[object, ...] | None = None
         self._resolution = Resolution(peaks=())
         self._continuity = Continuity()
@@ -325,7 +322,9 @@ class MapsPipeline:
                 tick = time.perf_counter()
                 rematch = job.run(self._matcher)
                 self.use_match(rematch, time.perf_counter() - tick, now)
-        estimate = now - self._coregistered_at >= 1.0 / COREGISTER_HZ
+        estimate = now - self._coregistered_at >= max(
+            1.0 / COREGISTER_HZ, self._coregistration_cost / SIDE_SHARE
+        )
         maps = self._maps.process(frame, estimate=estimate and self.side_work_inline)
         if estimate and maps.maps:
             self._coregistered_at = now
@@ -388,8 +387,10 @@ class MapsPipeline:
         job, self._coregistration_due = self._coregistration_due, None
         return job
 
-    def use_coregistration(self, found: Coregistration | None) -> None:
-        """Fuse with displacements measured on another thread from the next frame on."""
+    def use_coregistration(self, found: Coregistration | None, cost_s: float = 0.0) -> None:
+        """Fuse with displacements measured on another thread from the next frame on;
+        they took ``cost_s`` seconds (which spaces the next: :data:`SIDE_SHARE`)."""
+        self._coregistration_cost = cost_s
         if found is not None:
             self._maps.coregistration = found
 
@@ -402,14 +403,16 @@ class MapsPipeline:
     def match_job(self, frame: np.ndarray, copy: bool = True) -> MatchJob | None:
         """The measurement due at ``frame`` (a detection came, or the operator asked); None
         when none is. Each due measurement is handed out once; one that is not asked for
-        waits until the last took at most :data:`MATCH_SHARE` of the time since it began.
+        waits until the last took at most :data:`SIDE_SHARE` of the time since it began (a
+        measurement takes seconds on a large frame; on its thread beside the maps it
+        holds them up through the interpreter's lock: 21 against 33 ms of CPU a map).
 
         Call it after :meth:`process` has taken ``frame`` (the windows in use are the
         core's then). ``copy``: the job takes a copy of ``frame`` (it runs on another
         thread while the caller goes on).
         """
         now = time.monotonic()
-        spaced = now - self._matched_at >= self._match_cost / MATCH_SHARE
+        spaced = now - self._matched_at >= self._match_cost / SIDE_SHARE
         if not self._measure_due or not (spaced or self._match_requested):
             return None
         self._measure_due = False

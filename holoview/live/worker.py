@@ -456,7 +456,7 @@ class DemodWorker(RingWorker[LiveResult]):
         if isinstance(found, str):
             self._report(found)
         elif found is not None:
-            self.pipeline.use_coregistration(found[0])
+            self.pipeline.use_coregistration(*found)
         image = self.spectra.take()
         if isinstance(image, str):
             self._report(image)

@@ -193,7 +193,7 @@ def test_displacements_measured_off_the_maps_worker_move_the_fused_map(monkeypat
 
 def test_a_long_measurement_spaces_the_next_unless_the_operator_asks() -> None:
     """Measurements take seconds (their thread would hold the interpreter's lock most of
-    the time at one a detection): the next waits for MATCH_SHARE of the time, a request
+    the time at one a detection): the next waits for SIDE_SHARE of the time, a request
     does not."""
     pipeline = MapsPipeline(_experiment(), SHAPE)
     pipeline.side_work_inline = False
