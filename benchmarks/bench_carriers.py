@@ -49,7 +49,7 @@ from machine import machine
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from holoview.acquire.recording import RecordingReader  # noqa: E402
+from holoview.acquire.recording_reader import RecordingReader  # noqa: E402
 from holoview.cli import main as holoview_main  # noqa: E402
 from holoview.optics.families import predict_families  # noqa: E402
 from holoview.optics.setup import Ghost, Setup  # noqa: E402

@@ -28,7 +28,10 @@ run, and prints medians and extremes:
 - with ``--waves LABEL`` (a labelled peak, or ``fused``): the Waves panel open on that
   map; its worker's maps per second against the camera's, the stride (camera frames per
   map), frames lost or overwritten before it read them, and whether every camera frame
-  gave a map (issue 24's live target) beside the issue-17 targets;
+  gave a map (issue 24's live target) beside the issue-17 targets, and a map's time
+  beside its CPU time (the rest is waiting for a core or for the GIL);
+- per thread, the share of the run it waited runnable for a core (Linux's schedstat:
+  the machine's other work), beside its CPU share;
 - with ``--profile N``: where the GUI thread's time goes over the measured run (cProfile
   of the GUI thread, the N entries of largest cumulative time under pyqtgraph and
   holoview, in ms per displayed frame), and each image's render and paint time by shape.
@@ -75,6 +78,18 @@ def thread_cpu_seconds() -> dict[str, float]:
             continue
         utime, stime = (int(v) for v in fields.split()[11:13])
         out[thread.name] = (utime + stime) / ticks
+    return out
+
+
+def thread_queue_seconds() -> dict[str, float]:
+    """Seconds each Python thread of this process has waited runnable for a core (Linux)."""
+    out: dict[str, float] = {}
+    for thread in threading.enumerate():
+        try:
+            fields = Path(f"/proc/self/task/{thread.native_id}/schedstat").read_text().split()
+        except OSError:
+            continue
+        out[thread.name] = int(fields[1]) * 1e-9
     return out
 
 
@@ -148,6 +163,13 @@ def main() -> int:
     )
     parser.add_argument(
         "--waves", metavar="LABEL", help="open the Waves panel on this map (a label or fused)"
+    )
+    parser.add_argument(
+        "--waves-wait",
+        type=float,
+        default=20.0,
+        metavar="S",
+        help="seconds to wait for the labelled map to be offered in the Waves panel",
     )
     args = parser.parse_args()
     app = application()
@@ -234,7 +256,7 @@ def main() -> int:
             window.label_peak(name, fx, fy)
         if args.waves:
             window.show_waves()
-            for _ in range(40):  # the labelled maps are offered once the maps show them
+            for _ in range(round(2 * args.waves_wait)):  # offered once the maps show them
                 run_for(0.5)
                 if window.waves.map_box.findText(args.waves) >= 0:
                     break
@@ -256,7 +278,7 @@ def main() -> int:
         waves_worker = session.waves_worker
         if waves_worker is not None:
             waves0 = (waves_worker.history.pushed, waves_worker.status(), waves_worker.stride)
-        cpu0 = thread_cpu_seconds()
+        cpu0, queue0 = thread_cpu_seconds(), thread_queue_seconds()
         t0 = time.monotonic()
         profiler = cProfile.Profile()  # the GUI thread only: cProfile hooks the calling thread
         with ImageTimes() as images:
@@ -265,7 +287,7 @@ def main() -> int:
             run_for(args.seconds)
             profiler.disable()
         elapsed = time.monotonic() - t0
-        cpu1 = thread_cpu_seconds()
+        cpu1, queue1 = thread_cpu_seconds(), thread_queue_seconds()
         camera_fps = (session.camera.frames - cam0) / elapsed
         processing_fps = (session.latest().seq - seq0) / elapsed
         series1 = session.series_worker.status()
@@ -287,8 +309,9 @@ def main() -> int:
                 f"waves       {pushed / elapsed:6.1f} maps/s of {args.waves} ({pushed} maps for "
                 f"{frames} camera frames; stride {waves0[2]} -> {stride}; {lost} frames "
                 f"overwritten before the waves worker read them{fit_s}; a map takes "
-                f"{waves_worker.map_seconds() * 1e3:.1f} ms, a camera frame comes every "
-                f"{1e3 / camera_fps:.1f} ms)"
+                f"{waves_worker.map_seconds() * 1e3:.1f} ms "
+                f"({waves_worker.map_cpu_seconds() * 1e3:.1f} ms of CPU), a camera frame comes "
+                f"every {1e3 / camera_fps:.1f} ms)"
             )
         ticker.stop()
         window.close()
@@ -341,6 +364,11 @@ def main() -> int:
         f"{name} {100 * (cpu1[name] - cpu0.get(name, 0.0)) / elapsed:.0f}%" for name in sorted(cpu1)
     )
     print(f"CPU per thread (% of one core): {shares}")
+    queued = ", ".join(
+        f"{name} {100 * (queue1[name] - queue0.get(name, 0.0)) / elapsed:.0f}%"
+        for name in sorted(queue1)
+    )
+    print(f"waiting for a core per thread (% of the run): {queued}")
     gui_cpu = cpu1.get("MainThread", 0.0) - cpu0.get("MainThread", 0.0)
     demod_cpu = cpu1.get("holoview-demod", 0.0) - cpu0.get("holoview-demod", 0.0)
     series_cpu = cpu1.get("holoview-series", 0.0) - cpu0.get("holoview-series", 0.0)

@@ -51,7 +51,7 @@ from machine import machine
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from holoview.acquire.recording import RecordingWriter  # noqa: E402
+from holoview.acquire.recording_writer import RecordingWriter  # noqa: E402
 from holoview.engine.experiment import Experiment, LabelledPeak  # noqa: E402
 from holoview.engine.frame_core import CarrierCore, FrameCore  # noqa: E402
 from holoview.headless.inputs import InputFile, OpticsOptions, resolve_optics  # noqa: E402

@@ -40,7 +40,7 @@ sys.path.insert(0, str(REPO))
 
 from holoview.acquire.camera_thread import CameraThread  # noqa: E402
 from holoview.acquire.recorder import Recorder  # noqa: E402
-from holoview.acquire.recording import RecordingReader  # noqa: E402
+from holoview.acquire.recording_reader import RecordingReader  # noqa: E402
 from holoview.acquire.ring import FrameRing  # noqa: E402
 from holoview.acquire.simulated import SimulatedSource  # noqa: E402
 

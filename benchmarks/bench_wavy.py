@@ -46,15 +46,18 @@ from wavy_scene import (  # noqa: E402
     wavy_setup,
 )
 
-from holoview.engine.frame_core import matching_positions  # noqa: E402
+from holoview.engine.frame_core import matching_positions, mean_positions  # noqa: E402
 from holoview.optics.synthesis import pixel_coordinates  # noqa: E402
 from holoview.processing.fourier.resample import box_positions  # noqa: E402
 from holoview.processing.fourier.windows import radial_window  # noqa: E402
 from holoview.processing.maps.coregister import fuse_coregistered  # noqa: E402
 from holoview.processing.maps.demodulate import Demodulator  # noqa: E402
 from holoview.processing.peaks.detection import find_peaks  # noqa: E402
-from holoview.processing.peaks.matched import measure_spectrum  # noqa: E402
 from holoview.processing.peaks.radii import surface_band, window_neighbours  # noqa: E402
+from holoview.processing.peaks.surface_spectrum import (  # noqa: E402
+    average_change,
+    measure_spectrum,
+)
 
 EDGE_PX = 24
 FRAMES = 6
@@ -136,7 +139,12 @@ def main(argv: list[str] | None = None) -> int:
         frames, _ = render(setup, waves, FRAMES, seed=100 + seed)
         detected = find_peaks(frames[0])
         later = [frames[p] for p in matching_positions("absolute", FRAMES)]
-        spectrum = measure_spectrum(later, frames[0], band=surface_band(detected))
+        mean = average_change(
+            setup.shape,
+            [p.carrier for p in peaks],
+            ((frames[p], frames[0]) for p in mean_positions("absolute", FRAMES)),
+        )
+        spectrum = measure_spectrum(later, frames[0], band=surface_band(detected), mean=mean)
         common = {"reference": "absolute", "wavelength": setup.wavelength}
         matched = Demodulator(
             setup.shape, peaks, neighbours=window_neighbours(detected), spectrum=spectrum, **common

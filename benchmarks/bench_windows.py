@@ -44,7 +44,7 @@ from machine import machine
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from holoview.engine.frame_core import matching_positions  # noqa: E402
+from holoview.engine.frame_core import matching_positions, mean_positions  # noqa: E402
 from holoview.optics.families import (  # noqa: E402
     coherent_amplitude,
     coherent_displacement,
@@ -57,7 +57,10 @@ from holoview.processing.fourier.windows import DEFAULT_TAPER  # noqa: E402
 from holoview.processing.maps.coregister import fuse_coregistered  # noqa: E402
 from holoview.processing.maps.demodulate import Demodulator  # noqa: E402
 from holoview.processing.peaks.detection import Peak  # noqa: E402
-from holoview.processing.peaks.matched import measure_spectrum  # noqa: E402
+from holoview.processing.peaks.surface_spectrum import (  # noqa: E402
+    average_change,
+    measure_spectrum,
+)
 
 LABELS = ("RB1", "RF", "FB1", "RB2")
 #: Tilts (rad): RF at (0.150, 0.090) and FB1 at (-0.050, 0.047) cycles/pixel with 20 um
@@ -212,8 +215,13 @@ def main(argv: list[str] | None = None) -> int:
                 synthesizer.render(surface(t, yy, xx), rng=rng) for t in range(args.frames + 1)
             ]
             later = [frames[p] for p in matching_positions("absolute", len(frames))]
+            mean = average_change(
+                setup.shape,
+                [p.carrier for p in peaks],
+                ((frames[p], frames[0]) for p in mean_positions("absolute", len(frames))),
+            )
             default = bound.with_peaks(
-                peaks, radius=None, spectrum=measure_spectrum(later, frames[0])
+                peaks, radius=None, spectrum=measure_spectrum(later, frames[0], mean=mean)
             )
             matched_radii.append(default.radii)
             cases = {("default", "matched per peak"): default, ("bound", "per peak"): bound}

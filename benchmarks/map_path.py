@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from holoview.engine.map_step import fuse_maps, trusted_maps
-from holoview.headless.results.outputs import MAP_BATCH, ResultsFile
+from holoview.headless.results.results_file import MAP_BATCH, ResultsFile
 from holoview.processing.maps.coregister import Displacement
 from holoview.processing.maps.demodulate import Demodulator
 from holoview.processing.peaks.detection import Peak

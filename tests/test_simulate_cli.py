@@ -9,7 +9,7 @@ import h5py
 import numpy as np
 import pytest
 
-from holoview.acquire.recording import RecordingReader
+from holoview.acquire.recording_reader import RecordingReader
 from holoview.cli import main
 from holoview.optics.families import predict_families
 from holoview.optics.scenarios import ScenarioConfig, make_surface, simulate

@@ -5,7 +5,7 @@ into an open :class:`~holoview.acquire.source.Source`; a
 :class:`~holoview.acquire.camera_thread.CameraThread` drives it into a
 :class:`~holoview.acquire.ring.FrameRing`, which a
 :class:`~holoview.acquire.recorder.Recorder` (every frame, to a
-:class:`~holoview.acquire.recording.RecordingWriter`) and processing (the newest frame)
+:class:`~holoview.acquire.recording_writer.RecordingWriter`) and processing (the newest frame)
 read at their own pace.
 """
 

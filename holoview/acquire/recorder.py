@@ -27,7 +27,7 @@ from typing import NamedTuple
 import numpy as np
 
 from holoview.acquire.pixel_formats import PIXEL_FORMATS
-from holoview.acquire.recording import RecordingWriteError, RecordingWriter
+from holoview.acquire.recording_writer import RecordingWriteError, RecordingWriter
 from holoview.acquire.ring import FrameRing, RingStatus
 from holoview.acquire.source import Source
 from holoview.errors import InputError

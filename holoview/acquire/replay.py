@@ -117,7 +117,7 @@ class ReplaySource(Source):
     A recording of 200 frames, then its replay steered by hand:
 
     >>> import tempfile
-    >>> from holoview.acquire.recording import RecordingWriter
+    >>> from holoview.acquire.recording_writer import RecordingWriter
     >>> path = Path(tempfile.mkdtemp()) / "run.h5"
     >>> with RecordingWriter(path, (8, 8), np.uint8) as writer:
     ...     for i in range(200):

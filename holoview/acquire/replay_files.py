@@ -34,7 +34,7 @@ from typing import IO, Any
 import numpy as np
 
 from holoview.acquire.frame_times import FrameClock, choose_clock
-from holoview.acquire.recording import RecordingReader
+from holoview.acquire.recording_reader import RecordingReader
 from holoview.acquire.source import CameraNotFoundError
 from holoview.errors import InputError
 from holoview.file_kinds import special_file

@@ -2,7 +2,8 @@
 
 The offline replay and test mode of docs/design.md: the same processing as the GUI, no
 display (:mod:`holoview.headless`). Output files and their layout are documented in
-:mod:`holoview.headless.results.outputs` and the README. ``--jobs`` and ``--scheduler`` spread
+:mod:`holoview.headless.results.outputs`, :mod:`holoview.headless.results.results_layout`
+and the README. ``--jobs`` and ``--scheduler`` spread
 the frames over processes or a Dask cluster (:mod:`holoview.headless.parallel.runners`); a
 folder of recordings or a glob is a batch (:mod:`holoview.headless.batch`).
 """
@@ -162,9 +163,7 @@ def add_parser(
         "--waves",
         action="store_true",
         help="with --maps: then run holoview waves on the fused maps into DIR (its options "
-        "below; --fluid and --threads serve both); the window radius is 'bound' unless "
-        "--radius is given (matched windows attenuate waves that stand above the noise "
-        "only over many frames)",
+        "below; --fluid and --threads serve both)",
     )
     parser.add_argument("--frames", metavar="START:STOP", help="process these frames only")
     parser.add_argument("--area", type=float, metavar="M2", help="basin area, m^2 (volume rates)")
@@ -205,9 +204,6 @@ def run(args: argparse.Namespace) -> int:
         if not args.maps:
             raise InputError("--waves analyses the maps: give --maps too")
         waves = wave_options(args)
-        if args.radius is None:  # the analyses want each wave's amplitude whole
-            args.radius = "bound"
-            logger.info("--waves: window radius 'bound' (matched windows may cut the waves)")
     if args.threads < 1:
         raise InputError(f"--threads must be at least 1, got {args.threads}")
     cores = usable_cpus()

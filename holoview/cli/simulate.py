@@ -509,7 +509,7 @@ def run(args: argparse.Namespace) -> int:
     import numpy as np
     from tqdm import tqdm
 
-    from holoview.acquire.recording import RecordingWriter
+    from holoview.acquire.recording_writer import RecordingWriter
     from holoview.atomic import atomic_path
     from holoview.engine.true_labels import true_experiment, visible_amplitudes
     from holoview.optics.families import predict_families

@@ -14,7 +14,9 @@ the same numbers on the same frames:
   values can tell a worker where the maps' 2 pi offsets stand; its windows are
   matched to the spectrum it was given (:meth:`FrameCore.match`), or at the bound, or
   given;
-- :func:`matching_positions`: the frames of a run its windows are matched to.
+- :func:`matching_positions`: the frames of a run its windows are matched to, and
+  :func:`mean_positions`, those whose change is averaged to judge waves against the
+  noise of many frames.
 
 What follows from the maps (trusted maps, phase steps, co-registration, fusion) is
 :mod:`holoview.engine.map_step`; the mean-phase series, depths and rates are
@@ -36,13 +38,14 @@ from holoview.processing.fourier.windows import DEFAULT_TAPER
 from holoview.processing.maps.demod_results import DemodResult
 from holoview.processing.maps.demodulate import Demodulator
 from holoview.processing.peaks.detection import Peak
-from holoview.processing.peaks.matched import SurfaceSpectrum, Window
+from holoview.processing.peaks.matched import Window
 from holoview.processing.peaks.radii import (
     UNMEASURED_REASON,
     distinct_neighbours,
     peak_radii,
     peak_windows,
 )
+from holoview.processing.peaks.surface_spectrum import MEAN_FRAMES, SurfaceSpectrum
 from holoview.processing.series.carrier_probe import CarrierProbe, CarrierValues
 
 logger = logging.getLogger(__name__)
@@ -53,6 +56,7 @@ __all__ = [
     "CarrierCore",
     "FrameCore",
     "matching_positions",
+    "mean_positions",
     "series_key",
 ]
 
@@ -82,6 +86,20 @@ def matching_positions(reference: str, n: int) -> list[int]:
         return [1]
     positions = {max(1, n * k // MATCHING_FRAMES) for k in range(1, MATCHING_FRAMES)}
     return sorted(positions | {n - 1})
+
+
+def mean_positions(reference: str, n: int) -> list[int]:
+    """Positions in a run of ``n`` frames whose change is averaged (the waves' test).
+
+    Up to :data:`~holoview.processing.peaks.surface_spectrum.MEAN_FRAMES` frames after
+    the first, evenly spread over the run (each against the first frame; relative
+    maps, against the frame before it); none for synthetic phases or under three
+    frames (no variance over frames to measure).
+    """
+    if reference == "synthetic" or n < 3:
+        return []
+    count = min(MEAN_FRAMES, n - 1)
+    return sorted({int(p) for p in np.linspace(1, n - 1, count).round()})
 
 
 def series_key(peaks: Sequence[Peak]) -> tuple[object, ...]:
@@ -251,24 +269,6 @@ class FrameCore:
         """
         self.spectrum = spectrum
         self._chosen = None if windows is None or spectrum is None else dict(windows)
-
-    def windows_for(self, spectrum: SurfaceSpectrum) -> tuple[Window, ...] | None:
-        """The windows ``spectrum`` would give the peaks in use (None before a frame)."""
-        demod = self._demod
-        if demod is None:
-            return None
-        carriers = np.array([p.carrier for p in demod.peaks], dtype=np.float64)
-        others = distinct_neighbours(self.frame_shape, carriers, self.neighbours)
-        e = self.experiment
-        return peak_windows(
-            self.frame_shape,
-            carriers,
-            e.radius,
-            others,
-            kind=demod.window,
-            taper=demod.taper,
-            spectrum=spectrum,
-        )
 
     @property
     def demodulator(self) -> Demodulator | None:

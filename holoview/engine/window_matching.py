@@ -17,6 +17,11 @@ maps) only:
 Each match returns one line for the operator (the windows changed, the maps restart),
 so that the maps' continuity is never broken silently.
 
+The changes measured at the detections are also accumulated around the carriers in use
+(:class:`~holoview.processing.peaks.surface_spectrum.ChangeAverage`, the last
+:data:`~holoview.processing.peaks.surface_spectrum.MEAN_FRAMES` or so weighing most):
+waves that stand above the noise only over many frames are passed whole, as headless.
+
 A measurement takes seconds on a large frame (the maps at a dozen radii per peak), far
 longer than a frame: the live maps worker must not wait for it. So the work is split
 by thread. :func:`windows_in_use` takes, between two frames, what the measurement needs
@@ -37,8 +42,15 @@ import numpy as np
 from holoview.engine.experiment import Experiment
 from holoview.engine.frame_core import FrameCore
 from holoview.errors import InputError
-from holoview.processing.peaks.matched import SurfaceSpectrum, Window, measure_spectrum
+from holoview.processing.peaks.matched import Window
 from holoview.processing.peaks.radii import UNMEASURED_REASON, distinct_neighbours, peak_windows
+from holoview.processing.peaks.surface_spectrum import (
+    MEAN_FRAMES,
+    ChangeAverage,
+    MeanChange,
+    SurfaceSpectrum,
+    measure_spectrum,
+)
 
 __all__ = [
     "CHANGE_BINS",
@@ -80,7 +92,8 @@ class WindowsInUse:
         The demodulated peaks' labels, in the demodulator's order (empty before the
         first demodulator).
     carriers : ndarray, shape (n, 2)
-        Their carriers ``(fx, fy)``, cycles/pixel.
+        Their carriers ``(fx, fy)``, cycles/pixel (before the first demodulator, the
+        peaks the core was given; None without any).
     others : ndarray, shape (m, 2)
         The detected peaks that bound the windows and are not demodulated, cycles/pixel.
     kind, taper
@@ -124,7 +137,14 @@ def windows_in_use(core: FrameCore) -> WindowsInUse:
     """What :meth:`WindowMatcher.propose` needs of ``core`` (copied: ``core`` may change)."""
     demod = core.demodulator
     if demod is None:
-        return WindowsInUse(core.frame_shape, core.experiment, matched=core.spectrum is not None)
+        given = np.array([p.carrier for p in core.peaks], dtype=np.float64).reshape(-1, 2)
+        return WindowsInUse(
+            core.frame_shape,
+            core.experiment,
+            carriers=given if len(given) else None,
+            others=distinct_neighbours(core.frame_shape, given, core.neighbours),
+            matched=core.spectrum is not None,
+        )
     carriers = np.array([p.carrier for p in demod.peaks], dtype=np.float64)
     return WindowsInUse(
         frame_shape=core.frame_shape,
@@ -199,6 +219,7 @@ class WindowMatcher:
 
     def __init__(self) -> None:
         self._previous: np.ndarray | None = None
+        self._average: ChangeAverage | None = None
         self._requested = False
         self._streak = 0
         #: The newest measurement (None before one).
@@ -211,6 +232,7 @@ class WindowMatcher:
     def forget(self) -> None:
         """Start over (new frame shape, a replay that jumped): the next pair is measured afresh."""
         self._previous = None
+        self._average = None
         self._streak = 0
 
     def measure(self, core: FrameCore, frame: np.ndarray, band: float = 0.0) -> str | None:
@@ -269,7 +291,10 @@ class WindowMatcher:
         if previous is not None and previous.shape != self._previous.shape:
             return None
         try:
-            spectrum = measure_spectrum(frame, None if synthetic else previous, band=band)
+            mean = self._accumulate(in_use, frame, None if synthetic else previous)
+            spectrum = measure_spectrum(
+                frame, None if synthetic else previous, band=band, mean=mean
+            )
         except InputError:
             return None  # a frame equal to the last (a stuck camera): no change to measure
         self.latest = spectrum
@@ -299,6 +324,25 @@ class WindowMatcher:
         )
         note = f"{rematch.note}: {changes} cycles/px" if changes else rematch.note
         return Rematch(spectrum, wanted, note)
+
+    def _accumulate(
+        self, in_use: WindowsInUse, frame: np.ndarray, reference: np.ndarray | None
+    ) -> MeanChange | None:
+        """Add this detection's change around the carriers in use; the mean so far."""
+        if in_use.carriers is None or in_use.others is None or not len(in_use.carriers):
+            self._average = None
+            return None
+        carriers = tuple((float(c[0]), float(c[1])) for c in in_use.carriers)
+        average = self._average
+        if average is None or average.carriers != carriers or average.shape != frame.shape:
+            average = self._average = ChangeAverage(
+                frame.shape,
+                carriers,
+                neighbours=[(float(o[0]), float(o[1])) for o in in_use.others],
+                horizon=MEAN_FRAMES,
+            )
+        average.add(frame, reference)
+        return average.result()
 
     def _rematch(
         self,

@@ -47,7 +47,8 @@ from holoview.headless.run_data import (
 )
 from holoview.processing.maps.coregister import Displacement
 from holoview.processing.peaks.detection import Peak
-from holoview.processing.peaks.matched import SurfaceSpectrum, Window
+from holoview.processing.peaks.matched import Window
+from holoview.processing.peaks.surface_spectrum import SurfaceSpectrum
 
 logger = logging.getLogger(__name__)
 

@@ -28,7 +28,7 @@ import os
 from dataclasses import dataclass
 from pathlib import Path
 
-from holoview.acquire.recording import RecordingReader
+from holoview.acquire.recording_reader import RecordingReader
 from holoview.acquire.replay_files import HDF5_SUFFIXES, IMAGE_SUFFIXES
 from holoview.errors import InputError
 

@@ -29,7 +29,7 @@ from typing import Any, Self
 
 import numpy as np
 
-from holoview.acquire.recording import RecordingReader
+from holoview.acquire.recording_reader import RecordingReader
 from holoview.acquire.replay_files import FrameFile, open_frame_file
 from holoview.engine.experiment import Experiment
 from holoview.errors import InputError

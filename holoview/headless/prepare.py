@@ -12,13 +12,14 @@ an :class:`~holoview.errors.InputError` raised here, before the output folder is
 from __future__ import annotations
 
 import logging
+from collections.abc import Iterator
 from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
 from holoview.engine.experiment import Experiment, LabelledPeak
-from holoview.engine.frame_core import matching_positions
+from holoview.engine.frame_core import matching_positions, mean_positions
 from holoview.engine.resolve import on_lattice
 from holoview.errors import InputError
 from holoview.headless.frame_passes import MapsSpec
@@ -36,8 +37,12 @@ from holoview.headless.run_passes import RunFrames
 from holoview.headless.selection import Selection, select_auto, select_from_experiment
 from holoview.headless.settings import PeakChoice, ProcessOptions, ProcessSettings
 from holoview.processing.peaks.detection import Peak, find_peaks
-from holoview.processing.peaks.matched import SurfaceSpectrum, measure_spectrum
-from holoview.processing.peaks.radii import surface_band, window_neighbours
+from holoview.processing.peaks.radii import distinct_neighbours, surface_band, window_neighbours
+from holoview.processing.peaks.surface_spectrum import (
+    SurfaceSpectrum,
+    average_change,
+    measure_spectrum,
+)
 
 logger = logging.getLogger(__name__)
 
@@ -159,6 +164,8 @@ def prepare_run(
             reference=experiment.reference,
             background=background,
             band=surface_band(detected),
+            carriers=[p.carrier for p in selection.peaks],
+            neighbours=spec.neighbours,
         )
         spec = spec.matched(source.frame_shape, source.saturation, spectrum)
     core = spec.core(source.frame_shape, source.saturation)
@@ -197,6 +204,8 @@ def _matching_spectrum(
     reference: str,
     background: np.ndarray | None,
     band: float,
+    carriers: list[tuple[float, float]],
+    neighbours: tuple[tuple[float, float], ...],
 ) -> SurfaceSpectrum:
     """What a run's windows are matched to: the changes its maps show, the waves detected.
 
@@ -204,7 +213,11 @@ def _matching_spectrum(
     first good one, against it; against the background, the first good one and those
     (a background taken from the run's first frame leaves the others to show the
     changes). Frames that cannot be used are left out (the first alone when none
-    is left, as for synthetic phases).
+    is left, as for synthetic phases). The change around the ``carriers`` (their windows
+    bounded by the ``neighbours`` too) averaged
+    over the frames :func:`~holoview.engine.frame_core.mean_positions` names
+    (:class:`~holoview.processing.peaks.surface_spectrum.ChangeAverage`), against the
+    same reference (relative maps: each against the frame before it).
     """
     start = frames.index(first_index)
     later = []
@@ -212,11 +225,27 @@ def _matching_spectrum(
         frame = source.read(frames[start + position])
         if frame_problem(frame) is None:
             later.append(frame)
+    positions = mean_positions(reference, len(frames) - start)
+    fixed = first if background is None else background
+
+    def pairs() -> Iterator[tuple[np.ndarray, np.ndarray]]:  # one frame read at a time
+        for position in positions:
+            frame = source.read(frames[start + position])
+            against = (
+                source.read(frames[start + position - 1]) if reference == "relative" else fixed
+            )
+            if frame_problem(frame) is None and frame_problem(against) is None:
+                yield frame, against
+
+    mean = None
+    if positions and carriers:
+        others = distinct_neighbours(first.shape, np.array(carriers), neighbours)
+        mean = average_change(first.shape, carriers, pairs(), neighbours=[tuple(o) for o in others])
     if reference != "synthetic" and background is not None:
-        return measure_spectrum([first, *later], background, band=band)
+        return measure_spectrum([first, *later], background, band=band, mean=mean)
     if not later:
         return measure_spectrum(first, band=band)
-    return measure_spectrum(later, first, band=band)
+    return measure_spectrum(later, first, band=band, mean=mean)
 
 
 def _base_experiment(

@@ -5,8 +5,9 @@ Steps: open the input and settle the optics and frame times
 choose those to demodulate (:mod:`~holoview.headless.selection`); pass over the frames:
 the series, the displacements, and the maps to ``results.h5`` as they come
 (:mod:`~holoview.headless.run_passes`); name the peaks, fuse and fit
-(:mod:`~holoview.headless.analysis`); write ``trends.csv``, ``summary.json``,
-``results.h5`` (:mod:`~holoview.headless.results.outputs`) and ``report.png`` (or PDF, SVG:
+(:mod:`~holoview.headless.analysis`); write ``trends.csv``, ``summary.json``
+(:mod:`~holoview.headless.results.outputs`), ``results.h5``
+(:mod:`~holoview.headless.results.results_file`) and ``report.png`` (or PDF, SVG:
 :mod:`~holoview.headless.results.report`). Every user mistake is an
 :class:`~holoview.errors.InputError` raised before anything is written where it can be
 known that early (:mod:`~holoview.headless.prepare`). The output folder is locked for
@@ -36,11 +37,11 @@ from holoview.headless.prepare import PreparedRun, prepare_run, run_inputs
 from holoview.headless.results.figures import FORMATS
 from holoview.headless.results.output_folder import OutputFolder
 from holoview.headless.results.outputs import (
-    ResultsFile,
     summary_document,
     write_summary_json,
     write_trends_csv,
 )
+from holoview.headless.results.results_file import ResultsFile
 from holoview.headless.run_data import RunData
 from holoview.headless.run_passes import run_passes
 from holoview.headless.selection import Selection

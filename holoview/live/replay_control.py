@@ -90,7 +90,7 @@ class ReplayControl:
     >>> import tempfile
     >>> from pathlib import Path
     >>> import numpy as np
-    >>> from holoview.acquire.recording import RecordingWriter
+    >>> from holoview.acquire.recording_writer import RecordingWriter
     >>> path = Path(tempfile.mkdtemp()) / "run.h5"
     >>> with RecordingWriter(path, (8, 8), np.uint8) as writer:
     ...     for i in range(300):

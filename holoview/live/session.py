@@ -22,7 +22,7 @@ import numpy as np
 from holoview.acquire.camera_thread import CameraThread
 from holoview.acquire.pixel_formats import PIXEL_FORMATS
 from holoview.acquire.recorder import Recorder
-from holoview.acquire.recording import RecordingReader
+from holoview.acquire.recording_reader import RecordingReader
 from holoview.acquire.ring import FrameRing
 from holoview.acquire.source import FrameMeta, Source
 from holoview.engine.depth import DepthSummary

@@ -269,6 +269,9 @@ class LiveWaves:
     map_seconds : float
         Time one map takes the waves worker (median of the last 16), s; 0 before it is
         known. Beside the camera's frame interval it says why ``stride`` is what it is.
+    map_cpu_seconds : float
+        CPU time one map takes the worker's thread (median of the last 16), s; 0 before
+        it is known. ``map_seconds`` less this is time the map waited for a core or the GIL.
     """
 
     seq: int
@@ -287,6 +290,7 @@ class LiveWaves:
     problems: tuple[str, ...] = ()
     seconds: float = 0.0
     map_seconds: float = 0.0
+    map_cpu_seconds: float = 0.0
 
     @property
     def nyquist(self) -> float:

@@ -22,13 +22,15 @@ held, :meth:`WavesWorker._window_radius`), into a
   starts again), starts the history again.
 
 A second thread (``holoview-waves-fit``) analyses the history at most :data:`WAVES_HZ`
-times a second, and less often when an analysis takes more than :data:`FIT_SHARE` of
-the time (:func:`~holoview.live.wave_window.analyse_window`, the functions of
-``holoview waves``). The map thread runs at the priority of the series and the window,
-which must keep up too (the panel's map of every frame is what it is opened for); the
-maps worker, whose rate is whatever is left, and the analyses run at a lower one
-(:data:`~holoview.live.worker.YIELDING_NICENESS`). A map costs one carrier window of
-one frame: the frame's row FFTs, the column FFTs under that window alone
+times a second, and less often when an analysis takes more than :data:`FIT_SHARE` of the
+time, or :data:`FIT_SHARE_BEHIND` while the maps keep fewer frames than the camera gives
+(the cores go to the maps first); the analyses are
+:func:`~holoview.live.wave_window.analyse_window`, the functions of ``holoview waves``.
+The map thread runs at the priority of the series and the window, which must keep up too
+(the panel's map of every frame is what it is opened for); the maps worker, whose rate
+is whatever is left, and the analyses run at a lower one
+(:data:`~holoview.live.worker.YIELDING_NICENESS`). A map costs one carrier window of one
+frame: the frame's row FFTs, the column FFTs under that window alone
 (:class:`~holoview.processing.fourier.half_spectrum.HalfSpectrum`) and one box's inverse
 FFT.
 """
@@ -70,6 +72,7 @@ logger = logging.getLogger(__name__)
 __all__ = [
     "BACKLOG",
     "FIT_SHARE",
+    "FIT_SHARE_BEHIND",
     "HOLD_BINS",
     "MAX_STRIDE",
     "TARGET_BUSY",
@@ -81,6 +84,11 @@ __all__ = [
 WAVES_HZ = 1.0
 #: Most of the time the analyses may take (they run less often when slower).
 FIT_SHARE = 0.25
+#: Most of the time the analyses may take while the stride is above 1. An analysis of 256
+#: maps of 180 x 180 takes 0.32 s of CPU (2-core AVX2, ``benchmarks/bench_wave_map.py``):
+#: at FIT_SHARE a quarter of a core, most of what a 60 frames/s camera's maps need beside
+#: the series and the window on two cores.
+FIT_SHARE_BEHIND = 0.1
 #: Frames waiting in the ring beyond which a replay played as fast as it reads waits.
 BACKLOG = 24
 #: Largest stride (camera frames per map).
@@ -162,6 +170,7 @@ class WavesWorker(RingWorker[LiveWaves]):
         self._coregistered_at = -math.inf
         self._continuity = Continuity()
         self._costs: collections.deque[float] = collections.deque(maxlen=16)  # s per map
+        self._cpu: collections.deque[float] = collections.deque(maxlen=16)  # CPU s per map
         self._relaxed_since: float | None = None
         self._relax_to = 1
         #: True while the source waits for this worker (a replay played as fast as it
@@ -214,6 +223,15 @@ class WavesWorker(RingWorker[LiveWaves]):
         costs = list(self._costs)
         return float(np.median(costs)) if costs else 0.0
 
+    def map_cpu_seconds(self) -> float:
+        """CPU time one map takes this worker's thread, s (median of the last 16; 0 before any).
+
+        :meth:`map_seconds` less this is the time the map waited: for a core (the
+        machine's other work) or for the GIL (this process's other threads).
+        """
+        costs = list(self._cpu)
+        return float(np.median(costs)) if costs else 0.0
+
     def backlog(self) -> int:
         """Frames waiting in the ring for this worker."""
         return self._consumer.status().unread
@@ -262,7 +280,7 @@ class WavesWorker(RingWorker[LiveWaves]):
         peak_set = self.maps.peak_set()
         if peak_set is None:
             return
-        tick = time.perf_counter()
+        tick, cpu = time.perf_counter(), time.thread_time()
         demodulator = None if self._core is None else self._core.demodulator
         try:
             height, pixel_size, k_cut = self._map(pixels, *peak_set)
@@ -293,8 +311,10 @@ class WavesWorker(RingWorker[LiveWaves]):
             history.push(height, t, meta.frame_id, relative=self._core_reference() == "relative")
         if built:  # a new demodulator's first frame plans its FFTs: not a map's cost
             self._costs.clear()
+            self._cpu.clear()
         else:
             self._costs.append(time.perf_counter() - tick)
+            self._cpu.append(time.thread_time() - cpu)
         self._publish(None)
 
     def _core_reference(self) -> str:
@@ -437,7 +457,7 @@ class WavesWorker(RingWorker[LiveWaves]):
         last = -math.inf
         cost = 0.0
         while not self._stop.is_set():
-            wait = max(1.0 / WAVES_HZ, cost / FIT_SHARE) - (time.monotonic() - last)
+            wait = self.fit_period(cost) - (time.monotonic() - last)
             if wait > 0:
                 self._fit_wake.wait(wait)
                 self._fit_wake.clear()
@@ -458,6 +478,11 @@ class WavesWorker(RingWorker[LiveWaves]):
                     self._waves = result
                 if self.listener is not None:
                     self.listener()
+
+    def fit_period(self, cost: float) -> float:
+        """Seconds between the starts of two analyses that take ``cost`` seconds each."""
+        share = FIT_SHARE if self.stride == 1 else FIT_SHARE_BEHIND
+        return max(1.0 / WAVES_HZ, cost / share)
 
     def _analyse(self) -> LiveWaves | None:
         with self._lock:
@@ -485,8 +510,11 @@ class WavesWorker(RingWorker[LiveWaves]):
                 pixel_size=None,
                 problems=(why,),
                 map_seconds=self.map_seconds(),
+                map_cpu_seconds=self.map_cpu_seconds(),
             )
         result = analyse_window(window, settings, seq=self._seq, camera_rate=camera)
         if problem is not None:
             result = replace(result, problems=(problem, *result.problems))
-        return replace(result, map_seconds=self.map_seconds())
+        return replace(
+            result, map_seconds=self.map_seconds(), map_cpu_seconds=self.map_cpu_seconds()
+        )

@@ -33,14 +33,13 @@ from PyQt6.QtWidgets import (
 
 from holoview import __version__
 from holoview.engine.experiment import Experiment, default_experiment_path
-from holoview.errors import HoloviewError
 from holoview.live.maps_pipeline import LiveResult
-from holoview.live.session import LiveSession, RecordRequest, discover_sources
+from holoview.live.session import LiveSession
 from holoview.ui.background import BackgroundCall
 from holoview.ui.exports import WindowExports
 from holoview.ui.hologram_view import HologramView
 from holoview.ui.notice_bar import NoticeBar
-from holoview.ui.open_files import FileOpening, Opened, opened_source
+from holoview.ui.open_files import FileOpening, Opened
 from holoview.ui.recording_panel import RecordingPanel
 from holoview.ui.run_trends import RunTrends, maps_frame_text
 from holoview.ui.settings import ui_settings
@@ -59,6 +58,7 @@ from holoview.ui.window_layout import (
     initial_size,
     layout_for,
 )
+from holoview.ui.window_source import SourceActions
 from holoview.ui.window_waves import WavesActions
 
 logger = logging.getLogger(__name__)
@@ -69,7 +69,9 @@ REDRAW_HZ = 30.0
 BANNER_S = 8.0
 
 
-class MainWindow(WavesActions, FileOpening, ExperimentActions, WindowExports, QMainWindow):
+class MainWindow(
+    WavesActions, SourceActions, FileOpening, ExperimentActions, WindowExports, QMainWindow
+):
     """holoview's live window.
 
     Parameters
@@ -288,141 +290,6 @@ class MainWindow(WavesActions, FileOpening, ExperimentActions, WindowExports, QM
         """The message in the banner ('' when hidden)."""
         return self.banner.text() if self.banner_bar.isVisibleTo(self) else ""
 
-    # ---- source ------------------------------------------------------------
-    def start_source(self, spec: str, paused: bool = False) -> None:
-        """Open and start ``spec`` on a thread; the window stays responsive meanwhile.
-
-        Opening a camera or timing the simulator can take a second. When it is done
-        (:attr:`opening` is False again) the views follow the new source, or the banner
-        says why it could not start. A replay starts ``paused`` on its first frame
-        when asked; the experiment a recording carries is read on the same thread.
-        """
-        if self.opener.busy:
-            self.show_message(f"still opening {self._opening_spec}; try again when it is open")
-            return
-        self.stop_source()
-        options = dict(self.source_options if spec == self._optioned_source else {})
-        if paused:
-            options["speed"] = "step"
-        experiment = self.experiment
-
-        def open_session() -> Opened | str:
-            try:
-                session = LiveSession.open(spec, experiment, source_options=options)
-            except HoloviewError as exc:
-                return f"cannot start {spec}: {exc}"
-            return opened_source(session, paused)
-
-        self._opening_spec = spec
-        self.source_panel.set_opening(spec)
-        self.opener.start(open_session)
-
-    @property
-    def opening(self) -> bool:
-        """True while a source is being opened."""
-        return self.opener.busy
-
-    def _opened(self, outcome: object) -> None:
-        if not isinstance(outcome, Opened):
-            internal = f"cannot start {self._opening_spec}: internal error (see the log)"
-            self.show_message(outcome if isinstance(outcome, str) else internal)
-            self.source_panel.set_streaming(False)
-            return
-        self.session = outcome.session
-        self._last_seq = -1
-        self._camera_seq = -1
-        self._drawn = None
-        self.session.on_maps(self.mapsReady.emit)
-        self._adopt_source_setup(self.session.source_setup())
-        for note in outcome.notes:
-            self.show_message(note)
-        self._apply_recording_experiment(outcome.stored, self.session.source_setup())
-        self._learn_known_labels()
-        self.hologram.set_saturation_value(self.session.saturation_value)
-        self.source_panel.set_settings(
-            self.session.describe_settings(), self.session.read_settings()
-        )
-        self.source_panel.set_streaming(True, self.session.description)
-        self.transport.attach(self.session.replay)
-        self._attach_run()
-        self._waves_session()
-        self.timer.start()
-
-    def _attach_run(self) -> None:
-        """Measure the whole run of a replayed file (the trends view shows it); else nothing."""
-        replay = self.session.replay if self.session is not None else None
-        if replay is None:
-            self.run_trends.attach(None)
-            return
-        clock = replay.clock()
-        self.run_trends.attach(replay.path, self.experiment, clock.rate_hz, clock.text)
-
-    def _adopt_source_setup(self, setup: dict[str, Any]) -> None:
-        """Take the optics a source knows (simulator, recording) into the experiment."""
-        fields = ("wavelength_m", "pixel_pitch_m", "n1", "n2")
-        changes = {k: float(setup[k]) for k in fields if k in setup and k not in self.optics}
-        if not changes or all(getattr(self.experiment, k) == v for k, v in changes.items()):
-            return
-        try:
-            self._set_experiment(self.experiment.with_optics(changes))
-        except HoloviewError as exc:
-            self.show_message(f"the source's optical setup is not usable: {exc}")
-            return
-        text = ", ".join(f"{k} = {v:g}" for k, v in changes.items())
-        self.status.showMessage(f"optics from the source: {text}", 8000)
-
-    def stop_source(self) -> None:
-        """Stop the running session (recording included) and its threads."""
-        if self.session is None:
-            return
-        self.timer.stop()
-        self.transport.attach(None)
-        self.run_trends.attach(None)
-        self.surface.stats_label.clear()
-        self.session.close()
-        self.session = None
-        self.recording_panel.set_progress(None)
-        self.source_panel.set_streaming(False)
-        self.status.set_figures(LiveFigures())
-
-    def find_sources(self) -> None:
-        """Look for GenICam cameras and V4L2 devices (on a thread) and offer them."""
-        if self.discovery.start(discover_sources):
-            self.source_panel.refresh_button.setEnabled(False)
-            self.source_panel.state_label.setText("looking for cameras...")
-
-    def _discovery_done(self, outcome: object) -> None:
-        self.source_panel.refresh_button.setEnabled(self.session is None)
-        if not isinstance(outcome, tuple):
-            self.show_message("looking for cameras failed (see the log)")
-            return
-        specs, problems = outcome
-        self.source_panel.set_sources(specs)
-        self.source_panel.state_label.setText(f"{len(specs)} sources found")
-        for problem in problems:
-            self.show_message(problem)
-
-    def apply_setting(self, name: str, value: object) -> None:
-        """Send a setting to the source and show what it reads back."""
-        if self.session is None:
-            self.show_message(f"start a source before setting {name}")
-            return
-        try:
-            self.session.set_setting(name, value)
-        except HoloviewError as exc:
-            self.show_message(str(exc))
-        self._last_seq = -1
-        self._camera_seq = -1
-        if self.session.replay is not None:
-            clock = self.session.replay.clock()
-            self.run_trends.set_clock(clock.rate_hz, clock.text)
-        self.source_panel.show_values(self.session.read_settings())
-        self.source_panel.set_streaming(self.session.running, self.session.description)
-
-    def _show_source_values(self) -> None:
-        if self.session is not None:
-            self.source_panel.show_values(self.session.read_settings())
-
     # ---- trends -----------------------------------------------------------
     def _pca_requested(self, on: bool) -> None:
         if self.session is not None:
@@ -436,25 +303,6 @@ class MainWindow(WavesActions, FileOpening, ExperimentActions, WindowExports, QM
     def _reset_trends(self) -> None:
         if self.session is not None:
             self.session.reset_trends()
-
-    # ---- recording ---------------------------------------------------------
-    def start_recording(self, request: RecordRequest) -> None:
-        """Start recording what the source delivers, as ``request`` asks."""
-        if self.session is None:
-            self.show_message("start a source before recording")
-            return
-        try:
-            self.session.start_recording(request)
-        except HoloviewError as exc:
-            self.show_message(f"cannot record: {exc}")
-            return
-        self.recording_panel.set_progress(self.session.recording_progress())
-
-    def stop_recording(self) -> None:
-        """Stop the recording (the file is closed and complete)."""
-        if self.session is not None:
-            self.session.stop_recording()
-            self.recording_panel.set_progress(self.session.recording_progress())
 
     # ---- redraw ------------------------------------------------------------
     def redraw(self) -> None:

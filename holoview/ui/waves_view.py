@@ -48,6 +48,9 @@ HOLDS = (("sigma", "σ"), ("depth", "d"), ("flow", "U"))
 PER_MM = 1e-3
 #: Width over height of the plots' area above which they stand in one row.
 ROW_ASPECT = 2.0
+#: CPU share of a map's time below which the panel says the rest was waiting (the machine's
+#: other work, or the GIL): the map is then slow because the processor is busy, not itself.
+WAITING_SHARE = 0.5
 #: The plots' titles' size (small: they share a dock with the Trends).
 TITLE_SIZE = "9pt"
 #: The (m, f) plot's title without a centre.
@@ -113,10 +116,13 @@ def rate_text(waves: LiveWaves) -> str:
         camera = f"{waves.camera_rate:.4g} frames/s" if waves.camera_rate > 0 else "frames"
         cost = ""
         if waves.map_seconds > 0 and waves.camera_rate > 0:
-            cost = (
-                f" (a map takes {waves.map_seconds * 1e3:.3g} ms, a frame comes every "
-                f"{1e3 / waves.camera_rate:.3g} ms)"
-            )
+            took = f"a map takes {waves.map_seconds * 1e3:.3g} ms"
+            if 0 < waves.map_cpu_seconds < WAITING_SHARE * waves.map_seconds:
+                took += (
+                    f", {waves.map_cpu_seconds * 1e3:.3g} ms of it computing and the rest "
+                    "waiting for the processor"
+                )
+            cost = f" ({took}, a frame comes every {1e3 / waves.camera_rate:.3g} ms)"
         parts.append(
             f"1 camera frame in {waves.stride} of {camera}: this machine cannot demodulate "
             f"this map at the camera's rate{cost}, so f is cut at {waves.nyquist:.4g} Hz, "

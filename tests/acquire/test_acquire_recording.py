@@ -13,12 +13,9 @@ import h5py
 import numpy as np
 import pytest
 
-from holoview.acquire.recording import (
-    FORMAT_NAME,
-    FORMAT_VERSION,
-    RecordingReader,
-    RecordingWriter,
-)
+from holoview.acquire.recording import FORMAT_NAME, FORMAT_VERSION
+from holoview.acquire.recording_reader import RecordingReader
+from holoview.acquire.recording_writer import RecordingWriter
 from holoview.errors import InputError
 
 HELPERS = Path(__file__).resolve().parents[1] / "helpers"

@@ -15,7 +15,8 @@ import tifffile
 from holoview.acquire import open_source, parse_source_spec
 from holoview.acquire.camera_thread import CameraThread
 from holoview.acquire.recorder import Recorder
-from holoview.acquire.recording import RecordingReader, RecordingWriter
+from holoview.acquire.recording_reader import RecordingReader
+from holoview.acquire.recording_writer import RecordingWriter
 from holoview.acquire.replay import ReplaySource
 from holoview.acquire.ring import FrameRing
 from holoview.acquire.source import CameraNotFoundError, EndOfStream

@@ -10,7 +10,8 @@ import pytest
 
 from holoview.acquire import camera_thread
 from holoview.acquire.camera_thread import CameraThread
-from holoview.acquire.recording import RecordingReader, RecordingWriter
+from holoview.acquire.recording_reader import RecordingReader
+from holoview.acquire.recording_writer import RecordingWriter
 from holoview.acquire.replay import ReplaySource
 from holoview.acquire.ring import FrameRing
 from holoview.acquire.source import EndOfStream, Frame

@@ -12,7 +12,7 @@ import pytest
 from holoview.acquire import open_source
 from holoview.acquire.camera_thread import CameraThread
 from holoview.acquire.recorder import Recorder
-from holoview.acquire.recording import RecordingReader
+from holoview.acquire.recording_reader import RecordingReader
 from holoview.acquire.ring import CLOSED, FrameRing
 from holoview.acquire.simulated import SimulatedSource
 from holoview.errors import InputError

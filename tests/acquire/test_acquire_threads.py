@@ -11,7 +11,8 @@ from counting_source import CountingSource
 
 from holoview.acquire.camera_thread import CameraThread
 from holoview.acquire.recorder import Recorder
-from holoview.acquire.recording import RecordingReader, RecordingWriter
+from holoview.acquire.recording_reader import RecordingReader
+from holoview.acquire.recording_writer import RecordingWriter
 from holoview.acquire.ring import CLOSED, FrameRing
 from holoview.acquire.source import (
     AcquisitionError,

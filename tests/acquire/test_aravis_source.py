@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from holoview.acquire.recording import RecordingReader
+from holoview.acquire.recording_reader import RecordingReader
 
 try:
     from holoview.acquire.aravis import AravisSource, FrameIdUnwrapper, import_aravis, list_cameras

@@ -9,7 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from holoview.acquire.recording import RecordingReader, RecordingWriter
+from holoview.acquire.recording_reader import RecordingReader
+from holoview.acquire.recording_writer import RecordingWriter
 from holoview.cli import main
 from holoview.cli.record import parse_setting
 

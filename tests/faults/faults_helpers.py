@@ -20,7 +20,7 @@ import h5py
 import numpy as np
 import pytest
 
-from holoview.acquire.recording import RecordingWriter
+from holoview.acquire.recording_writer import RecordingWriter
 
 #: The repository root: children import this checkout's holoview.
 REPO = Path(__file__).resolve().parents[2]

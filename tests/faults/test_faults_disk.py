@@ -19,8 +19,8 @@ from faults_helpers import (
     write_recording,
 )
 
-from holoview.acquire import recording
-from holoview.acquire.recording import DiskFullError, RecordingWriteError, RecordingWriter
+from holoview.acquire import recording_writer
+from holoview.acquire.recording_writer import DiskFullError, RecordingWriteError, RecordingWriter
 
 SHAPE = (256, 256)
 
@@ -51,7 +51,7 @@ def test_a_write_failing_for_room_keeps_every_frame_before_it(
     small_disk: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """Another program took the room: HDF5 itself fails (no free-space check to warn)."""
-    monkeypatch.setattr(recording, "free_bytes", lambda folder: None)
+    monkeypatch.setattr(recording_writer, "free_bytes", lambda folder: None)
     data = frames(400)
     path = small_disk / "r.h5"
     writer = RecordingWriter(path, SHAPE, np.uint16, flush_interval_s=0.05)

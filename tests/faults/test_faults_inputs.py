@@ -230,7 +230,7 @@ def test_experiment_files_from_windows_shells(
     sim_recording: Path, tmp_path: Path, capsys: pytest.CaptureFixture, encode, message
 ) -> None:
     """PowerShell's ``>`` writes UTF-16: read as such; a binary file is one line."""
-    from holoview.acquire.recording import RecordingReader
+    from holoview.acquire.recording_reader import RecordingReader
 
     with RecordingReader(sim_recording) as reader:
         (_, text), *_ = reader.experiments()  # the simulator's true labels
@@ -273,7 +273,7 @@ def test_a_recording_with_an_implausible_wavelength_needs_the_option(
     frames: np.ndarray, tmp_path: Path, capsys: pytest.CaptureFixture, caplog
 ) -> None:
     path = tmp_path / "nm.h5"
-    from holoview.acquire.recording import RecordingWriter
+    from holoview.acquire.recording_writer import RecordingWriter
 
     with RecordingWriter(path, (128, 128), np.uint16, setup={"wavelength_m": 532.0}) as w:
         for i, frame in enumerate(frames[:10]):

@@ -24,7 +24,7 @@ from faults_helpers import (
     write_recording,
 )
 
-from holoview.acquire.recording import RecordingWriter
+from holoview.acquire.recording_writer import RecordingWriter
 from holoview.errors import InputError
 from holoview.headless.input_identity import InputIdentity
 from holoview.headless.parallel.chunks import make_tasks, measure_chunk

@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 from faults_helpers import run_holoview
 
-from holoview.acquire.recording import RecordingReader, RecordingWriter
+from holoview.acquire.recording_reader import RecordingReader
+from holoview.acquire.recording_writer import RecordingWriter
 
 
 def fused_rate(out: Path) -> float:

@@ -23,7 +23,7 @@ import pytest
 from faults_helpers import one_line_error, run_holoview, run_main
 
 from holoview.acquire.frame_times import clock_problem
-from holoview.acquire.recording import RecordingWriter
+from holoview.acquire.recording_writer import RecordingWriter
 
 
 def _jump(f: h5py.File) -> None:

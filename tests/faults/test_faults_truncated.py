@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from faults_helpers import REPO, child_env, one_line_error, run_holoview
 
-from holoview.acquire.recording import RecordingReader
+from holoview.acquire.recording_reader import RecordingReader
 from holoview.acquire.replay_files import open_frame_file
 from holoview.errors import InputError
 
@@ -56,27 +56,38 @@ def test_commands_refuse_a_truncated_recording(truncated: Path, tmp_path: Path, 
     assert not (tmp_path / "copy.h5").exists() and not (tmp_path / "out").exists()
 
 
-def killed_recording(path: Path, seconds: float) -> Path:
-    """A recording whose writer was killed (SIGKILL) after ``seconds``: still marked open."""
+def killed_recording(path: Path, flushed: int = 110) -> Path:
+    """A recording whose writer was killed (SIGKILL), still marked open.
+
+    The writer flushes at an append a second or more after its last flush: the child is
+    killed at its first append 1.3 s after its ``flushed``-th, so at least ``flushed``
+    frames are on disk however slowly a loaded machine runs it.
+    """
     child = subprocess.Popen(
         [sys.executable, str(WRITER_CHILD), str(path), "400"],
-        stdout=subprocess.DEVNULL,
+        stdout=subprocess.PIPE,
+        text=True,
         env=child_env(),
     )
     try:
-        deadline = time.monotonic() + 30
-        while not path.exists() and time.monotonic() < deadline:
-            time.sleep(0.02)
-        time.sleep(seconds)
+        assert child.stdout is not None
+        since: float | None = None
+        while since is None or time.monotonic() - since < 1.3:
+            line = child.stdout.readline()
+            assert line.startswith("appended"), "the writer child stopped early"
+            if since is None and int(line.split()[1]) >= flushed:
+                since = time.monotonic()
     finally:
         child.send_signal(signal.SIGKILL)
         child.wait(10)
+        if child.stdout is not None:
+            child.stdout.close()
     return path
 
 
 READ_ALL = """
 import sys
-from holoview.acquire.recording import RecordingReader
+from holoview.acquire.recording_reader import RecordingReader
 from holoview.errors import InputError
 try:
     with RecordingReader(sys.argv[1]) as reader:
@@ -93,7 +104,7 @@ def test_a_truncated_copy_of_a_killed_recording_never_hangs(
     tmp_path: Path, fraction: float
 ) -> None:
     """SWMR reading (the writer's flag is still set) with bounded retries: answer within seconds."""
-    source = killed_recording(tmp_path / "killed.h5", seconds=1.3)
+    source = killed_recording(tmp_path / "killed.h5")
     cut = truncated_copy(source, tmp_path / "cut.h5", fraction)
     start = time.monotonic()
     done = subprocess.run(
@@ -113,7 +124,7 @@ def test_a_truncated_copy_of_a_killed_recording_never_hangs(
 
 
 def test_a_killed_recording_still_opens_with_its_flushed_frames(tmp_path: Path) -> None:
-    source = killed_recording(tmp_path / "killed.h5", seconds=1.3)
+    source = killed_recording(tmp_path / "killed.h5")
     copy = shutil.copy(source, tmp_path / "copy.h5")
     with RecordingReader(copy) as reader:
         frames = reader[:]

@@ -18,7 +18,7 @@ import tifffile
 from headless_sim import Simulated
 
 import holoview.api as hv
-from holoview.acquire.recording import RecordingReader
+from holoview.acquire.recording_reader import RecordingReader
 from holoview.errors import InputError
 
 

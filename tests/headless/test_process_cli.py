@@ -13,7 +13,7 @@ import pytest
 import tifffile
 from headless_sim import Simulated, run_cli
 
-from holoview.acquire.recording import RecordingWriter
+from holoview.acquire.recording_writer import RecordingWriter
 from holoview.headless.results.outputs import TRENDS_HEADER
 
 FIRST_ORDER = {"RB1", "RF", "FB1", "RB2"}

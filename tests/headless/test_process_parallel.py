@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 from headless_sim import Simulated, run_cli
 
-from holoview.acquire.recording import RecordingWriter
+from holoview.acquire.recording_writer import RecordingWriter
 from holoview.cli import main
 from holoview.errors import InputError
 from holoview.headless.batch import INDEX_CSV

@@ -165,7 +165,7 @@ def test_maps_without_a_pixel_pitch_are_in_frame_pixels(
     evaporation: Simulated, tmp_path: Path
 ) -> None:
     """A .npy stack carries no pitch: y and x count frame pixels, units 1."""
-    from holoview.acquire.recording import RecordingReader
+    from holoview.acquire.recording_reader import RecordingReader
     from holoview.cli import main
 
     with RecordingReader(evaporation.path) as reader:

@@ -11,7 +11,7 @@ import pytest
 import tifffile
 from headless_sim import Simulated
 
-from holoview.acquire.recording import RecordingReader
+from holoview.acquire.recording_reader import RecordingReader
 from holoview.engine.experiment import Experiment
 from holoview.errors import InputError
 from holoview.headless.inputs import OpticsOptions

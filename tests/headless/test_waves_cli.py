@@ -13,6 +13,8 @@ import pytest
 import xarray
 from headless_sim import run_cli
 
+from holoview.headless.waves.analysis import WaveOptions, analyse_waves
+from holoview.headless.waves.maps import open_wave_maps
 from holoview.optics.wave_fields import DampedMode, PartialWave, PartialWaves
 
 #: The simulated bench of these tests: carriers far apart, few mirror passes.
@@ -150,8 +152,7 @@ def test_process_maps_waves_in_one_run(
     assert (out / "results.h5").is_file() and (out / "waves.json").is_file()
     assert stdout.count(str(out)) == 2  # one line each
     summary = json.loads((out / "summary.json").read_text())
-    assert summary["parameters"]["radius"] == "bound"  # no window cuts the waves
-    assert {p["window"]["rule"] for p in summary["peaks"].values()} == {"bound"}
+    assert summary["parameters"]["radius"] == "matched"  # one rule: the default everywhere
     with h5py.File(out / "waves.h5", "r") as f:
         filtered = f["filtered/height"]
         assert filtered.shape[0] == 140 and filtered.attrs["unit"] == "m"
@@ -260,6 +261,39 @@ def test_partial_waves_and_ringdown_through_the_command(
     with h5py.File(out / "waves.h5", "r") as f:
         assert f["lockin/amplitude"].shape == (3, size, size)
         assert f["partial_waves/incoming_real_m"].attrs["unit"] == "m"
+
+
+def test_two_threads_give_the_numbers_of_one(tmp_path: Path) -> None:
+    """Threads (omega-k beside the lock-ins, rings sampled in chunks) change no number."""
+    size, pixel, fps = 48, 0.6e-3, 100.0
+    centre = (14.5e-3, 13.8e-3)
+    surface = PartialWaves(
+        (PartialWave(0, 14.3, 20e-9, 12e-9),), centre=centre, core_radius=3e-3, depth=5e-3
+    )
+    maps, times = field_maps(surface, 300, fps, size, pixel)
+    maps[:, 20:24, 18:22] = np.nan
+    path = results_file(tmp_path / "results.h5", maps, times, pixel)
+    found = []
+    for workers in (1, 2):
+        options = WaveOptions(
+            fit=False,
+            segment=64,
+            centre=centre,
+            r_range=(5e-3, 12e-3),
+            m_max=3,
+            drive=14.3,
+            block=40,
+            workers=workers,
+        )
+        with open_wave_maps(path) as wave_maps:
+            found.append(analyse_waves(wave_maps, options))
+    one, two = found
+    assert one.spectrum.segments == two.spectrum.segments > 4
+    np.testing.assert_array_equal(one.spectrum.power, two.spectrum.power)
+    assert one.lockin is not None and two.lockin is not None
+    np.testing.assert_array_equal(one.lockin.amplitude, two.lockin.amplitude)
+    assert one.mf is not None and two.mf is not None
+    np.testing.assert_array_equal(one.mf.power, two.mf.power)
 
 
 @pytest.mark.parametrize(

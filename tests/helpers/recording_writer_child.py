@@ -12,7 +12,7 @@ import time
 
 import numpy as np
 
-from holoview.acquire.recording import RecordingWriter
+from holoview.acquire.recording_writer import RecordingWriter
 
 
 def main() -> None:

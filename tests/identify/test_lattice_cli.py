@@ -9,7 +9,7 @@ import h5py
 import numpy as np
 import pytest
 
-from holoview.acquire.recording import RecordingReader
+from holoview.acquire.recording_reader import RecordingReader
 from holoview.cli import main
 from holoview.processing.naming.lattice import identify_lattice
 from holoview.processing.naming.lattice_geometry import LatticeKind

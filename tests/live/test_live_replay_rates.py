@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 import tifffile
 
-from holoview.acquire.recording import RecordingReader
+from holoview.acquire.recording_reader import RecordingReader
 from holoview.acquire.replay import DEFAULT_RATE_HZ, ReplayClock
 from holoview.engine.experiment import Experiment
 from holoview.headless.inputs import OpticsOptions

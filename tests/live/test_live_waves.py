@@ -7,16 +7,20 @@ import math
 import time
 from dataclasses import replace
 from pathlib import Path
+from typing import cast
 
 import h5py
 import numpy as np
 import pytest
 
-from holoview.acquire.recording import RecordingReader
+from holoview.acquire.recording_reader import RecordingReader
+from holoview.acquire.ring import FrameRing
 from holoview.engine.experiment import Experiment
 from holoview.errors import InputError
 from holoview.live.session import LiveSession
 from holoview.live.wave_window import FUSED, LiveWaves, WaveHistory, WaveSettings, analyse_window
+from holoview.live.wave_worker import FIT_SHARE, FIT_SHARE_BEHIND, WAVES_HZ, WavesWorker
+from holoview.live.worker import DemodWorker
 from holoview.optics.surfaces import WATER_SURFACE_TENSION
 from holoview.optics.wave_fields import random_travelling_waves
 
@@ -101,6 +105,8 @@ def test_a_full_speed_replay_gives_every_frame_and_the_truth(travelling: Path) -
     assert waves.spectrum is not None and waves.spectrum.segments == 7  # hop 16 in 128
     assert waves.problems == () and waves.fit is not None
     assert_close_to_truth(waves.fit, truth_of(travelling))
+    # a map's CPU time is known, and no more than its time (each map's CPU <= its wall time)
+    assert 0 < waves.map_cpu_seconds <= waves.map_seconds + 1e-4
 
 
 def test_the_fused_map_of_a_full_speed_replay_has_every_frame(travelling: Path) -> None:
@@ -121,6 +127,17 @@ def test_the_fused_map_of_a_full_speed_replay_has_every_frame(travelling: Path) 
     assert status.read == FRAMES and status.dropped == 0
     assert waves.frames == 128 and waves.spectrum is not None
     assert waves.latest is not None and np.isfinite(waves.latest).any()
+
+
+def test_the_analyses_yield_the_cores_to_the_maps_while_frames_are_skipped() -> None:
+    ring = FrameRing(4, (64, 64), np.uint16)
+    maps = cast(DemodWorker, None)  # asked for peaks only when frames come
+    worker = WavesWorker(ring, maps, (64, 64), WaveSettings(label="RB1"))
+    assert worker.fit_period(0.05) == pytest.approx(1.0 / WAVES_HZ)  # cheap: at the top rate
+    assert worker.fit_period(0.5) == pytest.approx(0.5 / FIT_SHARE)
+    worker.stride = 2  # the maps keep one camera frame in two: the analyses take less
+    assert worker.fit_period(0.5) == pytest.approx(0.5 / FIT_SHARE_BEHIND)
+    assert FIT_SHARE_BEHIND < FIT_SHARE
 
 
 def test_a_window_shorter_than_a_segment_is_refused() -> None:

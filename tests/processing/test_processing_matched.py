@@ -20,8 +20,9 @@ from holoview.processing.fourier.windows import radial_window
 from holoview.processing.maps.coregister import fuse_coregistered
 from holoview.processing.maps.demodulate import Demodulator
 from holoview.processing.peaks.detection import find_peaks
-from holoview.processing.peaks.matched import MIN_RADIUS_BINS, measure_spectrum
+from holoview.processing.peaks.matched import MIN_RADIUS_BINS
 from holoview.processing.peaks.radii import surface_band, window_neighbours
+from holoview.processing.peaks.surface_spectrum import measure_spectrum
 
 EDGE_PX = 24
 FRAMES = 5

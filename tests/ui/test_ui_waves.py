@@ -4,6 +4,7 @@ is one line in the panel."""
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import h5py
@@ -11,7 +12,7 @@ import numpy as np
 import pytest
 from PyQt6.QtCore import QPoint, QPointF, Qt
 
-from holoview.acquire.recording import RecordingReader
+from holoview.acquire.recording_reader import RecordingReader
 from holoview.engine.experiment import Experiment
 from holoview.live.wave_window import LiveWaves, WaveHistory, WaveSettings, analyse_window
 from holoview.ui.main_window import MainWindow
@@ -176,6 +177,12 @@ def test_a_map_rate_below_the_camera_says_where_f_is_cut() -> None:
     assert "(a map takes 25 ms, a frame comes every 16.7 ms)" in text
     assert "f is cut at 15 Hz, half the map rate (not the camera's)" in text
     assert "1 gap (lost frames) left open" in text
+    waiting = rate_text(replace(waves, map_cpu_seconds=0.007))  # the processor was busy
+    assert (
+        "(a map takes 25 ms, 7 ms of it computing and the rest waiting for the processor, "
+        "a frame comes every 16.7 ms)"
+    ) in waiting
+    assert rate_text(replace(waves, map_cpu_seconds=0.02)) == text  # mostly computing
 
 
 def test_a_shown_panel_closed_with_a_paint_pending_goes_cleanly(qtbot) -> None:

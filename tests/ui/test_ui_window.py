@@ -11,7 +11,7 @@ import pytest
 import tifffile
 from PyQt6.QtCore import QTimer
 
-from holoview.acquire.recording import RecordingReader
+from holoview.acquire.recording_reader import RecordingReader
 from holoview.engine.experiment import Experiment
 from holoview.headless.run import process_file
 from holoview.headless.settings import ProcessOptions

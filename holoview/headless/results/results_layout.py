@@ -57,8 +57,9 @@ Root attributes
     frame a peak whose mean phase stepped past 0.8 pi since the frame before. A peak
     without alpha keeps its phase map (``units`` ``rad``, ``quantity`` ``phase``).
 
-Written by :class:`holoview.headless.results.outputs.ResultsFile` (the maps as they come, then
-:func:`write_trends`, :func:`write_peaks` and, for the maps, :func:`map_dimensions`);
+Written by :class:`holoview.headless.results.results_file.ResultsFile` (the maps as they
+come, then :func:`write_trends`, :func:`write_peaks` and, for the maps,
+:func:`map_dimensions`);
 read as xarray Datasets by :mod:`holoview.headless.results.results_data`.
 """
 

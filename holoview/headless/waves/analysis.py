@@ -23,6 +23,7 @@ from __future__ import annotations
 import logging
 import math
 import time
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -41,7 +42,7 @@ from holoview.processing.waves.azimuthal import (
 )
 from holoview.processing.waves.dispersion import DispersionFit, Fluid, fit_dispersion
 from holoview.processing.waves.filters import Band
-from holoview.processing.waves.lockin import LockIn, LockInMaps
+from holoview.processing.waves.lockin import LockIn, LockInMaps, push_lockins
 from holoview.processing.waves.omega_k import OmegaKAccumulator, OmegaKSpectrum
 from holoview.processing.waves.partial_waves import PartialWaveFit, fit_partial_wave, refine_tone
 from holoview.processing.waves.ringdown import Ringdown, fit_ringdown
@@ -220,11 +221,21 @@ def _pass_spectrum(maps: WaveMaps, options: WaveOptions, results: WaveResults) -
         if options.centre == "auto":  # the centre is found at the drive
             lockins.extend(_centre_lockins(maps, options.drive))
     finite = 0
-    for times, block in maps.blocks(options.block):
-        finite += int(np.count_nonzero(np.isfinite(block)))
-        omega_k.extend(block, times)
-        for lockin in lockins:
-            lockin.push_block(block, times)
+    # With two threads or more the omega-k segments of a block are worked on beside the
+    # lock-ins and the reading of the next block (each accumulator in order, as alone).
+    with ThreadPoolExecutor(max_workers=1, thread_name_prefix="omega-k") as pool:
+        pending: Future[None] | None = None
+        for times, block in maps.blocks(options.block):
+            if pending is not None:
+                pending.result()
+            if options.workers > 1:
+                pending = pool.submit(omega_k.extend, block, times)
+            else:
+                omega_k.extend(block, times)
+            finite += int(np.count_nonzero(np.isfinite(block)))
+            push_lockins(lockins, block, times)
+        if pending is not None:
+            pending.result()
     if finite == 0:
         raise InputError(f"{maps.path}: maps/{maps.label} are all NaN (no trusted pixel)")
     results.spectrum = omega_k.spectrum()
@@ -277,8 +288,7 @@ def _auto_centre(maps: WaveMaps, options: WaveOptions, results: WaveResults) -> 
         frequency = peaks[0]
         lockins = _centre_lockins(maps, frequency)
         for times, block in maps.blocks(options.block):
-            for lockin in lockins:
-                lockin.push_block(block, times)
+            push_lockins(lockins, block, times)
         amplitudes = [lockin.result().amplitude[0] for lockin in lockins]
     dy, dx = maps.pixel_size
     rows, cols = maps.shape
@@ -353,6 +363,7 @@ def _pass_azimuthal(maps: WaveMaps, options: WaveOptions, results: WaveResults) 
         lock_in=[float(f) for comb in combs for f in comb],
         span=_span(maps),
         series=series,
+        workers=options.workers,
     )
     for times, block in maps.blocks(options.block):
         accumulator.push_block(block, times)

@@ -86,7 +86,7 @@ from holoview.processing.maps.phase_maps import (
 )
 from holoview.processing.maps.unwrap import has_wraps
 from holoview.processing.peaks.detection import Peak
-from holoview.processing.peaks.matched import SurfaceSpectrum, Window
+from holoview.processing.peaks.matched import Window
 from holoview.processing.peaks.radii import (
     check_peaks,
     check_radii,
@@ -95,6 +95,7 @@ from holoview.processing.peaks.radii import (
     peak_windows,
     radius_rule,
 )
+from holoview.processing.peaks.surface_spectrum import SurfaceSpectrum
 
 logger = logging.getLogger(__name__)
 
@@ -158,7 +159,7 @@ class Demodulator:
         "absolute"`` every frame's phase is taken against it instead of against
         the first frame (:meth:`set_background`).
     spectrum : SurfaceSpectrum, optional
-        A frame's spectrum (:func:`~holoview.processing.peaks.matched.measure_spectrum`)
+        A frame's spectrum (:func:`~holoview.processing.peaks.surface_spectrum.measure_spectrum`)
         the matched radii are measured on.
     windows : sequence of Window, optional
         Each peak's window, decided elsewhere (the same as another demodulator's);

@@ -14,60 +14,47 @@ the widest passes in addition is taken off. It keeps the radius of least error, 
 looks again around it, there comparing every radius on the same pixels (those the
 narrowest of them trusts: otherwise each wider radius, trusted closer to the frame's
 edge, took in a band of the widest map's own edge error, and the estimate rose in steps
-with the radius). The noise is the quiet part of the spectrum's (:func:`_noise_floor`):
-a wavy surface spreads its change over much of the spectrum, and the median of every
-bin, taken for the noise, made the cut of a weak family's waves look smaller than its
-noise (FB2 of ``benchmarks/bench_wavy.py``). Each edge width searches from the
+with the radius). The noise is the quiet part of the spectrum's
+(:mod:`holoview.processing.peaks.surface_spectrum`). Each edge width searches from the
 smallest radius that passes the waves detection saw with its own edge
-(:func:`_waves_floor`); the window chosen is then widened where it passes less than
-:data:`CONTENT_PASS` of what the annuli of the change that stand above the noise save
-when passed (:func:`_content_floor`): the estimate sees a cut as the small difference
-of two variances dominated by the widest map's noise, and on a weak family it cut half
-of a ringing mode that detection saw no sidebands of. A
-change whose power stands above the noise is therefore passed: the window never cuts
-a wave field that the maps show above their noise. What
-a window cuts weighs :data:`CUT_WEIGHT` times its error: it is the same surface content
-missing from every peak's map, which the fused map does not average down as it does
-their noise.
+(:func:`_waves_floor`), and the waves that only many frames show
+(:func:`_varying_annuli`: a change one frame shows below its noise, whose variance over
+many frames stands above the noise of their mean), kept at :data:`WAVE_LEVEL` of their
+amplitude (:func:`_level_floor`); the window chosen is then widened where it passes
+less than :data:`CONTENT_PASS` of what the annuli of the change that stand above the
+noise save when passed (:func:`_content_floor`): the estimate sees a cut as the small
+difference of two variances dominated by the widest map's noise, and on a weak family
+it cut half of a ringing mode that detection saw no sidebands of. What a window cuts
+weighs :data:`CUT_WEIGHT` times its error: it is the same surface content missing from
+every peak's map, which the fused map does not average down as it does their noise.
 
 What the map must show is measured on the frames the demodulator itself sees
-(:func:`measure_spectrum`): a frame and the reference the maps are taken against (the
-change), or a frame alone for synthetic phases. Without measurable change around a
-carrier (a flat surface: the excess power of the change outside the carrier's central
-bins within :data:`MEASURABLE_SIGMAS` standard errors of zero), the radius is the
-bound, with a note: nothing says how narrow the surface's spectrum is.
+(:func:`~holoview.processing.peaks.surface_spectrum.measure_spectrum`). Without
+measurable change around a carrier (a flat surface: the excess power of the change
+outside the carrier's central bins within
+:data:`~holoview.processing.peaks.surface_spectrum.MEASURABLE_SIGMAS` standard errors of
+zero), the radius is the bound, with a note: nothing says how narrow the surface's
+spectrum is.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 import pyfftw
+from scipy import stats
 
-from holoview.errors import InputError
 from holoview.processing.fourier.boxes import border_mask, box_layout, box_shape_for, box_weights
-from holoview.processing.fourier.fftplans import DEFAULT_THREADS, ifft2_plan, rfft2_plan
-from holoview.processing.fourier.frames import check_frame
+from holoview.processing.fourier.fftplans import ifft2_plan
 from holoview.processing.fourier.windows import radial_window
+from holoview.processing.peaks.surface_spectrum import (
+    CENTRE_BINS,
+    MEASURABLE_SIGMAS,
+    SurfaceSpectrum,
+)
 
-__all__ = [
-    "CENTRE_BINS",
-    "MEASURABLE_SIGMAS",
-    "SurfaceSpectrum",
-    "Window",
-    "matched_window",
-    "measure_spectrum",
-]
-
-#: Radius (FFT bins) of a carrier's central bins: its own power (the peak of a sub-bin
-#: carrier spreads over the bins next to it), and its mean phase change.
-CENTRE_BINS = 2.0
-
-#: Surface power counts as measured when the excess over the noise outside the carrier's
-#: main lobe is this many standard errors of the noise above zero.
-MEASURABLE_SIGMAS = 5.0
+__all__ = ["Window", "map_errors", "matched_window"]
 
 #: Step (FFT bins) of the radial profile of the change (the content the reason names).
 STEP_BINS = 0.25
@@ -107,6 +94,30 @@ WAVE_EDGE = 0.856
 #: passes.
 CONTENT_PASS = 0.9
 
+#: An annulus whose variance over many frames stands :data:`WAVE_SIGMAS` standard
+#: errors above the frames' noise, and at least this fraction of that noise per bin
+#: above it, holds waves (:func:`_varying_annuli`): the outermost is passed at
+#: :data:`WAVE_LEVEL`. Coherent in time, a wave the noise hides in one frame stands
+#: out of the noise of the run's maps. The fraction keeps the weak tails of strong
+#: waves out (partial waves of ``benchmarks/accuracy_waves.py``: 1.05 to 1.3 times the
+#: noise out to the bound around RB1, 5 to 30 standard errors above it).
+WAVE_FRACTION = 0.25
+
+#: Standard errors of the many frames' mean above the noise at which an annulus's
+#: variance over the frames counts as waves.
+WAVE_SIGMAS = 5.0
+
+#: Fewest frames (effective) whose variance is a test of waves: over fewer, the noise
+#: is known to a third of itself or worse, and a weak family's window widened for what
+#: it took for waves lost more to noise than it kept (FB2 of ``benchmarks/bench_wavy.py``,
+#: 5 frames: correlation with the true surface 0.960 to 0.970 on three seeds of six,
+#: 0.972 to 0.979 without the test).
+MEAN_FRAMES_LEAST = 16
+
+#: Amplitude transfer ``W`` of the window at the outermost annulus of waves: the wave
+#: analyses want each wave's amplitude whole (within 3 %, issue 24).
+WAVE_LEVEL = 0.98
+
 #: Likewise for the other shapes: the fraction of the radius where ``W`` falls to 0.95.
 PASS_FRACTION = {"raised-cosine": 0.144, "top-hat": 1.0}
 
@@ -116,14 +127,6 @@ MIN_AMPLITUDE = 0.25
 #: Smallest matched radius, FFT bins (as the automatic radii's floor).
 MIN_RADIUS_BINS = 4.0
 
-#: Fewest bins of a tile of the spectrum whose median gives one local noise floor.
-FLOOR_TILE_BINS = 1024
-
-#: Most tiles per side of the spectrum for the noise floor.
-FLOOR_TILES = 8
-
-#: The noise floor is this quantile of the tiles' floors (the quiet part of the spectrum).
-FLOOR_QUANTILE = 0.25
 
 #: The rules a window radius is chosen by.
 RULES = ("matched", "bound", "given")
@@ -177,170 +180,6 @@ class Window:
             "cut_rad": self.cut,
             "reason": self.reason,
         }
-
-
-@dataclass(frozen=True)
-class SurfaceSpectrum:
-    """What windows are matched to: frames' half spectra, their reference's, the noise floor.
-
-    Attributes
-    ----------
-    shape : tuple of int
-        Frame shape ``(rows, cols)``.
-    frames : tuple of ndarray of complex64, shape (rows, cols // 2 + 1)
-        The frames' half spectra (``rfft2`` layout), counts: a run's maps are made of
-        frames like them.
-    reference : ndarray of complex64 or None
-        The reference's (the frame the maps are taken against), same layout; None for
-        synthetic phases.
-    floor : float
-        Noise power per bin of what a map shows (the change, or the frame), counts^2:
-        the quiet quarter of the spectrum's tiles, each tile's median over ln 2 (noise
-        power is exponentially distributed; :func:`_noise_floor`).
-    band : float
-        The surface's waves as peak detection saw them, cycles/pixel: the largest
-        offset of a wave's sidebands (:func:`~holoview.processing.peaks.radii.surface_band`;
-        0 when none was seen). Every matched window passes them.
-    """
-
-    shape: tuple[int, int]
-    frames: tuple[np.ndarray, ...]
-    reference: np.ndarray | None
-    floor: float
-    band: float = 0.0
-
-    def _bins(
-        self, carrier: tuple[float, float], radius: float
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """Distances (cycles/pixel), half-spectrum rows, columns and conjugation of the bins
-        within ``radius`` of ``carrier`` (the other half read from the twin)."""
-        rows, cols = self.shape
-        fx, fy = float(carrier[0]), float(carrier[1])
-        kx = np.arange(int(np.floor((fx - radius) * cols)), int(np.ceil((fx + radius) * cols)) + 1)
-        ky = np.arange(int(np.floor((fy - radius) * rows)), int(np.ceil((fy + radius) * rows)) + 1)
-        rho = np.hypot(kx[None, :] / cols - fx, ky[:, None] / rows - fy)
-        inside = rho <= radius
-        yy, xx = np.broadcast_arrays(ky[:, None] % rows, kx[None, :] % cols)
-        mirrored = xx > cols // 2
-        yy = np.where(mirrored, (-yy) % rows, yy)
-        xx = np.where(mirrored, cols - xx, xx)
-        return rho[inside], yy[inside], xx[inside], mirrored[inside]
-
-    def around(self, carrier: tuple[float, float], radius: float) -> tuple[np.ndarray, np.ndarray]:
-        """Distances (cycles/pixel) and powers (counts^2) of the maps' content near a carrier.
-
-        The bins within ``radius`` of ``carrier``: ``|S - exp(i phi) S_ref|^2`` with the
-        carrier's mean phase change ``phi`` (module documentation), or ``|S|^2``,
-        averaged over the frames.
-        """
-        rho, yy, xx, mirrored = self._bins(carrier, radius)
-        rows, cols = self.shape
-        centre = rho <= CENTRE_BINS / max(rows, cols)
-        ref = None
-        if self.reference is not None:
-            ref = self.reference[yy, xx].astype(np.complex128)
-            ref = np.where(mirrored, np.conj(ref), ref)
-        power = np.zeros(rho.shape)
-        for frame in self.frames:
-            value = frame[yy, xx].astype(np.complex128)
-            value = np.where(mirrored, np.conj(value), value)
-            if ref is not None:
-                turn = np.sum(value[centre] * np.conj(ref[centre]))
-                value = value - (turn / abs(turn) if abs(turn) > 0 else 1.0) * ref
-            power += value.real**2 + value.imag**2
-        return rho, power / len(self.frames)
-
-
-def _half_spectrum(frame: np.ndarray, threads: int | None) -> np.ndarray:
-    array = check_frame(frame)
-    plan = rfft2_plan(array.shape, threads=threads or DEFAULT_THREADS)
-    np.copyto(plan.input_array, array, casting="unsafe")
-    plan()
-    return plan.output_array.copy()
-
-
-def measure_spectrum(
-    frames: np.ndarray | Sequence[np.ndarray],
-    reference: np.ndarray | None = None,
-    *,
-    band: float = 0.0,
-    threads: int | None = None,
-) -> SurfaceSpectrum:
-    """Return what windows are matched to (module documentation).
-
-    Parameters
-    ----------
-    frames : ndarray, shape (rows, cols), or sequence of them
-        Holograms (counts; not modified) whose maps the windows are to serve: for a run
-        against its first frame, a few frames spread over it.
-    reference : ndarray, optional
-        The hologram the maps are taken against (the run's first frame, the background),
-        same shape; None for synthetic phases.
-    band : float
-        The surface's waves seen by peak detection, cycles/pixel
-        (:attr:`SurfaceSpectrum.band`).
-    threads : int, optional
-        FFTW threads.
-
-    Raises
-    ------
-    InputError
-        For no frame, frames of different shapes, or spectra without a noise floor.
-    """
-    arrays = [frames] if isinstance(frames, np.ndarray) else list(frames)
-    if not arrays:
-        raise InputError("no frame to match the windows to")
-    shape = (int(np.shape(arrays[0])[0]), int(np.shape(arrays[0])[1]))
-    if any(np.shape(a) != shape for a in arrays) or (
-        reference is not None and np.shape(reference) != shape
-    ):
-        raise InputError("the frames the windows are matched to differ in shape")
-    halves = tuple(_half_spectrum(a, threads) for a in arrays)
-    other = None if reference is None else _half_spectrum(reference, threads)
-    floor = _noise_floor(halves, other)
-    if floor is None:
-        raise InputError("the spectrum has no noise floor (constant, equal or non-finite frames)")
-    return SurfaceSpectrum(shape, halves, other, floor, float(band))
-
-
-def _noise_floor(halves: tuple[np.ndarray, ...], other: np.ndarray | None) -> float | None:
-    """The noise floor of the changes (power per bin), averaged over the frames that have one.
-
-    The half spectrum is cut into tiles of at least :data:`FLOOR_TILE_BINS` bins (at most
-    :data:`FLOOR_TILES` a side); each tile's median power over ln 2 is its floor, and the
-    floor is their :data:`FLOOR_QUANTILE` quantile: the quiet part of the spectrum. The
-    change a surface makes is not confined to its peaks' main lobes: the phase
-    modulation's harmonics and the terms between families spread it over much of the
-    spectrum, and the median of every bin stood 22-30 % above the noise of the change
-    (``benchmarks/bench_wavy.py``'s scene, against the same frames without noise), which
-    made the noise a window passes look larger, and so what it cuts smaller (the matched
-    windows too narrow). The quiet quarter of the tiles stood within 0-2 % of it.
-
-    A frame equal to the reference (a background taken from the run's own first frame)
-    changes nothing and has none; None where no frame has one.
-    """
-    floors = []
-    for half in halves:
-        change = (half if other is None else half - other)[:, 1:-1]
-        power = change.real.astype(np.float64) ** 2 + change.imag.astype(np.float64) ** 2
-        rows, cols = power.shape
-        side = int(np.clip(np.sqrt(rows * cols / FLOOR_TILE_BINS), 1, FLOOR_TILES))
-        tiles = [
-            float(
-                np.median(
-                    power[
-                        i * rows // side : (i + 1) * rows // side,
-                        k * cols // side : (k + 1) * cols // side,
-                    ]
-                )
-            )
-            for i in range(side)
-            for k in range(side)
-        ]
-        floor = float(np.quantile(tiles, FLOOR_QUANTILE)) / np.log(2)
-        if np.isfinite(floor) and floor > 0:
-            floors.append(floor)
-    return float(np.mean(floors)) if floors else None
 
 
 def _field(box: np.ndarray, weights: np.ndarray, plan: pyfftw.FFTW) -> np.ndarray:
@@ -489,6 +328,8 @@ def _content_floor(
     taper: float,
     span: tuple[float, float],
     step: float,
+    *,
+    fraction: float = CONTENT_PASS,
 ) -> float:
     """The smallest radius (cycles/pixel, in ``span``) passing the content above the noise.
 
@@ -496,7 +337,7 @@ def _content_floor(
     the annuli around a carrier whose change stands above the noise floor, outside its
     central bins: their excess power over the floor less the noise they let in (an
     annulus of a change just above the noise saves little). The radius is the smallest,
-    in steps of ``step`` (cycles/pixel), whose window passes :data:`CONTENT_PASS` of it
+    in steps of ``step`` (cycles/pixel), whose window passes ``fraction`` of it
     (``sum W^2 saved``), else the bound; 0 without any such annulus. The map error
     estimate (:func:`map_errors`) sees a cut only as the small difference between two
     maps' variances, both dominated by the widest map's noise, and cut half of the
@@ -514,7 +355,59 @@ def _content_floor(
     passed = np.array(
         [float(np.sum(power * radial_window(kind, middles, r, taper=taper) ** 2)) for r in radii]
     )
-    enough = np.flatnonzero(passed >= CONTENT_PASS * float(np.sum(power)))
+    enough = np.flatnonzero(passed >= fraction * float(np.sum(power)))
+    return float(radii[enough[0]]) if enough.size else bound
+
+
+def _varying_annuli(
+    spectrum: SurfaceSpectrum,
+    varying: np.ndarray | None,
+    which: np.ndarray,
+    middles: np.ndarray,
+    inner: float,
+    *,
+    seen: np.ndarray,
+) -> np.ndarray:
+    """Middles (cycles/pixel) of the annuli that hold waves, beyond ``inner``.
+
+    The annuli (``which``: each bin's; ``middles``, cycles/pixel), beyond ``inner``
+    (the carrier's central bins), whose median variance over many frames
+    (:attr:`SurfaceSpectrum.mean`) stands :data:`WAVE_SIGMAS` standard errors and
+    :data:`WAVE_FRACTION` of the frames' noise above the noise's, where the change does
+    not stand above one frame's noise (not ``seen``: that is content, passed as the
+    map error and :func:`_content_floor` decide): a change
+    coherent over the run that one frame may show below its noise. Empty without the
+    many frames.
+    """
+    mean = spectrum.mean
+    if varying is None or mean is None or mean.frames < MEAN_FRAMES_LEAST:
+        return np.zeros(0)
+    # the median of each annulus: a ring of waves fills its annulus, where the frame's
+    # periodic seam rings along two lines through the carrier (benchmarks/bench_windows.py
+    # at kmax 0.005: their mean 3 times the noise out to the bound, their median 1.1)
+    order = np.argsort(which, kind="stable")
+    starts = np.searchsorted(which[order], np.arange(len(middles) + 1))
+    dof = max(mean.frames - 1.0, 1.0)
+    median = float(stats.chi2.median(2.0 * dof)) / (2.0 * dof)  # of noise alone, per floor
+    standing = np.zeros(len(middles), dtype=bool)
+    for j in np.flatnonzero((middles > inner) & (np.diff(starts) > 0) & ~seen):
+        values = varying[order[starts[j] : starts[j + 1]]] / mean.floor
+        # the median's standard error: sqrt(pi / 2) of a mean's
+        error = 1.2533 / np.sqrt(values.size * dof)
+        excess = float(np.median(values)) - median
+        standing[j] = excess > WAVE_SIGMAS * error and excess > WAVE_FRACTION
+    return middles[standing]
+
+
+def _level_floor(reach: float, kind: str, taper: float, span: tuple[float, float]) -> float:
+    """The smallest radius (cycles/pixel, in ``span``) whose window is :data:`WAVE_LEVEL`
+    at ``reach`` (cycles/pixel); the bound where none is; 0 for no reach."""
+    smallest, bound = span
+    if reach <= 0:
+        return 0.0
+    radii = np.linspace(max(smallest, reach), bound, 256)
+    level = np.array([radial_window(kind, np.array([reach]), r, taper=taper)[0] for r in radii])
+    enough = np.flatnonzero(level >= WAVE_LEVEL)
     return float(radii[enough[0]]) if enough.size else bound
 
 
@@ -557,12 +450,16 @@ def matched_window(
     smallest = MIN_RADIUS_BINS / min(rows, cols)
     if bound <= smallest:
         return Window(bound, kind, taper, "bound", bound, "the bound is the smallest window")
-    rho, power = spectrum.around(carrier, bound)
+    rho, power, varying = spectrum.around(carrier, bound)
     noise = spectrum.floor
     excess = power - noise
     beyond = rho > CENTRE_BINS * per_bin
     outside = int(np.count_nonzero(beyond))
     measured = float(excess[beyond].sum())
+    step = STEP_BINS * per_bin
+    edges = np.arange(0.0, bound + step, step)
+    which = np.minimum(np.searchsorted(edges, rho, side="right") - 1, len(edges) - 2)
+    middles = edges[:-1] + 0.5 * step
     if outside == 0 or measured <= MEASURABLE_SIGMAS * noise * np.sqrt(outside):
         return Window(
             bound,
@@ -577,18 +474,27 @@ def matched_window(
     # widening the best of a shape after the shapes were compared chose a sharp edge
     # (which passes the waves from a smaller radius) widened to where a smoother one
     # was better
-    step = STEP_BINS * per_bin
-    edges = np.arange(0.0, bound + step, step)
-    which = np.minimum(np.searchsorted(edges, rho, side="right") - 1, len(edges) - 2)
     signal = np.bincount(which, weights=excess, minlength=len(edges) - 1)
     count = np.bincount(which, minlength=len(edges) - 1).astype(np.float64)
     above = np.flatnonzero(signal > count * noise)
+    # the annuli of waves that only many frames show (those one frame shows are content)
+    seen = np.zeros(len(middles), dtype=bool)
+    seen[above] = True
+    waving = _varying_annuli(spectrum, varying, which, middles, CENTRE_BINS * per_bin, seen=seen)
     content = float(edges[above[-1] + 1]) if above.size else 0.0
     # the annuli beyond the carrier's central bins whose change stands above the noise
-    middles = edges[:-1] + 0.5 * step
     standing = above[middles[above] > CENTRE_BINS * per_bin]
     annuli = (middles[standing], signal[standing] - count[standing] * noise)
-    waves = {t: _waves_floor(spectrum.band, kind, t, bound) for t in tapers}
+    # the waves detected, and those that stand above the noise of many frames
+    reach = float(waving[-1] + 0.5 * step) if waving.size else 0.0
+    content = max(content, reach)
+    waves = {
+        t: max(
+            _waves_floor(spectrum.band, kind, t, bound),
+            _level_floor(reach, kind, t, (smallest, bound)),
+        )
+        for t in tapers
+    }
     choices = [
         _best_radius(spectrum, carrier, (max(smallest, waves[t]), bound), kind=kind, taper=t)
         for t in tapers
@@ -609,7 +515,14 @@ def matched_window(
         f"out to {content:.4f} cycles/pixel, the bound is {bound:.4f}"
     )
     if waves[taper] > smallest and radius <= waves[taper]:
-        reason += f"; widened to pass the waves detected (|q| up to {spectrum.band:.4f})"
+        if reach > 0 and waves[taper] > _waves_floor(spectrum.band, kind, taper, bound):
+            reason += (
+                f"; widened to pass the waves above the noise of "
+                f"{spectrum.mean.frames if spectrum.mean else 0:.0f} frames whole "
+                f"(out to {reach:.4f})"
+            )
+        else:
+            reason += f"; widened to pass the waves detected (|q| up to {spectrum.band:.4f})"
     if widened:
         reason += f"; widened to pass {CONTENT_PASS:.0%} of the content above the noise"
     return Window(radius, kind, taper, "matched", bound, reason, content, cut)

@@ -26,7 +26,8 @@ import numpy as np
 from holoview.errors import InputError
 from holoview.processing.fourier.windows import auto_radii, check_kind, wrap_frequency
 from holoview.processing.peaks.detection import MIN_RADIUS_BINS, Peak
-from holoview.processing.peaks.matched import SurfaceSpectrum, Window, matched_window
+from holoview.processing.peaks.matched import Window, matched_window
+from holoview.processing.peaks.surface_spectrum import SurfaceSpectrum
 
 __all__ = [
     "RADIUS_RULES",
@@ -197,7 +198,7 @@ def peak_windows(
         The windows' shape (:func:`~holoview.processing.fourier.windows.radial_window`).
     spectrum : SurfaceSpectrum, optional
         The spectrum the matched radii are measured on
-        (:func:`~holoview.processing.peaks.matched.measure_spectrum`).
+        (:func:`~holoview.processing.peaks.surface_spectrum.measure_spectrum`).
     """
     rule = radius_rule(radius)
     check_kind(kind)

@@ -37,6 +37,7 @@ from __future__ import annotations
 import logging
 import math
 from collections.abc import Sequence
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
@@ -114,23 +115,34 @@ class PolarGrid:
         """Azimuthal numbers kept, ``-m_max .. m_max``."""
         return np.arange(-self.m_max, self.m_max + 1)
 
-    def modes(self, frames: ArrayLike) -> NDArray[np.complex128]:
+    def modes(self, frames: ArrayLike, *, workers: int = 1) -> NDArray[np.complex128]:
         """Return ``h_m(r)`` (m) of maps (rows, cols) or (N, rows, cols): (R, M) or (N, R, M).
 
         The samples on the rings (one sparse product) times the cosines and sines of
         ``m = 0 .. m_max`` (one matrix product); ``h_-m`` is the conjugate of ``h_m``
-        (the maps are real).
+        (the maps are real). With ``workers`` above 1 the chunks of
+        :data:`MODES_CHUNK` frames are shared among as many threads (the products
+        release the GIL; each chunk's numbers are the same).
         """
         block = np.asarray(frames, dtype=np.float32)
         single = block.ndim == 2
         block = block.reshape(-1, self.shape[0] * self.shape[1])
         n = block.shape[0]
         parts = np.empty((self.radii.size, self.dft.shape[1], n), np.float32)
-        for a in range(0, n, MODES_CHUNK):  # the samples of a few frames at a time
+
+        def chunk(a: int) -> None:  # the samples of a few frames at a time
             b = min(a + MODES_CHUNK, n)
             samples = np.asarray(self.matrix @ block[a:b].T)
             samples = samples.reshape(self.radii.size, self.n_theta, b - a)
             parts[:, :, a:b] = np.matmul(self.dft.T, samples)  # (R, 2 (m_max + 1), n)
+
+        starts = range(0, n, MODES_CHUNK)
+        if workers > 1 and len(starts) > 1:
+            with ThreadPoolExecutor(max_workers=min(workers, len(starts))) as pool:
+                list(pool.map(chunk, starts))
+        else:
+            for a in starts:
+                chunk(a)
         half = self.m_max + 1
         positive = (parts[:, :half] + 1j * parts[:, half:]).transpose(2, 0, 1)  # (N, R, M+)
         out = np.concatenate([positive[:, :, :0:-1].conj(), positive], axis=2)
@@ -280,6 +292,8 @@ class AzimuthalAccumulator:
         (without it, equal weights).
     series : sequence of int
         Azimuthal numbers whose ``h_m(r, t)`` are kept, every frame.
+    workers : int
+        Threads sampling the rings (:meth:`PolarGrid.modes`), default 1.
     """
 
     def __init__(
@@ -291,6 +305,7 @@ class AzimuthalAccumulator:
         lock_in: Sequence[float] = (),
         span: tuple[float, float] | None = None,
         series: Sequence[int] = (),
+        workers: int = 1,
     ) -> None:
         if not (math.isfinite(interval) and interval > 0):
             raise InputError(f"the frame interval must be positive, got {interval!r} s")
@@ -300,6 +315,7 @@ class AzimuthalAccumulator:
             if abs(m) > grid.m_max:
                 raise InputError(f"m = {m} is beyond the decomposition's |m| <= {grid.m_max}")
         self.grid = grid
+        self.workers = max(1, int(workers))
         self.interval = float(interval)
         self.segment = int(segment)
         self.hop = self.segment // 2
@@ -323,7 +339,7 @@ class AzimuthalAccumulator:
     def push_block(self, frames: ArrayLike, times: ArrayLike) -> None:
         """Add maps ``(N, rows, cols)`` (m) taken at ``times`` (N,) (s), in order."""
         stamps = np.asarray(times, dtype=np.float64).ravel()
-        modes = self.grid.modes(frames)
+        modes = self.grid.modes(frames, workers=self.workers)
         if modes.shape[0] != stamps.size:
             raise InputError(f"{modes.shape[0]} maps and {stamps.size} times do not match")
         self._lock_in(modes, stamps)

@@ -25,7 +25,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from holoview.errors import InputError
 
-__all__ = ["LockIn", "LockInMaps"]
+__all__ = ["LockIn", "LockInMaps", "push_lockins"]
 
 
 @dataclass(frozen=True)
@@ -132,41 +132,30 @@ class LockIn:
             return inside.astype(np.float64)
         return np.where(inside, np.sin(np.pi * phase) ** 2, 0.0)
 
+    def _basis(self, times: np.ndarray) -> np.ndarray:
+        """The block's weights and weighted cosines and sines, (N, 1 + 2H)."""
+        w = self._weights(times)
+        phases = 2.0 * np.pi * self.frequency * np.outer(times, self.harmonics)  # (N, H)
+        return np.column_stack([w, w[:, None] * np.cos(phases), w[:, None] * np.sin(phases)])
+
     def push_block(self, frames: ArrayLike, times: ArrayLike) -> None:
         """Add maps ``(N, rows, cols)`` (m, NaN where untrusted) at ``times`` (s).
 
         Every sum over the frames of a block is one matrix product (float32) with the
-        weights and the weighted cosines and sines, added to float64 totals.
+        weights and the weighted cosines and sines, added to float64 totals. Several
+        lock-ins fed the same maps share that work through :func:`push_lockins`.
         """
-        block = np.asarray(frames, dtype=np.float32)
-        stamps = np.asarray(times, dtype=np.float64).ravel()
-        if block.ndim != 3 or block.shape[1:] != self.shape or block.shape[0] != stamps.size:
-            raise InputError(
-                f"lock-in: maps of shape {block.shape} and {stamps.size} times do not match "
-                f"maps of {self.shape}"
-            )
+        push_lockins((self,), frames, times)
+
+    def _add(self, sums: np.ndarray, present: np.ndarray, block: _Block) -> None:
+        """Add this lock-in's rows of the block's products to its totals."""
         rows, cols = self.shape
-        flat = block.reshape(stamps.size, rows * cols)
-        finite = np.isfinite(flat)
-        all_finite = bool(np.all(finite))
-        clean = flat if all_finite else np.where(finite, flat, np.float32(0.0))
-        w = self._weights(stamps)
-        phases = 2.0 * np.pi * self.frequency * np.outer(stamps, self.harmonics)  # (N, H)
-        basis = np.column_stack([w, w[:, None] * np.cos(phases), w[:, None] * np.sin(phases)])
-        sums = (basis.astype(np.float32).T @ clean).astype(np.float64)  # (1 + 2H, P)
         n_h = len(self.harmonics)
         self._wh += sums[0].reshape(rows, cols)
         self._weighted += (sums[1 : 1 + n_h] + 1j * sums[1 + n_h :]).reshape(n_h, rows, cols)
-        self._h += clean.sum(axis=0, dtype=np.float64).reshape(rows, cols)
-        self._h2 += np.einsum("np,np->p", clean, clean).reshape(rows, cols)
-        counts = np.column_stack([basis, w**2, np.ones_like(w)])  # (N, 3 + 2H)
-        if all_finite:
-            present = np.broadcast_to(counts.sum(axis=0)[:, None], (counts.shape[1], rows * cols))
-        elif np.array_equal(finite.min(axis=0), finite.max(axis=0)):  # one mask for the block
-            present = np.outer(counts.sum(axis=0), finite[0])
-        else:
-            present = counts.astype(np.float32).T @ finite.astype(np.float32)
-        present = np.asarray(present, dtype=np.float64).reshape(-1, rows, cols)
+        self._h += block.total
+        self._h2 += block.squares
+        present = present.reshape(-1, rows, cols)
         self._w += present[0]
         self._turn += present[1 : 1 + n_h] + 1j * present[1 + n_h : 1 + 2 * n_h]
         self._w2 += present[1 + 2 * n_h]
@@ -195,3 +184,83 @@ class LockIn:
             stderr=np.broadcast_to(stderr, amplitude.shape).copy(),
             frames=self._count.copy(),
         )
+
+
+@dataclass(frozen=True)
+class _Block:
+    """One block of maps as every lock-in fed it uses it (computed once for all).
+
+    ``clean`` is (N, pixels) float32 with untrusted values 0; ``finite`` is None when
+    every value is finite, a (pixels,) mask when one mask holds for the whole block,
+    else the (N, pixels) mask; ``total`` and ``squares`` are the sums over the frames of
+    ``h`` and ``h^2`` per pixel (float64, rows x cols).
+    """
+
+    stamps: NDArray[np.float64]
+    clean: NDArray[np.float32]
+    finite: NDArray[np.bool_] | None
+    total: NDArray[np.float64]
+    squares: NDArray[np.float64]
+
+
+def _block(frames: ArrayLike, times: ArrayLike, shape: tuple[int, ...]) -> _Block:
+    block = np.asarray(frames, dtype=np.float32)
+    stamps = np.asarray(times, dtype=np.float64).ravel()
+    if block.ndim != 3 or block.shape[1:] != shape or block.shape[0] != stamps.size:
+        raise InputError(
+            f"lock-in: maps of shape {block.shape} and {stamps.size} times do not match "
+            f"maps of {shape}"
+        )
+    rows, cols = shape
+    flat = block.reshape(stamps.size, rows * cols)
+    finite: NDArray[np.bool_] | None = np.isfinite(flat)
+    assert finite is not None
+    if bool(np.all(finite)):
+        clean, finite = flat, None
+    else:
+        clean = np.where(finite, flat, np.float32(0.0))
+        if np.array_equal(finite.min(axis=0), finite.max(axis=0)):  # one mask for the block
+            finite = finite[0]
+    return _Block(
+        stamps=stamps,
+        clean=clean,
+        finite=finite,
+        total=clean.sum(axis=0, dtype=np.float64).reshape(rows, cols),
+        squares=np.einsum("np,np->p", clean, clean).reshape(rows, cols).astype(np.float64),
+    )
+
+
+def push_lockins(lockins: Sequence[LockIn], frames: ArrayLike, times: ArrayLike) -> None:
+    """Add maps ``(N, rows, cols)`` at ``times`` (s) to every lock-in of ``lockins``.
+
+    The same as each lock-in's :meth:`LockIn.push_block`, with the work on the maps done
+    once: their mask, their sums, and one matrix product with every lock-in's weighted
+    cosines and sines stacked.
+    """
+    if not lockins:
+        return
+    shape = lockins[0].shape
+    if any(lockin.shape != shape for lockin in lockins):
+        raise InputError("lock-ins fed the same maps must have the same map shape")
+    block = _block(frames, times, shape)
+    bases = [lockin._basis(block.stamps) for lockin in lockins]
+    stacked = np.column_stack(bases)  # (N, sum of 1 + 2H)
+    sums = (stacked.astype(np.float32).T @ block.clean).astype(np.float64)
+    # per lock-in: its basis, the sum of w^2 and the frame count, over the present frames
+    counts = np.column_stack(
+        [np.column_stack([basis, basis[:, 0] ** 2, np.ones(block.stamps.size)]) for basis in bases]
+    )
+    pixels = block.clean.shape[1]
+    if block.finite is None:
+        present = np.broadcast_to(counts.sum(axis=0)[:, None], (counts.shape[1], pixels))
+    elif block.finite.ndim == 1:
+        present = np.outer(counts.sum(axis=0), block.finite)
+    else:
+        present = counts.astype(np.float32).T @ block.finite.astype(np.float32)
+    present = np.asarray(present, dtype=np.float64)
+    row = col = 0
+    for lockin, basis in zip(lockins, bases, strict=True):
+        width = basis.shape[1]
+        lockin._add(sums[row : row + width], present[col : col + width + 2], block)
+        row += width
+        col += width + 2

@@ -51,6 +51,14 @@ def test_the_modes_of_a_known_pattern_match_a_plain_sum():
     np.testing.assert_allclose(modes[:, 4 + 2], 0.0, atol=0.01)
 
 
+def test_the_modes_sampled_in_threads_are_those_sampled_in_one(field):
+    _, _, maps = field
+    g = polar_grid((SIZE, SIZE), PIXEL, CENTRE_MAP, r_min=5e-3, r_max=18e-3, m_max=6)
+    alone = g.modes(maps[:70])  # five chunks, the last one short
+    assert alone.shape == (70, g.radii.size, 13)
+    np.testing.assert_array_equal(g.modes(maps[:70], workers=3), alone)
+
+
 def test_the_centre_is_found_from_the_field(field):
     _, times, maps = field
     lockin = LockIn((SIZE, SIZE), 14.3, (1,), span=(0.0, times[-1]))

@@ -10,7 +10,7 @@ from waves_synth import grid
 
 from holoview.errors import InputError
 from holoview.processing.waves.filters import Band, band_filter
-from holoview.processing.waves.lockin import LockIn
+from holoview.processing.waves.lockin import LockIn, push_lockins
 
 SIZE, PIXEL, FPS = 24, 1e-3, 200.0
 
@@ -47,6 +47,55 @@ def test_amplitude_and_phase_maps_of_the_drive_and_its_harmonic_with_gaps_and_ma
     assert np.median(result.stderr[2]) == pytest.approx(expected, rel=0.3)
     assert result.frames[3, 4] == times.size - 300
     assert result.frames[0, 0] == times.size
+
+
+def plain_lockin(maps, times, frequency, harmonics, *, span, flat):
+    """A_n = 2 sum w (h - mean) e^{+i n w t} / sum w per pixel, over its finite frames."""
+    phase = (times - span[0]) / (span[1] - span[0])
+    inside = (phase >= 0) & (phase <= 1)
+    w = inside * 1.0 if flat else np.where(inside, np.sin(np.pi * phase) ** 2, 0.0)
+    finite = np.isfinite(maps)
+    h = np.where(finite, maps, 0.0).astype(np.float64)
+    weights = w[:, None, None] * finite
+    total = np.sum(weights, axis=0)
+    has = total > 0
+    total = np.where(has, total, 1.0)
+    mean = np.sum(weights * h, axis=0) / total
+    out = []
+    for n in harmonics:
+        turn = np.exp(2j * np.pi * n * frequency * times)[:, None, None]
+        out.append(np.where(has, 2 * np.sum(weights * (h - mean) * turn, axis=0) / total, np.nan))
+    return np.array(out), finite.sum(axis=0)
+
+
+def test_lockins_fed_together_give_each_its_own_maps():
+    """push_lockins: one pass over each block for every lock-in, the numbers of each alone."""
+    times = np.delete(np.arange(700) / FPS, np.s_[200:230])
+    maps, _ = driven(times, noise=0.5e-9)
+    maps[:, 5:8, 9:12] = np.nan  # a hole in every frame (one mask per block)
+    maps[120:260, 2, 3] = np.nan  # a pixel untrusted for a while (masks that change)
+    half = 0.5 * (times[0] + times[-1])
+    plans = [
+        (17.3, (1, 2, 3), (times[0], times[-1]), False),
+        (17.3, (1,), (times[0], times[-1]), True),
+        (17.3, (1,), (times[0], half), True),
+        (9.1, (2,), (half, times[-1]), False),
+    ]
+    lockins = [
+        LockIn((SIZE, SIZE), f, n, span=span, window="flat" if flat else "hann")
+        for f, n, span, flat in plans
+    ]
+    for start in range(0, times.size, 64):
+        push_lockins(lockins, maps[start : start + 64], times[start : start + 64])
+    for lockin, (f, n, span, flat) in zip(lockins, plans, strict=True):
+        result = lockin.result()
+        expected, frames = plain_lockin(maps, times, f, n, span=span, flat=flat)
+        kept = np.isfinite(expected)
+        assert np.array_equal(np.isfinite(result.amplitude), kept)
+        np.testing.assert_allclose(result.amplitude[kept], expected[kept], rtol=0, atol=2e-14)
+        np.testing.assert_array_equal(result.frames, frames)
+    with pytest.raises(InputError, match="same map shape"):
+        push_lockins([lockins[0], LockIn((4, 4), 1.0)], maps[:4], times[:4])
 
 
 def test_lockin_refuses_bad_input():
