@@ -137,11 +137,13 @@ def windows_in_use(core: FrameCore) -> WindowsInUse:
     """What :meth:`WindowMatcher.propose` needs of ``core`` (copied: ``core`` may change)."""
     demod = core.demodulator
     if demod is None:
-        given = np.array([p.carrier for p in core.peaks], dtype=np.float64).reshape(-1, 2)
+        if not core.peaks:
+            return WindowsInUse(core.frame_shape, core.experiment, matched=False)
+        given = np.array([p.carrier for p in core.peaks], dtype=np.float64)
         return WindowsInUse(
             core.frame_shape,
             core.experiment,
-            carriers=given if len(given) else None,
+            carriers=given,
             others=distinct_neighbours(core.frame_shape, given, core.neighbours),
             matched=core.spectrum is not None,
         )
