@@ -294,7 +294,7 @@ STEPS = (
     ("fastmath.py", "angle", "phases"),
     ("phase_maps.py", "phase_noise", "noise of each map"),
     ("box_maps.py", "trusted_level", "level of each map (its 2 pi offset)"),
-    ("demodulate.py", "_demodulate", "rest of the per-peak step (mean, product)"),
+    ("box_maps.py", "phase_map", "rest of the per-peak step (mean, product)"),
     ("unwrap.py", "has_wraps", "wrap checks (every caller)"),
     ("phase_maps.py", "unwrap_maps", "unwrapping (the guide's wrap bounds included)"),
     ("demodulate.py", "_finish", "2 pi offset, delta-h"),
@@ -329,7 +329,7 @@ def profile(
         for module, function, label in STEPS:
             for (path, _, name), (_, _, own, total, _) in stats.items():
                 if path.endswith(module) and name == function:
-                    value = own if function == "_demodulate" else total
+                    value = own if function == "phase_map" else total
                     print(f"{label:>56}: {1e3 * value / count:6.3f} {100 * value / whole:5.1f} %")
                     break
         sys.stdout.flush()

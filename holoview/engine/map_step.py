@@ -67,7 +67,7 @@ __all__ = [
 ]
 
 #: How maps are moved onto the first peak's grid before fusion
-#: (:func:`~holoview.processing.maps.coregister.coregister`). Keys' cubic convolution:
+#: (:func:`~holoview.processing.maps.map_moves.coregister`). Keys' cubic convolution:
 #: about a quarter of the cubic B-spline's time on a frame's maps (its prefilter needs
 #: every untrusted pixel filled first), an untrusted pixel spoiling the 4 x 4 pixels
 #: that read it, as the spline's; 0.2 % rms interpolation error on waves 7 pixels long

@@ -12,8 +12,9 @@ import tifffile
 from headless_sim import Simulated, run_cli
 
 from holoview.engine.map_step import FUSION_METHOD, fuse_maps
-from holoview.processing.maps.coregister import MIN_MAP_SIDE, Displacement, coregister
+from holoview.processing.maps.coregister import MIN_MAP_SIDE, Displacement
 from holoview.processing.maps.heights import fuse
+from holoview.processing.maps.map_moves import coregister
 
 
 def test_displacements_are_reported_and_stored_with_the_maps(

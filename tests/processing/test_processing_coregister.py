@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from holoview.errors import InputError
-from holoview.processing.maps.coregister import MAX_STDERR, DisplacementEstimator, coregister
+from holoview.processing.maps.coregister import MAX_STDERR, DisplacementEstimator
+from holoview.processing.maps.map_moves import coregister
 
 SHAPE = (96, 80)
 YY, XX = np.mgrid[: SHAPE[0], : SHAPE[1]].astype(float)
@@ -125,3 +126,41 @@ def test_whole_pixel_shifts_are_exact_and_leave_the_uncovered_edge_untrusted() -
 def test_bad_input_is_named(call, message: str) -> None:
     with pytest.raises(InputError, match=message.replace("(", r"\(").replace(")", r"\)")):
         call()
+
+
+def _untrusted(maps: list[np.ndarray], t: int) -> list[np.ndarray]:
+    """The maps with untrusted pixels that change from frame to frame and map to map: a
+    band of rows that moves, the same number of pixels at other places; two maps share
+    the reference's."""
+    out = []
+    for j, given in enumerate(maps):
+        values = given.copy()
+        if j in (0, 2):
+            values[:4] = np.nan
+        else:
+            start = (7 * t + 3 * j) % (SHAPE[0] - 4)
+            values[start : start + 4] = np.nan
+        out.append(values)
+    return out
+
+
+def test_weights_kept_from_earlier_frames_change_no_number() -> None:
+    """The pair weights kept by mask (the same count of pixels trusted at other places in
+    the frames before) and a frame's reference side shared by maps give the numbers of an
+    estimator that saw none of them, to the last bit."""
+    truth = [(0.0, 0.0), (0.37, -1.23), (0.0, 0.0), (-2.6, 0.15)]
+    frames = [_untrusted(maps, t) for t, maps in enumerate(frames_of(truth, 0.3, 24))]
+    fresh = DisplacementEstimator(SHAPE, len(truth), update_every=4)
+    for maps in frames:
+        fresh.add(maps)
+    warm = DisplacementEstimator(SHAPE, len(truth), update_every=4)
+    for maps in reversed(frames):  # every mask seen before, in another order
+        warm.add(maps)
+    for k, maps in enumerate(frames_of(truth, 0.3, 30, seed=2)):  # more masks than are kept
+        warm.add(_untrusted(maps, 5 * k + 1))
+    warm.reset()
+    for maps in frames:
+        warm.add(maps)
+    expected = [(d.shift, d.stderr, d.measured, d.bins) for d in fresh.displacements()]
+    assert [(d.shift, d.stderr, d.measured, d.bins) for d in warm.displacements()] == expected
+    assert fresh.displacements()[1].shift == pytest.approx(truth[1], abs=0.1)

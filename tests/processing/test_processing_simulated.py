@@ -13,9 +13,10 @@ from holoview.optics.setup import Setup
 from holoview.optics.synthesis import HologramSynthesizer, pixel_coordinates
 from holoview.optics.wave_fields import DampedMode
 from holoview.processing.fourier.resample import box_positions
-from holoview.processing.maps.coregister import DisplacementEstimator, coregister
+from holoview.processing.maps.coregister import DisplacementEstimator
 from holoview.processing.maps.demodulate import Demodulator
 from holoview.processing.maps.heights import fuse
+from holoview.processing.maps.map_moves import coregister
 from holoview.processing.peaks.detection import Peak, find_peaks
 
 SIGMA = 40.0  # bump width, pixels

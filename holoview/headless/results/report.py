@@ -39,7 +39,7 @@ from matplotlib.patches import Circle
 
 from holoview.headless.analysis import Analysis
 from holoview.headless.inputs import Optics
-from holoview.headless.results.figures import new_figure, save_figure
+from holoview.headless.results.figures import DPI, new_figure, save_figure
 from holoview.headless.run_data import RunData
 from holoview.headless.settings import ProcessSettings
 from holoview.processing.peaks.detection import Peak
@@ -51,6 +51,11 @@ WIDTH_IN = 13.66
 HEADER_IN = 0.95
 #: Side of the spectrum and trends panels, inches.
 PANEL_IN = 4.1
+#: The spectrum is shown averaged over blocks of bins, as many as fit in one of the
+#: panel's pixels at the figure's resolution: matplotlib resamples the image it is given in
+#: float64 RGBA, which at 1024^2 raised the run's peak memory by about 45 MB (the report
+#: made 50 of a 1024^2 process's 275 MB); averaged 2 x 2, what it shows is the same.
+SPECTRUM_PIXELS = round(PANEL_IN * DPI)
 #: Side of one map, inches, and the maps in a row.
 MAP_IN = 2.05
 MAPS_PER_ROW = 4
@@ -124,12 +129,17 @@ def _spectrum_panel(
     pixel_pitch_m: float | None,
 ) -> None:
     rows, cols = spectrum.shape
-    low, high = np.percentile(spectrum, (5.0, 99.99))
     # bin centres: column k (centred) is fx = (k - cols // 2) / cols
     x0, x1 = -(cols // 2) / cols - 0.5 / cols, (cols - cols // 2) / cols - 0.5 / cols
     y0, y1 = -(rows // 2) / rows - 0.5 / rows, (rows - rows // 2) / rows - 0.5 / rows
+    factor = max(1, min(rows, cols) // SPECTRUM_PIXELS)
+    shown = block_mean(spectrum, factor)
+    # the bins beyond the last whole block are left out of the image
+    x1 -= (cols - shown.shape[1] * factor) / cols
+    y1 -= (rows - shown.shape[0] * factor) / rows
+    low, high = np.percentile(shown, (5.0, 99.99))
     axes.imshow(
-        spectrum,
+        shown,
         cmap="gray",
         vmin=low,
         vmax=high,
@@ -179,6 +189,25 @@ def _spectrum_panel(
         "dots: twins; grey: other peaks",
         fontsize=10,
     )
+
+
+def block_mean(image: np.ndarray, factor: int) -> np.ndarray:
+    """``image`` averaged over blocks of ``factor`` x ``factor`` pixels (float32).
+
+    The rows and columns beyond the last whole block are left out; ``factor`` 1 gives
+    the image itself.
+
+    Examples
+    --------
+    >>> block_mean(np.arange(20.0).reshape(4, 5), 2).tolist()
+    [[3.0, 5.0], [13.0, 15.0]]
+    """
+    if factor <= 1:
+        return image
+    rows, cols = image.shape[0] // factor, image.shape[1] // factor
+    blocks = image[: rows * factor, : cols * factor].reshape(rows, factor, cols, factor)
+    mean: np.ndarray = blocks.mean(axis=(1, 3), dtype=np.float64)
+    return mean.astype(np.float32)
 
 
 def _fit(analysis: Analysis) -> tuple[float | None, float | None]:

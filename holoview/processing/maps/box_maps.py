@@ -1,10 +1,12 @@
 """One peak's maps of one frame from its box: field, trusted pixels, 2 pi offset, result.
 
-The steps of :class:`~holoview.processing.maps.demodulate.Demodulator` that hold no state
-of their own: the box inverted into a new field (:func:`invert_box`), the pixels trusted
-by amplitude (:func:`trusted_pixels`), the mean phase of the trusted pixels that sets a
-map's 2 pi offset (:func:`trusted_level`), and the peak's result with its offset, noise
-and heights (:func:`peak_result`). Scratch buffers are a phase workspace's
+The per-peak steps of :class:`~holoview.processing.maps.demodulate.Demodulator`: the
+box inverted into a new field (:func:`invert_box`), the pixels trusted by amplitude
+(:func:`trusted_pixels`), the wrapped phase map against the peak's reference with its
+noise (:func:`phase_map`, the only step that touches the references' state), the mean
+phase of the trusted pixels that sets a map's 2 pi offset (:func:`trusted_level`), and
+the peak's result with its offset, noise and heights (:func:`peak_result`). Scratch
+buffers are a phase workspace's
 (:class:`~holoview.processing.fourier.fastmath.AngleWorkspace`), free between phases.
 
 Fields in counts, phases in rad, heights in m; maps at box resolution.
@@ -12,16 +14,63 @@ Fields in counts, phases in rad, heights in m; maps at box resolution.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 import pyfftw
 
 from holoview.processing.fourier.boxes import BoxGeometry, cut_box
-from holoview.processing.fourier.fastmath import TWO_PI, AngleWorkspace
+from holoview.processing.fourier.fastmath import TWO_PI, AngleWorkspace, angle
 from holoview.processing.maps.demod_results import PeakResult
-from holoview.processing.maps.phase_maps import PhaseMap, median_magnitude
+from holoview.processing.maps.phase_maps import PhaseMap, median_magnitude, phase_noise
+from holoview.processing.maps.references import PhaseReferences
+from holoview.processing.maps.unwrap import has_wraps
 from holoview.processing.peaks.detection import Peak
 
-__all__ = ["invert_box", "peak_result", "trusted_level", "trusted_pixels"]
+__all__ = [
+    "MIN_VALID_FRACTION",
+    "PeakBox",
+    "invert_box",
+    "peak_result",
+    "phase_map",
+    "trusted_level",
+    "trusted_pixels",
+]
+
+#: A peak with fewer trusted pixels than this fraction of those it could have (inside the
+#: aperture, off the border) is flagged ``"low_amplitude"``.
+MIN_VALID_FRACTION = 0.5
+
+
+@dataclass(frozen=True)
+class PeakBox:
+    """What one peak's step of every frame takes (:func:`phase_map`), fixed by the demodulator.
+
+    Attributes
+    ----------
+    index : int
+        The peak's position in the demodulator's list (and in its references).
+    geometry : BoxGeometry
+        Its box: where in the half spectrum, its window, its sub-bin plane wave.
+    trusted : ndarray of bool
+        The box pixels that may be trusted (inside the aperture, off the border).
+    trustable : int
+        Their count.
+    amplitude : float
+        The peak's amplitude relative to the frame's mean (0 when not known).
+    overlapping : bool
+        Its window reaches another peak (flag ``"overlap"``).
+    frame_size : int
+        Pixels in the frame (``rows cols``).
+    """
+
+    index: int
+    geometry: BoxGeometry
+    trusted: np.ndarray
+    trustable: int
+    amplitude: float
+    overlapping: bool
+    frame_size: int
 
 
 def invert_box(half: np.ndarray, geometry: BoxGeometry, plan: pyfftw.FFTW) -> np.ndarray:
@@ -39,6 +88,97 @@ def invert_box(half: np.ndarray, geometry: BoxGeometry, plan: pyfftw.FFTW) -> np
     plan.execute()
     plan.update_arrays(source, scratch)
     return field
+
+
+def phase_map(
+    half: np.ndarray,
+    box: PeakBox,
+    plan: pyfftw.FFTW,
+    references: PhaseReferences,
+    *,
+    mean: float,
+    floor: float,
+    value: complex | None,
+    min_amplitude: float,
+    check_wraps: bool,
+    workspace: AngleWorkspace,
+) -> PhaseMap:
+    """Cut, window and invert a peak's box; its phase against its reference (wrapped).
+
+    Parameters
+    ----------
+    half : ndarray of complex64
+        The frame's half spectrum
+        (:class:`~holoview.processing.fourier.half_spectrum.HalfSpectrum`).
+    box : PeakBox
+        The peak's constants.
+    plan : pyfftw.FFTW
+        The box shape's inverse FFT; its input buffer is the product's scratch.
+    references : PhaseReferences
+        The demodulator's references: the peak's mean phase is advanced, its reference
+        field taken or replaced.
+    mean : float
+        The frame's mean (counts).
+    floor : float
+        The noise power per spectrum bin of this frame's maps (counts^2).
+    value : complex or None
+        The peak's carrier value given for this frame (counts), else the box's own mean.
+    min_amplitude : float
+        The fraction of the expected amplitude a trusted pixel reaches.
+    check_wraps : bool
+        Whether to tell, while the map is in cache, if it wraps (``unwrap="auto"``).
+    workspace : AngleWorkspace
+        Scratch of the box's shape.
+    """
+    geo = box.geometry
+    field = invert_box(half, geo, plan)
+    flags: set[str] = {"overlap"} if box.overlapping else set()
+    power, mask, valid = trusted_pixels(
+        field,
+        box.amplitude * mean if box.amplitude > 0 else None,
+        min_amplitude,
+        box.trusted,
+        workspace,
+    )
+    if valid < MIN_VALID_FRACTION * box.trustable:
+        flags.add("low_amplitude")
+
+    # mean phase: the field against the sub-bin plane wave, averaged (or given)
+    if value is None:
+        value = complex(np.vdot(geo.ramp, field)) / field.size
+    step = references.advance(box.index, value)
+    if step.stepped:
+        flags.add("phase_step")
+
+    # the box's spectrum is spent: the product goes where it was (a buffer still in cache)
+    product = references.against(box.index, field, geo.ramp_conj, step.reference, plan.input_array)
+    level, wraps = None, None
+    if product is None:
+        flags.add("reference")
+        phase = np.zeros(field.shape, dtype=np.float32)
+        noise = 0.0
+    else:
+        noise = phase_noise(power, mask, floor, geo.area_fraction, box.frame_size)
+        phase = angle(product, workspace=workspace)
+        if valid:
+            # while the map is in cache: the 2 pi offset's level, whether it wraps
+            level = trusted_level(phase, mask, valid, workspace)
+            if check_wraps:
+                wraps = has_wraps(phase, mask)
+    return PhaseMap(
+        field=field,
+        phase=phase,
+        mask=mask,
+        valid=valid,
+        value=value,
+        mean_phase=step.mean_phase,
+        target=step.target,
+        flags=flags,
+        live=product is not None,
+        noise=noise,
+        wraps=wraps,
+        level=level,
+    )
 
 
 def trusted_pixels(

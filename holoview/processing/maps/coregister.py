@@ -47,12 +47,12 @@ residual mostly noise; added all the same, update after update, they walked the
 estimate away: RF a camera pixel in each axis in 512 frames, and the fused map's
 centre 0.6 map pixel off, where the truth has no shift.
 Shifts are in pixels of the maps' grid, ``(dy, dx)``, with ``moving(r) = reference(r - d)``:
-:func:`coregister` moves each map by ``-d`` onto the reference's grid.
+:func:`~holoview.processing.maps.map_moves.coregister` moves each map by ``-d`` onto the
+reference's grid.
 """
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -60,6 +60,7 @@ import numpy as np
 from scipy import ndimage
 
 from holoview.errors import InputError
+from holoview.processing.maps.map_moves import coregister
 
 #: Smallest side (pixels) of maps the estimator takes; smaller maps are not co-registered.
 MIN_MAP_SIDE = 8
@@ -90,6 +91,9 @@ MIN_SIGNIFICANCE = 8.0
 #: Width (pixels) of the raised-cosine edge by which the maps fall to zero at the pixels
 #: untrusted in any of them (module documentation).
 EDGE_TAPER_PX = 4.0
+
+#: Masks of trusted pixels whose pair weights :class:`DisplacementEstimator` keeps.
+WEIGHTS_KEPT = 16
 
 #: Pixels over which a map's noise is correlated (the spectral window's footprint);
 #: conservative, so that noise alone is not taken for structure.
@@ -155,9 +159,13 @@ def _edge_taper(trusted: np.ndarray) -> np.ndarray:
     return 0.5 - 0.5 * np.cos(np.pi * np.clip(distance / (EDGE_TAPER_PX + 1.0), 0.0, 1.0))
 
 
-def _weighted(values: np.ndarray, trusted: np.ndarray, weight: np.ndarray) -> np.ndarray:
-    """``values`` less their weighted mean over ``trusted``, times ``weight``; 0 elsewhere."""
-    total = float(weight[trusted].sum())
+def _weighted(
+    values: np.ndarray, trusted: np.ndarray, weight: np.ndarray, total: float
+) -> np.ndarray:
+    """``values`` less their weighted mean over ``trusted``, times ``weight``; 0 elsewhere.
+
+    ``total``: the sum of ``weight`` over ``trusted``.
+    """
     if not total > 0:
         return np.zeros(values.shape)
     # the plain mean first: a constant map is then exactly zero, not rounding residue
@@ -215,6 +223,9 @@ class DisplacementEstimator:
         spectrum_shape = (rows, cols // 2 + 1)
         self._cross = np.zeros((count, *spectrum_shape), dtype=np.complex128)
         self._power = np.zeros((count, 2, *spectrum_shape), dtype=np.float64)
+        #: per pixels trusted (their mask's bytes): the pair's weight, the sum of the weight
+        #: over them, and the independent pixels it leaves (:meth:`_pair_weight`)
+        self._weights: dict[bytes, tuple[np.ndarray, float, float]] = {}
         self.reset()
 
     def reset(self) -> None:
@@ -252,9 +263,10 @@ class DisplacementEstimator:
                 )
         moved = [np.asarray(m, np.float64) for m in coregister(maps, self._current)]
         reference = moved[self.reference]
+        sides: dict[bytes, tuple[np.ndarray, np.ndarray, float]] = {}
         for j, values in enumerate(moved):
             if j != self.reference:
-                self._add_pair(j, reference, values)
+                self._add_pair(j, reference, values, sides)
         self.frames += 1
         self._summed += 1
         self._answer = None
@@ -262,26 +274,61 @@ class DisplacementEstimator:
             self._update()
             self._interval = min(2 * self._interval, max(self.update_every, MAX_UPDATE_EVERY))
 
-    def _add_pair(self, j: int, reference: np.ndarray, values: np.ndarray) -> None:
+    def _add_pair(
+        self,
+        j: int,
+        reference: np.ndarray,
+        values: np.ndarray,
+        sides: dict[bytes, tuple[np.ndarray, np.ndarray, float]],
+    ) -> None:
         """Add the cross-power of map ``j`` and the reference on the pixels both trust.
 
         Both fall to zero by the same tapered window (:func:`_edge_taper`) at the pixels
         either does not trust: the edges of their trusted pixels, which differ from peak
         to peak (border widths, amplitude), are not taken for structure in common.
+        ``sides``: this frame's reference side of a pair (its spectrum, power and energy)
+        by the pixels trusted, the same for every map that trusts the same pixels.
         """
         trusted = np.isfinite(reference) & np.isfinite(values)
+        key = trusted.tobytes()
+        weight, total, independent = self._pair_weight(trusted, key)
+        if not independent > 0:
+            return
+        side = sides.get(key)
+        if side is None:
+            weighted = _weighted(reference, trusted, weight, total)
+            ref = np.fft.rfft2(weighted)
+            side = sides[key] = (ref, (ref * np.conj(ref)).real, float(np.vdot(weighted, weighted)))
+        ref, ref_power, ref_energy = side
+        weighted = _weighted(values, trusted, weight, total)
+        spectrum = np.fft.rfft2(weighted)
+        self._cross[j] += ref * np.conj(spectrum)
+        self._power[j, 0] += ref_power
+        self._power[j, 1] += (spectrum * np.conj(spectrum)).real
+        self._energy[j] += (ref_energy, float(np.vdot(weighted, weighted)))
+        self._independent[j] += independent
+        self._paired[j] += 1
+
+    def _pair_weight(self, trusted: np.ndarray, key: bytes) -> tuple[np.ndarray, float, float]:
+        """The weight of a pair whose pixels ``trusted`` both trust (Hann window, edge
+        taper), its sum over them, and the independent pixels it leaves for white noise
+        (0: no weight anywhere).
+
+        Kept by mask: the trusted pixels are most often those of earlier frames (the
+        border, the aperture), and the taper's distance transform is the costliest step
+        of adding a pair (the same numbers, computed once). ``key``: ``trusted``'s bytes.
+        """
+        known = self._weights.get(key)
+        if known is not None:
+            return known
         weight = self._window * _edge_taper(trusted)
         squared = weight**2
-        if not squared.any():
-            return
-        pair = (_weighted(reference, trusted, weight), _weighted(values, trusted, weight))
-        ref, spectrum = np.fft.rfft2(pair[0]), np.fft.rfft2(pair[1])
-        self._cross[j] += ref * np.conj(spectrum)
-        self._power[j, 0] += (ref * np.conj(ref)).real
-        self._power[j, 1] += (spectrum * np.conj(spectrum)).real
-        self._energy[j] += (float(np.vdot(pair[0], pair[0])), float(np.vdot(pair[1], pair[1])))
-        self._independent[j] += float(squared.sum() ** 2 / (squared**2).sum())
-        self._paired[j] += 1
+        independent = float(squared.sum() ** 2 / (squared**2).sum()) if squared.any() else 0.0
+        if len(self._weights) >= WEIGHTS_KEPT:
+            self._weights.clear()  # a surface whose masks keep changing: start over
+        known = (weight, float(weight[trusted].sum()), independent)
+        self._weights[key] = known
+        return known
 
     def _update(self) -> None:
         """Add each measured residual that stands out of its errors to the current
@@ -383,155 +430,6 @@ class DisplacementEstimator:
         if not measured:
             return Displacement((0.0, 0.0), err, False, n)
         return Displacement(shift, err, True, n)
-
-
-#: Interpolations :func:`coregister` offers.
-METHODS = ("spline", "cubic")
-
-
-def _weights(kind: str, t: float) -> tuple[float, float, float, float]:
-    """Weights of the samples at -1, 0, 1, 2 around an offset ``t`` in [0, 1).
-
-    ``spline``: cubic B-spline (of prefiltered coefficients); ``cubic``: Keys' cubic
-    convolution, a = -1/2 (of the samples themselves); ``reach``: 1 for every sample
-    read (spreads an untrusted mask).
-    """
-    if kind == "spline":
-        return (
-            (1.0 - t) ** 3 / 6.0,
-            (3.0 * t**3 - 6.0 * t**2 + 4.0) / 6.0,
-            (-3.0 * t**3 + 3.0 * t**2 + 3.0 * t + 1.0) / 6.0,
-            t**3 / 6.0,
-        )
-    if kind == "cubic":
-        return (
-            -0.5 * t**3 + t**2 - 0.5 * t,
-            1.5 * t**3 - 2.5 * t**2 + 1.0,
-            -1.5 * t**3 + 2.0 * t**2 + 0.5 * t,
-            0.5 * t**3 - 0.5 * t**2,
-        )
-    return (1.0, 1.0, 1.0, 1.0)
-
-
-def _along(values: np.ndarray, shift: float, axis: int, kind: str) -> np.ndarray:
-    """Move ``values`` by ``shift`` pixels along ``axis`` (edges held), as float32.
-
-    The output at ``i`` sums the four samples around ``i - shift`` with the weights
-    of ``kind`` (:func:`_weights`); a whole-pixel shift only moves the samples, except
-    for spline coefficients, which still need their weights.
-    """
-    start = -shift
-    whole = math.floor(start)
-    t = start - whole
-    size = values.shape[axis]
-    values = values.astype(np.float32, copy=False)
-    if whole:
-        values = np.take(values, np.clip(np.arange(size) + whole, 0, size - 1), axis=axis)
-    if t == 0 and kind != "spline":
-        return values
-    taps = np.array(_weights(kind, t), dtype=np.float32)
-    # along the array's contiguous axis (a copy when it is not): scipy's correlate1d
-    # across the rows of a 1024^2 map took 8 times as long as along them
-    lined = np.ascontiguousarray(np.moveaxis(values, axis, -1))
-    # correlate1d's taps j = 0..3 read offsets j - 2 - origin: origin -1 reads -1..2
-    moved = ndimage.correlate1d(lined, taps, axis=-1, mode="nearest", origin=-1)
-    return np.moveaxis(moved, -1, axis)
-
-
-def _fill_untrusted(array: np.ndarray, trusted: np.ndarray) -> np.ndarray:
-    """Return ``array`` (float32) with untrusted pixels set to a local trusted average.
-
-    Normalised convolution with a Gaussian of 2 pixels (out to 4); pixels with no
-    trusted neighbour within its reach take the trusted mean.
-    """
-    values = np.where(trusted, array, np.float32(0.0)).astype(np.float32)
-    weight = ndimage.gaussian_filter(trusted.astype(np.float32), 2.0, truncate=2.0)
-    local = np.full(array.shape, values[trusted].mean(), dtype=np.float32)
-    reached = weight > 1e-3
-    smooth = ndimage.gaussian_filter(values, 2.0, truncate=2.0)
-    local[reached] = smooth[reached] / weight[reached]
-    return np.where(trusted, values, local)
-
-
-def _spline_move(array: np.ndarray, dy: float, dx: float) -> np.ndarray:
-    trusted = np.isfinite(array)
-    whole = bool(trusted.all())
-    if not trusted.any():
-        return np.full(array.shape, np.nan, dtype=np.float32)
-    filled = array if whole else _fill_untrusted(array, trusted)
-    coefficients = ndimage.spline_filter(filled, order=3, output=np.float32, mode="mirror")
-    moved = _along(_along(coefficients, -dy, 0, "spline"), -dx, 1, "spline")
-    if not whole:
-        moved[_along(_along(~trusted, -dy, 0, "reach"), -dx, 1, "reach") > 0] = np.nan
-    return moved
-
-
-def coregister(
-    maps: Sequence[np.ndarray],
-    shifts: Sequence[tuple[float, float]],
-    *,
-    method: str = "spline",
-) -> list[np.ndarray]:
-    """Return the maps moved by ``-shift`` each onto the reference grid (NaN: untrusted).
-
-    Maps at the box resolution hold detail up to near their Nyquist frequency, which
-    linear interpolation would damp by up to half at a half-pixel shift. Measured on
-    waves 7 pixels and longer (rms error, time for a 144 x 144 map here):
-
-    - ``"spline"``: cubic B-spline, a separable prefilter then four taps per axis:
-      0.04 %, 0.3 ms (0.7 ms with untrusted pixels, filled from their trusted
-      neighbours for the prefilter). For estimates and stored results; Keys'
-      convolution biased the iterated displacements by 0.02 map pixels, this did not.
-    - ``"cubic"``: Keys' cubic convolution, four taps per axis: 0.2 %, 0.09 ms. For
-      the live view's fused map.
-    - linear interpolation, for comparison: 3 %.
-
-    An untrusted pixel stays untrusted and spoils every pixel whose four taps per
-    axis read it (4 x 4 pixels); pixels moved in from outside the map are untrusted
-    too. A zero shift returns the map as float32, unmoved.
-
-    Parameters
-    ----------
-    maps : sequence of ndarray, shape (rows, cols)
-        Maps (NaN where untrusted); not modified.
-    shifts : sequence of (dy, dx)
-        Each map's :attr:`Displacement.shift`, pixels.
-    method : {"spline", "cubic"}
-        The interpolation.
-
-    Returns
-    -------
-    list of ndarray
-        The moved maps, float32.
-    """
-    if len(maps) != len(shifts):
-        raise InputError(f"{len(maps)} maps but {len(shifts)} shifts")
-    if method not in METHODS:
-        raise InputError(f"unknown interpolation {method!r}; choose one of {', '.join(METHODS)}")
-    out = []
-    for values, (dy, dx) in zip(maps, shifts, strict=True):
-        array = np.asarray(values, dtype=np.float32)
-        if dy == 0 and dx == 0:
-            out.append(array)
-            continue
-        if method == "spline":
-            moved = _spline_move(array, dy, dx)
-        else:
-            moved = _along(_along(array, -dy, 0, "cubic"), -dx, 1, "cubic")
-        _blank_outside(moved, dy, dx)
-        out.append(moved)
-    return out
-
-
-def _blank_outside(moved: np.ndarray, dy: float, dx: float) -> None:
-    """Set to NaN the pixels whose source ``r + shift`` lies outside the map."""
-    for axis, shift in ((0, dy), (1, dx)):
-        size = moved.shape[axis]
-        source = np.arange(size) + shift
-        outside = (source < 0) | (source > size - 1)
-        index = [slice(None), slice(None)]
-        index[axis] = outside
-        moved[tuple(index)] = np.nan
 
 
 def fuse_coregistered(

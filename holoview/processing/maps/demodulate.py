@@ -37,6 +37,12 @@ against another peak's map scaled by the ratio of alphas
 frames and peaks are never modified. Carriers below one FFT bin:
 :func:`holoview.processing.peaks.detection.refine_carriers`.
 
+Where the steps are: the per-peak step of every frame (box, trusted pixels, phase,
+noise, result) in :mod:`~holoview.processing.maps.box_maps`; what each peak's phases are
+taken against (reference fields, background, mean phases) in
+:mod:`~holoview.processing.maps.references`; unwrapping and noise in
+:mod:`~holoview.processing.maps.phase_maps`.
+
 The demodulator keeps state (references, plans, buffers): use it from one thread
 at a time. It creates no thread; FFTW may use ``threads`` internally.
 """
@@ -48,7 +54,6 @@ from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
-import pyfftw
 
 from holoview.errors import InputError
 from holoview.processing.fourier.boxes import (
@@ -57,18 +62,13 @@ from holoview.processing.fourier.boxes import (
     box_geometry,
     box_shape_for,
 )
-from holoview.processing.fourier.fastmath import AngleWorkspace, angle
+from holoview.processing.fourier.fastmath import AngleWorkspace
 from holoview.processing.fourier.fftplans import DEFAULT_THREADS, ifft2_plan
 from holoview.processing.fourier.frames import MIN_SIDE
 from holoview.processing.fourier.half_spectrum import HalfSpectrum
 from holoview.processing.fourier.resample import resample_mask, upsample
 from holoview.processing.fourier.windows import DEFAULT_TAPER, DEFAULT_WINDOW, check_kind
-from holoview.processing.maps.box_maps import (
-    invert_box,
-    peak_result,
-    trusted_level,
-    trusted_pixels,
-)
+from holoview.processing.maps.box_maps import PeakBox, invert_box, peak_result, phase_map
 from holoview.processing.maps.demod_results import (
     MAP_GRIDS,
     REFERENCE_MODES,
@@ -76,15 +76,13 @@ from holoview.processing.maps.demod_results import (
     DemodResult,
     PeakResult,
 )
-from holoview.processing.maps.mean_phases import MeanPhases, MeanPhaseState
+from holoview.processing.maps.mean_phases import MeanPhaseState
 from holoview.processing.maps.phase_maps import (
     PhaseMap,
     floor_grid,
-    floor_power,
-    phase_noise,
     unwrap_maps,
 )
-from holoview.processing.maps.unwrap import has_wraps
+from holoview.processing.maps.references import PhaseReferences
 from holoview.processing.peaks.detection import Peak
 from holoview.processing.peaks.matched import Window
 from holoview.processing.peaks.radii import (
@@ -103,10 +101,6 @@ __all__ = ["Demodulator"]
 
 #: Box size (bins) from which a box's inverse FFT uses the frame FFT's threads.
 LARGE_BOX = 256 * 256
-
-#: A peak with fewer trusted pixels than this fraction of those it could have (inside the
-#: aperture, off the border) is flagged ``"low_amplitude"``.
-MIN_VALID_FRACTION = 0.5
 
 
 class Demodulator:
@@ -306,7 +300,19 @@ class Demodulator:
         self._trusted_box = [
             aperture_box & border_mask(self.box_shape, self.shape, r) for r in self.radii
         ]
-        self._trustable = [int(np.count_nonzero(t)) for t in self._trusted_box]
+        #: per peak, what its step of every frame takes (:func:`phase_map`)
+        self._peak_boxes = [
+            PeakBox(
+                index=i,
+                geometry=self._boxes[i],
+                trusted=trusted,
+                trustable=int(np.count_nonzero(trusted)),
+                amplitude=self.peaks[i].amplitude,
+                overlapping=i in self._overlapping,
+                frame_size=self.shape[0] * self.shape[1],
+            )
+            for i, trusted in enumerate(self._trusted_box)
+        ]
         #: the frame's FFT, along columns only where the boxes and the noise floor read it
         self._half_spectrum = HalfSpectrum(
             self.shape,
@@ -319,8 +325,8 @@ class Demodulator:
         self._box_threads = self.threads if n_box >= LARGE_BOX else 1
         self._angle_workspace = AngleWorkspace(self.box_shape)
         self.background: np.ndarray | None = None
-        self._background: list[tuple[np.ndarray, complex]] | None = None
-        self._background_floor: np.ndarray | None = None
+        #: every peak's reference field, the reference's floor samples, the mean phases
+        self._references = PhaseReferences(len(self.peaks), reference)
         self.set_background(background)
 
     # -- state -----------------------------------------------------------------------------
@@ -331,19 +337,8 @@ class Demodulator:
         With a background hologram (:meth:`set_background`) the reference stays the
         background: the next frame is taken against it.
         """
-        n = len(self.peaks)
         self._index = 0
-        self._ref_conj: list[np.ndarray | None] = [None] * n
-        background = None
-        if self._background is not None:
-            background = [value for _, value in self._background]
-            for i, (conj, _) in enumerate(self._background):
-                self._ref_conj[i] = conj.copy()
-        self._phases = MeanPhases(n, self.reference, background)
-        #: the reference's spectrum at the noise-floor bins (absolute and relative modes)
-        self._ref_floor: np.ndarray | None = (
-            None if self._background is None else self._background_floor
-        )
+        self._references.reset()
 
     def break_sequence(self) -> None:
         """Forget the previous frame: the next one does not follow it (a replay jumped).
@@ -354,10 +349,7 @@ class Demodulator:
         (the next frame's is taken as it is, against the reference), and no phase step
         is measured over it.
         """
-        self._phases.break_sequence()
-        if self.reference == "relative":
-            self._ref_conj = [None] * len(self.peaks)
-            self._ref_floor = None
+        self._references.break_sequence()
 
     def set_background(
         self, background: np.ndarray | None, values: Sequence[complex] | np.ndarray | None = None
@@ -381,8 +373,9 @@ class Demodulator:
             another shape, not 2-D, not real, or holding NaN or infinity.
         """
         if background is None:
-            self.background, self._background, self._background_floor = None, None, None
-            self.reset_reference()
+            self.background = None
+            self._references.set_background(None, None)
+            self._index = 0
             return
         if self.reference != "absolute":
             raise InputError(
@@ -401,10 +394,10 @@ class Demodulator:
             value = complex(np.vdot(geo.ramp, field)) / field.size if given is None else given[i]
             kept.append((np.conj(field), value))
         array.setflags(write=False)
-        self.background, self._background = array, kept
-        self._background_floor = floor
+        self.background = array
+        self._references.set_background(kept, floor)
+        self._index = 0
         logger.debug("background hologram set: mean %.4g counts", mean)
-        self.reset_reference()
 
     def with_peaks(self, peaks: Sequence[Peak], **changes: object) -> Demodulator:
         """Return a demodulator for other peaks (and optionally other settings), same frames.
@@ -441,8 +434,7 @@ class Demodulator:
         The background hologram's (:meth:`set_background`) or the reference frame's in
         absolute mode, the previous frame's in relative mode; None in synthetic mode.
         """
-        conj = self._ref_conj[i]
-        return None if conj is None or self.reference == "synthetic" else np.conj(conj)
+        return self._references.field(i)
 
     def geometry(self, i: int) -> BoxGeometry:
         """Return peak ``i``'s box geometry: spectrum indices, window, sub-bin plane wave."""
@@ -503,7 +495,7 @@ class Demodulator:
 
     def phase_state(self) -> MeanPhaseState:
         """The mean phases' running state (:mod:`~holoview.processing.maps.mean_phases`)."""
-        return self._phases.state()
+        return self._references.state()
 
     def restore_phase_state(self, state: MeanPhaseState) -> None:
         """Resume the mean phases from ``state``: that of a demodulator given the same frames.
@@ -512,7 +504,7 @@ class Demodulator:
         middle first demodulates the run's reference frame (absolute mode) or the frame
         before (relative mode), then restores the state the whole run would have.
         """
-        self._phases.restore(state)
+        self._references.restore(state)
 
     def process(
         self, frame: np.ndarray, values: Sequence[complex] | np.ndarray | None = None
@@ -548,14 +540,23 @@ class Demodulator:
         frame_flags: set[str] = set()
         if self.saturation is not None and (array[::4, ::4] >= self.saturation).any():
             frame_flags.add("saturated")
-        floor = self._floor(samples)
+        floor = self._references.floor(samples)
         box_plan = ifft2_plan(self.box_shape, threads=self._box_threads)
         given = self._given(values)
         partial = [
-            self._demodulate(
-                i, half, box_plan, mean, floor, value=None if given is None else given[i]
+            phase_map(
+                half,
+                box,
+                box_plan,
+                self._references,
+                mean=mean,
+                floor=floor,
+                value=None if given is None else given[i],
+                min_amplitude=self.min_amplitude,
+                check_wraps=self.unwrap == "auto",
+                workspace=self._angle_workspace,
             )
-            for i in range(len(self.peaks))
+            for i, box in enumerate(self._peak_boxes)
         ]
         if self.unwrap != "never":
             unwrap_maps(partial, self.peaks, always=self.unwrap == "always")
@@ -568,100 +569,6 @@ class Demodulator:
         self._index += 1
         return result
 
-    def _floor(self, samples: np.ndarray) -> float:
-        """Noise power per bin (counts^2) of this frame's phase maps; 0 for a reference frame.
-
-        Synthetic mode: the frame's own floor; absolute and relative modes: the floor
-        of the change since the reference frame (the previous frame in relative mode),
-        whose noise both enter the map. Advances the reference's samples.
-        """
-        if self.reference == "synthetic":
-            return floor_power(samples)
-        reference = self._ref_floor
-        if self.reference == "relative" or reference is None:
-            self._ref_floor = samples
-        return 0.0 if reference is None else floor_power(samples, reference)
-
-    def _demodulate(
-        self,
-        i: int,
-        half: np.ndarray,
-        box_plan: pyfftw.FFTW,
-        mean: float,
-        floor: float,
-        *,
-        value: complex | None,
-    ) -> PhaseMap:
-        """Cut, window and invert peak ``i``'s box; phase against the reference (wrapped).
-
-        ``value``: the peak's carrier value given for this frame (else the box's own).
-        """
-        geo = self._boxes[i]
-        field = invert_box(half, self._boxes[i], box_plan)
-        flags: set[str] = set()
-        if i in self._overlapping:
-            flags.add("overlap")
-
-        amplitude = self.peaks[i].amplitude
-        power, mask, valid = trusted_pixels(
-            field,
-            amplitude * mean if amplitude > 0 else None,
-            self.min_amplitude,
-            self._trusted_box[i],
-            self._angle_workspace,
-        )
-        if valid < MIN_VALID_FRACTION * self._trustable[i]:
-            flags.add("low_amplitude")
-
-        # mean phase: the field against the sub-bin plane wave, averaged (or given)
-        if value is None:
-            value = complex(np.vdot(geo.ramp, field)) / field.size
-        step = self._phases.advance(i, value)
-        if step.stepped:
-            flags.add("phase_step")
-
-        # the box's spectrum is spent: the product goes where it was (a buffer still in cache)
-        product: np.ndarray | None = box_plan.input_array
-        if self.reference == "synthetic":
-            np.multiply(field, geo.ramp_conj, out=product)
-        elif step.reference:
-            flags.add("reference")
-            self._ref_conj[i] = np.conj(field)
-            product = None
-        else:
-            ref_conj = self._ref_conj[i]
-            assert ref_conj is not None
-            np.multiply(field, ref_conj, out=product)
-            if self.reference == "relative":
-                np.conjugate(field, out=ref_conj)
-        level, wraps = None, None
-        if product is None:
-            phase = np.zeros(field.shape, dtype=np.float32)
-            noise = 0.0
-        else:
-            size = self.shape[0] * self.shape[1]
-            noise = phase_noise(power, mask, floor, geo.area_fraction, size)
-            phase = angle(product, workspace=self._angle_workspace)
-            if valid:
-                # while the map is in cache: the 2 pi offset's level, whether it wraps
-                level = trusted_level(phase, mask, valid, self._angle_workspace)
-                if self.unwrap == "auto":
-                    wraps = has_wraps(phase, mask)
-        return PhaseMap(
-            field=field,
-            phase=phase,
-            mask=mask,
-            valid=valid,
-            value=value,
-            mean_phase=step.mean_phase,
-            target=step.target,
-            flags=flags,
-            live=product is not None,
-            noise=noise,
-            wraps=wraps,
-            level=level,
-        )
-
     def _finish(self, i: int, part: PhaseMap) -> PeakResult:
         """Set the map's 2 pi offset, estimate the noise, convert to height."""
         return peak_result(
@@ -670,6 +577,6 @@ class Demodulator:
             radius=self.radii[i],
             cut=self.windows[i].cut,
             wavelength=self.wavelength,
-            mean_phase_unwrapped=float(self._phases.unwrapped(i)),
+            mean_phase_unwrapped=self._references.unwrapped(i),
             workspace=self._angle_workspace,
         )
