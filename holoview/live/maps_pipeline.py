@@ -305,7 +305,7 @@ class MapsPipeline:
         now = time.monotonic()
         if now - self._spectrum_at >= max(1.0 / SPECTRUM_HZ, self._spectrum_cost / SIDE_SHARE):
             self._spectrum_at = now
-            if self.side_work_inline:
+            if self.side_work_inline or self._spectrum is None:  # the first one with the maps
                 tick = time.perf_counter()
                 self.use_spectrum(spectrum_image(frame), time.perf_counter() - tick)
             else:
