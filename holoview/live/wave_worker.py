@@ -63,7 +63,7 @@ from holoview.live.wave_window import (
     WaveSettings,
     analyse_window,
 )
-from holoview.live.worker import DemodWorker, RingWorker, yield_to_others
+from holoview.live.worker import DemodWorker, RingWorker, wait_at_exit, yield_to_others
 from holoview.processing.peaks.detection import Peak
 from holoview.processing.peaks.radii import peak_radii
 
@@ -201,6 +201,7 @@ class WavesWorker(RingWorker[LiveWaves]):
             self._room.notify_all()
         if self._fit_thread.ident is not None:
             self._fit_thread.join(timeout)
+        wait_at_exit(self, self._thread.is_alive() or self._fit_thread.is_alive())
 
     # ---- what the window reads -----------------------------------------------
     def latest(self) -> LiveWaves | None:

@@ -21,6 +21,7 @@ closing) and are joined by their ``stop``.
 
 from __future__ import annotations
 
+import atexit
 import collections
 import logging
 import os
@@ -28,8 +29,9 @@ import queue
 import sys
 import threading
 import time
+import weakref
 from collections.abc import Callable
-from typing import Any, Generic, TypeVar
+from typing import Any, Generic, Protocol, TypeVar
 
 import numpy as np
 
@@ -83,6 +85,39 @@ J = TypeVar("J")
 T = TypeVar("T")
 
 
+#: Seconds the interpreter's exit waits for each worker still running (its job under way).
+EXIT_JOIN_S = 60.0
+
+
+class _Stoppable(Protocol):
+    def stop(self, timeout: float = ...) -> None: ...
+
+
+#: Workers started and not yet stopped for good (weakly held).
+_STARTED: weakref.WeakSet[_Stoppable] = weakref.WeakSet()
+
+
+def wait_at_exit(worker: _Stoppable, alive: bool) -> None:
+    """Have the interpreter's exit stop ``worker`` and wait for it while it is ``alive``."""
+    if alive:
+        _STARTED.add(worker)
+    else:
+        _STARTED.discard(worker)
+
+
+@atexit.register
+def _stop_at_exit() -> None:
+    """Stop every worker still running and wait for the job under way.
+
+    A window's ``stop`` waits a few seconds for each thread; a measurement that takes
+    longer (matching windows at 1024^2 under load) ran on, on a daemon thread, while the
+    interpreter tore its modules down under it: a crash at exit. The interpreter calls
+    this before that teardown.
+    """
+    for worker in list(_STARTED):
+        worker.stop(EXIT_JOIN_S)
+
+
 class SideWorker(Generic[J, T]):
     """Run ``work`` on one job at a time on a thread of its own, at a lower priority.
 
@@ -120,15 +155,20 @@ class SideWorker(Generic[J, T]):
 
     def start(self) -> None:
         """Start the thread."""
+        wait_at_exit(self, alive=True)
         self._thread.start()
 
     def stop(self, timeout: float = 5.0) -> None:
-        """Ask the thread to stop (after the job under way) and join it."""
+        """Ask the thread to stop (after the job under way) and join it.
+
+        A job that outlasts ``timeout`` runs on; the interpreter's exit waits for it.
+        """
         with self._cond:
             self._stop = True
             self._cond.notify()
         if self._thread.ident is not None:
             self._thread.join(timeout)
+        wait_at_exit(self, self._thread.is_alive())
 
     @property
     def busy(self) -> bool:
@@ -264,13 +304,15 @@ class RingWorker(Generic[R]):
 
     def start(self) -> None:
         """Start the thread."""
+        wait_at_exit(self, alive=True)
         self._thread.start()
 
     def stop(self, timeout: float = 5.0) -> None:
-        """Ask the thread to stop and join it."""
+        """Ask the thread to stop and join it (the interpreter's exit waits for a late one)."""
         self._stop.set()
         if self._thread.ident is not None:
             self._thread.join(timeout)
+        wait_at_exit(self, self._thread.is_alive())
 
     @property
     def running(self) -> bool:
