@@ -156,6 +156,7 @@ def prepare_run(
         background=background,
         grid=settings.maps_grid,
     )
+    threads = parent_threads(options.jobs, settings.threads)
     if experiment.radius_rule == "matched":
         spectrum = _matching_spectrum(
             source,
@@ -167,7 +168,7 @@ def prepare_run(
             band=surface_band(detected),
             carriers=[p.carrier for p in selection.peaks],
             neighbours=spec.neighbours,
-            threads=parent_threads(options.jobs, settings.threads),
+            threads=threads,
         )
         spec = spec.matched(source.frame_shape, source.saturation, spectrum)
     core = spec.core(source.frame_shape, source.saturation)
@@ -193,6 +194,7 @@ def prepare_run(
         optics,
         settings,
         identity,
+        threads,
     )
     return PreparedRun(run, first, detected, demodulator.box_shape)
 

@@ -13,7 +13,7 @@ pyFFTW and numpy's large array operations release the GIL.
 from __future__ import annotations
 
 from collections import deque
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable, Generator, Iterable
 from concurrent.futures import Future, ThreadPoolExecutor
 from typing import TypeVar
 
@@ -54,7 +54,7 @@ def parent_threads(jobs: int | None, threads: int = 1, cores: int | None = None)
     return max(1, min(max(given, int(threads)), cores))
 
 
-def in_order(task: Callable[[T], R], items: Iterable[T], threads: int) -> Iterator[R]:
+def in_order(task: Callable[[T], R], items: Iterable[T], threads: int) -> Generator[R, None, None]:
     """``task(item)`` for each item, ``threads`` at a time, the results in the items' order.
 
     At most :data:`AHEAD_PER_THREAD` tasks a thread run ahead of the result taken. One
