@@ -134,7 +134,7 @@ def test_matched_windows_many_frames_in_threads_are_those_of_one(evaporation: Si
 
 
 def test_in_order_gives_the_items_order_and_raises_where_a_task_failed() -> None:
-    """Tasks finishing out of order come back in order; a failed task's error is raised."""
+    """Tasks finishing out of order come back in order; a failure is raised and stops the rest."""
     second_done = threading.Event()
 
     def task(k: int) -> int:
@@ -146,9 +146,14 @@ def test_in_order_gives_the_items_order_and_raises_where_a_task_failed() -> None
             raise ValueError("task 5")
         return k * k
 
-    results = in_order(task, range(10), 3)
+    stop = threading.Event()
+    results = in_order(task, range(10), 3, stop=stop)
     assert [next(results) for _ in range(5)] == [0, 1, 4, 9, 16]
+    assert not stop.is_set()
     with pytest.raises(ValueError, match="task 5"):
         next(results)
-    results.close()
+    assert stop.is_set()  # the tasks still running are told to stop
+    whole = threading.Event()
+    assert list(in_order(task, range(5), 2, stop=whole)) == [0, 1, 4, 9, 16]
+    assert not whole.is_set()
     assert list(in_order(task, range(3), 1)) == [0, 1, 4]

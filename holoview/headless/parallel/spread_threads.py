@@ -118,14 +118,12 @@ def spread_in_threads(
         return step, made
 
     step = spread.step
-    try:
-        with contextlib.closing(in_order(run_maps, range(len(runs)), threads)) as done:
-            for run, (run_step, made) in zip(runs, done, strict=True):
-                step = run_step  # the last run's makes the last frame's maps
-                for j, maps in zip(run, made, strict=False):
-                    spread.made(positions[j], frames[positions[j]], maps)
-    finally:
-        stop.set()  # an interruption: the threads stop at their next frame
+    # interrupted: the threads stop at their next frame, and are waited for
+    with contextlib.closing(in_order(run_maps, range(len(runs)), threads, stop=stop)) as done:
+        for run, (run_step, made) in zip(runs, done, strict=True):
+            step = run_step  # the last run's makes the last frame's maps
+            for j, maps in zip(run, made, strict=False):
+                spread.made(positions[j], frames[positions[j]], maps)
     data.maps_seconds += seconds["maps"]
     data.demod_seconds += seconds["maps"]
     if last is not None:

@@ -12,6 +12,7 @@ pyFFTW and numpy's large array operations release the GIL.
 
 from __future__ import annotations
 
+import threading
 from collections import deque
 from collections.abc import Callable, Generator, Iterable
 from concurrent.futures import Future, ThreadPoolExecutor
@@ -54,12 +55,20 @@ def parent_threads(jobs: int | None, threads: int = 1, cores: int | None = None)
     return max(1, min(max(given, int(threads)), cores))
 
 
-def in_order(task: Callable[[T], R], items: Iterable[T], threads: int) -> Generator[R, None, None]:
+def in_order(
+    task: Callable[[T], R],
+    items: Iterable[T],
+    threads: int,
+    *,
+    stop: threading.Event | None = None,
+) -> Generator[R, None, None]:
     """``task(item)`` for each item, ``threads`` at a time, the results in the items' order.
 
     At most :data:`AHEAD_PER_THREAD` tasks a thread run ahead of the result taken. One
     thread: each task in turn, in the caller's thread. A task's exception is raised when
-    its result is taken; the tasks started are waited for when the iterator is closed.
+    its result is taken. When the iterator ends early (closed, a task failed, or
+    interrupted: a KeyboardInterrupt while it waits), the tasks not started are
+    cancelled, ``stop`` is set (for long tasks to check) and those running are waited for.
     """
     if threads <= 1:
         yield from map(task, items)
@@ -71,9 +80,14 @@ def in_order(task: Callable[[T], R], items: Iterable[T], threads: int) -> Genera
             for item in items:
                 pending.append(pool.submit(task, item))
                 if len(pending) > ahead:
-                    yield pending.popleft().result()
+                    yield pending[0].result()
+                    pending.popleft()
             while pending:
-                yield pending.popleft().result()
+                yield pending[0].result()
+                pending.popleft()
         finally:
-            for future in pending:
-                future.cancel()
+            if pending:  # ended early
+                for future in pending:
+                    future.cancel()
+                if stop is not None:
+                    stop.set()
