@@ -77,8 +77,8 @@ def spread_in_threads(
     seconds = {"read": 0.0, "maps": 0.0}
 
     def read(k: int) -> np.ndarray:
-        t0 = time.perf_counter()
         with lock:
+            t0 = time.perf_counter()
             frame = source.read(frames[positions[k]])
             seconds["read"] += time.perf_counter() - t0
         return frame
