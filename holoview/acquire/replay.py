@@ -36,7 +36,7 @@ window keeps showing it; resuming plays from the start again); otherwise
 :class:`~holoview.acquire.source.EndOfStream` after the last frame. A holoview
 recording still being written is followed: at its end the replay refreshes it
 and goes on with the frames flushed since. Before each frame is read the file is
-checked (:meth:`~holoview.acquire.replay_files.FrameFile.check`): a file that
+checked (:meth:`~holoview.acquire.frame_file.FrameFile.check`): a file that
 disappeared or shrank since it was opened ends the stream with a one-line error
 naming it and the frame.
 """
@@ -53,8 +53,9 @@ from typing import Any
 
 import numpy as np
 
+from holoview.acquire.frame_file import FrameFile
 from holoview.acquire.frame_times import CLOCK_NAMES, FrameClock
-from holoview.acquire.replay_files import FrameFile, HDF5File, open_frame_file
+from holoview.acquire.replay_files import HDF5File, open_frame_file
 from holoview.acquire.source import (
     AcquisitionError,
     EndOfStream,

@@ -44,7 +44,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from holoview.acquire.replay_files import (
+from holoview.acquire.frame_file import (
     HDF5_SUFFIXES,
     NUMPY_SUFFIXES,
     VIDEO_SUFFIXES,

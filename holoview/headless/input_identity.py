@@ -28,8 +28,8 @@ import os
 from dataclasses import dataclass
 from pathlib import Path
 
+from holoview.acquire.frame_file import HDF5_SUFFIXES, IMAGE_SUFFIXES
 from holoview.acquire.recording_reader import RecordingReader
-from holoview.acquire.replay_files import HDF5_SUFFIXES, IMAGE_SUFFIXES
 from holoview.errors import InputError
 
 #: Bytes hashed at each end of a file.

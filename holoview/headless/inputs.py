@@ -29,8 +29,9 @@ from typing import Any, Self
 
 import numpy as np
 
+from holoview.acquire.frame_file import FrameFile
 from holoview.acquire.recording_reader import RecordingReader
-from holoview.acquire.replay_files import FrameFile, open_frame_file
+from holoview.acquire.replay_files import open_frame_file
 from holoview.engine.experiment import Experiment
 from holoview.errors import InputError
 from holoview.file_kinds import special_file
@@ -491,7 +492,7 @@ class InputFile:
         """Return the times of ``frames`` in s, from 0 at the first of them, and their rule.
 
         With ``fps_hz`` the times are ``(index - first) / fps_hz``; otherwise the file's
-        clock by the one rule (:meth:`~holoview.acquire.replay_files.FrameFile.clock`:
+        clock by the one rule (:meth:`~holoview.acquire.frame_file.FrameFile.clock`:
         a recording's camera clock, else its host arrival times; a video's frame rate).
 
         Raises
