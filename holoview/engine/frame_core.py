@@ -27,17 +27,24 @@ from __future__ import annotations
 
 import logging
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
+from dataclasses import replace
 
 import numpy as np
 
 from holoview.engine.experiment import Experiment
 from holoview.processing.fourier.frames import DamagedFrameError, frame_damage
+from holoview.processing.fourier.windows import DEFAULT_TAPER
 from holoview.processing.maps.demod_results import DemodResult
 from holoview.processing.maps.demodulate import Demodulator
 from holoview.processing.peaks.detection import Peak
 from holoview.processing.peaks.matched import Window
-from holoview.processing.peaks.radii import distinct_neighbours, peak_radii, peak_windows
+from holoview.processing.peaks.radii import (
+    UNMEASURED_REASON,
+    distinct_neighbours,
+    peak_radii,
+    peak_windows,
+)
 from holoview.processing.peaks.surface_spectrum import MEAN_FRAMES, SurfaceSpectrum
 from holoview.processing.series.carrier_probe import CarrierProbe, CarrierValues
 
@@ -58,6 +65,8 @@ __all__ = [
 #: 450 ms instead of 10 ms per 1024 x 1024 frame.
 FFT_THREADS = 1
 
+
+Carrier = tuple[float, float]
 
 #: Frames of a run after its first that its windows are matched to (absolute maps).
 MATCHING_FRAMES = 3
@@ -227,6 +236,8 @@ class FrameCore:
         #: the spectrum the windows are matched to (None: not measured)
         self.spectrum = spectrum
         self._fixed = None if windows is None else (_carriers(self.peaks), tuple(windows))
+        self._chosen: dict[str, Window] | None = None
+        self._bounds_checked: tuple[Demodulator, tuple[Carrier, ...], bool] | None = None
         self._demod: Demodulator | None = None
         self._probe = CarrierCore(self.frame_shape, saturation)
 
@@ -245,27 +256,19 @@ class FrameCore:
         if neighbours is not None:
             self.neighbours = tuple(neighbours)
 
-    def match(self, spectrum: SurfaceSpectrum | None) -> None:
-        """Match the windows to ``spectrum`` from the next frame (the maps restart)."""
-        self.spectrum = spectrum
+    def match(
+        self, spectrum: SurfaceSpectrum | None, windows: Mapping[str, Window] | None = None
+    ) -> None:
+        """Match the windows to ``spectrum`` from the next frame (the maps restart).
 
-    def windows_for(self, spectrum: SurfaceSpectrum) -> tuple[Window, ...] | None:
-        """The windows ``spectrum`` would give the peaks in use (None before a frame)."""
-        demod = self._demod
-        if demod is None:
-            return None
-        carriers = np.array([p.carrier for p in demod.peaks], dtype=np.float64)
-        others = distinct_neighbours(self.frame_shape, carriers, self.neighbours)
-        e = self.experiment
-        return peak_windows(
-            self.frame_shape,
-            carriers,
-            e.radius,
-            others,
-            kind=demod.window,
-            taper=demod.taper,
-            spectrum=spectrum,
-        )
+        ``windows``: the windows ``spectrum`` gives, by peak label, measured elsewhere
+        (the live match thread: :mod:`holoview.engine.window_matching`). The
+        demodulator is then built with them (each within its peak's bound as it is
+        then) and measures nothing, also when later rebuilt for moved carriers; without
+        them it matches its windows to ``spectrum`` itself (seconds on a large frame).
+        """
+        self.spectrum = spectrum
+        self._chosen = None if windows is None or spectrum is None else dict(windows)
 
     @property
     def demodulator(self) -> Demodulator | None:
@@ -314,13 +317,24 @@ class FrameCore:
             return False
         if demod.spectrum is not self.spectrum:
             return True
+        return self._bounds_moved(demod)
+
+    def _bounds_moved(self, demod: Demodulator) -> bool:
+        """Whether the neighbours moved a window's bound by a whole bin (kept per
+        demodulator and neighbours: 1-2 ms of every live frame's maps, twice)."""
+        if self._bounds_checked is not None:
+            checked, neighbours, moved = self._bounds_checked
+            if checked is demod and neighbours == self.neighbours:
+                return moved
         carriers = np.array([p.carrier for p in demod.peaks], dtype=np.float64)
         others = distinct_neighbours(self.frame_shape, carriers, self.neighbours)
         bounds = peak_radii(self.frame_shape, carriers, None, others)
-        return any(
-            abs(a - w.bound) * min(rows, cols) > 1.0
+        moved = any(
+            abs(a - w.bound) * min(self.frame_shape) > 1.0
             for a, w in zip(bounds, demod.windows, strict=True)
         )
+        self._bounds_checked = (demod, self.neighbours, moved)
+        return moved
 
     def _fixed_windows(self) -> tuple[Window, ...] | None:
         """The windows given at construction, while the carriers are the ones they were for
@@ -328,6 +342,36 @@ class FrameCore:
         if self._fixed is None or self._fixed[0] != _carriers(self.peaks):
             return None
         return self._fixed[1]
+
+    def _chosen_windows(self) -> tuple[Window, ...] | None:
+        """The windows matched elsewhere (:meth:`match`), each within its bound as it is now.
+
+        A peak the match did not see (a new label) gets its bound, as a window with no
+        spectrum does; a window at the bound follows it.
+        """
+        if self._chosen is None or self.experiment.radius_rule != "matched":
+            return None
+        carriers = np.array([p.carrier for p in self.peaks], dtype=np.float64)
+        others = distinct_neighbours(self.frame_shape, carriers, self.neighbours)
+        bounds = peak_windows(
+            self.frame_shape,
+            carriers,
+            "bound",
+            others,
+            kind=self.experiment.window,
+            taper=DEFAULT_TAPER,
+        )
+        out = []
+        for i, (peak, bound) in enumerate(zip(self.peaks, bounds, strict=True)):
+            chosen = self._chosen.get(peak.label or f"#{i}")
+            if chosen is None:
+                out.append(replace(bound, reason=UNMEASURED_REASON))
+            else:
+                radius = min(chosen.radius, bound.radius)
+                if chosen.rule == "bound":
+                    radius = bound.radius
+                out.append(replace(chosen, radius=radius, bound=bound.radius, kind=bound.kind))
+        return tuple(out)
 
     def build(self) -> Demodulator | None:
         """Return the demodulator for the current settings, rebuilding it when stale.
@@ -355,7 +399,7 @@ class FrameCore:
                 threads=self.threads,
                 neighbours=self.neighbours,
                 spectrum=self.spectrum,
-                windows=self._fixed_windows(),
+                windows=self._fixed_windows() or self._chosen_windows(),
                 grid=self.grid,
             )
             self._probe.configure(demod.peaks)

@@ -9,7 +9,11 @@
   asked (scripted runs, the parity test), and runs a
   :class:`~holoview.live.maps_pipeline.MapsPipeline` on it: the maps, at whatever rate is
   left. It hands the demodulator's peaks to the series worker.
-- Peak detection (``holoview-peaks``), much slower than a frame, runs beside them.
+- Peak detection (``holoview-peaks``), the display spectrum (``holoview-spectrum``),
+  the windows' match to the surface (``holoview-match``) and the maps' displacement
+  estimate (``holoview-coregister``), each slower than a frame's maps, run beside them
+  at a lower priority (:class:`SideWorker`); the maps worker takes their results between
+  frames, so that no frame's maps wait for them.
 
 Each publishes its newest result under a lock; all stop with a flag (or the ring
 closing) and are joined by their ``stop``.
@@ -33,8 +37,15 @@ from holoview.acquire.ring import CLOSED, FrameRing, RingConsumer, RingStatus
 from holoview.acquire.source import FrameMeta
 from holoview.engine.experiment import Experiment
 from holoview.engine.frame_core import FFT_THREADS
+from holoview.engine.map_step import Coregistration
+from holoview.engine.window_matching import MatchJob, Rematch, WindowMatcher
 from holoview.errors import HoloviewError
-from holoview.live.maps_pipeline import LiveResult, MapsPipeline
+from holoview.live.maps_pipeline import (
+    CoregistrationJob,
+    LiveResult,
+    MapsPipeline,
+    spectrum_image,
+)
 from holoview.live.series_pipeline import SeriesPipeline, TrendSummary
 from holoview.processing.peaks.detection import Peak, find_peaks
 
@@ -46,6 +57,10 @@ MAX_MESSAGES = 20
 #: on a machine with fewer cores than busy threads the series and the window, which
 #: must keep up, get the cores first.
 YIELDING_NICENESS = 5
+#: Niceness added to the maps worker's side threads (display spectrum, window matching,
+#: displacement estimate): below the maps, whose latency they must not lengthen (their
+#: results may come late; the maps use the last ones meanwhile).
+SIDE_NICENESS = 10
 
 
 def yield_to_others(increment: int = YIELDING_NICENESS) -> None:
@@ -63,81 +78,150 @@ def yield_to_others(increment: int = YIELDING_NICENESS) -> None:
         logger.debug("cannot lower the priority of %s: %s", threading.current_thread().name, exc)
 
 
-class PeakWorker:
-    """Find the peaks of one frame at a time on a thread named ``holoview-peaks``.
+#: The type of a side thread's jobs and of its results.
+J = TypeVar("J")
+T = TypeVar("T")
 
-    Peak detection takes much longer than demodulating a frame; on its own thread it
-    never holds up the frames behind it. :meth:`submit` hands over a frame when the
-    thread is idle; :meth:`take` returns each result once.
+
+class SideWorker(Generic[J, T]):
+    """Run ``work`` on one job at a time on a thread of its own, at a lower priority.
+
+    For work slower than a frame's maps (peak detection, the display spectrum, matching
+    the windows, the displacement estimate): on its own thread it never holds up the
+    frames behind it. :meth:`submit` hands over a job
+    when the thread is idle; :meth:`take` returns each result once.
+
+    Parameters
+    ----------
+    name : str
+        The thread's name (``holoview-...``).
+    work : callable
+        What to do with a job (on the thread); a :class:`~holoview.errors.HoloviewError`
+        it raises becomes a message.
+    what : str
+        What the work is, for the messages (``"peak detection"``).
+    niceness : int
+        Added to the thread's niceness at start (:func:`yield_to_others`).
     """
 
-    def __init__(self) -> None:
+    def __init__(
+        self, name: str, work: Callable[[J], T], what: str, niceness: int = SIDE_NICENESS
+    ) -> None:
+        self._work = work
+        self._what = what
+        self._niceness = niceness
         self._cond = threading.Condition()
-        self._job: tuple[np.ndarray, float | None] | None = None
-        self._result: tuple[list[Peak], float] | None = None
+        self._job: J | None = None
+        self._result: tuple[T, float] | None = None
         self._error: str | None = None
         self._busy = False
         self._stop = False
-        self._thread = threading.Thread(target=self._run, name="holoview-peaks", daemon=True)
+        self._thread = threading.Thread(target=self._run, name=name, daemon=True)
 
     def start(self) -> None:
         """Start the thread."""
         self._thread.start()
 
     def stop(self, timeout: float = 5.0) -> None:
-        """Ask the thread to stop (after the detection under way) and join it."""
+        """Ask the thread to stop (after the job under way) and join it."""
         with self._cond:
             self._stop = True
             self._cond.notify()
         if self._thread.ident is not None:
             self._thread.join(timeout)
 
-    def submit(self, frame: np.ndarray, radius: float | None) -> bool:
-        """Detect the peaks of ``frame`` (not modified) with window radius ``radius``.
+    @property
+    def busy(self) -> bool:
+        """Whether a job is under way."""
+        with self._cond:
+            return self._busy
 
-        ``radius`` in cycles/pixel; None: the automatic radius, from the carriers.
-
-        Returns False, doing nothing, while a detection is under way.
-        """
+    def submit(self, job: J) -> bool:
+        """Hand ``job`` to the thread; False, doing nothing, while a job is under way."""
         with self._cond:
             if self._busy:
                 return False
             self._busy = True
-            self._job = (frame, radius)
+            self._job = job
             self._cond.notify()
             return True
 
-    def take(self) -> tuple[list[Peak], float] | str | None:
-        """The newest (peaks, seconds it took), an error message, or None; each once."""
+    def take(self) -> tuple[T, float] | str | None:
+        """The newest (result, seconds it took), an error message, or None; each once."""
         with self._cond:
-            out: tuple[list[Peak], float] | str | None = self._error or self._result
+            out: tuple[T, float] | str | None = self._error or self._result
             self._result, self._error = None, None
             return out
 
     def _run(self) -> None:
-        yield_to_others()
+        yield_to_others(self._niceness)
         while True:
             with self._cond:
                 while self._job is None and not self._stop:
                     self._cond.wait()
                 if self._stop or self._job is None:
                     return
-                frame, radius = self._job
+                job = self._job
                 self._job = None
             tick = time.perf_counter()
             try:
-                peaks = find_peaks(frame, radius=radius, threads=FFT_THREADS)
+                result = self._work(job)
             except HoloviewError as exc:
                 with self._cond:
-                    self._error, self._busy = f"peak detection: {exc}", False
+                    self._error, self._busy = f"{self._what}: {exc}", False
                 continue
             except Exception:  # a bug: log it, keep the window running
-                logger.exception("peak detection failed")
+                logger.exception("%s failed", self._what)
                 with self._cond:
-                    self._error, self._busy = "peak detection failed (see the log)", False
+                    self._error, self._busy = f"{self._what} failed (see the log)", False
                 continue
             with self._cond:
-                self._result, self._busy = (peaks, time.perf_counter() - tick), False
+                self._result, self._busy = (result, time.perf_counter() - tick), False
+
+
+def _detect(job: tuple[np.ndarray, float | None]) -> list[Peak]:
+    frame, radius = job
+    return find_peaks(frame, radius=radius, threads=FFT_THREADS)
+
+
+class PeakWorker(SideWorker[tuple[np.ndarray, float | None], list[Peak]]):
+    """Find the peaks of one frame at a time on a thread named ``holoview-peaks``."""
+
+    def __init__(self) -> None:
+        super().__init__("holoview-peaks", _detect, "peak detection", YIELDING_NICENESS)
+
+
+def matcher_work(matcher: WindowMatcher) -> Callable[[MatchJob], Rematch | None]:
+    """The match thread's work: run each job with ``matcher`` (its state stays on that thread)."""
+
+    def work(job: MatchJob) -> Rematch | None:
+        return job.run(matcher)
+
+    return work
+
+
+def coregistration_work(
+    coregistration: Coregistration,
+) -> Callable[[CoregistrationJob], Coregistration | None]:
+    """The co-registration thread's work: add each job's maps to ``coregistration``."""
+
+    def work(job: CoregistrationJob) -> Coregistration | None:
+        return job.run(coregistration)
+
+    return work
+
+
+class MatchWorker(SideWorker[MatchJob, Rematch | None]):
+    """Match the windows to the surface on a thread named ``holoview-match``.
+
+    A measurement takes seconds on a large frame; the maps worker hands a
+    :class:`~holoview.engine.window_matching.MatchJob` over (its own copy of the frame)
+    and goes on with the maps; the new windows come back through :meth:`take`. The
+    thread yields to every other (:data:`SIDE_NICENESS`): its result may come late.
+    """
+
+    def __init__(self, matcher: WindowMatcher) -> None:
+        super().__init__("holoview-match", matcher_work(matcher), "window matching")
 
 
 #: The type of a worker's results.
@@ -304,17 +388,33 @@ class DemodWorker(RingWorker[LiveResult]):
         self.pipeline = pipeline
         pipeline.detect_inline = False
         self.peaks = PeakWorker()
+        pipeline.side_work_inline = False
+        self.spectra: SideWorker[np.ndarray, np.ndarray] = SideWorker(
+            "holoview-spectrum", spectrum_image, "the spectrum"
+        )
+        self.matches = MatchWorker(pipeline.matcher)
+        self.coregistration: SideWorker[CoregistrationJob, Coregistration | None] = SideWorker(
+            "holoview-coregister",
+            coregistration_work(Coregistration(None)),
+            "co-registration",
+        )
         self._peak_set: tuple[tuple[Peak, ...], Experiment] | None = None
 
     def start(self) -> None:
-        """Start the thread and its peak thread."""
+        """Start the thread and its side threads."""
         self.peaks.start()
+        self.matches.start()
+        self.spectra.start()
+        self.coregistration.start()
         super().start()
 
     def stop(self, timeout: float = 5.0) -> None:
-        """Stop and join the thread and its peak thread."""
+        """Stop and join the thread and its side threads."""
         super().stop(timeout)
         self.peaks.stop(timeout)
+        self.matches.stop(timeout)
+        self.spectra.stop(timeout)
+        self.coregistration.stop(timeout)
 
     def latest(self) -> LiveResult | None:
         """The newest result, or None before the first."""
@@ -338,17 +438,47 @@ class DemodWorker(RingWorker[LiveResult]):
             self.pipeline.set_peaks(found[0])
             self.pipeline.peaks_done(found[1])
         due = self.pipeline.peaks_due()
-        if due and self.peaks.submit(pixels, self.pipeline.experiment.fixed_radius):
+        if due and self.peaks.submit((pixels, self.pipeline.experiment.fixed_radius)):
             self.pipeline.peaks_started()
+
+    def _take_match(self) -> None:
+        """Hand windows matched again on the match thread to the pipeline (a frame boundary)."""
+        found = self.matches.take()
+        if isinstance(found, str):
+            self._report(found)
+        elif found is not None:
+            self.pipeline.use_match(*found)
 
     def _step(self, pixels: np.ndarray, meta: FrameMeta) -> None:
         self._exchange_peaks(pixels)
+        self._take_match()
+        found = self.coregistration.take()
+        if isinstance(found, str):
+            self._report(found)
+        elif found is not None:
+            self.pipeline.use_coregistration(*found)
+        image = self.spectra.take()
+        if isinstance(image, str):
+            self._report(image)
+        elif image is not None:
+            self.pipeline.use_spectrum(*image)
         try:
             result = self.pipeline.process(pixels, meta)
         finally:
             with self._lock:
                 self._peak_set = (self.pipeline.peaks, self.pipeline.experiment)
         self._publish(result)
+        # the side work due, each dropped while its thread is busy (due again soon)
+        coregistration = self.pipeline.coregistration_job()
+        if coregistration is not None:
+            self.coregistration.submit(coregistration)
+        spectrum = self.pipeline.spectrum_job()
+        if spectrum is not None:
+            self.spectra.submit(spectrum)
+        if not self.matches.busy:  # the measurement due, if any, after the maps are out
+            job = self.pipeline.match_job(pixels)
+            if job is not None:
+                self.matches.submit(job)
 
 
 class SeriesWorker(RingWorker[TrendSummary]):

@@ -4,8 +4,8 @@ pyqtgraph colours a float image through a general rescale (an element-wise itera
 when numba is absent) and, where the image holds NaN, builds an RGBA copy with an
 alpha mask: on a 2-core machine that was 0.7 ms per 180 x 180 map, most of the
 surface view's drawing time. Quantising here with whole-array numpy operations and
-handing pyqtgraph the RGBA image (``table[indices]``) lets it wrap it in a QImage
-with no per-pixel work of its own. Index 0 is kept for pixels without a value
+handing pyqtgraph the RGBA image (:func:`rgba`) lets it wrap it in a QImage with no
+per-pixel work of its own. Index 0 is kept for pixels without a value
 (NaN, infinite): the untrusted border of a map is drawn in that colour.
 """
 
@@ -53,3 +53,21 @@ def colour_indices(values: np.ndarray, low: float, high: float) -> np.ndarray:
     scaled += np.float32(1.5)  # 1-based, rounded to the nearest colour
     scaled[~finite] = 0.0
     return scaled.astype(np.uint8)
+
+
+def rgba(table: np.ndarray, indices: np.ndarray) -> np.ndarray:
+    """The RGBA image (``uint8``, ``(*indices.shape, 4)``) of ``indices`` in ``table``.
+
+    ``table[indices]`` with each colour taken as one 32-bit word: a 180 x 180 map in
+    0.03 ms instead of 0.85 ms (a copy of four bytes per index rather than a gather of
+    each byte; seven maps per live frame on the GUI thread).
+
+    Examples
+    --------
+    >>> table = colour_table("viridis")
+    >>> indices = np.array([[0, 1], [128, 255]], dtype=np.uint8)
+    >>> bool(np.array_equal(rgba(table, indices), table[indices]))
+    True
+    """
+    words = np.ascontiguousarray(table, dtype=np.uint8).view(np.uint32).reshape(-1)
+    return np.take(words, indices).view(np.uint8).reshape(*indices.shape, 4)

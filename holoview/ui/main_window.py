@@ -391,6 +391,7 @@ class MainWindow(
                 result.phases_rad,
                 result.shifts_px,
                 result.grid_of,
+                reference=result.reference,
             )
 
     # ---- layout ------------------------------------------------------------

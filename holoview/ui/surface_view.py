@@ -7,7 +7,10 @@ Heights arrive in metres and are shown in nanometres with a perceptual colour ma
 trusted pixels, of the fused map where there is one, so that a noisy peak's map or a
 few wild pixels do not squeeze the surface into a few colours. A line drawn on the
 first map is mirrored (dashed) on the others, and the profile below overlays every
-map's curve along it (the paper's figure 4g), on the colour bar's range.
+map's curve along it (the paper's figure 4g), on a range that follows the curves it
+shows (:func:`profile_range`). When the maps restart (new windows or peaks, a reset),
+the restart's own frame, their new reference whose maps are zeros by construction, is
+not drawn: the maps shown stay until the next frame's, which set the range at once.
 """
 
 from __future__ import annotations
@@ -32,7 +35,7 @@ from PyQt6.QtWidgets import (
 
 from holoview.engine.experiment import PEAK_LABELS
 from holoview.processing.maps.demod_results import REFERENCE_MODES
-from holoview.ui.colour_index import colour_indices, colour_table
+from holoview.ui.colour_index import colour_indices, colour_table, rgba
 from holoview.ui.elided_label import ElidedLabel
 from holoview.ui.legends import FUSED, curve_pen, side_legend
 
@@ -50,6 +53,12 @@ TITLE_SIZE = "9pt"
 TITLE_HEIGHT_PX = 22.0
 #: Width the colour bar takes beside the maps before it is first laid out, pixels.
 COLOUR_BAR_WIDTH_PX = 90.0
+#: Margin of the profile's value range beyond its curves, fraction of their span.
+PROFILE_MARGIN = 0.1
+#: The profile's value range is taken again when it is more than this many times wider
+#: than its curves need (and whenever a curve leaves it): it follows the maps without
+#: regenerating its axis every frame.
+PROFILE_SLACK = 3.0
 #: Entries per column of the profile's legend (more go in further columns), so
 #: that the legend fits the short profile plot.
 LEGEND_ROWS = 3
@@ -123,6 +132,38 @@ def colour_range(
     return (low, high) if high > low else None
 
 
+def profile_range(
+    current: tuple[float, float] | None, values: np.ndarray
+) -> tuple[float, float] | None:
+    """The profile's value range for curves holding ``values``: ``current`` while it fits.
+
+    ``current`` is kept while every finite value lies inside it and it is at most
+    :data:`PROFILE_SLACK` times the curves' span (plus margins); else the curves' span
+    with a :data:`PROFILE_MARGIN` on each side. None (keep what is shown) without a
+    finite value.
+
+    Examples
+    --------
+    >>> profile_range(None, np.array([0.0, 10.0]))
+    (-1.0, 11.0)
+    >>> profile_range((-1.0, 11.0), np.array([2.0, 9.0]))
+    (-1.0, 11.0)
+    >>> profile_range((-1.0, 11.0), np.array([0.0, 1.0]))
+    (-0.1, 1.1)
+    """
+    finite = values[np.isfinite(values)]
+    if not finite.size:
+        return current
+    low, high = float(finite.min()), float(finite.max())
+    span = high - low if high > low else max(abs(high), 1e-3)
+    wanted = (low - PROFILE_MARGIN * span, high + PROFILE_MARGIN * span)
+    if current is not None:
+        inside = current[0] <= low and high <= current[1]
+        if inside and current[1] - current[0] <= PROFILE_SLACK * (wanted[1] - wanted[0]):
+            return current
+    return wanted
+
+
 def _percentiles(data: np.ndarray, percentiles: tuple[float, float]) -> np.ndarray | None:
     """The percentiles of the finite values of ``data`` (about RANGE_SAMPLES of them)."""
     step = max(1, int(math.sqrt(data.size / RANGE_SAMPLES)))
@@ -165,6 +206,7 @@ class SurfaceView(QWidget):
         self.line_roi: pg.LineSegmentROI | None = None
         self._placing = False
         self._line_shape: tuple[int, ...] | None = None  # the map the line is placed on
+        self._restarted = False  # the maps restarted: range the next ones at once
 
         self.mode_box = QComboBox()
         self.mode_box.addItems(["height (nm)", "phase (rad)"])
@@ -218,7 +260,7 @@ class SurfaceView(QWidget):
         self.profile.setLabel("left", "delta h (nm)")
         self.profile.getAxis("left").enableAutoSIPrefix(False)
         self.profile.disableAutoRange()
-        self._profile_ranges: tuple[object, ...] | None = None
+        self._profile_ranges: tuple[tuple[float, float], tuple[float, float]] | None = None
         self.profile_legend = side_legend(self.profile.getPlotItem())
         self.curves: dict[str, pg.PlotDataItem] = {}
         splitter = QSplitter(Qt.Orientation.Vertical)
@@ -260,6 +302,8 @@ class SurfaceView(QWidget):
         phases_rad: Mapping[str, np.ndarray] | None = None,
         shifts_px: Mapping[str, tuple[float, float]] | None = None,
         grid_of: str | None = None,
+        *,
+        reference: bool = False,
     ) -> None:
         """Show one map per label and the fused map.
 
@@ -277,7 +321,14 @@ class SurfaceView(QWidget):
             co-registered.
         grid_of : str, optional
             The map whose grid the others are moved onto for the fused map.
+        reference : bool
+            The maps restarted at this frame: it is their new reference and its maps
+            are zeros by construction. They are not drawn (the maps shown stay); the
+            next maps set the colour range at once.
         """
+        if reference:
+            self._restarted = True
+            return
         if self._mode == "phase" and phases_rad:
             data = {k: np.asarray(v, dtype=np.float32) for k, v in phases_rad.items()}
         else:
@@ -290,7 +341,7 @@ class SurfaceView(QWidget):
         self._data = data
         now = time.monotonic()
         follow = self.follow_box.isChecked() and now - self._range_at >= FOLLOW_INTERVAL_S
-        if self._mode == "height" and (self._levels is None or follow):
+        if self._mode == "height" and (self._levels is None or follow or self._restarted):
             self._range_from_maps()
         elif (
             self._mode == "height"
@@ -309,7 +360,7 @@ class SurfaceView(QWidget):
         for name, image in self.images.items():
             if name in self._data:
                 indices = colour_indices(self._data[name], low, high)
-                image.setImage(self._table[indices], autoLevels=False)
+                image.setImage(rgba(self._table, indices), autoLevels=False)
 
     def _show_shifts(
         self, shifts_px: Mapping[str, tuple[float, float]], grid_of: str | None
@@ -358,6 +409,7 @@ class SurfaceView(QWidget):
         if levels is None:  # no range to take: the next maps are looked at at once
             return
         self._range_at = time.monotonic()
+        self._restarted = False
         self._levels = levels
         self.colour_bar.setLevels(self._levels)
 
@@ -498,12 +550,19 @@ class SurfaceView(QWidget):
             self._line_shape = first.shape
             self._place_line_roi()
         length = 1.0
+        values = []
         for name, (x, y) in self.profile_curves().items():
             self.curves[name].setData(x, y)
             length = max(length, float(x[-1]))
-        # fixed ranges (the line's length, the colour range) instead of auto-ranging
-        # every frame: the axes are then regenerated only when these change
-        ranges = ((0.0, length), self.levels)
+            values.append(y)
+        # fixed ranges (the line's length, the curves' values with some slack) instead of
+        # auto-ranging every frame: the axes are then regenerated only when these change
+        if self._mode == "phase":
+            shown: tuple[float, float] | None = self.levels
+        else:
+            previous = None if self._profile_ranges is None else self._profile_ranges[1]
+            shown = profile_range(previous, np.concatenate(values)) if values else None
+        ranges = ((0.0, length), shown or self.levels)
         if ranges != self._profile_ranges:
             self._profile_ranges = ranges
             self.profile.setRange(xRange=ranges[0], yRange=ranges[1], padding=0.02)
@@ -517,6 +576,7 @@ class SurfaceView(QWidget):
 
     def _mode_changed(self, index: int) -> None:
         self._mode = "phase" if index == 1 else "height"
+        self._profile_ranges = None  # the profile's range taken afresh in the new unit
         self._apply_cmap()
         unit = "phase (rad)" if self._mode == "phase" else "delta h (nm)"
         self.profile.setLabel("left", unit)

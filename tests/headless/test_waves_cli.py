@@ -263,6 +263,35 @@ def test_partial_waves_and_ringdown_through_the_command(
         assert f["partial_waves/incoming_real_m"].attrs["unit"] == "m"
 
 
+def test_a_centre_beyond_where_the_rings_fit_stops_the_run_with_the_radius_that_does(
+    tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    """Rings to 19.4 mm fit around centres from 20.6 mm: the waves' is at y = 20.2 mm.
+
+    Held at the edge of where the rings fit, a centre a pixel off took 2 to 3 % of the
+    partial waves' amplitudes (``benchmarks/accuracy_waves.py``, rings to 38 mm).
+    """
+    size, pixel, fps = 72, 0.6e-3, 100.0
+    centre = (21.5e-3, 20.2e-3)
+    surface = PartialWaves(
+        (PartialWave(0, 14.3, 20e-9, 12e-9),), centre=centre, core_radius=3e-3, depth=5e-3
+    )
+    maps, times = field_maps(surface, 160, fps, size, pixel)
+    path = results_file(tmp_path / "results.h5", maps, times, pixel)
+    out = tmp_path / "out"
+    argv = ["waves", str(path), "--out", str(out), "--no-fit", "--segment", "128"]
+    argv += ["--centre", "auto", "--r-range-mm", "5:19.4", "--drive-hz", "14.3"]
+    status, _, err = run_cli(argv, capsys)
+    assert status == 2, err
+    # the room: 20.2 mm to the nearest edge, less two pixels
+    assert "leaves room for rings up to 19.0 mm only" in err or "up to 18.9 mm" in err, err
+    assert err.count("\n") == 1 and "Traceback" not in err
+    status, _, err = run_cli([*argv[:-4], "--r-range-mm", "5:18.9", "--drive-hz", "14.3"], capsys)
+    assert status == 0, err
+    found = json.loads((out / "waves.json").read_text())["centre_m"]
+    assert np.hypot(found[0] - centre[0], found[1] - centre[1]) < 0.2 * pixel
+
+
 def test_two_threads_give_the_numbers_of_one(tmp_path: Path) -> None:
     """Threads (omega-k beside the lock-ins, rings sampled in chunks) change no number."""
     size, pixel, fps = 48, 0.6e-3, 100.0

@@ -13,7 +13,7 @@ import pytest
 from holoview.acquire.ring import FrameRing
 from holoview.engine.experiment import Experiment
 from holoview.live.maps_pipeline import MapsPipeline
-from holoview.live.worker import YIELDING_NICENESS, DemodWorker, yield_to_others
+from holoview.live.worker import SIDE_NICENESS, YIELDING_NICENESS, DemodWorker, yield_to_others
 
 pytestmark = pytest.mark.skipif(
     not sys.platform.startswith("linux"), reason="per-thread nice values are Linux's"
@@ -56,6 +56,11 @@ def test_the_maps_worker_and_its_peak_thread_run_niced() -> None:
     try:
         for thread in (worker._thread, worker.peaks._thread):  # each sets it as it starts
             assert _eventually(lambda t=thread: _nice_of(t.native_id) == expected), thread.name
+        # the side work (spectrum, window matching, displacements) below the maps
+        side = min(_nice_of(threading.get_native_id()) + SIDE_NICENESS, 19)
+        for side_worker in (worker.spectra, worker.matches, worker.coregistration):
+            thread = side_worker._thread
+            assert _eventually(lambda t=thread: _nice_of(t.native_id) == side), thread.name
     finally:
         ring.close()
         worker.stop()

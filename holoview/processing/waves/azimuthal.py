@@ -29,7 +29,12 @@ power-weighted centroid and a coarse grid over the maps (the entropy has local m
 A field of partial waves around one centre puts its power in a few ``m``; seen from
 another point, each spreads over ``m +- n`` with weights ``J_n(k delta)^2`` (Graf's
 addition theorem). The map's mean is removed first: a uniform part (the reference arm's
-vibration in the RF and RB maps) is ``m = 0`` around every point.
+vibration in the RF and RB maps) is ``m = 0`` around every point. The search keeps to
+where the rings asked for fit; a centre it finds at that region's edge is sought again
+with rings to half the radius (:data:`WIDE_RINGS`), and one beyond the region is
+refused with the radius that fits: held at the edge, a centre a pixel off took 2 to
+3 % of the partial waves' amplitudes (``J_0(k delta)``; ``benchmarks/accuracy_waves.py``,
+maps of 180 pixels of 0.467 mm, rings to 38 mm).
 """
 
 from __future__ import annotations
@@ -66,6 +71,13 @@ CENTRE_GRID = 7
 
 #: Where the centre search stops: its steps below this, map pixels.
 CENTRE_TOLERANCE_PX = 0.05
+
+#: A centre found this close to the edge of where the rings fit (map pixels) is sought
+#: again with rings to :data:`WIDE_RINGS` of the radius: the waves' centre may lie beyond.
+CENTRE_EDGE_PX = 0.5
+
+#: Fraction of the radius asked for that the rings of the second search reach.
+WIDE_RINGS = 0.5
 
 #: Frames whose ring samples are made at once (a few MB: reused, not mapped afresh).
 MODES_CHUNK = 16
@@ -432,6 +444,17 @@ class AzimuthalAccumulator:
         return np.asarray(self._times), np.concatenate(self._series)
 
 
+def _room(
+    radius: float, width: float, height: float, pixel: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """The lowest and highest centres ``(x, y)`` (m) around which rings to ``radius`` fit.
+
+    Two pixels of margin (``pixel``, m): the rings are sampled by Keys' cubic convolution.
+    """
+    margin = radius + 2.0 * pixel
+    return np.array([margin, margin]), np.array([width - margin, height - margin])
+
+
 def _entropy(
     field: np.ndarray, centre: np.ndarray, radii: np.ndarray, n_theta: int, m_max: int
 ) -> float:
@@ -487,7 +510,8 @@ def find_centre(
     Raises
     ------
     InputError
-        The map is all NaN, or no centre leaves room for the rings.
+        The map is all NaN, no centre leaves room for the rings, or the waves' centre
+        lies where they do not fit (the message gives the radius that does).
     """
     field = np.asarray(amplitude, dtype=np.complex128)
     rows, cols = field.shape
@@ -507,52 +531,66 @@ def find_centre(
         if start is None
         else np.asarray(start, dtype=np.float64)
     )
-    margin = radius + 2.0 * min(dx, dy)
-    low = np.array([margin, margin])
-    high = np.array([(cols - 1) * dx - margin, (rows - 1) * dy - margin])
+    pixel = min(dx, dy)
+    width, height = (cols - 1) * dx, (rows - 1) * dy
+    low, high = _room(radius, width, height, pixel)
     if np.any(high < low):
         raise InputError(
             f"rings of {radius * 1e3:.3g} mm do not fit in maps of "
-            f"{(cols - 1) * dx * 1e3:.3g} x {(rows - 1) * dy * 1e3:.3g} mm"
+            f"{width * 1e3:.3g} x {height * 1e3:.3g} mm"
         )
-    first = np.clip(first, low, high)
     parts = np.stack([np.where(finite, field.real, np.nan), np.where(finite, field.imag, np.nan)])
-    ring_step = 2.0 * min(dx, dy)  # m
+    ring_step = 2.0 * pixel  # m
     inner = 2.0 * ring_step if r_min is None else float(r_min)
-    radii_px = np.arange(inner, radius + 1e-12, ring_step) / min(dx, dy)
-    n_theta = max(16, 1 << math.ceil(math.log2(2 * math.pi * radii_px[-1])))
     scale = np.array([dx, dy])
 
-    def score(point: np.ndarray) -> float:
-        if np.any(point < low) or np.any(point > high):
-            return math.inf
-        return _entropy(parts, point / scale, radii_px, n_theta, m_max)
+    def search(
+        span: tuple[np.ndarray, np.ndarray], outer: float, first: np.ndarray, step: float
+    ) -> np.ndarray:
+        """Nelder-Mead from ``first`` (m) within ``span``, rings from ``inner`` to ``outer``."""
+        radii_px = np.arange(inner, outer + 1e-12, ring_step) / pixel
+        n_theta = max(16, 1 << math.ceil(math.log2(2 * math.pi * radii_px[-1])))
 
-    step = 0.5 * min(dx, dy)  # a given start is close already
-    if start is None:  # the entropy has local minima: start from the best of a coarse grid
-        xs = np.linspace(low[0], high[0], CENTRE_GRID)
-        ys = np.linspace(low[1], high[1], CENTRE_GRID)
-        candidates = [first] + [np.array([x, y]) for y in ys for x in xs]
-        scores = [score(point) for point in candidates]
-        first = candidates[int(np.argmin(scores))]
-        step = max(0.5 * float(min(xs[1] - xs[0], ys[1] - ys[0])), min(dx, dy))
-    simplex = np.array([first, first + np.array([step, 0.0]), first + np.array([0.0, step])])
-    result = minimize(
-        score,
-        first,
-        method="Nelder-Mead",
-        options={
-            "initial_simplex": simplex,
-            "xatol": CENTRE_TOLERANCE_PX * min(dx, dy),
-            "fatol": 1e-7,
-        },
-    )
-    if not np.isfinite(result.fun):
-        raise InputError("no centre can be found: the rings meet untrusted pixels everywhere")
-    logger.info(
-        "centre found at (%.4g, %.4g) mm (entropy over m %.3g)",
-        result.x[0] * 1e3,
-        result.x[1] * 1e3,
-        result.fun,
-    )
-    return float(result.x[0]), float(result.x[1])
+        def score(point: np.ndarray) -> float:
+            if np.any(point < span[0]) or np.any(point > span[1]):
+                return math.inf
+            return _entropy(parts, point / scale, radii_px, n_theta, m_max)
+
+        if start is None and step == 0:  # the entropy has local minima: a coarse grid
+            xs = np.linspace(span[0][0], span[1][0], CENTRE_GRID)
+            ys = np.linspace(span[0][1], span[1][1], CENTRE_GRID)
+            candidates = [first] + [np.array([x, y]) for y in ys for x in xs]
+            first = candidates[int(np.argmin([score(point) for point in candidates]))]
+            step = max(0.5 * float(min(xs[1] - xs[0], ys[1] - ys[0])), pixel)
+        step = step or 0.5 * pixel  # a given start is close already
+        simplex = np.array([first, first + np.array([step, 0.0]), first + np.array([0.0, step])])
+        result = minimize(
+            score,
+            first,
+            method="Nelder-Mead",
+            options={
+                "initial_simplex": simplex,
+                "xatol": CENTRE_TOLERANCE_PX * pixel,
+                "fatol": 1e-7,
+            },
+        )
+        if not np.isfinite(result.fun):
+            raise InputError("no centre can be found: the rings meet untrusted pixels everywhere")
+        return np.asarray(result.x, dtype=np.float64)
+
+    found = search((low, high), radius, np.clip(first, low, high), 0.0)
+    edge = CENTRE_EDGE_PX * pixel
+    outer = max(WIDE_RINGS * radius, inner + 4.0 * ring_step)
+    if outer < radius and (np.any(found - low < edge) or np.any(high - found < edge)):
+        # held at the edge of where the rings fit: the waves' centre may lie beyond it
+        wide = search(_room(outer, width, height, pixel), outer, found, pixel)
+        slack = 2.0 * CENTRE_TOLERANCE_PX * pixel
+        if np.any(wide < low - slack) or np.any(wide > high + slack):
+            room = min(wide[0], width - wide[0], wide[1], height - wide[1]) - 2.0 * pixel
+            raise InputError(
+                f"the waves' centre, near ({wide[0] * 1e3:.4g}, {wide[1] * 1e3:.4g}) mm, "
+                f"leaves room for rings up to {math.floor(room * 1e4) / 10:.1f} mm only, "
+                f"not {radius * 1e3:.3g} mm: ask for rings to at most that"
+            )
+    logger.info("centre found at (%.4g, %.4g) mm", found[0] * 1e3, found[1] * 1e3)
+    return float(found[0]), float(found[1])

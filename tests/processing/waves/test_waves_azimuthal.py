@@ -67,6 +67,22 @@ def test_the_centre_is_found_from_the_field(field):
     assert np.hypot(centre[0] - CENTRE_MAP[0], centre[1] - CENTRE_MAP[1]) < 0.1 * PIXEL
 
 
+def test_a_centre_beyond_where_the_rings_fit_is_refused_not_held_at_its_edge(field):
+    # rings to 22.3 mm fit around centres from 23.3 to 24.2 mm along each axis: the waves'
+    # centre (24.3, 22.8) mm lies a pixel beyond along y. Held at the edge, a centre a
+    # pixel off took 2 to 3 % of the partial waves' amplitudes (J_0(k delta),
+    # benchmarks/accuracy_waves.py on 180-pixel maps with rings to 38 mm).
+    _, times, maps = field
+    lockin = LockIn((SIZE, SIZE), 14.3, (1,), span=(0.0, times[-1]))
+    lockin.push_block(maps, times)
+    amplitude = lockin.result().amplitude[0]
+    # the room around the true centre: 22.8 mm to the nearest edge less two pixels
+    with pytest.raises(InputError, match=r"near \(24\.3\d*, 22\.8\d*\) mm.*up to 21\.[78] mm"):
+        find_centre(amplitude, PIXEL, radius=22.3e-3, r_min=5e-3)
+    centre = find_centre(amplitude, PIXEL, radius=21.5e-3, r_min=5e-3)
+    assert np.hypot(centre[0] - CENTRE_MAP[0], centre[1] - CENTRE_MAP[1]) < 0.1 * PIXEL
+
+
 def test_the_mf_spectrum_peaks_at_the_true_modes_and_amplitudes_come_back(field):
     surface, times, maps = field
     g = polar_grid((SIZE, SIZE), PIXEL, CENTRE_MAP, r_min=5e-3, r_max=21e-3, m_max=4)
