@@ -308,17 +308,28 @@ class SpreadMaps:
         self._counts = MapRecord(data) if record else None
 
     def take(
-        self, position: int, index: int, frame: np.ndarray, values: np.ndarray, bits: int
+        self,
+        position: int,
+        index: int,
+        frame: np.ndarray,
+        values: np.ndarray,
+        bits: int,
+        *,
+        step: MapStep | None = None,
     ) -> None:
-        """Demodulate the frame at ``position`` (input ``index``), its carrier values and bits."""
+        """Demodulate the frame at ``position`` (input ``index``), its carrier values and bits.
+
+        With :attr:`step`, or ``step``: another in the state :attr:`step` would hold
+        there, sharing its co-registration.
+        """
         t0 = time.perf_counter()
         maps = frame_maps(
-            self.step,
+            step or self.step,
             frame,
             values,
             bits,
-            estimate=position % self._every == 0,
-            fuse=self._record and position == self._n - 1,
+            estimate=self.estimates(position),
+            fuse=self.fuses(position),
             shifts=False,
         )
         if self._counts is not None:
@@ -326,6 +337,32 @@ class SpreadMaps:
         seconds = time.perf_counter() - t0
         self._data.maps_seconds += seconds
         self._data.demod_seconds += seconds
+
+    def estimates(self, position: int) -> bool:
+        """Whether the frame at ``position`` adds its maps to the displacement estimate."""
+        return position % self._every == 0
+
+    def fuses(self, position: int) -> bool:
+        """Whether the frame at ``position`` is fused (the last one's, recorded)."""
+        return self._record and position == self._n - 1
+
+    def made(self, position: int, index: int, maps: FrameMaps) -> None:
+        """Take the maps of the frame at ``position`` (input ``index``) made elsewhere.
+
+        Made by a step in the state :attr:`step` would hold there, without the estimate
+        (:func:`frame_maps` with ``estimate`` False): the maps are added to the estimate
+        here, so that, taken in order, the estimate is the one :meth:`take` makes.
+        """
+        result = maps.result
+        if self.estimates(position) and result is not None and result.peaks:
+            self.step.coregistration.add_maps(
+                tuple(r.peak.label for r in result.peaks),
+                result.box_shape,
+                maps.maps,
+                reference="reference" in result.flags,
+            )
+        if self._counts is not None:
+            self._counts.record(position, index, maps)
 
     def finish(self) -> list[Displacement]:
         """Keep the displacements measured and the fused labels in the run's record."""

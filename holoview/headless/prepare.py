@@ -12,7 +12,6 @@ an :class:`~holoview.errors.InputError` raised here, before the output folder is
 from __future__ import annotations
 
 import logging
-from collections.abc import Iterator
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -33,6 +32,7 @@ from holoview.headless.inputs import (
     frame_problem,
     resolve_optics,
 )
+from holoview.headless.parallel.threads import in_order, parent_threads
 from holoview.headless.run_passes import RunFrames
 from holoview.headless.selection import Selection, select_auto, select_from_experiment
 from holoview.headless.settings import PeakChoice, ProcessOptions, ProcessSettings
@@ -41,6 +41,7 @@ from holoview.processing.peaks.radii import distinct_neighbours, surface_band, w
 from holoview.processing.peaks.surface_spectrum import (
     SurfaceSpectrum,
     average_change,
+    half_spectrum,
     measure_spectrum,
 )
 
@@ -155,6 +156,7 @@ def prepare_run(
         background=background,
         grid=settings.maps_grid,
     )
+    threads = parent_threads(options.jobs, settings.threads)
     if experiment.radius_rule == "matched":
         spectrum = _matching_spectrum(
             source,
@@ -166,6 +168,7 @@ def prepare_run(
             band=surface_band(detected),
             carriers=[p.carrier for p in selection.peaks],
             neighbours=spec.neighbours,
+            threads=threads,
         )
         spec = spec.matched(source.frame_shape, source.saturation, spectrum)
     core = spec.core(source.frame_shape, source.saturation)
@@ -191,6 +194,7 @@ def prepare_run(
         optics,
         settings,
         identity,
+        threads,
     )
     return PreparedRun(run, first, detected, demodulator.box_shape)
 
@@ -206,6 +210,7 @@ def _matching_spectrum(
     band: float,
     carriers: list[tuple[float, float]],
     neighbours: tuple[tuple[float, float], ...],
+    threads: int = 1,
 ) -> SurfaceSpectrum:
     """What a run's windows are matched to: the changes its maps show, the waves detected.
 
@@ -217,7 +222,8 @@ def _matching_spectrum(
     bounded by the ``neighbours`` too) averaged
     over the frames :func:`~holoview.engine.frame_core.mean_positions` names
     (:class:`~holoview.processing.peaks.surface_spectrum.ChangeAverage`), against the
-    same reference (relative maps: each against the frame before it).
+    same reference (relative maps: each against the frame before it). The frames are
+    read in turn, transformed ``threads`` at a time, and their changes added in order.
     """
     start = frames.index(first_index)
     later = []
@@ -228,19 +234,25 @@ def _matching_spectrum(
     positions = mean_positions(reference, len(frames) - start)
     fixed = first if background is None else background
 
-    def pairs() -> Iterator[tuple[np.ndarray, np.ndarray]]:  # one frame read at a time
-        for position in positions:
-            frame = source.read(frames[start + position])
-            against = (
-                source.read(frames[start + position - 1]) if reference == "relative" else fixed
-            )
-            if frame_problem(frame) is None and frame_problem(against) is None:
-                yield frame, against
+    def read(position: int) -> tuple[np.ndarray, np.ndarray]:  # here, one after another
+        frame = source.read(frames[start + position])
+        against = source.read(frames[start + position - 1]) if reference == "relative" else fixed
+        return frame, against
+
+    def transformed(pair: tuple[np.ndarray, np.ndarray]) -> tuple[np.ndarray, np.ndarray] | None:
+        """The frame's half spectrum and its reference's (a fixed one as it is), or None."""
+        frame, against = pair
+        if frame_problem(frame) is not None or frame_problem(against) is not None:
+            return None
+        return half_spectrum(frame), against if against is fixed else half_spectrum(against)
 
     mean = None
     if positions and carriers:
         others = distinct_neighbours(first.shape, np.array(carriers), neighbours)
-        mean = average_change(first.shape, carriers, pairs(), neighbours=[tuple(o) for o in others])
+        # read here, transformed ``threads`` at a time, added in order: the same sums
+        done = in_order(transformed, (read(p) for p in positions), threads)
+        pairs = (p for p in done if p is not None)
+        mean = average_change(first.shape, carriers, pairs, neighbours=[tuple(o) for o in others])
     if reference != "synthetic" and background is not None:
         return measure_spectrum([first, *later], background, band=band, mean=mean)
     if not later:

@@ -43,6 +43,7 @@ from holoview.headless.frame_passes import (
 from holoview.headless.input_identity import InputIdentity
 from holoview.headless.inputs import InputFile, Optics
 from holoview.headless.parallel.runners import ChunkRunner
+from holoview.headless.parallel.spread_threads import spread_in_threads
 from holoview.headless.parallel.stitch import map_chunks, measure_chunks
 from holoview.headless.run_data import MapRecord, MapSink, RunData, new_run_data
 from holoview.headless.selection import Selection
@@ -77,6 +78,11 @@ class RunFrames:
         Its settings.
     identity : InputIdentity or None
         The input's when the run started: the workers check it before each chunk.
+    threads : int
+        The cores this process may use for its own work where its workers are not
+        running (:func:`~holoview.headless.parallel.threads.parent_threads`): the
+        frames spread over the run demodulated in threads
+        (:mod:`~holoview.headless.parallel.spread_threads`).
     """
 
     source: InputFile
@@ -88,6 +94,7 @@ class RunFrames:
     optics: Optics
     settings: ProcessSettings
     identity: InputIdentity | None = None
+    threads: int = 1
 
 
 def run_passes(
@@ -146,7 +153,7 @@ def run_passes(
         joint.track(data.series)
     read_ahead = run.settings.read_ahead
     if together:
-        spread_pass(source, frames, data, spec, record=False, read_ahead=read_ahead)
+        _spread(run, data, spec, record=False)
         spec = replace(spec, displacements=tuple(data.displacements))
         record = MapRecord(data, sink, fused=bool(data.fused_labels))
         if runner is None:
@@ -224,9 +231,7 @@ def run_passes(
         return data, naming
     try:
         if beside is None and inline is None:
-            spread_pass(
-                source, frames, data, spec, record=not maps, read_ahead=read_ahead, measured=True
-            )
+            _spread(run, data, spec, record=not maps, measured=True)
         if sink is not None:
             spec = replace(spec, displacements=tuple(data.displacements))
             record = MapRecord(data, sink, fused=bool(data.fused_labels))
@@ -252,6 +257,27 @@ def run_passes(
         data.truncate(done)
         _no_maps(data, maps)
     return data, naming
+
+
+def _spread(
+    run: RunFrames, data: RunData, spec: MapsSpec, *, record: bool, measured: bool = False
+) -> None:
+    """The spread pass while this process works alone: on its threads (the same numbers)."""
+    source, frames = run.source, run.frames
+    if run.threads > 1:
+        spread_in_threads(
+            source, frames, data, spec, record=record, threads=run.threads, measured=measured
+        )
+    else:
+        spread_pass(
+            source,
+            frames,
+            data,
+            spec,
+            record=record,
+            read_ahead=run.settings.read_ahead,
+            measured=measured,
+        )
 
 
 def _named(data: RunData, run: RunFrames) -> Naming:

@@ -47,7 +47,7 @@ from holoview.headless.parallel.chunk_maps import MapsWork, map_bytes
 from holoview.headless.parallel.chunks import ChunkResult, make_tasks, split_frames
 from holoview.headless.parallel.runners import ChunkRunner
 from holoview.headless.reader import DEFAULT_DEPTH
-from holoview.headless.run_data import MapRecord, RunData, check_run
+from holoview.headless.run_data import DAMAGED_BIT, NONFINITE_BIT, MapRecord, RunData, check_run
 from holoview.processing.fourier.fftplans import current_wisdom
 from holoview.processing.maps.mean_phases import MeanPhases, MeanPhaseState
 from holoview.processing.peaks.detection import Peak
@@ -302,14 +302,22 @@ def _account(data: RunData, result: ChunkResult, parent_seconds: float) -> None:
 
 
 def chunk_states(
-    data: RunData, chunks: Sequence[range], spec: MapsSpec, start: MeanPhaseState, mode: str
+    values: np.ndarray,
+    frame_bits: np.ndarray,
+    chunks: Sequence[range],
+    spec: MapsSpec,
+    *,
+    start: MeanPhaseState,
+    mode: str,
 ) -> list[tuple[MeanPhaseState, int | None]]:
     """Per chunk, the mean phases and the reference frame's position the serial pass has there.
 
     The serial maps pass (:func:`~holoview.headless.frame_passes.maps_pass`) advances
     its mean phases (:class:`~holoview.processing.maps.mean_phases.MeanPhases`) on the
     series' values of every frame it demodulates; this replays it, with the same
-    arithmetic, from ``start`` (a fresh demodulator's state).
+    arithmetic, from ``start`` (a fresh demodulator's state). ``values`` (K, M) and
+    ``frame_bits`` (K,) are those of the frames the pass takes, in its order (a run's
+    series, or the frames spread over it), the chunks' positions index them.
     """
     m = len(spec.peaks)
     phases = MeanPhases(m, mode)
@@ -325,11 +333,10 @@ def chunk_states(
             reference = first
         out.append((phases.state(), reference))
         for position in chunk:
-            if not data.demodulable(position):
-                continue
-            values = data.values[position]
+            if int(frame_bits[position]) & (DAMAGED_BIT | NONFINITE_BIT):
+                continue  # not demodulated (RunData.demodulable)
             for j in range(m):
-                phases.advance(j, complex(values[j]))
+                phases.advance(j, complex(values[position, j]))
             first = position if first is None else first
             last = position
     return out
@@ -412,7 +419,14 @@ def _map_chunks(
     chunks = split_frames(
         n, runner.workers, maps=True, map_bytes=map_bytes(data.box_shape, len(demod.peaks))
     )
-    states = chunk_states(data, chunks, spec, demod.phase_state(), demod.reference)
+    states = chunk_states(
+        data.values,
+        data.frame_bits,
+        chunks,
+        spec,
+        start=demod.phase_state(),
+        mode=demod.reference,
+    )
     fused = bool(data.fused_labels)
     works = []
     for chunk, (state, reference) in zip(chunks, states, strict=True):
