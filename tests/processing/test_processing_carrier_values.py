@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 from processing_synth import frame, intensity
 
+from holoview.engine.experiment import MAX_PEAKS
 from holoview.errors import InputError
 from holoview.optics.families import predict_families
 from holoview.optics.scenarios import ScenarioConfig, simulate
@@ -15,6 +16,7 @@ from holoview.optics.setup import Setup
 from holoview.optics.synthesis import HologramSynthesizer
 from holoview.processing.maps.demodulate import Demodulator
 from holoview.processing.peaks.detection import Peak
+from holoview.processing.series import carrier_probe
 from holoview.processing.series.carrier_probe import (
     TAPER_CYCLES,
     CarrierProbe,
@@ -296,3 +298,27 @@ def test_bad_shapes_and_frames() -> None:
         probe.measure(good.astype(np.complex64))
     with pytest.raises(InputError, match="dtype bool"):
         probe.measure(good > 800)
+
+
+def _noise_rows_plainly(carriers: np.ndarray, which: int) -> np.ndarray:
+    """One carrier's noise rows: every candidate's distance to every term."""
+    terms = carrier_probe.structure(carriers)
+    n = carrier_probe.NOISE_CANDIDATES
+    candidates = (np.arange(n) + 0.5) / n - 0.5
+    dx = (carriers[which, 0] - terms[:, 0] + 0.5) % 1.0 - 0.5
+    dy = (candidates[:, None] - terms[None, :, 1] + 0.5) % 1.0 - 0.5
+    clearance = np.hypot(dx[None, :], dy).min(axis=1)
+    order = np.argsort(-clearance, kind="stable")[: carrier_probe.NOISE_POINTS]
+    return candidates[np.sort(order)]
+
+
+def test_noise_rows_are_the_farthest_from_every_term_for_any_number_of_peaks() -> None:
+    rng = np.random.default_rng(3)
+    # up to the most peaks an experiment holds: 197121 terms, whose distances to every
+    # candidate of every carrier at once took 24 GiB (the live window at 256 peaks)
+    for n in (1, 2, 6, 20, MAX_PEAKS):
+        carriers = rng.uniform(-0.45, 0.45, (n, 2))
+        rows = carrier_probe._noise_rows(carriers)
+        assert rows.shape == (n, carrier_probe.NOISE_POINTS)
+        for which in range(min(n, 3)):
+            np.testing.assert_array_equal(rows[which], _noise_rows_plainly(carriers, which))
