@@ -36,12 +36,12 @@ from holoview.headless.parallel.threads import in_order, parent_threads
 from holoview.headless.run_passes import RunFrames
 from holoview.headless.selection import Selection, select_auto, select_from_experiment
 from holoview.headless.settings import PeakChoice, ProcessOptions, ProcessSettings
+from holoview.processing.fourier.spectrum import rfft2
 from holoview.processing.peaks.detection import Peak, find_peaks
 from holoview.processing.peaks.radii import distinct_neighbours, surface_band, window_neighbours
 from holoview.processing.peaks.surface_spectrum import (
     SurfaceSpectrum,
     average_change,
-    half_spectrum,
     measure_spectrum,
 )
 
@@ -244,7 +244,7 @@ def _matching_spectrum(
         frame, against = pair
         if frame_problem(frame) is not None or frame_problem(against) is not None:
             return None
-        return half_spectrum(frame), against if against is fixed else half_spectrum(against)
+        return rfft2(frame), against if against is fixed else rfft2(against)
 
     mean = None
     if positions and carriers:

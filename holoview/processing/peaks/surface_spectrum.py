@@ -30,8 +30,7 @@ import numpy as np
 from scipy import stats
 
 from holoview.errors import InputError
-from holoview.processing.fourier.fftplans import DEFAULT_THREADS, rfft2_plan
-from holoview.processing.fourier.frames import check_frame
+from holoview.processing.fourier.spectrum import rfft2
 from holoview.processing.fourier.windows import auto_radii
 
 __all__ = [
@@ -42,7 +41,6 @@ __all__ = [
     "MeanChange",
     "SurfaceSpectrum",
     "average_change",
-    "half_spectrum",
     "measure_spectrum",
 ]
 
@@ -216,13 +214,14 @@ class ChangeAverage:
         """Add one frame's change against ``reference``: each a frame, or its half spectrum.
 
         Both in counts, not modified; ``reference`` None for synthetic phases. A half
-        spectrum (complex, :func:`half_spectrum`'s) may be made beforehand, elsewhere (in
-        parallel, frames at a time): the same numbers as the frame's.
+        spectrum (complex, :func:`~holoview.processing.fourier.spectrum.rfft2`'s) may be
+        made beforehand, elsewhere (in parallel, frames at a time: each thread has its
+        own plan): the same numbers as the frame's.
         """
-        half = frame if np.iscomplexobj(frame) else half_spectrum(frame, self.threads)
+        half = frame if np.iscomplexobj(frame) else rfft2(frame, threads=self.threads)
         if reference is not None and reference.shape != half.shape:
             if reference is not self._reference[0]:  # one transform for a fixed reference
-                self._reference = (reference, half_spectrum(reference, self.threads))
+                self._reference = (reference, rfft2(reference, threads=self.threads))
             reference = self._reference[1]
         if half.shape[0] != self.shape[0]:
             raise InputError("the frames the change is averaged over differ in shape")
@@ -355,19 +354,6 @@ class SurfaceSpectrum:
         return rho, power / len(self.frames), None
 
 
-def half_spectrum(frame: np.ndarray, threads: int | None = None) -> np.ndarray:
-    """A frame's half spectrum (``rfft2`` layout, complex64, counts; the calling thread's plan).
-
-    pyFFTW releases the GIL while it transforms, and each thread has its own plan:
-    threads may transform frames side by side (:meth:`ChangeAverage.add` takes them).
-    """
-    array = check_frame(frame)
-    plan = rfft2_plan(array.shape, threads=threads or DEFAULT_THREADS)
-    np.copyto(plan.input_array, array, casting="unsafe")
-    plan()
-    return plan.output_array.copy()
-
-
 def measure_spectrum(
     frames: np.ndarray | Sequence[np.ndarray],
     reference: np.ndarray | None = None,
@@ -407,8 +393,8 @@ def measure_spectrum(
         reference is not None and np.shape(reference) != shape
     ):
         raise InputError("the frames the windows are matched to differ in shape")
-    halves = tuple(half_spectrum(a, threads) for a in arrays)
-    other = None if reference is None else half_spectrum(reference, threads)
+    halves = tuple(rfft2(a, threads=threads) for a in arrays)
+    other = None if reference is None else rfft2(reference, threads=threads)
     floor = _noise_floor(halves, other)
     if floor is None:
         raise InputError("the spectrum has no noise floor (constant, equal or non-finite frames)")
