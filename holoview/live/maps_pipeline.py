@@ -10,7 +10,7 @@ of the time, and the fused map); at each detection, at most a :data:`SIDE_SHARE`
 time unless the operator asks, the windows' match to the surface is checked
 (:class:`holoview.engine.window_matching.WindowMatcher`: matched again when the operator
 asks or the surface's bandwidth changed, with a note shown for :data:`NOTE_SECONDS`).
-A measurement takes seconds: the live worker runs it on a thread of its own
+A measurement takes seconds: the live worker runs it in a process of its own
 (:meth:`MapsPipeline.match_job`, :meth:`MapsPipeline.use_match`) and the new windows
 are taken between two frames; the maps restart then, said by the note, and the first
 frame after any restart, the new reference, is marked (:attr:`LiveResult.reference`:
@@ -404,8 +404,8 @@ class MapsPipeline:
         """The measurement due at ``frame`` (a detection came, or the operator asked); None
         when none is. Each due measurement is handed out once; one that is not asked for
         waits until the last took at most :data:`SIDE_SHARE` of the time since it began (a
-        measurement takes seconds on a large frame; on its thread beside the maps it
-        holds them up through the interpreter's lock: 21 against 33 ms of CPU a map).
+        measurement takes seconds of CPU on a large frame, which the maps and the series
+        need on a machine of few cores).
 
         Call it after :meth:`process` has taken ``frame`` (the windows in use are the
         core's then). ``copy``: the job takes a copy of ``frame`` (it runs on another

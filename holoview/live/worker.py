@@ -13,7 +13,9 @@
   the windows' match to the surface (``holoview-match``) and the maps' displacement
   estimate (``holoview-coregister``), each slower than a frame's maps, run beside them
   at a lower priority (:class:`SideWorker`); the maps worker takes their results between
-  frames, so that no frame's maps wait for them.
+  frames, so that no frame's maps wait for them. The match, long and in Python, runs in
+  a process of its own (:class:`MatchWorker`): on a thread it held the interpreter's
+  lock away from the maps and the window.
 
 Each publishes its newest result under a lock; all stop with a flag (or the ring
 closing) and are joined by their ``stop``.
@@ -42,6 +44,7 @@ from holoview.engine.frame_core import FFT_THREADS
 from holoview.engine.map_step import Coregistration
 from holoview.engine.window_matching import MatchJob, Rematch, WindowMatcher
 from holoview.errors import HoloviewError
+from holoview.live.child_work import ChildWork
 from holoview.live.maps_pipeline import (
     CoregistrationJob,
     LiveResult,
@@ -251,17 +254,33 @@ def coregistration_work(
     return work
 
 
+def _matcher_in_child() -> Callable[[MatchJob], Rematch | None]:
+    """The match process's work (made there): a matcher of its own, its frames kept there."""
+    return matcher_work(WindowMatcher())
+
+
 class MatchWorker(SideWorker[MatchJob, Rematch | None]):
-    """Match the windows to the surface on a thread named ``holoview-match``.
+    """Match the windows to the surface in a process of its own, from ``holoview-match``.
 
     A measurement takes seconds on a large frame; the maps worker hands a
     :class:`~holoview.engine.window_matching.MatchJob` over (its own copy of the frame)
     and goes on with the maps; the new windows come back through :meth:`take`. The
-    thread yields to every other (:data:`SIDE_NICENESS`): its result may come late.
+    thread sends each job to a child process (:class:`~holoview.live.child_work.ChildWork`)
+    and waits: the measurement, long and in Python, would otherwise hold the interpreter's
+    lock away from the maps, the series and the window for as long as it runs. The child
+    yields to every other (:data:`SIDE_NICENESS`): its result may come late.
     """
 
-    def __init__(self, matcher: WindowMatcher) -> None:
-        super().__init__("holoview-match", matcher_work(matcher), "window matching")
+    def __init__(self) -> None:
+        self.child: ChildWork[MatchJob, Rematch | None] = ChildWork(
+            _matcher_in_child, "holoview-match", SIDE_NICENESS
+        )
+        super().__init__("holoview-match", self.child, "window matching")
+
+    def stop(self, timeout: float = 5.0) -> None:
+        """End the match process (a measurement under way is dropped), then the thread."""
+        self.child.close()
+        super().stop(timeout)
 
 
 #: The type of a worker's results.
@@ -434,7 +453,7 @@ class DemodWorker(RingWorker[LiveResult]):
         self.spectra: SideWorker[np.ndarray, np.ndarray] = SideWorker(
             "holoview-spectrum", spectrum_image, "the spectrum"
         )
-        self.matches = MatchWorker(pipeline.matcher)
+        self.matches = MatchWorker()
         self.coregistration: SideWorker[CoregistrationJob, Coregistration | None] = SideWorker(
             "holoview-coregister",
             coregistration_work(Coregistration(None)),

@@ -15,10 +15,10 @@ import numpy as np
 
 from holoview.acquire.ring import FrameRing
 from holoview.acquire.source import FrameMeta
-from holoview.engine import window_matching
 from holoview.engine.experiment import Experiment, LabelledPeak
 from holoview.engine.map_step import Coregistration
 from holoview.live import maps_pipeline
+from holoview.live.child_work import ChildWork
 from holoview.live.maps_pipeline import MapsPipeline
 from holoview.live.worker import DemodWorker
 
@@ -75,14 +75,14 @@ def test_maps_keep_coming_while_the_windows_are_measured(monkeypatch) -> None:
     between two frames and says the restart. Before, it measured on the maps worker's
     thread, and no map came while it measured (a 6 s gap in bench_gui)."""
     entered, release = threading.Event(), threading.Event()
-    measure = window_matching.measure_spectrum
+    measure = ChildWork.__call__
 
-    def held(*args, **kwargs):  # the real measurement, made to wait for the test
+    def held(self, job):  # the real measurement (in the match process), made to wait
         entered.set()
         release.wait(300)
-        return measure(*args, **kwargs)
+        return measure(self, job)
 
-    monkeypatch.setattr(window_matching, "measure_spectrum", held)
+    monkeypatch.setattr(ChildWork, "__call__", held)
     frames = hologram_stack(12, SHAPE)
     ring = FrameRing(4, SHAPE, np.uint16)
     worker = DemodWorker(ring, MapsPipeline(_experiment(), SHAPE))

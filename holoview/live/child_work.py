@@ -1,0 +1,179 @@
+"""Side work in a process of its own, so that it never holds the maps' interpreter lock.
+
+A side thread (:class:`~holoview.live.worker.SideWorker`) keeps slow work off the maps
+worker's frames, but not off the interpreter's lock: matching the windows to the surface
+at 1024^2 with six peaks is 0.6 s of CPU in some 56,000 Python calls, and while it runs
+every other thread of the window (the maps, the series, the painting) waits its turn for
+the lock again and again. Measured with ``benchmarks/bench_gui.py`` (2 cores, AVX2, load
+1-2): with the match on a thread, 4.3 maps/s, the camera view at 14.5 Hz and event-loop
+stalls up to 0.66 s; without it, 9.1 maps/s and 22.8 Hz.
+
+:class:`ChildWork` is a callable for such a thread: each call sends the job to a child
+process (started at the first call, ``spawn``: nothing of the window's threads or Qt in
+it), which runs the work there at a lower priority and sends the result back; the
+calling thread waits without the lock. The work's state (the matcher's frames) lives in
+the child. Errors come back as the thread's would: a
+:class:`~holoview.errors.HoloviewError` as such, anything else as a bug with the child's
+traceback. A child that ended (killed, out of memory) is said once and started again at
+the next job; :meth:`ChildWork.close` ends it. The child ends by itself when the window's
+process is gone (its end of the pipe closes) and ignores the terminal's Ctrl-C (the
+window handles it).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import multiprocessing
+import os
+import signal
+import threading
+import traceback
+from collections.abc import Callable
+from multiprocessing.connection import Connection
+from typing import Any, Generic, TypeVar
+
+from holoview.errors import HoloviewError
+
+logger = logging.getLogger(__name__)
+
+__all__ = ["ChildWork"]
+
+#: The type of the jobs and of their results.
+J = TypeVar("J")
+T = TypeVar("T")
+
+#: Seconds :meth:`ChildWork.close` waits for the child to end before it is killed.
+CLOSE_WAIT_S = 0.5
+
+
+def _serve(conn: Connection, make: Callable[[], Callable[[Any], Any]], niceness: int) -> None:
+    """The child: make the work, then run each job received until ``None`` or the pipe ends."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    with contextlib.suppress(OSError):  # a sandbox that forbids it: the same priority
+        os.nice(niceness)
+    work = make()
+    while True:
+        try:
+            job = conn.recv()
+        except (EOFError, OSError):
+            return  # the window's process is gone
+        if job is None:
+            return
+        try:
+            reply: tuple[str, Any] = ("done", work(job))
+        except HoloviewError as exc:
+            reply = ("input", str(exc))
+        except Exception:  # a bug: its traceback goes to the window's log
+            reply = ("bug", traceback.format_exc())
+        try:
+            conn.send(reply)
+        except (EOFError, OSError):
+            return
+
+
+class ChildWork(Generic[J, T]):
+    """Run ``make()``'s work on each job in a child process; call it from one thread.
+
+    Parameters
+    ----------
+    make : callable
+        Called once in the child (a module-level function: it is pickled): returns the
+        work, a callable taking a job and returning its result. Jobs and results are
+        pickled across.
+    name : str
+        The child's name (``holoview-...``), for its process title and the messages.
+    niceness : int
+        Added to the child's niceness at its start.
+    """
+
+    def __init__(self, make: Callable[[], Callable[[J], T]], name: str, niceness: int) -> None:
+        self._make = make
+        self._name = name
+        self._niceness = niceness
+        self._lock = threading.Lock()
+        self._process: multiprocessing.process.BaseProcess | None = None
+        self._conn: Connection | None = None
+        self._closed = False
+
+    @property
+    def pid(self) -> int | None:
+        """The child's process id (None before the first job and after it ended)."""
+        with self._lock:
+            return None if self._process is None else self._process.pid
+
+    def __call__(self, job: J) -> T:
+        """Run ``job`` in the child; wait for its result without the interpreter's lock.
+
+        Raises
+        ------
+        HoloviewError
+            The work's own, or the child ended (it starts again at the next job) or was
+            closed.
+        RuntimeError
+            A bug in the work, with the child's traceback.
+        """
+        conn = self._connection()
+        try:
+            conn.send(job)
+            kind, value = conn.recv()
+        except (EOFError, OSError) as exc:
+            code = self._forget()
+            if self._closed:
+                raise HoloviewError(f"{self._name} was stopped") from exc
+            raise HoloviewError(
+                f"{self._name}'s process ended (exit code {code}); it starts again at the next job"
+            ) from exc
+        if kind == "done":
+            return value  # type: ignore[no-any-return]
+        if kind == "input":
+            raise HoloviewError(value)
+        raise RuntimeError(f"{self._name} failed in its process:\n{value}")
+
+    def close(self) -> None:
+        """End the child (a job under way is abandoned: its call raises); no more jobs."""
+        with self._lock:
+            self._closed = True
+            process, conn = self._process, self._conn
+        if process is None:
+            return
+        if conn is not None:
+            with contextlib.suppress(OSError):
+                conn.send(None)
+        process.join(CLOSE_WAIT_S)
+        if process.is_alive():
+            process.kill()
+            process.join(CLOSE_WAIT_S)
+        self._forget()
+
+    def _connection(self) -> Connection:
+        with self._lock:
+            if self._closed:
+                raise HoloviewError(f"{self._name} was stopped")
+            if self._process is not None and self._conn is not None:
+                return self._conn
+            context = multiprocessing.get_context("spawn")
+            ours, theirs = context.Pipe()
+            process = context.Process(
+                target=_serve,
+                args=(theirs, self._make, self._niceness),
+                name=self._name,
+                daemon=True,
+            )
+            process.start()
+            theirs.close()
+            self._process, self._conn = process, ours
+            logger.debug("%s started in process %d", self._name, process.pid)
+            return ours
+
+    def _forget(self) -> int | None:
+        """Drop the child (ended or ending); its exit code where known."""
+        with self._lock:
+            process, conn = self._process, self._conn
+            self._process = self._conn = None
+        if conn is not None:
+            conn.close()
+        if process is None:
+            return None
+        process.join(CLOSE_WAIT_S)
+        return process.exitcode

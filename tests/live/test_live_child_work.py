@@ -1,0 +1,167 @@
+"""Side work in a child process (:class:`holoview.live.child_work.ChildWork`): real
+processes, real signals; results, errors and the child's end as a side thread's would be."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from holoview.engine.experiment import Experiment
+from holoview.engine.frame_core import FrameCore
+from holoview.engine.window_matching import MatchJob, WindowMatcher, windows_in_use
+from holoview.errors import HoloviewError
+from holoview.live.child_work import ChildWork
+from holoview.live.worker import MatchWorker
+
+REPO = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(REPO / "tests" / "processing"))
+from wavy_scene import render, travelling_waves, true_peaks, wavy_setup  # noqa: E402
+
+
+def _counting() -> Callable[[object], object]:
+    """A work with state kept in the child: each job's result says the child and its count."""
+    seen: list[object] = []
+
+    def work(job: object) -> object:
+        if job == "input":
+            raise HoloviewError("the job names no frame")
+        if job == "bug":
+            raise ZeroDivisionError("a bug in the work")
+        seen.append(job)
+        return os.getpid(), len(seen), os.getpriority(os.PRIO_PROCESS, 0)
+
+    return work
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    return Path(f"/proc/{pid}/stat").read_text().split(")")[-1].split()[0] != "Z"
+
+
+def _gone(pid: int, seconds: float = 10.0) -> bool:
+    deadline = time.monotonic() + seconds
+    while _alive(pid):
+        if time.monotonic() > deadline:
+            return False
+        time.sleep(0.02)
+    return True
+
+
+def test_jobs_run_in_one_child_that_keeps_its_state_at_a_lower_priority() -> None:
+    work = ChildWork(_counting, "holoview-test", niceness=3)
+    try:
+        first = work("a")
+        second = work("b")
+    finally:
+        work.close()
+    assert first[0] == second[0] != os.getpid()  # one child, not this process
+    assert (first[1], second[1]) == (1, 2)  # its state kept between jobs
+    assert first[2] == min(os.getpriority(os.PRIO_PROCESS, 0) + 3, 19)
+    assert _gone(first[0])
+    with pytest.raises(HoloviewError, match="holoview-test was stopped"):
+        work("c")
+
+
+def test_errors_come_back_as_the_thread_s_would() -> None:
+    work = ChildWork(_counting, "holoview-test", niceness=0)
+    try:
+        with pytest.raises(HoloviewError, match="the job names no frame"):
+            work("input")
+        with pytest.raises(RuntimeError, match="ZeroDivisionError: a bug in the work"):
+            work("bug")
+        assert work("a")[1] == 1  # the same child goes on
+    finally:
+        work.close()
+
+
+def test_a_killed_child_is_said_once_and_started_again() -> None:
+    work = ChildWork(_counting, "holoview-test", niceness=0)
+    try:
+        pid = work("a")[0]
+        os.kill(pid, signal.SIGKILL)
+        assert _gone(pid)
+        with pytest.raises(HoloviewError, match=r"process ended \(exit code -9\); it starts again"):
+            work("b")
+        again = work("c")
+        assert again[0] != pid and again[1] == 1  # a new child, its state new
+    finally:
+        work.close()
+
+
+def test_the_child_ends_with_the_process_that_started_it(tmp_path: Path) -> None:
+    """A window killed outright (no exit handler runs) leaves no matcher behind."""
+    script = tmp_path / "parent.py"
+    script.write_text(
+        textwrap.dedent(
+            f"""
+            import os, sys
+            sys.path.insert(0, {str(Path(__file__).parent)!r})
+            from test_live_child_work import _counting
+            from holoview.live.child_work import ChildWork
+            if __name__ == "__main__":
+                work = ChildWork(_counting, "holoview-test", niceness=0)
+                print(work("a")[0], flush=True)
+                os.kill(os.getpid(), 9)
+            """
+        )
+    )
+    done = subprocess.run(
+        [sys.executable, str(script)],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        cwd=REPO,
+        check=False,
+    )
+    assert done.returncode == -signal.SIGKILL, done.stderr
+    assert _gone(int(done.stdout.split()[0]))
+
+
+def test_the_match_worker_measures_in_its_process_as_the_maps_worker_would() -> None:
+    """The same detections' frames give the same windows in the child as in this process."""
+    setup = wavy_setup(256)
+    waves = travelling_waves(2, k_range=(300.0, 600.0), rms=10e-9, shape=setup.shape)
+    frames, _ = render(setup, waves, 4, seed=2)
+    experiment = Experiment(reference="absolute", wavelength_m=setup.wavelength)
+    core = FrameCore(setup.shape, experiment, true_peaks(setup)[:4])
+    core.build()
+    here, worker = WindowMatcher(), MatchWorker()
+    worker.start()
+    matched = 0
+    try:
+        for i, frame in enumerate(frames):
+            job = MatchJob(windows_in_use(core), np.array(frame), band=0.0)
+            expected = job.run(here)
+            assert worker.submit(job)
+            deadline = time.monotonic() + 120
+            while (taken := worker.take()) is None:
+                assert time.monotonic() < deadline, "no result from the match process"
+                time.sleep(0.01)
+            assert not isinstance(taken, str), taken
+            result = taken[0]
+            assert (result is None) == (expected is None), i
+            if expected is not None and result is not None:
+                assert result.note == expected.note
+                assert {k: w.radius for k, w in result.windows.items()} == {
+                    k: w.radius for k, w in expected.windows.items()
+                }
+                result.apply(core)
+                core.build()
+                matched += 1
+        pid = worker.child.pid
+        assert matched and pid is not None and pid != os.getpid()
+    finally:
+        worker.stop()
+    assert _gone(pid) and not worker._thread.is_alive()
