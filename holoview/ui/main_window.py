@@ -358,11 +358,15 @@ class MainWindow(
             self.timer.stop()
 
     def draw_maps(self) -> None:
-        """Draw the session's newest maps result if it was not drawn yet."""
+        """Draw the session's newest maps result if it was not drawn yet.
+
+        A restart's reference frame (maps of zeros, not drawn) does not replace the
+        maps shown: exports and the caption stay with those."""
         result = None if self.session is None else self.session.latest()
         if result is not None and result.seq != self._last_seq:
             self._last_seq = result.seq
-            self._last_result = result
+            if not result.reference:
+                self._last_result = result
             self._draw(result)
             self.last_latency_s = time.time() - result.t_host
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import threading
+from dataclasses import replace
 from pathlib import Path
 
 import h5py
@@ -271,6 +272,34 @@ def test_exports_snapshot_and_shortcuts(qtbot, open_windows, tmp_path, hologram_
     assert window.opening
     _wait_opened(qtbot, window)
     assert window.session is not None and window.timer.isActive()
+
+
+def test_maps_exported_at_a_restart_are_those_shown(
+    qtbot, open_windows, tmp_path, hologram_file, monkeypatch
+):
+    """At a restart (a reset, windows matched again) the newest result is the maps' new
+    reference, zeros by construction and not drawn: an export then writes the maps shown,
+    not zeros (before: zeros)."""
+    window = _labelled_window(qtbot, open_windows, tmp_path, hologram_file)
+    qtbot.waitUntil(
+        lambda: (r := window._last_result) is not None and r.seq >= 3 and not r.reference,
+        timeout=10000,
+    )
+    window.timer.stop()
+    shown = window._last_result
+    assert shown is not None and np.nanmax(np.abs(shown.heights_m["RB1"])) > 0
+    restart = replace(
+        shown,
+        seq=shown.seq + 1,
+        reference=True,
+        heights_m={k: np.zeros_like(v) for k, v in shown.heights_m.items()},
+        fused_m=None if shown.fused_m is None else np.zeros_like(shown.fused_m),
+    )
+    monkeypatch.setattr(window.session, "latest", lambda: restart)
+    window.draw_maps()
+    window.export_maps_to(tmp_path / "maps.npy")
+    exported = np.load(tmp_path / "maps_RB1.npy")
+    assert np.array_equal(exported, shown.heights_m["RB1"], equal_nan=True)
 
 
 def test_reference_mode_reaches_the_demodulator(qtbot, open_windows, tmp_path, hologram_file):
