@@ -3,14 +3,15 @@
 Heights arrive in metres and are shown in nanometres with a perceptual colour map
 (viridis); phases arrive in radians and are shown with a cyclic one (CET-C6) over
 [-pi, pi]. Untrusted pixels arrive as NaN and are left transparent. The height range
-(the first, "Auto range", and "follow") is :func:`colour_range`: percentiles of the
-trusted pixels, of the fused map where there is one, so that a noisy peak's map or a
-few wild pixels do not squeeze the surface into a few colours. A line drawn on the
-first map is mirrored (dashed) on the others, and the profile below overlays every
-map's curve along it (the paper's figure 4g), on a range that follows the curves it
-shows (:func:`profile_range`). When the maps restart (new windows or peaks, a reset),
-the restart's own frame, their new reference whose maps are zeros by construction, is
-not drawn: the maps shown stay until the next frame's, which set the range at once.
+(the first, "Auto range", and "follow": every :data:`FOLLOW_INTERVAL_S`, and at once
+when the maps left it) is :mod:`holoview.ui.map_ranges`'s: percentiles of the trusted
+pixels, of the fused map where there is one, so that a noisy peak's map or a few wild
+pixels do not squeeze the surface into a few colours. A line drawn on the first map is
+mirrored (dashed) on the others, and the profile below overlays every map's curve along
+it (the paper's figure 4g), on a range that follows the curves it shows. When the maps
+restart (new windows or peaks, a reset), the restart's own frame, their new reference
+whose maps are zeros by construction, is not drawn: the maps shown stay until the next
+frame's, which set the range at once.
 """
 
 from __future__ import annotations
@@ -38,27 +39,18 @@ from holoview.processing.maps.demod_results import REFERENCE_MODES
 from holoview.ui.colour_index import colour_indices, colour_table, rgba
 from holoview.ui.elided_label import ElidedLabel
 from holoview.ui.legends import FUSED, curve_pen, side_legend
+from holoview.ui.map_ranges import colour_range, left_range, profile_range
 
 #: Colour map of heights (perceptual) and of phases (cyclic).
 HEIGHT_CMAP = "viridis"
 PHASE_CMAP = "CET-C6"
 #: Seconds between colour-range updates while "follow" is on.
 FOLLOW_INTERVAL_S = 0.5
-#: Percentiles of the trusted pixels that set the height range (:func:`colour_range`).
-RANGE_PERCENTILES = (1.0, 99.0)
-#: Pixels of a map sampled for its range, at most about.
-RANGE_SAMPLES = 16384
 #: Map titles: font size, and the height they take above a map, pixels.
 TITLE_SIZE = "9pt"
 TITLE_HEIGHT_PX = 22.0
 #: Width the colour bar takes beside the maps before it is first laid out, pixels.
 COLOUR_BAR_WIDTH_PX = 90.0
-#: Margin of the profile's value range beyond its curves, fraction of their span.
-PROFILE_MARGIN = 0.1
-#: The profile's value range is taken again when it is more than this many times wider
-#: than its curves need (and whenever a curve leaves it): it follows the maps without
-#: regenerating its axis every frame.
-PROFILE_SLACK = 3.0
 #: Entries per column of the profile's legend (more go in further columns), so
 #: that the legend fits the short profile plot.
 LEGEND_ROWS = 3
@@ -104,72 +96,6 @@ def best_columns(n: int, width: float, height: float, title: float = 0.0) -> int
         return min(width / columns, height / rows - title)
 
     return max(range(1, n + 1), key=lambda c: (side(c), -c))
-
-
-def colour_range(
-    maps: Mapping[str, np.ndarray], percentiles: tuple[float, float] = RANGE_PERCENTILES
-) -> tuple[float, float] | None:
-    """The colour range of height maps: percentiles of their finite (trusted) values.
-
-    The fused map's where there is one (the peaks' noise-weighted mean: the surface
-    best seen); else the median, over the maps, of each map's percentiles, so that one
-    noisy peak does not set the range of all. None without a finite value, or where
-    the values are all equal (a reference frame's zero maps say nothing of the range).
-
-    Parameters
-    ----------
-    maps : mapping of str to ndarray
-        Maps by name (``"fused"`` for the fused one), any unit; NaN where untrusted.
-    percentiles : (float, float)
-        The low and high percentiles, in [0, 100].
-    """
-    ranges = {name: _percentiles(data, percentiles) for name, data in maps.items()}
-    known = {name: r for name, r in ranges.items() if r is not None}
-    if not known:
-        return None
-    chosen = [known[FUSED]] if FUSED in known else list(known.values())
-    low, high = (float(v) for v in np.median(np.array(chosen), axis=0))
-    return (low, high) if high > low else None
-
-
-def profile_range(
-    current: tuple[float, float] | None, values: np.ndarray
-) -> tuple[float, float] | None:
-    """The profile's value range for curves holding ``values``: ``current`` while it fits.
-
-    ``current`` is kept while every finite value lies inside it and it is at most
-    :data:`PROFILE_SLACK` times the curves' span (plus margins); else the curves' span
-    with a :data:`PROFILE_MARGIN` on each side. None (keep what is shown) without a
-    finite value.
-
-    Examples
-    --------
-    >>> profile_range(None, np.array([0.0, 10.0]))
-    (-1.0, 11.0)
-    >>> profile_range((-1.0, 11.0), np.array([2.0, 9.0]))
-    (-1.0, 11.0)
-    >>> profile_range((-1.0, 11.0), np.array([0.0, 1.0]))
-    (-0.1, 1.1)
-    """
-    finite = values[np.isfinite(values)]
-    if not finite.size:
-        return current
-    low, high = float(finite.min()), float(finite.max())
-    span = high - low if high > low else max(abs(high), 1e-3)
-    wanted = (low - PROFILE_MARGIN * span, high + PROFILE_MARGIN * span)
-    if current is not None:
-        inside = current[0] <= low and high <= current[1]
-        if inside and current[1] - current[0] <= PROFILE_SLACK * (wanted[1] - wanted[0]):
-            return current
-    return wanted
-
-
-def _percentiles(data: np.ndarray, percentiles: tuple[float, float]) -> np.ndarray | None:
-    """The percentiles of the finite values of ``data`` (about RANGE_SAMPLES of them)."""
-    step = max(1, int(math.sqrt(data.size / RANGE_SAMPLES)))
-    values = data[::step, ::step]
-    values = values[np.isfinite(values)]
-    return np.percentile(values, percentiles) if values.size else None
 
 
 def ordered_names(names: Iterable[str]) -> list[str]:
@@ -340,14 +266,14 @@ class SurfaceView(QWidget):
             self._rebuild(names)
         self._data = data
         now = time.monotonic()
-        follow = self.follow_box.isChecked() and now - self._range_at >= FOLLOW_INTERVAL_S
+        following = self.follow_box.isChecked()
+        follow = following and (
+            now - self._range_at >= FOLLOW_INTERVAL_S
+            or (self._levels is not None and left_range(data, self._levels))
+        )
         if self._mode == "height" and (self._levels is None or follow or self._restarted):
             self._range_from_maps()
-        elif (
-            self._mode == "height"
-            and self.follow_box.isChecked()
-            and not self._follow_timer.isActive()
-        ):
+        elif self._mode == "height" and following and not self._follow_timer.isActive():
             wait = FOLLOW_INTERVAL_S - (now - self._range_at)
             self._follow_timer.start(max(0, int(wait * 1000)))
         self._draw_maps()

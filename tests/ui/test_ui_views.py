@@ -13,8 +13,9 @@ from holoview.processing.series.rate_fits import format_rate
 from holoview.ui.colour_index import colour_indices, colour_table
 from holoview.ui.hologram_view import HologramView
 from holoview.ui.label_layout import PeakLabel, place_labels
+from holoview.ui.map_ranges import colour_range
 from holoview.ui.spectrum_view import CLEAR, SpectrumView
-from holoview.ui.surface_view import FUSED, SurfaceView, colour_range, sample_line
+from holoview.ui.surface_view import FUSED, SurfaceView, sample_line
 from holoview.ui.trends_view import TrendsView
 
 pytestmark = pytest.mark.gui
