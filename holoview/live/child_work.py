@@ -56,8 +56,8 @@ def _serve(conn: Connection, make: Callable[[], Callable[[Any], Any]], niceness:
     while True:
         try:
             job = conn.recv()
-        except (EOFError, OSError):
-            return  # the window's process is gone
+        except Exception:  # the window's process is gone (or its pipe broke)
+            return
         if job is None:
             return
         try:
@@ -92,6 +92,7 @@ class ChildWork(Generic[J, T]):
         self._name = name
         self._niceness = niceness
         self._lock = threading.Lock()
+        self._sending = threading.Lock()  # one message at a time on the pipe
         self._process: multiprocessing.process.BaseProcess | None = None
         self._conn: Connection | None = None
         self._closed = False
@@ -115,7 +116,8 @@ class ChildWork(Generic[J, T]):
         """
         conn = self._connection()
         try:
-            conn.send(job)
+            with self._sending:
+                conn.send(job)
             kind, value = conn.recv()
         except (EOFError, OSError) as exc:
             code = self._forget()
@@ -137,9 +139,14 @@ class ChildWork(Generic[J, T]):
             process, conn = self._process, self._conn
         if process is None:
             return
-        if conn is not None:
-            with contextlib.suppress(OSError):
-                conn.send(None)
+        # the message to stop goes after a job being sent, never inside it (a pipe
+        # interleaves two writers' large writes); a child that reads nothing is killed
+        if conn is not None and self._sending.acquire(timeout=CLOSE_WAIT_S):
+            try:
+                with contextlib.suppress(OSError):
+                    conn.send(None)
+            finally:
+                self._sending.release()
         process.join(CLOSE_WAIT_S)
         if process.is_alive():
             process.kill()

@@ -85,7 +85,7 @@ def export_window_png(widget: QWidget, path: Path) -> Path:
 class WindowExports:
     """The main window's exports: its maps (TIFF or NPY), itself (PNG), a snapshot of both."""
 
-    _last_result: LiveResult | None
+    _maps_result: LiveResult | None
     surface: SurfaceView
     status: LiveStatusBar
     show_message: Callable[[str], None]
@@ -94,8 +94,9 @@ class WindowExports:
         return cast(QWidget, self)
 
     def current_maps(self) -> tuple[dict[str, np.ndarray], str]:
-        """Return the maps of the latest result (metres or radians) and their unit."""
-        result = self._last_result
+        """Return the maps shown (metres or radians) and their unit: those of the newest
+        result drawn (a restart's reference frame, zeros, is not)."""
+        result = self._maps_result
         if result is None:
             return {}, "m"
         if self.surface.mode == "phase":

@@ -112,6 +112,8 @@ class MainWindow(
         self._camera_seq = -1
         self._trend_seq = -1
         self._last_result: LiveResult | None = None
+        #: The newest result whose maps are drawn (a restart's reference frame is not).
+        self._maps_result: LiveResult | None = None
         self._drawn: LiveResult | None = None
         self.display_rate = RateMeter()
         self.last_latency_s: float | None = None
@@ -361,12 +363,13 @@ class MainWindow(
         """Draw the session's newest maps result if it was not drawn yet.
 
         A restart's reference frame (maps of zeros, not drawn) does not replace the
-        maps shown: exports and the caption stay with those."""
+        maps shown, which exports write (:attr:`_maps_result`)."""
         result = None if self.session is None else self.session.latest()
         if result is not None and result.seq != self._last_seq:
             self._last_seq = result.seq
+            self._last_result = result
             if not result.reference:
-                self._last_result = result
+                self._maps_result = result
             self._draw(result)
             self.last_latency_s = time.time() - result.t_host
 

@@ -282,11 +282,11 @@ def test_maps_exported_at_a_restart_are_those_shown(
     not zeros (before: zeros)."""
     window = _labelled_window(qtbot, open_windows, tmp_path, hologram_file)
     qtbot.waitUntil(
-        lambda: (r := window._last_result) is not None and r.seq >= 3 and not r.reference,
+        lambda: (r := window._maps_result) is not None and r.seq >= 3,
         timeout=10000,
     )
     window.timer.stop()
-    shown = window._last_result
+    shown = window._maps_result
     assert shown is not None and np.nanmax(np.abs(shown.heights_m["RB1"])) > 0
     restart = replace(
         shown,
