@@ -119,10 +119,14 @@ class ChildWork(Generic[J, T]):
             with self._sending:
                 conn.send(job)
             kind, value = conn.recv()
-        except (EOFError, OSError) as exc:
-            code = self._forget()
+        except Exception as exc:
+            # closed from another thread mid-call: the pipe's end may be gone under it
+            # (any error then, a TypeError from a closed handle among them)
             if self._closed:
                 raise HoloviewError(f"{self._name} was stopped") from exc
+            if not isinstance(exc, (EOFError, OSError)):
+                raise
+            code = self._forget()
             raise HoloviewError(
                 f"{self._name}'s process ended (exit code {code}); it starts again at the next job"
             ) from exc

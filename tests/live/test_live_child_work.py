@@ -146,6 +146,44 @@ def test_closing_during_a_job_s_sending_leaves_the_pipe_whole(capfd) -> None:
     assert "Traceback" not in capfd.readouterr().err
 
 
+def _sleeping() -> Callable[[float], float]:
+    def work(job: float) -> float:
+        time.sleep(job)
+        return job
+
+    return work
+
+
+def test_closing_while_the_child_works_says_stopped_at_once() -> None:
+    """A measurement under way when the window closes is dropped: the waiting thread is
+    told "stopped", also when the pipe's end was closed under it between two reads (its
+    second read here comes after the close; before: a TypeError logged as a bug)."""
+    for late in (False, True):
+        work = ChildWork(_sleeping, "holoview-test", niceness=0)
+        assert work(0.0) == 0.0
+        if late:  # the waiting thread reads only after the close
+            conn = work._conn
+            assert conn is not None
+            reading = conn._recv  # type: ignore[attr-defined]
+            conn._recv = lambda size, read=reading: time.sleep(1.5) or read(size)  # type: ignore[attr-defined]
+        outcome: list[object] = []
+
+        def call(work: ChildWork = work, outcome: list[object] = outcome) -> None:
+            try:
+                outcome.append(work(30.0))
+            except HoloviewError as exc:
+                outcome.append(str(exc))
+
+        caller = threading.Thread(target=call)
+        caller.start()
+        time.sleep(0.2)
+        start = time.monotonic()
+        work.close()
+        assert time.monotonic() - start < 3.0
+        caller.join(30)
+        assert outcome == ["holoview-test was stopped"]
+
+
 def test_the_child_ends_with_the_process_that_started_it(tmp_path: Path) -> None:
     """A window killed outright (no exit handler runs) leaves no matcher behind."""
     script = tmp_path / "parent.py"
