@@ -17,6 +17,7 @@ import numpy as np
 from holoview.ui.legends import FUSED
 
 __all__ = [
+    "MEDIAN_SAMPLES",
     "PROFILE_MARGIN",
     "PROFILE_SLACK",
     "RANGE_PERCENTILES",
@@ -30,6 +31,8 @@ __all__ = [
 RANGE_PERCENTILES = (1.0, 99.0)
 #: Pixels of a map sampled for its range, at most about.
 RANGE_SAMPLES = 16384
+#: Pixels of a map sampled for its median (:func:`left_range`: checked at every draw).
+MEDIAN_SAMPLES = 1024
 #: Margin of the profile's value range beyond its curves, fraction of their span.
 PROFILE_MARGIN = 0.1
 #: The profile's value range is taken again when it is more than this many times wider
@@ -109,17 +112,21 @@ def left_range(maps: Mapping[str, np.ndarray], levels: tuple[float, float]) -> b
     >>> left_range({"RB1": flat}, (0.0, 10.0)), left_range({"RB1": flat + 20}, (0.0, 10.0))
     (False, True)
     """
-    medians = {name: _percentiles(data, (50.0, 50.0)) for name, data in maps.items()}
-    known = {name: float(m[0]) for name, m in medians.items() if m is not None}
+    fused = maps.get(FUSED)
+    chosen = [fused] if fused is not None and np.isfinite(fused).any() else list(maps.values())
+    medians = [_percentiles(d, (50.0, 50.0), MEDIAN_SAMPLES) for d in chosen]
+    known = [float(m[0]) for m in medians if m is not None]
     if not known:
         return False
-    middle = known[FUSED] if FUSED in known else float(np.median(list(known.values())))
+    middle = float(np.median(known))
     return not levels[0] <= middle <= levels[1]
 
 
-def _percentiles(data: np.ndarray, percentiles: tuple[float, float]) -> np.ndarray | None:
-    """The percentiles of the finite values of ``data`` (about RANGE_SAMPLES of them)."""
-    step = max(1, int(math.sqrt(data.size / RANGE_SAMPLES)))
+def _percentiles(
+    data: np.ndarray, percentiles: tuple[float, float], samples: int = RANGE_SAMPLES
+) -> np.ndarray | None:
+    """The percentiles of the finite values of ``data`` (about ``samples`` of them)."""
+    step = max(1, int(math.sqrt(data.size / samples)))
     values = data[::step, ::step]
     values = values[np.isfinite(values)]
     return np.percentile(values, percentiles) if values.size else None
