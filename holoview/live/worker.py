@@ -234,15 +234,6 @@ class PeakWorker(SideWorker[tuple[np.ndarray, float | None], list[Peak]]):
         super().__init__("holoview-peaks", _detect, "peak detection", YIELDING_NICENESS)
 
 
-def matcher_work(matcher: WindowMatcher) -> Callable[[MatchJob], Rematch | None]:
-    """The match thread's work: run each job with ``matcher`` (its state stays on that thread)."""
-
-    def work(job: MatchJob) -> Rematch | None:
-        return job.run(matcher)
-
-    return work
-
-
 def coregistration_work(
     coregistration: Coregistration,
 ) -> Callable[[CoregistrationJob], Coregistration | None]:
@@ -256,7 +247,12 @@ def coregistration_work(
 
 def _matcher_in_child() -> Callable[[MatchJob], Rematch | None]:
     """The match process's work (made there): a matcher of its own, its frames kept there."""
-    return matcher_work(WindowMatcher())
+    matcher = WindowMatcher()
+
+    def work(job: MatchJob) -> Rematch | None:
+        return job.run(matcher)
+
+    return work
 
 
 class MatchWorker(SideWorker[MatchJob, Rematch | None]):
@@ -502,27 +498,20 @@ class DemodWorker(RingWorker[LiveResult]):
         if due and self.peaks.submit((pixels, self.pipeline.experiment.fixed_radius)):
             self.pipeline.peaks_started()
 
-    def _take_match(self) -> None:
-        """Hand windows matched again on the match thread to the pipeline (a frame boundary)."""
-        found = self.matches.take()
+    def _hand_over(self, side: SideWorker[Any, T], use: Callable[[T, float], object]) -> None:
+        """Give ``side``'s newest result and its seconds to ``use`` (a frame boundary), or
+        report its error."""
+        found = side.take()
         if isinstance(found, str):
             self._report(found)
         elif found is not None:
-            self.pipeline.use_match(*found)
+            use(*found)
 
     def _step(self, pixels: np.ndarray, meta: FrameMeta) -> None:
         self._exchange_peaks(pixels)
-        self._take_match()
-        found = self.coregistration.take()
-        if isinstance(found, str):
-            self._report(found)
-        elif found is not None:
-            self.pipeline.use_coregistration(*found)
-        image = self.spectra.take()
-        if isinstance(image, str):
-            self._report(image)
-        elif image is not None:
-            self.pipeline.use_spectrum(*image)
+        self._hand_over(self.matches, self.pipeline.use_match)
+        self._hand_over(self.coregistration, self.pipeline.use_coregistration)
+        self._hand_over(self.spectra, self.pipeline.use_spectrum)
         try:
             result = self.pipeline.process(pixels, meta)
         finally:
