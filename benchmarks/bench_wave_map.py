@@ -6,7 +6,7 @@ Run from the repository root::
 
 On simulated frames (uint16, the simulator's default setup; RB1 among the carriers the
 live model places), the map the Waves panel makes of RB1 (the waves worker's own map
-step, :meth:`holoview.live.wave_worker.WavesWorker._map`: the engine's FrameCore and
+step, :class:`holoview.live.wave_map.WaveMapper`: the engine's FrameCore and
 MapStep, window at the bound, relative reference), printed with the machine and its load:
 
 1. the CPU time per map of each part on one thread (each part's functions timed with
@@ -14,7 +14,9 @@ MapStep, window at the bound, relative reference), printed with the machine and 
 2. the time per map on the calling thread, alone and beside one busy pure-Python
    thread at a lower priority (the GUI, maps and series workers of the live window
    hold the GIL so), split by Linux's schedstat into CPU, waiting runnable for a core
-   (the machine's other work) and the rest (blocked: waiting for the GIL);
+   (the machine's other work) and the rest (blocked: waiting for the GIL); and the same
+   made in the map's process as the live worker does (the frame through shared
+   memory): the wall time, the map's CPU there and the calling thread's;
 3. the CPU time of one analysis of the panel's default window (256 maps: the omega-k
    spectrum and the dispersion fit), which the analysis thread takes at most
    ``FIT_SHARE`` of the time (``FIT_SHARE_BEHIND`` while frames are skipped).
@@ -40,16 +42,16 @@ from machine import machine
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from holoview.acquire.ring import FrameRing  # noqa: E402
 from holoview.acquire.simulated import SimulatedSource  # noqa: E402
 from holoview.engine import frame_core, map_step  # noqa: E402
 from holoview.engine.experiment import Experiment  # noqa: E402
 from holoview.live import wave_window  # noqa: E402
+from holoview.live.child_work import ChildWork  # noqa: E402
+from holoview.live.wave_map import FrameSlot, WaveJob, WaveMap, WaveMapper  # noqa: E402
 from holoview.live.wave_window import WaveSettings  # noqa: E402
-from holoview.live.wave_worker import WavesWorker  # noqa: E402
 from holoview.optics.families import predict_families  # noqa: E402
 from holoview.processing.fourier import half_spectrum  # noqa: E402
-from holoview.processing.maps import demodulate, mean_phases  # noqa: E402
+from holoview.processing.maps import box_maps, demodulate, mean_phases  # noqa: E402
 from holoview.processing.peaks.detection import Peak  # noqa: E402
 
 #: Rounds of section 2 (the cases take turns, so the load falls on each alike).
@@ -60,12 +62,12 @@ PARTS: list[tuple[Any, str, str]] = [
     (half_spectrum.HalfSpectrum, "_columns", "column FFTs under the window"),
     (half_spectrum.HalfSpectrum, "_floor_samples", "noise-floor samples"),
     (frame_core.CarrierCore, "measure", "carrier probe (mean phase's value)"),
-    (demodulate, "invert_box", "box cut + inverse FFT"),
-    (demodulate, "trusted_pixels", "trusted pixels (|f|^2)"),
-    (demodulate, "angle", "phase (angle of field x ref*)"),
-    (demodulate, "has_wraps", "wrap check"),
+    (box_maps, "invert_box", "box cut + inverse FFT"),
+    (box_maps, "trusted_pixels", "trusted pixels (|f|^2)"),
+    (box_maps, "angle", "phase (angle of field x ref*)"),
+    (box_maps, "has_wraps", "wrap check"),
     (demodulate, "unwrap_maps", "unwrapping in space"),
-    (demodulate, "trusted_level", "2 pi offset level"),
+    (box_maps, "trusted_level", "2 pi offset level"),
     (mean_phases.MeanPhases, "advance", "phase step (mean phases)"),
     (demodulate, "peak_result", "peak result (height)"),
     (map_step, "trusted_maps", "trusted maps (NaN)"),
@@ -93,23 +95,37 @@ def scene(size: int) -> tuple[list[np.ndarray], list[Peak], Experiment]:
 
 
 class Mapper:
-    """The waves worker's map step on the calling thread (no ring reading, no thread)."""
+    """The waves worker's map of RB1, made on the calling thread or in its process."""
 
     def __init__(self, frames: list[np.ndarray], peaks: list[Peak], experiment: Experiment):
         shape = (int(frames[0].shape[0]), int(frames[0].shape[1]))
-        ring = FrameRing(2, shape, frames[0].dtype)
-        maps: Any = None  # the worker asks the maps worker for peaks in _step only
-        self.worker = WavesWorker(ring, maps, shape, WaveSettings(label="RB1", length=512))
-        self.frames, self.peaks, self.experiment = frames, tuple(peaks), experiment
+        self.mapper = WaveMapper(shape)
+        self.slot = FrameSlot(shape, frames[0].dtype)
+        self.child: ChildWork[WaveJob, WaveMap] = ChildWork(
+            self.slot.child_work(None), "holoview-waves-map", 0
+        )
+        self.frames, self.job = frames, WaveJob(tuple(peaks), experiment, "RB1")
         self.count = 0
         for _ in range(3):  # plans, the reference
             self.map()
+            self.map_in_child()
 
-    def map(self) -> Any:
-        """Map the next frame: the map (m), its pixel size (m) and cut-off (rad/m)."""
+    def map(self) -> WaveMap:
+        """Map the next frame on this thread."""
         frame = self.frames[self.count % len(self.frames)]
         self.count += 1
-        return self.worker._map(frame, self.peaks, self.experiment)
+        return self.mapper.map(frame, self.job)
+
+    def map_in_child(self) -> WaveMap:
+        """Map the next frame in the map's process, as the live waves worker does."""
+        self.slot.put(0, self.frames[self.count % len(self.frames)])
+        self.count += 1
+        return self.child(self.job)
+
+    def close(self) -> None:
+        """End the map's process; remove the shared frame."""
+        self.child.close()
+        self.slot.close()
 
 
 def timed_parts(costs: dict[str, float]) -> Callable[[], None]:
@@ -144,12 +160,12 @@ def parts(mapper: Mapper, n: int) -> None:
     try:
         for k in range(n):
             start = time.thread_time()
-            height, _, _ = mapper.map()
-            history.push(height, k / 60.0, k, relative=True)
+            made = mapper.map()
+            history.push(made.height, k / 60.0, k, relative=True)
             total += time.thread_time() - start
     finally:
         undo()
-    rows, cols = height.shape
+    rows, cols = made.height.shape
     print(f"1. CPU per map of RB1 ({rows} x {cols} map), one thread")
     for part, seconds in sorted(costs.items(), key=lambda kv: -kv[1]):
         print(f"   {part:40s} {seconds / n * 1e3:6.2f} ms")
@@ -177,10 +193,12 @@ def busy(stop: threading.Event) -> None:
 
 
 def walls(mapper: Mapper, n: int) -> None:
-    """Section 2: time per map on this thread, alone and beside a busy Python thread."""
+    """Section 2: time per map, on this thread and in the map's process, alone and beside a
+    busy Python thread."""
     print(
-        "2. time per map on this thread (medians), alone and beside a busy Python thread:\n"
-        "   wall = CPU + waiting for a core (Linux's run queue) + the rest (the GIL)"
+        "2. time per map (medians), alone and beside a busy Python thread; on this thread:\n"
+        "   wall = CPU + waiting for a core (Linux's run queue) + the rest (the GIL); in the\n"
+        "   map's process (the live waves worker): wall, the map's CPU there, this thread's CPU"
     )
     stat = f"/proc/self/task/{threading.get_native_id()}/schedstat"
     for round_ in range(ROUNDS):
@@ -200,13 +218,23 @@ def walls(mapper: Mapper, n: int) -> None:
                 cpu.append(after[0] - before[0])
                 queued.append(after[1] - before[1])
                 rest.append(took - cpu[-1] - queued[-1])
+            child_wall, child_cpu, caller_cpu = [], [], []
+            for _ in range(n):
+                start, thread_cpu = time.perf_counter(), time.thread_time()
+                made = mapper.map_in_child()
+                child_wall.append(time.perf_counter() - start)
+                caller_cpu.append(time.thread_time() - thread_cpu)
+                child_cpu.append(made.cpu_seconds)
             stop.set()
             if beside:
                 thread.join()
             w, c, q, r = (statistics.median(v) * 1e3 for v in (wall, cpu, queued, rest))
+            cw, cc, tc = (statistics.median(v) * 1e3 for v in (child_wall, child_cpu, caller_cpu))
+            where = "beside a busy thread" if beside else "alone"
             print(
-                f"   round {round_ + 1}, {'beside a busy thread' if beside else 'alone':20s} "
-                f"wall {w:6.2f} ms = CPU {c:5.2f} + core wait {q:5.2f} + GIL {r:5.2f}"
+                f"   round {round_ + 1}, {where:20s} this thread: wall {w:6.2f} ms = CPU "
+                f"{c:5.2f} + core wait {q:5.2f} + GIL {r:6.2f}; its process: wall {cw:6.2f} ms "
+                f"(CPU {cc:5.2f} there, {tc:4.2f} here)"
             )
 
 
@@ -215,9 +243,9 @@ def analysis(mapper: Mapper) -> None:
     settings = WaveSettings(label="RB1")
     history = wave_window.WaveHistory(settings.length)
     for k in range(settings.length):
-        height, pixel_size, k_cut = mapper.map()
-        history.pixel_size, history.k_cut = pixel_size, k_cut
-        history.push(height, k / 60.0, k, relative=True)
+        made = mapper.map()
+        history.pixel_size, history.k_cut = made.pixel_size, made.k_cut
+        history.push(made.height, k / 60.0, k, relative=True)
     window = history.snapshot()
     assert window is not None
     cpu = []
@@ -239,11 +267,16 @@ def main() -> int:
     args = parser.parse_args()
     print(machine())
     mapper = Mapper(*scene(args.size))
-    radius = mapper.worker._radius[1] if mapper.worker._radius else float("nan")
-    print(f"{args.size} x {args.size} uint16 frames; RB1's window radius {radius:.4f}")
-    parts(mapper, args.maps)
-    walls(mapper, max(20, args.maps // 4))
-    analysis(mapper)
+    try:
+        print(
+            f"{args.size} x {args.size} uint16 frames; RB1's window radius "
+            f"{mapper.mapper.radius:.4f}"
+        )
+        parts(mapper, args.maps)
+        walls(mapper, max(20, args.maps // 4))
+        analysis(mapper)
+    finally:
+        mapper.close()
     print(f"load average after {os.getloadavg()[0]:.2f}")
     return 0
 

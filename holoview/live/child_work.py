@@ -31,7 +31,7 @@ import threading
 import traceback
 from collections.abc import Callable
 from multiprocessing.connection import Connection
-from typing import Any, Generic, TypeVar
+from typing import Any, Generic, NoReturn, TypeVar
 
 from holoview.errors import HoloviewError
 
@@ -114,27 +114,71 @@ class ChildWork(Generic[J, T]):
         RuntimeError
             A bug in the work, with the child's traceback.
         """
+        self.submit(job)
+        return self.result()
+
+    def start(self) -> None:
+        """Start the child now rather than at the first job (it takes a second or two)."""
+        self._connection()
+
+    def submit(self, job: J) -> None:
+        """Send ``job`` to the child (started if need be) and return at once.
+
+        The child runs the jobs in the order sent; :meth:`result` gives their results in
+        that order, one per job. A caller may keep a job running while it prepares the
+        next (the window's process and the child then work at the same time).
+
+        Raises
+        ------
+        HoloviewError
+            The child ended (it starts again at the next job) or was closed.
+        """
         conn = self._connection()
         try:
             with self._sending:
                 conn.send(job)
+        except Exception as exc:
+            self._failed(exc)
+
+    def result(self) -> T:
+        """The result of the oldest job sent and not yet answered; waits without the lock.
+
+        Raises
+        ------
+        HoloviewError
+            The work's own, or the child ended (with every job sent to it: it starts again
+            at the next job) or was closed.
+        RuntimeError
+            A bug in the work, with the child's traceback.
+        """
+        with self._lock:
+            conn = self._conn
+        if conn is None:
+            raise HoloviewError(
+                f"{self._name} was stopped" if self._closed else f"{self._name} has no job"
+            )
+        try:
             kind, value = conn.recv()
         except Exception as exc:
-            # closed from another thread mid-call: the pipe's end may be gone under it
-            # (any error then, a TypeError from a closed handle among them)
-            if self._closed:
-                raise HoloviewError(f"{self._name} was stopped") from exc
-            if not isinstance(exc, (EOFError, OSError)):
-                raise
-            code = self._forget()
-            raise HoloviewError(
-                f"{self._name}'s process ended (exit code {code}); it starts again at the next job"
-            ) from exc
+            self._failed(exc)
         if kind == "done":
             return value  # type: ignore[no-any-return]
         if kind == "input":
             raise HoloviewError(value)
         raise RuntimeError(f"{self._name} failed in its process:\n{value}")
+
+    def _failed(self, exc: Exception) -> NoReturn:
+        """Raise what a broken exchange with the child means for the caller."""
+        # closed from another thread mid-call: the pipe's end may be gone under it
+        # (any error then, a TypeError from a closed handle among them)
+        if self._closed:
+            raise HoloviewError(f"{self._name} was stopped") from exc
+        if not isinstance(exc, (EOFError, OSError)):
+            raise exc
+        code = self._forget()
+        raise HoloviewError(
+            f"{self._name}'s process ended (exit code {code}); it starts again at the next job"
+        ) from exc
 
     def close(self) -> None:
         """End the child (a job under way is abandoned: its call raises); no more jobs."""

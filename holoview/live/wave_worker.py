@@ -3,11 +3,11 @@
 The maps worker takes the newest frame at whatever rate is left, so its maps come
 irregularly spaced and, on a slow machine, at a fraction of the camera's rate; a
 spectrum needs them evenly spaced. The waves worker (``holoview-waves``) therefore takes
-*every* frame from the ring itself and demodulates the one map the panel shows (a
-labelled peak's, or the fused map of every peak with a height) with the engine's
-per-frame core (:class:`~holoview.engine.frame_core.FrameCore`; its window's radius
-held, :meth:`WavesWorker._window_radius`), into a
-:class:`~holoview.live.wave_window.WaveHistory`:
+*every* frame from the ring itself and has the one map the panel shows (a labelled
+peak's, or the fused map of every peak with a height) made in a process of its own
+(:mod:`holoview.live.wave_map`: the engine's per-frame core, its window's radius held;
+the frame passed in shared memory, the thread waiting without the interpreter's lock),
+into a :class:`~holoview.live.wave_window.WaveHistory`:
 
 - every frame while a map takes less than :data:`TARGET_BUSY` of the camera's frame
   interval (``stride`` 1); else every second frame (``frame_id`` even), every fourth,
@@ -26,13 +26,14 @@ times a second, and less often when an analysis takes more than :data:`FIT_SHARE
 time, or :data:`FIT_SHARE_BEHIND` while the maps keep fewer frames than the camera gives
 (the cores go to the maps first); the analyses are
 :func:`~holoview.live.wave_window.analyse_window`, the functions of ``holoview waves``.
-The map thread runs at the priority of the series and the window, which must keep up too
-(the panel's map of every frame is what it is opened for); the maps worker, whose rate
-is whatever is left, and the analyses run at a lower one
+The map's process runs at the priority of the series and the window, which must keep up
+too (the panel's map of every frame is what it is opened for); the maps worker, whose
+rate is whatever is left, and the analyses run at a lower one
 (:data:`~holoview.live.worker.YIELDING_NICENESS`). A map costs one carrier window of one
 frame: the frame's row FFTs, the column FFTs under that window alone
 (:class:`~holoview.processing.fourier.half_spectrum.HalfSpectrum`) and one box's inverse
-FFT.
+FFT. A map's process that ends (killed) is said in the panel and started again at the
+next frame, its window anew.
 """
 
 from __future__ import annotations
@@ -43,7 +44,7 @@ import math
 import threading
 import time
 from collections.abc import Callable
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -51,13 +52,12 @@ import numpy as np
 from holoview.acquire.ring import FrameRing
 from holoview.acquire.source import FrameMeta
 from holoview.engine.experiment import Experiment
-from holoview.engine.frame_core import FrameCore
-from holoview.engine.map_step import MapStep
 from holoview.engine.series import frame_time
-from holoview.errors import HoloviewError, InputError
+from holoview.errors import HoloviewError
+from holoview.live.child_work import ChildWork
 from holoview.live.continuity import Continuity
+from holoview.live.wave_map import FrameSlot, WaveJob, WaveMap
 from holoview.live.wave_window import (
-    FUSED,
     LiveWaves,
     WaveHistory,
     WaveSettings,
@@ -65,7 +65,6 @@ from holoview.live.wave_window import (
 )
 from holoview.live.worker import DemodWorker, RingWorker, wait_at_exit, yield_to_others
 from holoview.processing.peaks.detection import Peak
-from holoview.processing.peaks.radii import peak_radii
 
 logger = logging.getLogger(__name__)
 
@@ -73,7 +72,6 @@ __all__ = [
     "BACKLOG",
     "FIT_SHARE",
     "FIT_SHARE_BEHIND",
-    "HOLD_BINS",
     "MAX_STRIDE",
     "TARGET_BUSY",
     "WAVES_HZ",
@@ -93,38 +91,26 @@ FIT_SHARE_BEHIND = 0.1
 BACKLOG = 24
 #: Largest stride (camera frames per map).
 MAX_STRIDE = 16
-#: Most of the time between two kept frames a map may take (median of the last 16).
-TARGET_BUSY = 0.8
+#: Most of the time between two kept frames a map may take (median of the last 16). A map is
+#: timed as this thread's time per kept frame, the map's process making the previous one
+#: meanwhile; the ring holds seconds of frames against a map that comes late now and then.
+TARGET_BUSY = 0.9
 #: Maps timed (since the demodulator was built) before the stride follows their cost.
 MIN_COSTS = 8
+#: Frames whose maps are under way at once: the map's process makes one while this thread
+#: hands over the next.
+IN_FLIGHT = 2
 #: Seconds a smaller stride must have sufficed before the stride is lowered to it.
 RELAX_S = 5.0
-#: FFT bins a chosen peak's detected carrier may move before its map is demodulated at
-#: the new carrier (a new demodulator: the window starts again).
-HOLD_BINS = 2.0
-#: Seconds between two frames added to the fused map's displacement estimate: every frame
-#: (at 0.5 s a full-speed replay's 300 frames gave the estimate a handful of frames, the
-#: fused maps moved between them, and sigma came out 14 % low in half the runs).
-COREGISTER_S = 0.0
 
 
-def _chosen(peaks: tuple[Peak, ...], label: str) -> list[Peak]:
-    """The peaks whose maps make the map ``label`` (InputError when there is none)."""
-    if label == FUSED:  # every peak, as the maps worker's fused map (the engine chooses)
-        if sum(1 for p in peaks if p.label and p.alpha is not None) < 2:
-            raise InputError(
-                "no fused map: fewer than two labelled peaks have a height prefactor; "
-                "label peaks in the Spectrum or choose one peak's map"
-            )
-        return [p for p in peaks if p.label]
-    found = [p for p in peaks if p.label == label]
-    if not found:
-        raise InputError(
-            f"no peak labelled {label}: label it in the Spectrum or choose another map"
-        )
-    if found[0].alpha is None:
-        raise InputError(f"{label} has no height prefactor: its map is a phase, not a height")
-    return found
+@dataclass(frozen=True)
+class _Sent:
+    """A frame whose map is being made: what its history entry needs besides the map."""
+
+    t: float
+    frame_id: int
+    jumped: bool
 
 
 class WavesWorker(RingWorker[LiveWaves]):
@@ -162,12 +148,13 @@ class WavesWorker(RingWorker[LiveWaves]):
         self.history = WaveHistory(settings.length)
         self.history.label = settings.label
         self.stride = 1
-        self._core: FrameCore | None = None
-        self._maps_step: MapStep | None = None
-        self._radius: tuple[tuple[object, ...], float] | None = None
-        self._fused_labels: frozenset[str | None] | None = None
-        self._held_peaks: list[Peak] | None = None
-        self._coregistered_at = -math.inf
+        self._slot: FrameSlot | None = None
+        self._child: ChildWork[WaveJob, WaveMap] | None = None
+        self._restart = False  # the next map starts a new sequence (a jump, a new stride)
+        self._in_flight: collections.deque[_Sent] = collections.deque()
+        self._sent = 0
+        self._backlog_at_change = 0  # frames waiting at the last change of stride
+        self._cannot = "the waves worker has not started"
         self._continuity = Continuity()
         self._costs: collections.deque[float] = collections.deque(maxlen=16)  # s per map
         self._cpu: collections.deque[float] = collections.deque(maxlen=16)  # CPU s per map
@@ -189,12 +176,24 @@ class WavesWorker(RingWorker[LiveWaves]):
 
     # ---- life cycle ----------------------------------------------------------
     def start(self) -> None:
-        """Start the thread and its analysis thread."""
+        """Start the thread, its analysis thread and the map's process (it starts meanwhile)."""
+        try:
+            self._slot = FrameSlot(self.frame_shape, self.ring.dtype, IN_FLIGHT)
+            self._child = ChildWork(
+                self._slot.child_work(self.saturation), "holoview-waves-map", self.niceness
+            )
+            self._child.start()
+        except OSError as exc:  # no shared memory, no process: said in the panel
+            self._cannot = f"the waves map's process cannot start: {exc}"
+            logger.warning("waves: %s", self._cannot)
         super().start()
         self._fit_thread.start()
 
     def stop(self, timeout: float = 5.0) -> None:
-        """Stop and join both threads."""
+        """End the map's process (a map under way is dropped), stop and join both threads."""
+        self._stop.set()  # before the map's process ends: its maps' failure is no news
+        if self._child is not None:
+            self._child.close()
         super().stop(timeout)
         self._fit_wake.set()
         with self._room:
@@ -202,6 +201,8 @@ class WavesWorker(RingWorker[LiveWaves]):
         if self._fit_thread.ident is not None:
             self._fit_thread.join(timeout)
         wait_at_exit(self, self._thread.is_alive() or self._fit_thread.is_alive())
+        if self._slot is not None and not self._thread.is_alive():
+            self._slot.close()
 
     # ---- what the window reads -----------------------------------------------
     def latest(self) -> LiveWaves | None:
@@ -220,15 +221,17 @@ class WavesWorker(RingWorker[LiveWaves]):
         return 1.0 / float(np.median(steps)) if steps.size else 0.0
 
     def map_seconds(self) -> float:
-        """Time one map takes, s (median of the last 16; 0 before any)."""
+        """Time one map takes, s (median of the last 16; 0 before any): this thread's time per
+        frame kept, from taking it to handing it over with the previous frame's map in."""
         costs = list(self._costs)
         return float(np.median(costs)) if costs else 0.0
 
     def map_cpu_seconds(self) -> float:
-        """CPU time one map takes this worker's thread, s (median of the last 16; 0 before any).
+        """CPU time one map takes in the map's process, s (median of the last 16; 0 before any).
 
         :meth:`map_seconds` less this is the time the map waited: for a core (the
-        machine's other work) or for the GIL (this process's other threads).
+        machine's other work), or for this thread, which waits for the GIL (this
+        process's other threads) to hand frames over and take maps in.
         """
         costs = list(self._cpu)
         return float(np.median(costs)) if costs else 0.0
@@ -273,54 +276,88 @@ class WavesWorker(RingWorker[LiveWaves]):
         with self._lock:
             self._camera_times.append(t)
         jumped = self._continuity.breaks(meta)
-        if jumped and self._core is not None:
-            self._core.break_sequence()
+        self._restart |= jumped
         self._adapt_stride()
         if meta.frame_id % self.stride:
             return
         peak_set = self.maps.peak_set()
         if peak_set is None:
             return
-        tick, cpu = time.perf_counter(), time.thread_time()
-        demodulator = None if self._core is None else self._core.demodulator
+        tick = time.perf_counter()
         try:
-            height, pixel_size, k_cut = self._map(pixels, *peak_set)
+            self._send(pixels, *peak_set)
         except HoloviewError as exc:  # said in the panel, not the banner
             self._problem = str(exc)
             return
+        self._in_flight.append(_Sent(t, meta.frame_id, jumped))
+        child_cpu, rebuilt = 0.0, False
+        while len(self._in_flight) > 1:  # the previous frame's map, made meanwhile
+            made = self._take()
+            if made is not None:
+                child_cpu += made.cpu_seconds
+                rebuilt |= made.rebuilt
+        if rebuilt:  # a new demodulator's first frame plans its FFTs: not a map's cost
+            self._costs.clear()
+            self._cpu.clear()
+        elif child_cpu:
+            self._costs.append(time.perf_counter() - tick)
+            self._cpu.append(child_cpu)
+
+    def _idle(self) -> None:
+        """No frame came: take the map still being made (the last of a replay's, say)."""
+        self._drain()
+
+    def _drain(self) -> None:
+        while self._in_flight:
+            self._take()
+
+    def _send(self, pixels: np.ndarray, peaks: tuple[Peak, ...], experiment: Experiment) -> None:
+        """Have the chosen map of one frame made in the map's process."""
+        if self._slot is None or self._child is None:
+            raise HoloviewError(self._cannot)
+        slot = self._sent % IN_FLIGHT
+        self._slot.put(slot, pixels)
+        job = WaveJob(peaks, experiment, self.settings.label, restart=self._restart, slot=slot)
+        self._child.submit(job)
+        self._sent += 1
+        self._restart = False
+
+    def _take(self) -> WaveMap | None:
+        """Add the oldest map sent to the history (None where it failed: said in the panel)."""
+        sent = self._in_flight.popleft()
+        assert self._child is not None
+        try:
+            made = self._child.result()
+        except HoloviewError as exc:
+            self._problem = str(exc)
+            if self._child.pid is None:  # the process ended with every map sent to it
+                if not self._stop.is_set():
+                    logger.warning("waves: %s", exc)
+                self._in_flight.clear()
+            return None
         self._problem = None
-        built = self._core is None or self._core.demodulator is not demodulator
         with self._lock:
             history = self.history
-            if jumped or built:  # a replay's jump; a new demodulator (its reference anew)
+            if sent.jumped or made.rebuilt:  # a replay's jump; a new demodulator (reference anew)
                 if len(history):
                     logger.info(
                         "waves: %s; the window starts again",
-                        "the replay jumped" if jumped else "the demodulator was rebuilt",
+                        "the replay jumped" if sent.jumped else "the demodulator was rebuilt",
                     )
                 history.clear()
-            if pixel_size != history.pixel_size or k_cut != history.k_cut:
+            if made.pixel_size != history.pixel_size or made.k_cut != history.k_cut:
                 if len(history):
                     logger.info(
                         "waves: the map's pixel size or cut-off changed (%s m, %.4g rad/m); "
                         "the window starts again",
-                        pixel_size,
-                        k_cut,
+                        made.pixel_size,
+                        made.k_cut,
                     )
                 history.clear()
-                history.pixel_size, history.k_cut = pixel_size, k_cut
-            history.push(height, t, meta.frame_id, relative=self._core_reference() == "relative")
-        if built:  # a new demodulator's first frame plans its FFTs: not a map's cost
-            self._costs.clear()
-            self._cpu.clear()
-        else:
-            self._costs.append(time.perf_counter() - tick)
-            self._cpu.append(time.thread_time() - cpu)
+                history.pixel_size, history.k_cut = made.pixel_size, made.k_cut
+            history.push(made.height, sent.t, sent.frame_id, relative=made.reference == "relative")
         self._publish(None)
-
-    def _core_reference(self) -> str:
-        core = self._core
-        return "absolute" if core is None else core.experiment.reference
+        return made
 
     def _needed_stride(self) -> int:
         """The smallest power-of-two stride at which a map takes :data:`TARGET_BUSY` of the time
@@ -334,8 +371,9 @@ class WavesWorker(RingWorker[LiveWaves]):
         needed = 1
         while needed < MAX_STRIDE and per_map * rate / needed > TARGET_BUSY:
             needed *= 2
-        if self.backlog() > self.ring.capacity // 2:  # far behind whatever the costs say
-            needed = max(needed, min(2 * self.stride, MAX_STRIDE))
+        backlog = self.backlog()
+        if backlog > max(self.ring.capacity // 2, self._backlog_at_change):
+            needed = max(needed, min(2 * self.stride, MAX_STRIDE))  # far behind, and more so
         return needed
 
     def _adapt_stride(self) -> None:
@@ -355,102 +393,14 @@ class WavesWorker(RingWorker[LiveWaves]):
         else:
             self._relaxed_since = None
         if stride != self.stride:
+            self._drain()  # the maps of the frames kept so far, then the window anew
+            self._backlog_at_change = self.backlog()
             logger.info("waves: every %d camera frame(s) kept (was %d)", stride, self.stride)
             self.stride = stride
             with self._lock:
                 self.history.clear()
                 self.history.stride = stride
-            if self._core is not None:
-                self._core.break_sequence()
-
-    def _map(
-        self, pixels: np.ndarray, peaks: tuple[Peak, ...], experiment: Experiment
-    ) -> tuple[np.ndarray, tuple[float, float] | None, float]:
-        """The chosen map of one frame (m), its pixel size (m) and cut-off (rad/m)."""
-        label = self.settings.label
-        chosen = _chosen(peaks, label)
-        if label == FUSED:  # the peaks fused stay while they are there: a family the model
-            held = self._fused_labels  # adds later would rebuild and restart the window
-            if held is None or not held <= {p.label for p in chosen}:
-                held = self._fused_labels = frozenset(p.label for p in chosen)
-            chosen = [p for p in chosen if p.label in held]
-        chosen = self._held(chosen)
-        experiment = replace(experiment, radius=self._window_radius(chosen, peaks, experiment))
-        if self._core is None or self._maps_step is None:
-            self._core = FrameCore(self.frame_shape, experiment, chosen, saturation=self.saturation)
-            self._maps_step = MapStep(self._core)
-        self._core.configure(experiment, chosen)
-        fused = label == FUSED
-        now = time.monotonic()
-        estimate = fused and now - self._coregistered_at >= COREGISTER_S
-        maps = self._maps_step.process(pixels, estimate=estimate, fuse=fused)
-        demod = maps.result
-        if demod is None or not maps.maps:
-            raise InputError(f"no map of {label} from this frame ({', '.join(maps.flags)})")
-        if estimate:
-            self._coregistered_at = now
-        height = maps.fused if fused else maps.maps[0]
-        if height is None:
-            raise InputError("no fused map: fewer than two peaks give a height on this frame")
-        rows, cols = self.frame_shape
-        by, bx = demod.box_shape
-        pitch = experiment.pixel_pitch_m
-        pixel_size = None if pitch is None else (pitch * rows / by, pitch * cols / bx)
-        demodulator = self._core.demodulator
-        radius = demod.radius if demodulator is None else min(demodulator.radii)
-        k_cut = math.inf if pitch is None else 2.0 * math.pi * radius / pitch
-        return height, pixel_size, k_cut
-
-    def _held(self, chosen: list[Peak]) -> list[Peak]:
-        """The chosen peaks as first demodulated, while their labels and prefactors stay and
-        no carrier has moved by more than :data:`HOLD_BINS` FFT bins.
-
-        The maps worker snaps the carriers to each detection, which on a wavy surface
-        wanders by a bin; a demodulator rebuilt for that would restart the window. A
-        carrier held a bin off tilts every map by the same plane, which no step between
-        frames and no frequency but zero sees.
-        """
-        held = self._held_peaks
-        rows, cols = self.frame_shape
-        if (
-            held is not None
-            and [(p.label, p.alpha) for p in held] == [(p.label, p.alpha) for p in chosen]
-            and all(
-                abs(p.carrier[0] - q.carrier[0]) * cols <= HOLD_BINS
-                and abs(p.carrier[1] - q.carrier[1]) * rows <= HOLD_BINS
-                for p, q in zip(held, chosen, strict=True)
-            )
-        ):
-            return held
-        self._held_peaks = chosen
-        return chosen
-
-    def _window_radius(
-        self, chosen: list[Peak], peaks: tuple[Peak, ...], experiment: Experiment
-    ) -> float:
-        """The window radius of the maps, cycles/pixel, held while the map and labels stay.
-
-        The experiment's radius where it sets a number; else (automatic, ``"bound"`` or
-        ``"matched"``) the widest that reaches no other
-        demodulated carrier (labelled or placed by the model), their twins or zero
-        frequency (:func:`~holoview.processing.peaks.radii.peak_radii` without the
-        detected neighbours; the smallest of the chosen peaks' for the fused map). The
-        detected peaks are left out: on a wavy surface detection finds the waves'
-        sidebands around every carrier, which are surface content to pass, and the
-        maps worker's automatic radius shrinks to their spacing.
-        """
-        if isinstance(experiment.radius, (int, float)):
-            return float(experiment.radius)
-        key = (self.settings.label, tuple(p.label for p in chosen))
-        if self._radius is None or self._radius[0] != key:
-            carriers = np.array([p.carrier for p in peaks], dtype=np.float64)
-            radii = peak_radii(self.frame_shape, carriers, None, np.zeros((0, 2)))
-            wanted = {p.label for p in chosen}
-            self._radius = (
-                key,
-                min(r for p, r in zip(peaks, radii, strict=True) if p.label in wanted),
-            )
-        return self._radius[1]
+            self._restart = True
 
     # ---- the analyses ----------------------------------------------------------
     def _fit_loop(self) -> None:

@@ -394,6 +394,9 @@ class RingWorker(Generic[R]):
     def _step(self, pixels: np.ndarray, meta: FrameMeta) -> None:
         raise NotImplementedError
 
+    def _idle(self) -> None:
+        """No frame came for a while, or the ring closed: finish work still under way."""
+
     def _run(self) -> None:
         if self.niceness:
             yield_to_others(self.niceness)
@@ -404,6 +407,8 @@ class RingWorker(Generic[R]):
                     self._stop.wait(0.005)
                     continue
                 item = self._consumer.get(timeout=0.1)
+                if item is None or item is CLOSED:
+                    self._idle()
                 if item is CLOSED:
                     break
                 if item is None:
