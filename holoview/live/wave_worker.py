@@ -14,7 +14,9 @@ into a :class:`~holoview.live.wave_window.WaveHistory`:
   ...: the maps stay evenly spaced at ``camera rate / stride`` and the panel says that
   the frequency axis ends at half that rate. Once a smaller stride has sufficed for
   :data:`RELAX_S` seconds the stride becomes the largest that was needed meanwhile (one
-  step: each change of stride starts the window again).
+  step: each change of stride starts the window again); a smaller stride that had to be
+  left again within :data:`RELAX_S` is next tried twice as late (up to
+  :data:`MAX_RELAX_S`), so that a machine at the edge settles on the stride it keeps.
 - a replay played as fast as it reads waits for it (:meth:`WavesWorker.wait_for_room`),
   so a replay at full speed fills the panel from every frame;
 - frames lost before it read them are gaps in the history (by the frame times),
@@ -97,11 +99,16 @@ MAX_STRIDE = 16
 TARGET_BUSY = 0.9
 #: Maps timed (since the demodulator was built) before the stride follows their cost.
 MIN_COSTS = 8
+#: Niceness of the map's process: after the series and the window (which must keep up,
+#: and hold the numbers the operator trusts), before the maps worker.
+MAP_NICENESS = 3
 #: Frames whose maps are under way at once: the map's process makes one while this thread
 #: hands over the next.
 IN_FLIGHT = 2
 #: Seconds a smaller stride must have sufficed before the stride is lowered to it.
 RELAX_S = 5.0
+#: Longest wait before a smaller stride is tried again after it failed.
+MAX_RELAX_S = 80.0
 
 
 @dataclass(frozen=True)
@@ -160,6 +167,8 @@ class WavesWorker(RingWorker[LiveWaves]):
         self._cpu: collections.deque[float] = collections.deque(maxlen=16)  # CPU s per map
         self._relaxed_since: float | None = None
         self._relax_to = 1
+        self._relax_s = RELAX_S  # the wait before a smaller stride is tried
+        self._lowered_at = -math.inf  # when the stride was last lowered
         #: True while the source waits for this worker (a replay played as fast as it
         #: reads, :meth:`wait_for_room`): every frame is then kept, whatever a map costs,
         #: also for the frames still in the ring once the replay has reached its end.
@@ -180,7 +189,7 @@ class WavesWorker(RingWorker[LiveWaves]):
         try:
             self._slot = FrameSlot(self.frame_shape, self.ring.dtype, IN_FLIGHT)
             self._child = ChildWork(
-                self._slot.child_work(self.saturation), "holoview-waves-map", self.niceness
+                self._slot.child_work(self.saturation), "holoview-waves-map", MAP_NICENESS
             )
             self._child.start()
         except OSError as exc:  # no shared memory, no process: said in the panel
@@ -383,13 +392,16 @@ class WavesWorker(RingWorker[LiveWaves]):
         if needed > stride:
             stride = needed
             self._relaxed_since = None
+            if now - self._lowered_at < RELAX_S:  # the smaller stride did not hold
+                self._relax_s = min(2 * self._relax_s, MAX_RELAX_S)
         elif needed < stride:
             if self._relaxed_since is None:
                 self._relaxed_since, self._relax_to = now, needed
             self._relax_to = max(self._relax_to, needed)
-            if now - self._relaxed_since >= RELAX_S:  # straight to the largest needed since
+            if now - self._relaxed_since >= self._relax_s:  # the largest needed since
                 stride = self._relax_to
                 self._relaxed_since = None
+                self._lowered_at = now
         else:
             self._relaxed_since = None
         if stride != self.stride:

@@ -7,6 +7,7 @@ import math
 import time
 from dataclasses import replace
 from pathlib import Path
+from types import SimpleNamespace
 from typing import cast
 
 import h5py
@@ -17,6 +18,7 @@ from holoview.acquire.recording_reader import RecordingReader
 from holoview.acquire.ring import FrameRing
 from holoview.engine.experiment import Experiment
 from holoview.errors import InputError
+from holoview.live import wave_worker
 from holoview.live.session import LiveSession
 from holoview.live.wave_window import FUSED, LiveWaves, WaveHistory, WaveSettings, analyse_window
 from holoview.live.wave_worker import FIT_SHARE, FIT_SHARE_BEHIND, WAVES_HZ, WavesWorker
@@ -277,3 +279,36 @@ def test_a_centre_outside_the_field_is_one_line() -> None:
     inside = analyse_window(window, replace(SETTINGS, centre=(32 * PIXEL, 32 * PIXEL)))
     assert inside.mf is not None and inside.centre == (32 * PIXEL, 32 * PIXEL)
     assert inside.mf.power.shape == (17, 17)  # m from -8 to 8, f from 0 to Nyquist
+
+
+def test_a_smaller_stride_that_does_not_hold_is_tried_later_and_later(monkeypatch) -> None:
+    """A machine at the edge of keeping every frame settles on the stride it keeps: each
+    change of stride starts the window again, so flapping would leave it never full."""
+    clock = {"now": 0.0}
+    monkeypatch.setattr(
+        wave_worker,
+        "time",
+        SimpleNamespace(
+            monotonic=lambda: clock["now"],
+            perf_counter=time.perf_counter,
+            thread_time=time.thread_time,
+        ),
+    )
+    ring = FrameRing(4, (64, 64), np.uint16)
+    worker = WavesWorker(ring, cast(DemodWorker, None), (64, 64), WaveSettings(label="RB1"))
+    needs = {"stride": 2}
+    monkeypatch.setattr(worker, "_needed_stride", lambda: needs["stride"])
+
+    def at(t: float, needed: int) -> int:
+        clock["now"], needs["stride"] = t, needed
+        worker._adapt_stride()
+        return worker.stride
+
+    assert at(0.0, 2) == 2  # behind: at once
+    needs_one = [at(t, 1) for t in np.arange(1.0, 6.5, 0.5)]
+    assert needs_one.index(1) == len(needs_one) - 1  # RELAX_S after the first (t = 1 + 5)
+    assert at(6.5, 2) == 2  # did not hold: the next try comes twice as late
+    assert [at(t, 1) for t in (12.0, 17.0, 22.0)] == [2, 2, 1]  # 10 s after t = 12, not 5
+    assert at(30.0, 2) == 2  # held 13 s: no longer wait
+    assert [at(t, 1) for t in (31.0, 36.0, 41.0)] == [2, 2, 1]  # still 10 s
+    assert wave_worker.RELAX_S == 5.0 and wave_worker.MAX_RELAX_S >= 20.0
