@@ -29,9 +29,11 @@ run, and prints medians and extremes:
   map; its worker's maps per second against the camera's, the stride (camera frames per
   map), frames lost or overwritten before it read them, and whether every camera frame
   gave a map (issue 24's live target) beside the issue-17 targets, and a map's time
-  beside its CPU time (the rest is waiting for a core or for the GIL);
+  (the worker thread's per frame kept) beside its CPU time in the map's process (the
+  rest is waiting for a core, or for the thread, which waits for the GIL);
 - per thread, the share of the run it waited runnable for a core (Linux's schedstat:
-  the machine's other work), beside its CPU share;
+  the machine's other work), beside its CPU share; and the CPU share of each child
+  process (the window matching's, the Waves panel's map), by name;
 - with ``--profile N``: where the GUI thread's time goes over the measured run (cProfile
   of the GUI thread, the N entries of largest cumulative time under pyqtgraph and
   holoview, in ms per displayed frame), and each image's render and paint time by shape.
@@ -65,6 +67,22 @@ def parse_label(text: str) -> tuple[str, float, float]:
     name, _, carrier = text.partition("=")
     fx, fy = (float(v) for v in carrier.split(","))
     return name, fx, fy
+
+
+def child_cpu_seconds() -> dict[str, float]:
+    """CPU seconds used so far by each child process of this one, by its name (Linux)."""
+    ticks = os.sysconf("SC_CLK_TCK")
+    out: dict[str, float] = {}
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            head, _, rest = stat.read_text().rpartition(")")
+        except OSError:
+            continue
+        fields = rest.split()
+        if int(fields[1]) == os.getpid():
+            name = head.partition("(")[2]
+            out[name] = out.get(name, 0.0) + (int(fields[11]) + int(fields[12])) / ticks
+    return out
 
 
 def thread_cpu_seconds() -> dict[str, float]:
@@ -279,6 +297,7 @@ def main() -> int:
         if waves_worker is not None:
             waves0 = (waves_worker.history.pushed, waves_worker.status(), waves_worker.stride)
         cpu0, queue0 = thread_cpu_seconds(), thread_queue_seconds()
+        children0 = child_cpu_seconds()
         t0 = time.monotonic()
         profiler = cProfile.Profile()  # the GUI thread only: cProfile hooks the calling thread
         with ImageTimes() as images:
@@ -288,6 +307,7 @@ def main() -> int:
             profiler.disable()
         elapsed = time.monotonic() - t0
         cpu1, queue1 = thread_cpu_seconds(), thread_queue_seconds()
+        children1 = child_cpu_seconds()
         camera_fps = (session.camera.frames - cam0) / elapsed
         processing_fps = (session.latest().seq - seq0) / elapsed
         series1 = session.series_worker.status()
@@ -364,6 +384,11 @@ def main() -> int:
         f"{name} {100 * (cpu1[name] - cpu0.get(name, 0.0)) / elapsed:.0f}%" for name in sorted(cpu1)
     )
     print(f"CPU per thread (% of one core): {shares}")
+    children = ", ".join(
+        f"{name} {100 * (children1[name] - children0.get(name, 0.0)) / elapsed:.0f}%"
+        for name in sorted(children1)
+    )
+    print(f"CPU per child process (% of one core): {children or 'none'}")
     queued = ", ".join(
         f"{name} {100 * (queue1[name] - queue0.get(name, 0.0)) / elapsed:.0f}%"
         for name in sorted(queue1)
@@ -391,9 +416,11 @@ def main() -> int:
             f"{'over' if per_frame > interval else 'under'} the {interval * 1e3:.1f} ms "
             "between camera frames"
         )
+        spawned = sum(children1[n] - children0.get(n, 0.0) for n in children1) / elapsed
         share = (
             f"the maps worker got {100 * demod_cpu / elapsed:.0f}% of a core, this process "
-            f"{100 * busy:.0f}% of the {cores} cores (machine load {os.getloadavg()[0]:.1f})"
+            f"{100 * busy:.0f}% and its child processes {100 * spawned:.0f}% of the {cores} "
+            f"cores (machine load {os.getloadavg()[0]:.1f})"
         )
         reason = f"{cost}; {share}"
         print(f"maps behind the camera: {reason}")

@@ -31,6 +31,7 @@ import threading
 import traceback
 from collections.abc import Callable
 from multiprocessing.connection import Connection
+from pathlib import Path
 from typing import Any, Generic, NoReturn, TypeVar
 
 from holoview.errors import HoloviewError
@@ -47,9 +48,13 @@ T = TypeVar("T")
 CLOSE_WAIT_S = 0.5
 
 
-def _serve(conn: Connection, make: Callable[[], Callable[[Any], Any]], niceness: int) -> None:
+def _serve(
+    conn: Connection, make: Callable[[], Callable[[Any], Any]], niceness: int, name: str
+) -> None:
     """The child: make the work, then run each job received until ``None`` or the pipe ends."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    with contextlib.suppress(OSError):  # its name in top and ps (Linux: 15 characters)
+        Path("/proc/self/comm").write_text(name[:15])
     with contextlib.suppress(OSError):  # a sandbox that forbids it: the same priority
         os.nice(niceness)
     work = make()
@@ -211,7 +216,7 @@ class ChildWork(Generic[J, T]):
             ours, theirs = context.Pipe()
             process = context.Process(
                 target=_serve,
-                args=(theirs, self._make, self._niceness),
+                args=(theirs, self._make, self._niceness, self._name),
                 name=self._name,
                 daemon=True,
             )
