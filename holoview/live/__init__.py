@@ -6,9 +6,10 @@ recorder and the workers (:mod:`holoview.live.worker`), each frame processed by
 (:mod:`holoview.ui`) only reads the latest result and sends commands; a script or a
 test can do the same without a display; a replay is steered through
 :class:`~holoview.live.replay_control.ReplayControl` (``LiveSession.replay``). While the
-Waves panel is open, :mod:`holoview.live.wave_worker` demodulates its map from every
-frame and analyses the last N (:mod:`holoview.live.wave_window`;
-``LiveSession.open_waves``).
+Waves panel is open, :mod:`holoview.live.wave_worker` has its map made from every
+frame in a process of its own (:mod:`holoview.live.wave_map`) and analyses the last N
+(:mod:`holoview.live.wave_window`; ``LiveSession.open_waves``); the window matching
+runs in another (:mod:`holoview.live.child_work`).
 """
 
 from holoview.live.maps_pipeline import LiveResult, MapsPipeline
