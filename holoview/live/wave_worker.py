@@ -28,9 +28,9 @@ times a second, and less often when an analysis takes more than :data:`FIT_SHARE
 time, or :data:`FIT_SHARE_BEHIND` while the maps keep fewer frames than the camera gives
 (the cores go to the maps first); the analyses are
 :func:`~holoview.live.wave_window.analyse_window`, the functions of ``holoview waves``.
-The map's process runs at the priority of the series and the window, which must keep up
-too (the panel's map of every frame is what it is opened for); the maps worker, whose
-rate is whatever is left, and the analyses run at a lower one
+The map's process runs just below the series and the window (:data:`MAP_NICENESS`),
+which must keep up and hold the numbers the operator trusts, and above the maps worker,
+whose rate is whatever is left, and the analyses
 (:data:`~holoview.live.worker.YIELDING_NICENESS`). A map costs one carrier window of one
 frame: the frame's row FFTs, the column FFTs under that window alone
 (:class:`~holoview.processing.fourier.half_spectrum.HalfSpectrum`) and one box's inverse
@@ -297,6 +297,8 @@ class WavesWorker(RingWorker[LiveWaves]):
             self._send(pixels, *peak_set)
         except HoloviewError as exc:  # said in the panel, not the banner
             self._problem = str(exc)
+            if self._child is not None and self._child.pid is None:  # it ended: nothing comes
+                self._in_flight.clear()
             return
         self._in_flight.append(_Sent(t, meta.frame_id, jumped))
         child_cpu, rebuilt = 0.0, False
