@@ -296,9 +296,7 @@ class WavesWorker(RingWorker[LiveWaves]):
         try:
             self._send(pixels, *peak_set)
         except HoloviewError as exc:  # said in the panel, not the banner
-            self._problem = str(exc)
-            if self._child is not None and self._child.pid is None:  # it ended: nothing comes
-                self._in_flight.clear()
+            self._failed(exc)
             return
         self._in_flight.append(_Sent(t, meta.frame_id, jumped))
         child_cpu, rebuilt = 0.0, False
@@ -340,11 +338,7 @@ class WavesWorker(RingWorker[LiveWaves]):
         try:
             made = self._child.result()
         except HoloviewError as exc:
-            self._problem = str(exc)
-            if self._child.pid is None:  # the process ended with every map sent to it
-                if not self._stop.is_set():
-                    logger.warning("waves: %s", exc)
-                self._in_flight.clear()
+            self._failed(exc)
             return None
         self._problem = None
         with self._lock:
@@ -369,6 +363,14 @@ class WavesWorker(RingWorker[LiveWaves]):
             history.push(made.height, sent.t, sent.frame_id, relative=made.reference == "relative")
         self._publish(None)
         return made
+
+    def _failed(self, exc: HoloviewError) -> None:
+        """Say why a map did not come (in the panel); a process that ended, once in the log."""
+        self._problem = str(exc)
+        if self._child is not None and self._child.pid is None:  # no map sent to it comes
+            if not self._stop.is_set():
+                logger.warning("waves: %s", exc)
+            self._in_flight.clear()
 
     def _needed_stride(self) -> int:
         """The smallest power-of-two stride at which a map takes :data:`TARGET_BUSY` of the time
