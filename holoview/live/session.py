@@ -421,14 +421,17 @@ class LiveSession:
 
     def _replay_paced(self) -> bool:
         """True while the source is a replay played as fast as it reads (it waits for the
-        waves worker)."""
+        workers that take every frame)."""
         return self.replay is not None and self.replay.speed == FASTEST
 
     def _pace_replay(self, stop: threading.Event) -> None:
-        """Before each frame: a replay played as fast as it reads waits for the waves worker."""
-        worker = self.waves_worker
-        if worker is not None and self._replay_paced():
-            worker.wait_for_room(stop)
+        """Before each frame: a replay played as fast as it reads waits for the series and
+        the waves worker, so that neither misses a frame (the maps take the newest)."""
+        if self._replay_paced():
+            self.series_worker.wait_for_room(stop)
+            worker = self.waves_worker
+            if worker is not None:
+                worker.wait_for_room(stop)
 
     # ---- recording ---------------------------------------------------------
     def start_recording(self, request: RecordRequest) -> None:

@@ -17,8 +17,9 @@ into a :class:`~holoview.live.wave_window.WaveHistory`:
   step: each change of stride starts the window again); a smaller stride that had to be
   left again within :data:`RELAX_S` is next tried twice as late (up to
   :data:`MAX_RELAX_S`), so that a machine at the edge settles on the stride it keeps.
-- a replay played as fast as it reads waits for it (:meth:`WavesWorker.wait_for_room`),
-  so a replay at full speed fills the panel from every frame;
+- a replay played as fast as it reads waits for it
+  (:meth:`~holoview.live.worker.RingWorker.wait_for_room`), so a replay at full speed
+  fills the panel from every frame;
 - frames lost before it read them are gaps in the history (by the frame times),
   never closed; a replay's jump, or a demodulator rebuilt (new peaks: its reference
   starts again), starts the history again.
@@ -71,7 +72,6 @@ from holoview.processing.peaks.detection import Peak
 logger = logging.getLogger(__name__)
 
 __all__ = [
-    "BACKLOG",
     "FIT_SHARE",
     "FIT_SHARE_BEHIND",
     "MAX_STRIDE",
@@ -89,8 +89,6 @@ FIT_SHARE = 0.25
 #: at FIT_SHARE a quarter of a core, most of what a 60 frames/s camera's maps need beside
 #: the series and the window on two cores.
 FIT_SHARE_BEHIND = 0.1
-#: Frames waiting in the ring beyond which a replay played as fast as it reads waits.
-BACKLOG = 24
 #: Largest stride (camera frames per map).
 MAX_STRIDE = 16
 #: Most of the time between two kept frames a map may take (median of the last 16). A map is
@@ -175,7 +173,6 @@ class WavesWorker(RingWorker[LiveWaves]):
         self.paced: Callable[[], bool] = lambda: False
         self._camera_times: collections.deque[float] = collections.deque(maxlen=65)
         self._problem: str | None = None
-        self._room = threading.Condition()
         self._waves: LiveWaves | None = None
         self._seq = 0
         self._fit_wake = threading.Event()
@@ -205,8 +202,6 @@ class WavesWorker(RingWorker[LiveWaves]):
             self._child.close()
         super().stop(timeout)
         self._fit_wake.set()
-        with self._room:
-            self._room.notify_all()
         if self._fit_thread.ident is not None:
             self._fit_thread.join(timeout)
         wait_at_exit(self, self._thread.is_alive() or self._fit_thread.is_alive())
@@ -245,20 +240,6 @@ class WavesWorker(RingWorker[LiveWaves]):
         costs = list(self._cpu)
         return float(np.median(costs)) if costs else 0.0
 
-    def backlog(self) -> int:
-        """Frames waiting in the ring for this worker."""
-        return self._consumer.status().unread
-
-    def wait_for_room(self, stop: threading.Event, limit: int = BACKLOG) -> None:
-        """Wait until fewer than ``limit`` frames wait for this worker (or it or ``stop`` ends).
-
-        A replay played as fast as it reads calls it before each frame; meanwhile the
-        worker keeps every frame.
-        """
-        with self._room:
-            while not stop.is_set() and self.running and self.backlog() >= limit:
-                self._room.wait(0.1)
-
     # ---- commands ------------------------------------------------------------
     def _apply(self, name: str, value: Any) -> None:
         if name != "settings":
@@ -279,8 +260,6 @@ class WavesWorker(RingWorker[LiveWaves]):
         return self.maps.peak_set() is not None or not self.maps.running
 
     def _step(self, pixels: np.ndarray, meta: FrameMeta) -> None:
-        with self._room:
-            self._room.notify_all()
         t = frame_time(meta.t_device, meta.t_host)
         with self._lock:
             self._camera_times.append(t)

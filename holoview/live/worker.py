@@ -62,6 +62,13 @@ MAX_MESSAGES = 20
 #: on a machine with fewer cores than busy threads the series and the window, which
 #: must keep up, get the cores first.
 YIELDING_NICENESS = 5
+#: Frames waiting in the ring for a worker beyond which a replay played as fast as it
+#: reads waits for it (:meth:`RingWorker.wait_for_room`).
+BACKLOG = 24
+#: Longest a replay played as fast as it reads waits for a worker that takes no frames yet
+#: (the series and the waves wait for the maps worker's first peaks), seconds: a file
+#: whose peaks are never found still plays.
+READY_WAIT_S = 10.0
 #: Niceness added to the maps worker's side threads (display spectrum, window matching,
 #: displacement estimate): below the maps, whose latency they must not lengthen (their
 #: results may come late; the maps use the last ones meanwhile).
@@ -313,18 +320,24 @@ class RingWorker(Generic[R]):
         self._messages: collections.deque[str] = collections.deque(maxlen=MAX_MESSAGES)
         self._last_error = ""
         self._stop = threading.Event()
+        self._room = threading.Condition()  # notified as each frame is taken
+        self._taking = False  # taking frames (not waiting for something first, _ready)
+        self._taking_since = time.monotonic()  # when it started or stopped taking frames
         self._thread = threading.Thread(target=self._run, name=name, daemon=True)
         #: Called on this worker's thread after each new result (a window's wake-up).
         self.listener: Callable[[], None] | None = None
 
     def start(self) -> None:
         """Start the thread."""
+        self._taking_since = time.monotonic()
         wait_at_exit(self, alive=True)
         self._thread.start()
 
     def stop(self, timeout: float = 5.0) -> None:
         """Ask the thread to stop and join it (the interpreter's exit waits for a late one)."""
         self._stop.set()
+        with self._room:
+            self._room.notify_all()
         if self._thread.ident is not None:
             self._thread.join(timeout)
         wait_at_exit(self, self._thread.is_alive())
@@ -333,6 +346,27 @@ class RingWorker(Generic[R]):
     def running(self) -> bool:
         """True while the thread runs."""
         return self._thread.is_alive()
+
+    def backlog(self) -> int:
+        """Frames waiting in the ring for this worker."""
+        return self._consumer.status().unread
+
+    def wait_for_room(self, stop: threading.Event, limit: int = BACKLOG) -> None:
+        """Wait until fewer than ``limit`` frames wait for this worker (at most half the ring).
+
+        A replay played as fast as it reads calls it before each frame for the workers
+        that must take every frame: none of them then misses one. A worker that takes no
+        frames yet (it waits for something else first) is waited for at most
+        :data:`READY_WAIT_S`; it returns at once when the worker or ``stop`` ends.
+        """
+        limit = max(1, min(limit, self.ring.capacity // 2))
+        with self._room:
+            while not (stop.is_set() or self._stop.is_set()) and self.backlog() >= limit:
+                if self._thread.ident is not None and not self._thread.is_alive():
+                    return  # it ended (an internal error); one not started yet starts soon
+                if not self._taking and time.monotonic() - self._taking_since > READY_WAIT_S:
+                    return
+                self._room.wait(0.1)
 
     def post(self, name: str, value: Any = None) -> None:
         """Queue a command, applied before the next frame."""
@@ -403,10 +437,15 @@ class RingWorker(Generic[R]):
         try:
             while not self._stop.is_set():
                 self._apply_commands()
-                if not self._ready():
+                taking = self._ready()
+                if taking != self._taking:
+                    self._taking, self._taking_since = taking, time.monotonic()
+                if not taking:
                     self._stop.wait(0.005)
                     continue
                 item = self._consumer.get(timeout=0.1)
+                with self._room:
+                    self._room.notify_all()
                 if item is None or item is CLOSED:
                     self._idle()
                 if item is CLOSED:

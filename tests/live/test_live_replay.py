@@ -20,6 +20,7 @@ from holoview.acquire.source import FrameMeta
 from holoview.engine.experiment import Experiment
 from holoview.errors import InputError
 from holoview.live import series_pipeline
+from holoview.live import session as session_module
 from holoview.live.continuity import Continuity
 from holoview.live.maps_pipeline import LiveResult, MapsPipeline
 from holoview.live.replay_control import FASTEST
@@ -210,6 +211,30 @@ def test_play_pause_speed_and_loop_through_the_control(recording: Path) -> None:
         assert control.to_start() == 0
     finally:
         session.close()
+
+
+def test_a_replay_at_full_speed_waits_for_the_series(simulate_evaporation, monkeypatch) -> None:
+    """Played as fast as it reads, a replay waits for the series worker, which takes every
+    frame: through a ring of 8 frames the series misses none."""
+    recording = simulate_evaporation(200)
+    monkeypatch.setattr(session_module, "RING_BYTES", 1)  # the smallest ring: 8 frames
+    session = LiveSession(
+        f"replay:{recording}",
+        _stored(recording, "relative"),
+        source_options={"loop": False, "speed": "fast"},
+    )
+    try:
+        assert session.ring.capacity == 8 and session._replay_paced()
+        session.start()
+        _wait(lambda: session.series.series is not None and 199 in session.series.series.frames)
+        frames = np.asarray(session.series.series.frames)
+        missed = session.series_worker.status().dropped
+    finally:
+        session.close()
+    # none lost, even while the series waited for the maps worker's first peaks (the
+    # replay waited too); its newest series began where the peaks last changed
+    assert missed == 0
+    np.testing.assert_array_equal(frames, np.arange(frames[0], 200))
 
 
 def test_a_camera_has_no_transport() -> None:
