@@ -159,7 +159,8 @@ def main() -> int:
             replay_control.set_loop(True)
             replay_control.set_speed(FASTEST)
             replay_control.play()
-        until(app, lambda: (w := window.session.waves()) is not None and w.fit is not None, 60)
+        # a spectrum (a fit too where the recording has waves; an evaporation's fails)
+        until(app, lambda: (w := window.session.waves()) is not None and w.spectrum is not None, 60)
         waves = window.session.waves()
         if waves is not None and waves.latest is not None and waves.pixel_size is not None:
             rows, cols = waves.latest.shape

@@ -135,7 +135,8 @@ def rate_text(waves: LiveWaves) -> str:
     if spectrum is not None:
         parts.append(
             f"k cut-off {spectrum.k_cut * PER_MM:.3g} rad/mm (the demodulation window, dashed); "
-            f"{spectrum.segments} segments of {spectrum.power.shape[0] * 2 - 2} maps"
+            f"{spectrum.segments} segment{'s' if spectrum.segments != 1 else ''} of "
+            f"{spectrum.power.shape[0] * 2 - 2} maps"
         )
     return "; ".join(parts)
 

@@ -226,3 +226,10 @@ def test_a_value_is_shown_to_the_decimal_place_of_its_error() -> None:
     assert with_error(0.8964, 0.076) == "0.896 ± 0.076"
     assert with_error(1234.5, 120.0) == "1234 ± 120"
     assert with_error(20.0, 0.0) == "20 ± 0"
+
+
+def test_the_segments_are_counted_in_words() -> None:
+    rng = np.random.default_rng(2)
+    maps = [rng.normal(0, 1e-9, (32, 32)).astype(np.float32) for _ in range(64)]
+    assert "; 3 segments of 32 maps" in rate_text(_waves(maps))  # hop 16 in 64
+    assert rate_text(_waves(maps[:32])).endswith("; 1 segment of 32 maps")
