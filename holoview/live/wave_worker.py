@@ -29,10 +29,9 @@ times a second, and less often when an analysis takes more than :data:`FIT_SHARE
 time, or :data:`FIT_SHARE_BEHIND` while the maps keep fewer frames than the camera gives
 (the cores go to the maps first); the analyses are
 :func:`~holoview.live.wave_window.analyse_window`, the functions of ``holoview waves``.
-The map's process runs just below the series and the window (:data:`MAP_NICENESS`),
-which must keep up and hold the numbers the operator trusts, and above the maps worker,
-whose rate is whatever is left, and the analyses
-(:data:`~holoview.live.worker.YIELDING_NICENESS`). A map costs one carrier window of one
+The map's process, like the maps worker and the analyses, yields to the series and the
+window, which must keep up and hold the numbers the operator trusts
+(:data:`MAP_NICENESS`); its stride follows what it is left. A map costs one carrier window of one
 frame: the frame's row FFTs, the column FFTs under that window alone
 (:class:`~holoview.processing.fourier.half_spectrum.HalfSpectrum`) and one box's inverse
 FFT. A map's process that ends (killed) is said in the panel and started again at the
@@ -66,7 +65,13 @@ from holoview.live.wave_window import (
     WaveSettings,
     analyse_window,
 )
-from holoview.live.worker import DemodWorker, RingWorker, wait_at_exit, yield_to_others
+from holoview.live.worker import (
+    YIELDING_NICENESS,
+    DemodWorker,
+    RingWorker,
+    wait_at_exit,
+    yield_to_others,
+)
 from holoview.processing.peaks.detection import Peak
 
 logger = logging.getLogger(__name__)
@@ -97,9 +102,11 @@ MAX_STRIDE = 16
 TARGET_BUSY = 0.9
 #: Maps timed (since the demodulator was built) before the stride follows their cost.
 MIN_COSTS = 8
-#: Niceness of the map's process: after the series and the window (which must keep up,
-#: and hold the numbers the operator trusts), before the maps worker.
-MAP_NICENESS = 3
+#: Niceness of the map's process: after the series and the window, which must keep up and
+#: hold the numbers the operator trusts; with the maps worker. At 3 the series missed up
+#: to 393 frames in 20 s (``benchmarks/bench_gui.py --waves RB1``, 2 cores); at 5, 0-115,
+#: the panel keeping 32-34 maps/s (1 camera frame in 2 at 60 frames/s).
+MAP_NICENESS = YIELDING_NICENESS
 #: Frames whose maps are under way at once: the map's process makes one while this thread
 #: hands over the next.
 IN_FLIGHT = 2
