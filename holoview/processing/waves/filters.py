@@ -11,7 +11,8 @@ a wavenumber band on each frame alone.
 slices: an array, an HDF5 dataset) and writes the filtered maps to ``out`` the same
 way, so memory stays a block's. In time, blocks of ``block`` frames overlap by half,
 each tapered with a sine-squared window (the windows add up to one), transformed,
-masked, transformed back and added (overlap-add); each gap-free run is treated alone,
+masked, transformed back and added (overlap-add; each frame read once, a block's second
+half kept as the next one's first); each gap-free run is treated alone,
 as if it were padded with zeros by half a block at both ends, so the first and last
 frames of a run see less of their neighbours. Untrusted pixels (NaN) enter as zeros and
 stay NaN in the output.
@@ -173,14 +174,19 @@ def band_filter(
     # the mask is symmetric under (f, k) -> (-f, -k): its half f >= 0 for a real transform
     mask = band.mask(np.fft.rfftfreq(block, clock.interval), ky, kx).astype(np.float32)
     for start, stop in clock.runs:
-        pending = np.zeros((block, rows, cols), np.float32)  # frames [cursor, cursor + block)
+        # frames [cursor, cursor + block): the maps as read (NaN: untrusted, or no frame of
+        # the run) and the filtered sum; each frame is read once, its block's second half
+        # kept as the next block's first
+        held = np.full((block, rows, cols), np.nan, np.float32)
+        pending = np.zeros((block, rows, cols), np.float32)
         cursor = start - hop  # the first block starts half a block before the run
+        read_to = start
         while cursor < stop:
-            lo, hi = max(cursor, start), min(cursor + block, stop)
-            data = np.zeros((block, rows, cols), np.float32)
-            chunk = np.asarray(maps[lo:hi], dtype=np.float32)
-            data[lo - cursor : hi - cursor] = np.where(np.isfinite(chunk), chunk, 0.0)
-            data *= window
+            hi = min(cursor + block, stop)
+            if hi > read_to:
+                held[read_to - cursor : hi - cursor] = np.asarray(maps[read_to:hi], np.float32)
+                read_to = hi
+            data = np.where(np.isfinite(held), held, np.float32(0.0)) * window
             spectrum = scipy.fft.rfftn(data, axes=(1, 2, 0), workers=workers)
             spectrum *= mask
             pending += scipy.fft.irfftn(
@@ -189,8 +195,10 @@ def band_filter(
             done_lo, done_hi = max(cursor, start), min(cursor + hop, stop)
             if done_hi > done_lo:
                 finished = pending[done_lo - cursor : done_hi - cursor]
-                source = np.asarray(maps[done_lo:done_hi], dtype=np.float32)
+                source = held[done_lo - cursor : done_hi - cursor]
                 out[done_lo:done_hi] = np.where(np.isfinite(source), finished, np.nan)
             pending[:hop] = pending[hop:]
             pending[hop:] = 0.0
+            held[:hop] = held[hop:]
+            held[hop:] = np.nan
             cursor += hop

@@ -160,6 +160,32 @@ def test_runs_are_filtered_apart():
     assert np.max(np.abs(out[182:268] - along[182:268])) < 0.05
 
 
+class CountingStack:
+    """Maps read by frame slices, as from a file, each frame's reads counted."""
+
+    def __init__(self, maps: np.ndarray) -> None:
+        self.maps, self.shape = maps, maps.shape
+        self.reads = np.zeros(maps.shape[0], int)
+
+    def __getitem__(self, key: slice) -> np.ndarray:
+        self.reads[key] += 1
+        return self.maps[key]
+
+
+def test_each_frame_is_read_once_and_its_masks_kept():
+    """A frame is in two blocks and in the output: read once (a relative recording's maps
+    are summed as they are read), its untrusted pixels NaN in the output."""
+    along, against, _ = two_waves(300)
+    maps = along + against
+    maps[[5, 140, 151, 299], 3, 4] = np.nan
+    times = np.arange(300) / FPS
+    times[150:] += 1.0  # two runs
+    stack, out = CountingStack(maps), np.zeros_like(maps)
+    band_filter(stack, times, PIXEL, Band(f_max=35.0), out, block=64)
+    assert np.all(stack.reads == 1)
+    assert np.array_equal(np.isnan(out), np.isnan(maps))
+
+
 def test_band_limits_are_checked():
     with pytest.raises(InputError, match="must increase"):
         Band(k_min=10.0, k_max=5.0)
