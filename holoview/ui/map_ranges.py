@@ -2,7 +2,8 @@
 
 The height colour range is :func:`colour_range`: percentiles of the trusted pixels, of
 the fused map where there is one; :func:`left_range` says when the maps have left the
-range shown between two of its updates (most of them one colour); the profile's value
+range shown between two of its updates (most of them one colour), :func:`settled` when a
+new range is too close to the one shown to be worth taking; the profile's value
 range (:func:`profile_range`) follows its curves without regenerating its axis every
 frame.
 """
@@ -17,6 +18,7 @@ import numpy as np
 from holoview.ui.legends import FUSED
 
 __all__ = [
+    "FOLLOW_TOLERANCE",
     "MEDIAN_SAMPLES",
     "PROFILE_MARGIN",
     "PROFILE_SLACK",
@@ -25,6 +27,7 @@ __all__ = [
     "colour_range",
     "left_range",
     "profile_range",
+    "settled",
 ]
 
 #: Percentiles of the trusted pixels that set the height range (:func:`colour_range`).
@@ -33,6 +36,11 @@ RANGE_PERCENTILES = (1.0, 99.0)
 RANGE_SAMPLES = 16384
 #: Pixels of a map sampled for its median (:func:`left_range`: checked at every draw).
 MEDIAN_SAMPLES = 1024
+#: While following, a new colour range within this fraction of the span shown from it at
+#: both ends is not taken: the colours hold still (the 1-99 percentiles of a noisy map
+#: move by a few per cent from frame to frame), and the colour bar's axis is not drawn
+#: again every half second.
+FOLLOW_TOLERANCE = 0.05
 #: Margin of the profile's value range beyond its curves, fraction of their span.
 PROFILE_MARGIN = 0.1
 #: The profile's value range is taken again when it is more than this many times wider
@@ -97,6 +105,20 @@ def profile_range(
         if inside and current[1] - current[0] <= PROFILE_SLACK * (wanted[1] - wanted[0]):
             return current
     return wanted
+
+
+def settled(
+    shown: tuple[float, float], new: tuple[float, float], tolerance: float = FOLLOW_TOLERANCE
+) -> bool:
+    """Whether the range ``new`` is within ``tolerance`` of the span of ``shown`` at both ends.
+
+    Examples
+    --------
+    >>> settled((0.0, 10.0), (0.3, 10.4)), settled((0.0, 10.0), (0.0, 11.0))
+    (True, False)
+    """
+    slack = tolerance * (shown[1] - shown[0])
+    return abs(new[0] - shown[0]) <= slack and abs(new[1] - shown[1]) <= slack
 
 
 def left_range(maps: Mapping[str, np.ndarray], levels: tuple[float, float]) -> bool:

@@ -39,7 +39,7 @@ from holoview.processing.maps.demod_results import REFERENCE_MODES
 from holoview.ui.colour_index import colour_indices, colour_table, rgba
 from holoview.ui.elided_label import ElidedLabel
 from holoview.ui.legends import FUSED, curve_pen, side_legend
-from holoview.ui.map_ranges import colour_range, left_range, profile_range
+from holoview.ui.map_ranges import colour_range, left_range, profile_range, settled
 
 #: Colour map of heights (perceptual) and of phases (cyclic).
 HEIGHT_CMAP = "viridis"
@@ -272,7 +272,7 @@ class SurfaceView(QWidget):
             or (self._levels is not None and left_range(data, self._levels))
         )
         if self._mode == "height" and (self._levels is None or follow or self._restarted):
-            self._range_from_maps()
+            self._range_from_maps(following=follow and not self._restarted)
         elif self._mode == "height" and following and not self._follow_timer.isActive():
             wait = FOLLOW_INTERVAL_S - (now - self._range_at)
             self._follow_timer.start(max(0, int(wait * 1000)))
@@ -326,9 +326,12 @@ class SurfaceView(QWidget):
     def _follow_due(self) -> None:
         """Range the maps shown now, if "follow" is still on (the timer's end)."""
         if self.follow_box.isChecked() and self._mode == "height":
-            self.auto_range()
+            self._range_from_maps(following=True)
+            self._draw_maps()
 
-    def _range_from_maps(self) -> None:
+    def _range_from_maps(self, following: bool = False) -> None:
+        """Take the colour range from the maps shown; ``following``: keep the range shown
+        while the new one is within :data:`FOLLOW_TOLERANCE` of it (:func:`settled`)."""
         if self._mode == "phase" or not self._data:
             return
         levels = colour_range(self._data)
@@ -336,6 +339,8 @@ class SurfaceView(QWidget):
             return
         self._range_at = time.monotonic()
         self._restarted = False
+        if following and self._levels is not None and settled(self._levels, levels):
+            return  # colours that hold still; the bar's axis is not drawn again
         self._levels = levels
         self.colour_bar.setLevels(self._levels)
 

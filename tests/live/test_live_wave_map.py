@@ -7,6 +7,7 @@ from __future__ import annotations
 import logging
 import os
 import signal
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -78,7 +79,7 @@ def test_a_result_with_no_job_sent_is_refused() -> None:
         child.result()
 
 
-def _echo():  # type: ignore[no-untyped-def]
+def _echo() -> Callable[[int], int]:
     return lambda job: job
 
 

@@ -410,3 +410,22 @@ def test_the_maps_caption_ends_in_an_ellipsis_where_it_has_no_room(qtbot) -> Non
     label.resize(400, 20)
     assert label.elided() == "maps of frame 38 (10 behind)"
     assert label.sizePolicy().horizontalPolicy().name == "Ignored"
+
+
+def test_follow_keeps_the_range_through_small_changes_and_takes_large_ones(qtbot) -> None:
+    """The colours hold still while the maps' range moves by a few per cent (the colour
+    bar is not redrawn every half second); a larger move, or Auto range, is taken."""
+    view = SurfaceView()
+    qtbot.addWidget(view)
+    waves = 10e-9 * np.sin(np.linspace(0, 20, 32 * 32)).reshape(32, 32)
+    view.set_maps({"RB1": waves})
+    shown = view.levels
+    view._range_at = -math.inf  # the follow interval has passed
+    view.set_maps({"RB1": waves * 1.03})
+    assert view.levels == shown
+    view._range_at = -math.inf
+    view.set_maps({"RB1": waves * 1.3})
+    assert view.levels[1] == pytest.approx(1.3 * shown[1], rel=0.02)
+    view.set_maps({"RB1": waves * 1.31})
+    view.auto_range()  # the operator asks: taken as it is
+    assert view.levels[1] == pytest.approx(1.31 * shown[1], rel=0.005)
