@@ -3,8 +3,9 @@
 Heights arrive in metres and are shown in nanometres with a perceptual colour map
 (viridis); phases arrive in radians and are shown with a cyclic one (CET-C6) over
 [-pi, pi]. Untrusted pixels arrive as NaN and are left transparent. The height range
-(the first, "Auto range", and "follow": every :data:`FOLLOW_INTERVAL_S`, and at once
-when the maps left it) is :mod:`holoview.ui.map_ranges`'s: percentiles of the trusted
+(the first, "Auto range", and "follow": every :data:`FOLLOW_INTERVAL_S` where it moved by
+more than :data:`~holoview.ui.map_ranges.FOLLOW_TOLERANCE`, and at once when the maps
+left it) is :mod:`holoview.ui.map_ranges`'s: percentiles of the trusted
 pixels, of the fused map where there is one, so that a noisy peak's map or a few wild
 pixels do not squeeze the surface into a few colours. A line drawn on the first map is
 mirrored (dashed) on the others, and the profile below overlays every map's curve along
