@@ -209,6 +209,8 @@ class FrameCore:
     when a label or alpha appears, goes or changes, a carrier moves by a whole FFT bin,
     a neighbour moves a window's bound by a whole bin, the windows are matched to
     another spectrum, or the window, radius, reference, unwrapping or wavelength change.
+    A rebuild for any reason but the peaks keeps the carriers in use: the peaks (and the
+    series measured at them) change only with a label, an alpha or a whole bin.
     """
 
     def __init__(
@@ -300,18 +302,23 @@ class FrameCore:
         e = self.experiment
         return (e.window, e.radius, e.reference, e.unwrap, e.wavelength_m)
 
+    def _same_peaks(self, demod: Demodulator) -> bool:
+        """Whether the peaks are ``demod``'s: the same labels and alphas, no carrier moved
+        by a whole bin."""
+        if [(p.label, p.alpha) for p in self.peaks] != [(p.label, p.alpha) for p in demod.peaks]:
+            return False
+        rows, cols = self.frame_shape
+        return not any(
+            abs(p.carrier[0] - q.carrier[0]) * cols > 1.0
+            or abs(p.carrier[1] - q.carrier[1]) * rows > 1.0
+            for p, q in zip(self.peaks, demod.peaks, strict=True)
+        )
+
     def _stale(self) -> bool:
         demod = self._demod
         if demod is None or self._settings_key != self._settings():
             return True
-        if [(p.label, p.alpha) for p in self.peaks] != [(p.label, p.alpha) for p in demod.peaks]:
-            return True
-        rows, cols = self.frame_shape
-        if any(
-            abs(p.carrier[0] - q.carrier[0]) * cols > 1.0
-            or abs(p.carrier[1] - q.carrier[1]) * rows > 1.0
-            for p, q in zip(self.peaks, demod.peaks, strict=True)
-        ):
+        if not self._same_peaks(demod):
             return True
         if self._fixed_windows() is not None:
             return False
@@ -385,6 +392,11 @@ class FrameCore:
             self._demod = None
             return None
         if self._stale():
+            if self._demod is not None and self._same_peaks(self._demod):
+                # rebuilt for the windows only: the carriers stay the ones in use (a
+                # detection's sub-bin refinement differs from the last), so the series
+                # measured at them goes on (:class:`CarrierCore`'s key)
+                self.peaks = self._demod.peaks
             self._demod = None
             e = self.experiment
             demod = Demodulator(

@@ -181,9 +181,17 @@ def test_the_live_window_says_a_contradiction_aloud_and_runs(
     try:
         qtbot.waitUntil(lambda: window.session is not None, timeout=20000)
         said = "label RB1 contradicts the lattice: the peak labelled RB1 is RF"
-        qtbot.waitUntil(
-            lambda: any(w.startswith(said) for w in window.spectrum.warnings), timeout=20000
-        )
+
+        def warned() -> None:
+            drawn = window._drawn
+            label = window.spectrum.warning_label
+            assert any(w.startswith(said) for w in window.spectrum.warnings), (
+                None if drawn is None else (drawn.seq, drawn.frame_index, drawn.notes),
+                label.text(),
+                label.isVisibleTo(window.spectrum),
+            )
+
+        qtbot.waitUntil(warned, timeout=20000)
         banners = [r.getMessage() for r in caplog.records if r.name == "holoview.ui.main_window"]
         assert any(message.startswith(said) for message in banners), banners
         assert window.source_panel.start_button.isEnabled()
