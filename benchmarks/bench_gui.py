@@ -23,8 +23,8 @@ run, and prints medians and extremes:
 - the targets of issue 17 (the series takes every frame, display >= 25 Hz, longest
   stall < 100 ms, no dropped frame) with issue 23's map latency p95 < 70 ms, and the
   maps' rate against the camera's with the reason when they fall behind (a map's CPU
-  on the maps worker against a camera frame's interval, or what the other threads and
-  the machine's load leave it);
+  (the maps worker's and the maps process's, its side threads included) against a camera
+  frame's interval, or what the other threads and the machine's load leave it);
 - with ``--waves LABEL`` (a labelled peak, or ``fused``): the Waves panel open on that
   map; its worker's maps per second against the camera's, the stride (camera frames per
   map), frames lost or overwritten before it read them, and whether every camera frame
@@ -33,7 +33,7 @@ run, and prints medians and extremes:
   rest is waiting for a core, or for the thread, which waits for the GIL);
 - per thread, the share of the run it waited runnable for a core (Linux's schedstat:
   the machine's other work), beside its CPU share; and the CPU share of each child
-  process (the window matching's, the Waves panel's map), by name;
+  process (the maps', the Waves panel's map), by name;
 - with ``--profile N``: where the GUI thread's time goes over the measured run (cProfile
   of the GUI thread, the N entries of largest cumulative time under pyqtgraph and
   holoview, in ms per displayed frame), and each image's render and paint time by shape.
@@ -396,14 +396,16 @@ def main() -> int:
     print(f"waiting for a core per thread (% of the run): {queued}")
     gui_cpu = cpu1.get("MainThread", 0.0) - cpu0.get("MainThread", 0.0)
     demod_cpu = cpu1.get("holoview-demod", 0.0) - cpu0.get("holoview-demod", 0.0)
+    # the maps are made in their own process (its side threads included) where it runs
+    demod_cpu += children1.get("holoview-maps", 0.0) - children0.get("holoview-maps", 0.0)
     series_cpu = cpu1.get("holoview-series", 0.0) - cpu0.get("holoview-series", 0.0)
     per_draw = gui_cpu / max(len(views), 1)
     per_frame = demod_cpu / max(processing_fps * elapsed, 1)
     per_series = series_cpu / max(series_fps * elapsed, 1)
     print(
         f"CPU per displayed frame {per_draw * 1e3:5.1f} ms (GUI thread, maps included), per map "
-        f"{per_frame * 1e3:5.1f} ms (maps worker), per series frame {per_series * 1e3:5.1f} ms "
-        f"(series worker)"
+        f"{per_frame * 1e3:5.1f} ms (maps worker and process), per series frame "
+        f"{per_series * 1e3:5.1f} ms (series worker)"
     )
     print(f"longest event-loop stall {stall * 1e3:5.1f} ms; dropped frames {dropped}")
     interval = 1.0 / max(camera_fps, 1e-9)
@@ -412,13 +414,13 @@ def main() -> int:
         cores = os.cpu_count() or 1
         busy = sum(cpu1[n] - cpu0.get(n, 0.0) for n in cpu1) / elapsed
         cost = (
-            f"a map takes {per_frame * 1e3:.1f} ms of the maps worker's CPU, "
+            f"a map takes {per_frame * 1e3:.1f} ms of the maps' CPU (worker and process), "
             f"{'over' if per_frame > interval else 'under'} the {interval * 1e3:.1f} ms "
             "between camera frames"
         )
         spawned = sum(children1[n] - children0.get(n, 0.0) for n in children1) / elapsed
         share = (
-            f"the maps worker got {100 * demod_cpu / elapsed:.0f}% of a core, this process "
+            f"the maps got {100 * demod_cpu / elapsed:.0f}% of a core, this process "
             f"{100 * busy:.0f}% and its child processes {100 * spawned:.0f}% of the {cores} "
             f"cores (machine load {os.getloadavg()[0]:.1f})"
         )

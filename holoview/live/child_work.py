@@ -1,6 +1,6 @@
 """Side work in a process of its own, so that it never holds the maps' interpreter lock.
 
-A side thread (:class:`~holoview.live.worker.SideWorker`) keeps slow work off the maps
+A side thread (:class:`~holoview.live.side_workers.SideWorker`) keeps slow work off the maps
 worker's frames, but not off the interpreter's lock: matching the windows to the surface
 at 1024^2 with six peaks is 0.6 s of CPU in some 56,000 Python calls, and while it runs
 every other thread of the window (the maps, the series, the painting) waits its turn for
@@ -49,15 +49,30 @@ CLOSE_WAIT_S = 0.5
 
 
 def _serve(
-    conn: Connection, make: Callable[[], Callable[[Any], Any]], niceness: int, name: str
+    conn: Connection,
+    make: Callable[[], Callable[[Any], Any]],
+    niceness: int,
+    name: str,
+    group: bool,
 ) -> None:
-    """The child: make the work, then run each job received until ``None`` or the pipe ends."""
+    """The child: make the work, then run each job received until ``None`` or the pipe ends.
+
+    ``group``: lead a process group of its own, so that the processes it starts end with
+    it when it must be killed (:meth:`ChildWork.close`).
+    """
+    if group:
+        with contextlib.suppress(OSError):
+            os.setpgrp()
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     with contextlib.suppress(OSError):  # its name in top and ps (Linux: 15 characters)
         Path("/proc/self/comm").write_text(name[:15])
     with contextlib.suppress(OSError):  # a sandbox that forbids it: the same priority
         os.nice(niceness)
     work = make()
+    try:
+        conn.send(("ready", None))
+    except (EOFError, OSError):
+        return
     while True:
         try:
             job = conn.recv()
@@ -90,16 +105,30 @@ class ChildWork(Generic[J, T]):
         The child's name (``holoview-...``), for its process title and the messages.
     niceness : int
         Added to the child's niceness at its start.
+    daemon : bool
+        A daemonic child (ended by the window's process at exit) may start no process of
+        its own; one that does (the maps process: its match) is not daemonic and must be
+        ended by :meth:`close` (the live workers' stop, at the latest at the
+        interpreter's exit). It leads a process group of its own: killed, it is killed
+        with the processes it started (one still starting would outlive it).
     """
 
-    def __init__(self, make: Callable[[], Callable[[J], T]], name: str, niceness: int) -> None:
+    def __init__(
+        self,
+        make: Callable[[], Callable[[J], T]],
+        name: str,
+        niceness: int,
+        daemon: bool = True,
+    ) -> None:
         self._make = make
         self._name = name
         self._niceness = niceness
+        self._daemon = daemon
         self._lock = threading.Lock()
         self._sending = threading.Lock()  # one message at a time on the pipe
         self._process: multiprocessing.process.BaseProcess | None = None
         self._conn: Connection | None = None
+        self._starting = False  # the child's "ready" not read yet
         self._closed = False
 
     @property
@@ -125,6 +154,41 @@ class ChildWork(Generic[J, T]):
     def start(self) -> None:
         """Start the child now rather than at the first job (it takes a second or two)."""
         self._connection()
+
+    def wait_ready(self, timeout: float) -> bool:
+        """Wait up to ``timeout`` s for the child to have made its work; whether it has.
+
+        Raises
+        ------
+        HoloviewError
+            The child ended (it failed to start) or was closed.
+        """
+        with self._lock:
+            conn, starting = self._conn, self._starting
+        if conn is None:
+            raise HoloviewError(
+                f"{self._name} was stopped" if self._closed else f"{self._name} has no process"
+            )
+        if not starting:
+            return True
+        try:
+            if not conn.poll(timeout):
+                return False
+        except Exception as exc:
+            self._failed(exc)
+        self._read_ready(conn)
+        return True
+
+    def _read_ready(self, conn: Connection) -> None:
+        """Read the child's "ready" (the first message of each child)."""
+        try:
+            kind, _ = conn.recv()
+        except Exception as exc:
+            self._failed(exc)
+        with self._lock:
+            self._starting = False
+        if kind != "ready":  # pragma: no cover - the protocol says otherwise
+            raise RuntimeError(f"{self._name} said {kind!r} before it was ready")
 
     def submit(self, job: J) -> None:
         """Send ``job`` to the child (started if need be) and return at once.
@@ -157,11 +221,13 @@ class ChildWork(Generic[J, T]):
             A bug in the work, with the child's traceback.
         """
         with self._lock:
-            conn = self._conn
+            conn, starting = self._conn, self._starting
         if conn is None:
             raise HoloviewError(
                 f"{self._name} was stopped" if self._closed else f"{self._name} has no job"
             )
+        if starting:
+            self._read_ready(conn)
         try:
             kind, value = conn.recv()
         except Exception as exc:
@@ -202,9 +268,18 @@ class ChildWork(Generic[J, T]):
                 self._sending.release()
         process.join(CLOSE_WAIT_S)
         if process.is_alive():
-            process.kill()
+            self._kill(process)
             process.join(CLOSE_WAIT_S)
         self._forget()
+
+    def _kill(self, process: multiprocessing.process.BaseProcess) -> None:
+        """Kill the child (and its process group, where it leads one)."""
+        if not self._daemon and process.pid is not None:
+            with contextlib.suppress(OSError):  # gone meanwhile, or not its group yet
+                if os.getpgid(process.pid) == process.pid:
+                    os.killpg(process.pid, signal.SIGKILL)
+                    return
+        process.kill()
 
     def _connection(self) -> Connection:
         with self._lock:
@@ -216,13 +291,13 @@ class ChildWork(Generic[J, T]):
             ours, theirs = context.Pipe()
             process = context.Process(
                 target=_serve,
-                args=(theirs, self._make, self._niceness, self._name),
+                args=(theirs, self._make, self._niceness, self._name, not self._daemon),
                 name=self._name,
-                daemon=True,
+                daemon=self._daemon,
             )
             process.start()
             theirs.close()
-            self._process, self._conn = process, ours
+            self._process, self._conn, self._starting = process, ours, True
             logger.debug("%s started in process %d", self._name, process.pid)
             return ours
 

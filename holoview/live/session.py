@@ -29,7 +29,7 @@ from holoview.engine.depth import DepthSummary
 from holoview.engine.experiment import Experiment
 from holoview.engine.true_labels import true_experiment
 from holoview.errors import HoloviewError, InputError
-from holoview.live.maps_pipeline import LiveResult, MapsPipeline
+from holoview.live.maps_pipeline import LiveResult
 from holoview.live.replay_control import FASTEST, ReplayControl
 from holoview.live.series_pipeline import SeriesPipeline, TrendSummary
 from holoview.live.wave_window import LiveWaves, WaveSettings
@@ -181,8 +181,9 @@ class LiveSession:
         self.ring = FrameRing(capacity, shape, self.source.dtype)
         self.camera = CameraThread(self.source, self.ring)
         saturation = self.saturation_value
-        self.pipeline = MapsPipeline(self.experiment, shape, saturation=saturation)
-        self.worker = DemodWorker(self.ring, self.pipeline, every_frame=self.every_frame)
+        self.worker = DemodWorker(
+            self.ring, self.experiment, saturation=saturation, every_frame=self.every_frame
+        )
         self.worker.listener = self._maps_listener
         self.series = SeriesPipeline(shape, saturation=saturation)
         self.series_worker = SeriesWorker(self.ring, self.series, self.worker)
@@ -197,8 +198,9 @@ class LiveSession:
     # ---- life cycle --------------------------------------------------------
     def start(self) -> None:
         """Start streaming and processing."""
-        self.camera.start()
         self.worker.start()
+        self.worker.wait_ready()  # a second or two: the maps' process starts
+        self.camera.start()
         self.series_worker.start()
         if self.waves_worker is not None:
             self.waves_worker.start()

@@ -58,6 +58,7 @@ from holoview.engine.series import frame_time
 from holoview.errors import HoloviewError
 from holoview.live.child_work import ChildWork
 from holoview.live.continuity import Continuity
+from holoview.live.side_workers import YIELDING_NICENESS, wait_at_exit, yield_to_others
 from holoview.live.wave_map import FrameSlot, WaveJob, WaveMap
 from holoview.live.wave_window import (
     LiveWaves,
@@ -65,13 +66,7 @@ from holoview.live.wave_window import (
     WaveSettings,
     analyse_window,
 )
-from holoview.live.worker import (
-    YIELDING_NICENESS,
-    DemodWorker,
-    RingWorker,
-    wait_at_exit,
-    yield_to_others,
-)
+from holoview.live.worker import DemodWorker, RingWorker
 from holoview.processing.peaks.detection import Peak
 
 logger = logging.getLogger(__name__)

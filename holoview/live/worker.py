@@ -1,4 +1,4 @@
-"""The live worker threads: the series, the maps, peak detection.
+"""The live workers: threads that take frames from the ring, the series and the maps.
 
 - The series worker (``holoview-series``) takes *every* frame from the ring and runs a
   :class:`~holoview.live.series_pipeline.SeriesPipeline` on it: the carrier values, so the
@@ -6,16 +6,12 @@
   overwrote before it read them are counted (:meth:`RingWorker.status`), never hidden.
 - The maps worker (``holoview-demod``) takes the *newest* frame (the series has the
   others, so a map is never older than it must be), or every frame in order when
-  asked (scripted runs, the parity test), and runs a
-  :class:`~holoview.live.maps_pipeline.MapsPipeline` on it: the maps, at whatever rate is
-  left. It hands the demodulator's peaks to the series worker.
-- Peak detection (``holoview-peaks``), the display spectrum (``holoview-spectrum``),
-  the windows' match to the surface (``holoview-match``) and the maps' displacement
-  estimate (``holoview-coregister``), each slower than a frame's maps, run beside them
-  at a lower priority (:class:`SideWorker`); the maps worker takes their results between
-  frames, so that no frame's maps wait for them. The match, long and in Python, runs in
-  a process of its own (:class:`MatchWorker`): on a thread it held the interpreter's
-  lock away from the maps and the window.
+  asked (scripted runs, the parity test), and has a
+  :class:`~holoview.live.maps_server.MapsServer` make its maps, in a process of its own
+  (``holoview-maps``): the maps, with their side work (peak detection, the display
+  spectrum, the windows' match, the displacement estimate:
+  :mod:`holoview.live.side_workers`), at whatever rate is left. It hands the
+  demodulator's peaks to the series worker.
 
 Each publishes its newest result under a lock; all stop with a flag (or the ring
 closing) and are joined by their ``stop``.
@@ -23,45 +19,34 @@ closing) and are joined by their ``stop``.
 
 from __future__ import annotations
 
-import atexit
 import collections
+import functools
 import logging
-import os
 import queue
-import sys
 import threading
 import time
-import weakref
 from collections.abc import Callable
-from typing import Any, Generic, Protocol, TypeVar
+from dataclasses import replace
+from typing import Any, Generic, TypeVar
 
 import numpy as np
 
 from holoview.acquire.ring import CLOSED, FrameRing, RingConsumer, RingStatus
 from holoview.acquire.source import FrameMeta
 from holoview.engine.experiment import Experiment
-from holoview.engine.frame_core import FFT_THREADS
-from holoview.engine.map_step import Coregistration
-from holoview.engine.window_matching import MatchJob, Rematch, WindowMatcher
 from holoview.errors import HoloviewError
 from holoview.live.child_work import ChildWork
-from holoview.live.maps_pipeline import (
-    CoregistrationJob,
-    LiveResult,
-    MapsPipeline,
-    spectrum_image,
-)
+from holoview.live.maps_pipeline import LiveResult
+from holoview.live.maps_server import MapsJob, MapsReply, MapsServer, SlotServer
 from holoview.live.series_pipeline import SeriesPipeline, TrendSummary
-from holoview.processing.peaks.detection import Peak, find_peaks
+from holoview.live.side_workers import YIELDING_NICENESS, wait_at_exit, yield_to_others
+from holoview.live.wave_map import FrameSlot
+from holoview.processing.peaks.detection import Peak
 
 logger = logging.getLogger(__name__)
 
 #: Most messages kept for the window between two redraws.
 MAX_MESSAGES = 20
-#: Niceness added to the threads whose rate is whatever is left (maps, peak detection):
-#: on a machine with fewer cores than busy threads the series and the window, which
-#: must keep up, get the cores first.
-YIELDING_NICENESS = 5
 #: Frames waiting in the ring for a worker beyond which a replay played as fast as it
 #: reads waits for it (:meth:`RingWorker.wait_for_room`).
 BACKLOG = 24
@@ -69,222 +54,6 @@ BACKLOG = 24
 #: (the series and the waves wait for the maps worker's first peaks), seconds: a file
 #: whose peaks are never found still plays.
 READY_WAIT_S = 10.0
-#: Niceness added to the maps worker's side threads (display spectrum, window matching,
-#: displacement estimate): below the maps, whose latency they must not lengthen (their
-#: results may come late; the maps use the last ones meanwhile).
-SIDE_NICENESS = 10
-
-
-def yield_to_others(increment: int = YIELDING_NICENESS) -> None:
-    """Lower the calling thread's scheduling priority by ``increment`` (Linux; else nothing).
-
-    Linux gives every thread its own nice value (``setpriority`` on the thread id);
-    raising it needs no privilege. Elsewhere the call does nothing.
-    """
-    if not sys.platform.startswith("linux"):
-        return
-    tid = threading.get_native_id()
-    try:
-        os.setpriority(os.PRIO_PROCESS, tid, os.getpriority(os.PRIO_PROCESS, tid) + increment)
-    except OSError as exc:  # a sandbox that forbids it: run at the same priority
-        logger.debug("cannot lower the priority of %s: %s", threading.current_thread().name, exc)
-
-
-#: The type of a side thread's jobs and of its results.
-J = TypeVar("J")
-T = TypeVar("T")
-
-
-#: Seconds the interpreter's exit waits for each worker still running (its job under way).
-EXIT_JOIN_S = 60.0
-
-
-class _Stoppable(Protocol):
-    def stop(self, timeout: float = ...) -> None: ...
-
-
-#: Workers started and not yet stopped for good (weakly held).
-_STARTED: weakref.WeakSet[_Stoppable] = weakref.WeakSet()
-
-
-def wait_at_exit(worker: _Stoppable, alive: bool) -> None:
-    """Have the interpreter's exit stop ``worker`` and wait for it while it is ``alive``."""
-    if alive:
-        _STARTED.add(worker)
-    else:
-        _STARTED.discard(worker)
-
-
-@atexit.register
-def _stop_at_exit() -> None:
-    """Stop every worker still running and wait for the job under way.
-
-    A window's ``stop`` waits a few seconds for each thread; a measurement that takes
-    longer (matching windows at 1024^2 under load) ran on, on a daemon thread, while the
-    interpreter tore its modules down under it: a crash at exit. The interpreter calls
-    this before that teardown.
-    """
-    for worker in list(_STARTED):
-        worker.stop(EXIT_JOIN_S)
-
-
-class SideWorker(Generic[J, T]):
-    """Run ``work`` on one job at a time on a thread of its own, at a lower priority.
-
-    For work slower than a frame's maps (peak detection, the display spectrum, matching
-    the windows, the displacement estimate): on its own thread it never holds up the
-    frames behind it. :meth:`submit` hands over a job
-    when the thread is idle; :meth:`take` returns each result once.
-
-    Parameters
-    ----------
-    name : str
-        The thread's name (``holoview-...``).
-    work : callable
-        What to do with a job (on the thread); a :class:`~holoview.errors.HoloviewError`
-        it raises becomes a message.
-    what : str
-        What the work is, for the messages (``"peak detection"``).
-    niceness : int
-        Added to the thread's niceness at start (:func:`yield_to_others`).
-    """
-
-    def __init__(
-        self, name: str, work: Callable[[J], T], what: str, niceness: int = SIDE_NICENESS
-    ) -> None:
-        self._work = work
-        self._what = what
-        self._niceness = niceness
-        self._cond = threading.Condition()
-        self._job: J | None = None
-        self._result: tuple[T, float] | None = None
-        self._error: str | None = None
-        self._busy = False
-        self._stop = False
-        self._thread = threading.Thread(target=self._run, name=name, daemon=True)
-
-    def start(self) -> None:
-        """Start the thread."""
-        wait_at_exit(self, alive=True)
-        self._thread.start()
-
-    def stop(self, timeout: float = 5.0) -> None:
-        """Ask the thread to stop (after the job under way) and join it.
-
-        A job that outlasts ``timeout`` runs on; the interpreter's exit waits for it.
-        """
-        with self._cond:
-            self._stop = True
-            self._cond.notify()
-        if self._thread.ident is not None:
-            self._thread.join(timeout)
-        wait_at_exit(self, self._thread.is_alive())
-
-    @property
-    def busy(self) -> bool:
-        """Whether a job is under way."""
-        with self._cond:
-            return self._busy
-
-    def submit(self, job: J) -> bool:
-        """Hand ``job`` to the thread; False, doing nothing, while a job is under way."""
-        with self._cond:
-            if self._busy:
-                return False
-            self._busy = True
-            self._job = job
-            self._cond.notify()
-            return True
-
-    def take(self) -> tuple[T, float] | str | None:
-        """The newest (result, seconds it took), an error message, or None; each once."""
-        with self._cond:
-            out: tuple[T, float] | str | None = self._error or self._result
-            self._result, self._error = None, None
-            return out
-
-    def _run(self) -> None:
-        yield_to_others(self._niceness)
-        while True:
-            with self._cond:
-                while self._job is None and not self._stop:
-                    self._cond.wait()
-                if self._stop or self._job is None:
-                    return
-                job = self._job
-                self._job = None
-            tick = time.perf_counter()
-            try:
-                result = self._work(job)
-            except HoloviewError as exc:
-                with self._cond:
-                    self._error, self._busy = f"{self._what}: {exc}", False
-                continue
-            except Exception:  # a bug: log it, keep the window running
-                logger.exception("%s failed", self._what)
-                with self._cond:
-                    self._error, self._busy = f"{self._what} failed (see the log)", False
-                continue
-            with self._cond:
-                self._result, self._busy = (result, time.perf_counter() - tick), False
-
-
-def _detect(job: tuple[np.ndarray, float | None]) -> list[Peak]:
-    frame, radius = job
-    return find_peaks(frame, radius=radius, threads=FFT_THREADS)
-
-
-class PeakWorker(SideWorker[tuple[np.ndarray, float | None], list[Peak]]):
-    """Find the peaks of one frame at a time on a thread named ``holoview-peaks``."""
-
-    def __init__(self) -> None:
-        super().__init__("holoview-peaks", _detect, "peak detection", YIELDING_NICENESS)
-
-
-def coregistration_work(
-    coregistration: Coregistration,
-) -> Callable[[CoregistrationJob], Coregistration | None]:
-    """The co-registration thread's work: add each job's maps to ``coregistration``."""
-
-    def work(job: CoregistrationJob) -> Coregistration | None:
-        return job.run(coregistration)
-
-    return work
-
-
-def _matcher_in_child() -> Callable[[MatchJob], Rematch | None]:
-    """The match process's work (made there): a matcher of its own, its frames kept there."""
-    matcher = WindowMatcher()
-
-    def work(job: MatchJob) -> Rematch | None:
-        return job.run(matcher)
-
-    return work
-
-
-class MatchWorker(SideWorker[MatchJob, Rematch | None]):
-    """Match the windows to the surface in a process of its own, from ``holoview-match``.
-
-    A measurement takes seconds on a large frame; the maps worker hands a
-    :class:`~holoview.engine.window_matching.MatchJob` over (its own copy of the frame)
-    and goes on with the maps; the new windows come back through :meth:`take`. The
-    thread sends each job to a child process (:class:`~holoview.live.child_work.ChildWork`)
-    and waits: the measurement, long and in Python, would otherwise hold the interpreter's
-    lock away from the maps, the series and the window for as long as it runs. The child
-    yields to every other (:data:`SIDE_NICENESS`): its result may come late.
-    """
-
-    def __init__(self) -> None:
-        self.child: ChildWork[MatchJob, Rematch | None] = ChildWork(
-            _matcher_in_child, "holoview-match", SIDE_NICENESS
-        )
-        super().__init__("holoview-match", self.child, "window matching")
-
-    def stop(self, timeout: float = 5.0) -> None:
-        """End the match process (a measurement under way is dropped), then the thread."""
-        self.child.close()
-        super().stop(timeout)
-
 
 #: The type of a worker's results.
 R = TypeVar("R")
@@ -466,56 +235,117 @@ class RingWorker(Generic[R]):
 
 
 class DemodWorker(RingWorker[LiveResult]):
-    """The maps: a :class:`MapsPipeline` on the newest frame, on ``holoview-demod``.
+    """The maps: a :class:`~holoview.live.maps_server.MapsServer` on the newest frame.
+
+    The server runs in a process of its own (``holoview-maps``): the thread
+    (``holoview-demod``) takes the newest frame, puts it in shared memory and waits,
+    without the interpreter's lock, for the maps. Where no process or shared memory can
+    be had (a sandbox), or when asked, the server runs on the thread, as it did before.
+    A maps process that ends (killed, out of memory) is said once and started again at
+    the next frame (its peaks found again: the maps and the series restart).
 
     Parameters
     ----------
     ring : FrameRing
         Frames to process (a ``"newest"`` consumer).
-    pipeline : MapsPipeline
-        What to do with each frame; commands (``experiment``, ``reset``) between frames.
+    experiment : Experiment
+        The settings to start with; commands (``experiment``, ``reset``, ``match``)
+        are applied before the next frame.
+    saturation : float, optional
+        Raw value at which the camera saturates.
     every_frame : bool
         Take every frame in order (an ``"every"`` consumer) instead of the newest.
+    in_process : bool
+        Run the server on the thread rather than in a process of its own.
     """
 
-    niceness = YIELDING_NICENESS
-
-    def __init__(self, ring: FrameRing, pipeline: MapsPipeline, every_frame: bool = False) -> None:
+    def __init__(
+        self,
+        ring: FrameRing,
+        experiment: Experiment,
+        saturation: float | None = None,
+        every_frame: bool = False,
+        in_process: bool = False,
+    ) -> None:
         if every_frame:
             consumer = ring.consumer("maps", mode="every")
         else:
             consumer = ring.consumer("maps", mode="newest")
         super().__init__(ring, "holoview-demod", consumer)
-        self.pipeline = pipeline
-        pipeline.detect_inline = False
-        self.peaks = PeakWorker()
-        pipeline.side_work_inline = False
-        self.spectra: SideWorker[np.ndarray, np.ndarray] = SideWorker(
-            "holoview-spectrum", spectrum_image, "the spectrum"
-        )
-        self.matches = MatchWorker()
-        self.coregistration: SideWorker[CoregistrationJob, Coregistration | None] = SideWorker(
-            "holoview-coregister",
-            coregistration_work(Coregistration(None)),
-            "co-registration",
-        )
+        self._experiment = experiment
+        self._saturation = saturation
+        self._in_process = in_process
+        #: The server, where it runs on the thread (None while it runs in its process).
+        self.server: MapsServer | None = None
+        #: The maps process (None where the server runs on the thread).
+        self.child: ChildWork[MapsJob, MapsReply] | None = None
+        self._slot: FrameSlot | None = None
+        self._pending: list[tuple[str, Any]] = []
         self._peak_set: tuple[tuple[Peak, ...], Experiment] | None = None
+        self._reference_mode: str | None = None
 
     def start(self) -> None:
-        """Start the thread and its side threads."""
-        self.peaks.start()
-        self.matches.start()
-        self.spectra.start()
-        self.coregistration.start()
+        """Start the maps process (or the server on the thread) and the thread."""
+        if not self._in_process:
+            try:
+                self._slot = FrameSlot(self.ring.frame_shape, self.ring.dtype, 1)
+                self.child = self._start_child(self._slot)
+            except OSError as exc:  # no shared memory or no process here: on the thread
+                logger.warning("the maps run in the window's process: %s", exc)
+                self._close_child()
+        if self.child is None:
+            self.server = MapsServer(self._experiment, self.ring.frame_shape, self._saturation)
+            self.niceness = YIELDING_NICENESS  # the thread makes the maps: it yields
         super().start()
 
+    def wait_ready(self, timeout: float = READY_WAIT_S) -> None:
+        """Wait up to ``timeout`` s for the maps process to be ready for frames (it takes a
+        second or two to start): the camera starts after it, so that the series, which
+        waits for the first peaks, misses no frame meanwhile. A process that failed to
+        start is started again with the first frame."""
+        if self.child is None:
+            return
+        try:
+            self.child.wait_ready(timeout)
+        except HoloviewError as exc:
+            logger.warning("maps: %s", exc)
+
+    def _start_child(self, slot: FrameSlot) -> ChildWork[MapsJob, MapsReply]:
+        """A maps process on ``slot``'s frames with the experiment in force, started."""
+        make = functools.partial(
+            SlotServer,
+            slot.name,
+            (1, *self.ring.frame_shape),
+            np.dtype(self.ring.dtype).str,
+            self._experiment,
+            self._saturation,
+        )
+        # not daemonic: it starts the match's process; ended by stop
+        child: ChildWork[MapsJob, MapsReply] = ChildWork(
+            make, "holoview-maps", YIELDING_NICENESS, daemon=False
+        )
+        child.start()
+        return child
+
     def stop(self, timeout: float = 5.0) -> None:
-        """Stop and join the thread and its side threads."""
+        """End the maps process (a frame under way is dropped), then stop and join the
+        thread (or the server's side threads)."""
+        self._stop.set()  # no maps process is started again from now on
+        if self.child is not None:
+            self.child.close()  # the thread's wait for it ends now
         super().stop(timeout)
-        self.peaks.stop(timeout)
-        self.matches.stop(timeout)
-        self.spectra.stop(timeout)
-        self.coregistration.stop(timeout)
+        if self.server is not None:
+            self.server.stop(timeout)
+        if not self._thread.is_alive():
+            self._close_child()
+
+    def _close_child(self) -> None:
+        child, self.child = self.child, None
+        if child is not None:
+            child.close()
+        slot, self._slot = self._slot, None
+        if slot is not None:
+            slot.close()
 
     def latest(self) -> LiveResult | None:
         """The newest result, or None before the first."""
@@ -527,52 +357,46 @@ class DemodWorker(RingWorker[LiveResult]):
         with self._lock:
             return self._peak_set
 
+    def reference_mode(self) -> str | None:
+        """The demodulator's reference mode after the last frame (None before one)."""
+        with self._lock:
+            return self._reference_mode
+
     def _apply(self, name: str, value: Any) -> None:
-        self.pipeline.apply(name, value)
-
-    def _exchange_peaks(self, pixels: np.ndarray) -> None:
-        """Hand the newest detected peaks to the pipeline; start a detection when due."""
-        found = self.peaks.take()
-        if isinstance(found, str):
-            self._report(found)
-        elif found is not None:
-            self.pipeline.set_peaks(found[0])
-            self.pipeline.peaks_done(found[1])
-        due = self.pipeline.peaks_due()
-        if due and self.peaks.submit((pixels, self.pipeline.experiment.fixed_radius)):
-            self.pipeline.peaks_started()
-
-    def _hand_over(self, side: SideWorker[Any, T], use: Callable[[T, float], object]) -> None:
-        """Give ``side``'s newest result and its seconds to ``use`` (a frame boundary), or
-        report its error."""
-        found = side.take()
-        if isinstance(found, str):
-            self._report(found)
-        elif found is not None:
-            use(*found)
+        if name == "experiment" and isinstance(value, Experiment):
+            self._experiment = value  # a maps process started again starts with it
+        self._pending.append((name, value))  # applied with the next frame
 
     def _step(self, pixels: np.ndarray, meta: FrameMeta) -> None:
-        self._exchange_peaks(pixels)
-        self._hand_over(self.matches, self.pipeline.use_match)
-        self._hand_over(self.coregistration, self.pipeline.use_coregistration)
-        self._hand_over(self.spectra, self.pipeline.use_spectrum)
+        commands, self._pending = tuple(self._pending), []
+        if self.server is not None:
+            reply = self.server.step(pixels, meta, commands)
+        else:
+            reply = self._in_child(pixels, meta, commands)
+        for message in reply.messages:
+            self._report(message)
+        with self._lock:
+            self._peak_set = reply.peak_set
+            self._reference_mode = reply.reference_mode
+        if reply.result is not None:
+            self._publish(replace(reply.result, frame=pixels))
+
+    def _in_child(
+        self, pixels: np.ndarray, meta: FrameMeta, commands: tuple[tuple[str, Any], ...]
+    ) -> MapsReply:
+        """The frame's maps from the maps process (one started again if it had ended)."""
+        assert self.child is not None and self._slot is not None
+        if self.child.pid is None and not self._stop.is_set():  # it ended: a new one
+            self.child.close()
+            self.child = self._start_child(self._slot)
+        self._slot.put(0, pixels)
         try:
-            result = self.pipeline.process(pixels, meta)
-        finally:
-            with self._lock:
-                self._peak_set = (self.pipeline.peaks, self.pipeline.experiment)
-        self._publish(result)
-        # the side work due, each dropped while its thread is busy (due again soon)
-        coregistration = self.pipeline.coregistration_job()
-        if coregistration is not None:
-            self.coregistration.submit(coregistration)
-        spectrum = self.pipeline.spectrum_job()
-        if spectrum is not None:
-            self.spectra.submit(spectrum)
-        if not self.matches.busy:  # the measurement due, if any, after the maps are out
-            job = self.pipeline.match_job(pixels)
-            if job is not None:
-                self.matches.submit(job)
+            self.child.submit(MapsJob(0, meta, commands))
+            return self.child.result()
+        except HoloviewError as exc:
+            if self.child.pid is None and not self._stop.is_set():
+                logger.warning("maps: %s", exc)  # said once: the next frame starts a new one
+            raise
 
 
 class SeriesWorker(RingWorker[TrendSummary]):

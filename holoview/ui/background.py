@@ -17,7 +17,7 @@ from collections.abc import Callable
 from PyQt6.QtCore import QObject, QTimer, pyqtSignal
 
 from holoview.errors import HoloviewError
-from holoview.live.worker import yield_to_others
+from holoview.live.side_workers import yield_to_others
 
 logger = logging.getLogger(__name__)
 

@@ -31,7 +31,7 @@ from holoview.headless.run_series import (
     measure_series,
 )
 from holoview.live.replay_control import ReplayState
-from holoview.live.worker import YIELDING_NICENESS
+from holoview.live.side_workers import YIELDING_NICENESS
 from holoview.processing.series.rate_fits import format_rate
 from holoview.ui.background import LatestCall
 from holoview.ui.trends_view import MEASURING, NO_TRENDS, TrendsView

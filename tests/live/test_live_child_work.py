@@ -21,7 +21,7 @@ from holoview.engine.frame_core import FrameCore
 from holoview.engine.window_matching import MatchJob, WindowMatcher, windows_in_use
 from holoview.errors import HoloviewError
 from holoview.live.child_work import ChildWork
-from holoview.live.worker import MatchWorker
+from holoview.live.side_workers import MatchWorker
 
 REPO = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(REPO / "tests" / "processing"))
@@ -58,6 +58,28 @@ def _gone(pid: int, seconds: float = 10.0) -> bool:
             return False
         time.sleep(0.02)
     return True
+
+
+def _slow_to_start() -> Callable[[object], object]:
+    """A work that takes a second to make (imports, buffers), then counts as above."""
+    time.sleep(1.0)
+    return _counting()
+
+
+def test_the_child_says_when_it_is_ready() -> None:
+    """A live session starts its camera once the maps' process is ready (a second or two),
+    so that no frame waits in the ring meanwhile: the wait is bounded and says whether."""
+    work = ChildWork(_slow_to_start, "holoview-test", niceness=0)
+    try:
+        work.start()
+        assert not work.wait_ready(0.01)  # still making its work
+        assert work.wait_ready(60)
+        assert work.wait_ready(0.0)  # said once, known since
+        assert work("a")[1] == 1  # the first job's result, not the "ready"
+    finally:
+        work.close()
+    with pytest.raises(HoloviewError, match="holoview-test was stopped"):
+        work.wait_ready(1.0)
 
 
 def test_jobs_run_in_one_child_that_keeps_its_state_at_a_lower_priority() -> None:

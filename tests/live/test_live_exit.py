@@ -9,7 +9,7 @@ from pathlib import Path
 CHILD = """
 import sys, threading, time
 from pathlib import Path
-from holoview.live.worker import SideWorker
+from holoview.live.side_workers import SideWorker
 
 done = Path(sys.argv[1])
 started = threading.Event()

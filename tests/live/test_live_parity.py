@@ -77,7 +77,9 @@ def test_live_engine_and_process_agree_on_every_frame(
     np.testing.assert_array_equal(live.frames, headless.frames)
     np.testing.assert_allclose(live.times, headless.times, rtol=0, atol=1e-9)
     np.testing.assert_allclose(live.values, headless.values, rtol=2e-6)
-    alphas = [p.alpha for p in session.pipeline.demodulator.peaks]
+    peak_set = session.worker.peak_set()
+    assert peak_set is not None
+    alphas = [p.alpha for p in peak_set[0]]
     assert alphas == [p.alpha for p in outcome.selection.peaks]
     wavelength = outcome.experiment.wavelength_m
     a, b = summarise(live, alphas, wavelength), session.summary()

@@ -85,7 +85,7 @@ def test_maps_keep_coming_while_the_windows_are_measured(monkeypatch) -> None:
     monkeypatch.setattr(ChildWork, "__call__", held)
     frames = hologram_stack(12, SHAPE)
     ring = FrameRing(4, SHAPE, np.uint16)
-    worker = DemodWorker(ring, MapsPipeline(_experiment(), SHAPE))
+    worker = DemodWorker(ring, _experiment(), in_process=True)  # the test's patch reaches it
     worker.start()
     producer = Producer(ring, frames)
     try:
@@ -99,13 +99,15 @@ def test_maps_keep_coming_while_the_windows_are_measured(monkeypatch) -> None:
         assert not any("maps restart" in n for n in worker.latest().notes)
         release.set()
         assert _eventually(lambda: any("maps restart" in n for n in worker.latest().notes))
-        assert {w.rule for w in worker.pipeline._core.windows().values()} <= {"matched", "bound"}
+        assert worker.server is not None
+        windows = worker.server.pipeline._core.windows()
+        assert {w.rule for w in windows.values()} <= {"matched", "bound"}
     finally:
         release.set()
         producer.stop()
         ring.close()
         worker.stop()
-    assert not worker.matches._thread.is_alive()
+    assert worker.server is not None and not worker.server.matches._thread.is_alive()
 
 
 def _meta(i: int) -> FrameMeta:
@@ -160,7 +162,7 @@ def test_displacements_measured_off_the_maps_worker_move_the_fused_map(monkeypat
     images = {"RB1": (0.5, -0.5), "RF": (3.0, -2.0), "RB2": (-2.0, 1.5)}
     frames = hologram_stack(40, SHAPE, shifts=images)
     ring = FrameRing(4, SHAPE, np.uint16)
-    worker = DemodWorker(ring, MapsPipeline(_given_radius(), SHAPE))
+    worker = DemodWorker(ring, _given_radius(), in_process=True)  # the test's patch reaches it
     worker.start()
     producer = Producer(ring, frames)
     try:

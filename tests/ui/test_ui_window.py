@@ -306,11 +306,8 @@ def test_reference_mode_reaches_the_demodulator(qtbot, open_windows, tmp_path, h
     window = _labelled_window(qtbot, open_windows, tmp_path, hologram_file)
     window.surface.reference_box.setCurrentText("synthetic")
     assert window.experiment.reference == "synthetic"
-    pipeline = window.session.pipeline
-    qtbot.waitUntil(
-        lambda: (d := pipeline.demodulator) is not None and d.reference == "synthetic",
-        timeout=5000,
-    )
+    maps = window.session.worker
+    qtbot.waitUntil(lambda: maps.reference_mode() == "synthetic", timeout=5000)
     assert Experiment.load(window.experiment_path).reference == "synthetic"
 
 
