@@ -14,10 +14,11 @@ it), which runs the work there at a lower priority and sends the result back; th
 calling thread waits without the lock. The work's state (the matcher's frames) lives in
 the child. Errors come back as the thread's would: a
 :class:`~holoview.errors.HoloviewError` as such, anything else as a bug with the child's
-traceback. A child that ended (killed, out of memory) is said once and started again at
-the next job; :meth:`ChildWork.close` ends it. The child ends by itself when the window's
-process is gone (its end of the pipe closes) and ignores the terminal's Ctrl-C (the
-window handles it).
+traceback. The child plans its FFTs from the window's wisdom (the same transforms, so the
+same numbers to the bit as on a thread). A child that ended (killed, out of memory) is
+said once and started again at the next job; :meth:`ChildWork.close` ends it. The child
+ends by itself when the window's process is gone (its end of the pipe closes) and
+ignores the terminal's Ctrl-C (the window handles it).
 """
 
 from __future__ import annotations
@@ -30,11 +31,13 @@ import signal
 import threading
 import traceback
 from collections.abc import Callable
+from dataclasses import dataclass
 from multiprocessing.connection import Connection
 from pathlib import Path
 from typing import Any, Generic, NoReturn, TypeVar
 
 from holoview.errors import HoloviewError
+from holoview.processing.fourier.fftplans import adopt_wisdom, current_wisdom
 
 logger = logging.getLogger(__name__)
 
@@ -48,21 +51,28 @@ T = TypeVar("T")
 CLOSE_WAIT_S = 0.5
 
 
-def _serve(
-    conn: Connection,
-    make: Callable[[], Callable[[Any], Any]],
-    niceness: int,
-    name: str,
-    group: bool,
-) -> None:
-    """The child: make the work, then run each job received until ``None`` or the pipe ends.
+@dataclass(frozen=True)
+class _Setup:
+    """How a child sets itself up: its name, niceness, process group and FFT wisdom.
 
     ``group``: lead a process group of its own, so that the processes it starts end with
-    it when it must be killed (:meth:`ChildWork.close`).
+    it when it must be killed (:meth:`ChildWork.close`). ``wisdom``: the parent's FFT
+    wisdom, planned from alone (its transforms then give the parent's numbers to the bit).
     """
-    if group:
+
+    name: str
+    niceness: int
+    group: bool
+    wisdom: tuple[bytes, ...]
+
+
+def _serve(conn: Connection, make: Callable[[], Callable[[Any], Any]], setup: _Setup) -> None:
+    """The child: make the work, then run each job received until ``None`` or the pipe ends."""
+    name, niceness = setup.name, setup.niceness
+    if setup.group:
         with contextlib.suppress(OSError):
             os.setpgrp()
+    adopt_wisdom(setup.wisdom)
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     with contextlib.suppress(OSError):  # its name in top and ps (Linux: 15 characters)
         Path("/proc/self/comm").write_text(name[:15])
@@ -291,7 +301,11 @@ class ChildWork(Generic[J, T]):
             ours, theirs = context.Pipe()
             process = context.Process(
                 target=_serve,
-                args=(theirs, self._make, self._niceness, self._name, not self._daemon),
+                args=(
+                    theirs,
+                    self._make,
+                    _Setup(self._name, self._niceness, not self._daemon, current_wisdom()),
+                ),
                 name=self._name,
                 daemon=self._daemon,
             )
