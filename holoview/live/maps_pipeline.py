@@ -1,4 +1,4 @@
-"""What the live maps worker does with the newest frame: the engine's core, on a schedule.
+"""What the live maps do with the newest frame: the engine's core, on a schedule.
 
 Per frame: the display spectrum (at most :data:`SPECTRUM_HZ`), peak detection (at most
 :data:`PEAKS_HZ`; carriers drift slowly; each of the two at most a :data:`SIDE_SHARE`
@@ -10,7 +10,7 @@ of the time, and the fused map); at each detection, at most a :data:`SIDE_SHARE`
 time unless the operator asks, the windows' match to the surface is checked
 (:class:`holoview.engine.window_matching.WindowMatcher`: matched again when the operator
 asks or the surface's bandwidth changed, with a note shown for :data:`NOTE_SECONDS`).
-A measurement takes seconds: the live worker runs it in a process of its own
+A measurement takes seconds: the live maps server runs it in a process of its own
 (:meth:`MapsPipeline.match_job`, :meth:`MapsPipeline.use_match`) and the new windows
 are taken between two frames; the maps restart then, said by the note, and the first
 frame after any restart, the new reference, is marked (:attr:`LiveResult.reference`:
@@ -179,14 +179,15 @@ class MapsPipeline:
     ) -> None:
         self.experiment = experiment
         self.frame_shape = frame_shape
-        #: Detect peaks inside :meth:`process` when due; the live worker turns this off
-        #: and feeds :meth:`set_peaks` from its own peak thread instead (the first
+        #: Detect peaks inside :meth:`process` when due; the live maps server
+        #: (:class:`~holoview.live.maps_server.MapsServer`) turns this off and feeds
+        #: :meth:`set_peaks` from its own peak thread instead (the first
         #: detection is always made inline, so the first frame is demodulated at the
         #: detected carriers, as ``holoview process`` does).
         self.detect_inline = True
         #: Do the work much slower than a frame's maps inside :meth:`process` when due:
         #: the display spectrum, the windows' match to the surface, adding maps to the
-        #: displacement estimate. The live worker turns this off and runs each on a
+        #: displacement estimate. The live maps server turns this off and runs each on a
         #: thread of its own (:meth:`spectrum_job`, :meth:`match_job`,
         #: :meth:`coregistration_job`), handing the results back between frames
         #: (:meth:`use_spectrum`, :meth:`use_match`, :meth:`use_coregistration`).
