@@ -142,7 +142,8 @@ class WaveMapper:
         self._core: FrameCore | None = None
         self._step: MapStep | None = None
         self._radius: tuple[tuple[object, ...], float] | None = None
-        self._fused_labels: frozenset[str | None] | None = None
+        #: The fused map's peaks by label, and the labels given that they came with.
+        self._fused: tuple[dict[str | None, Peak], object] | None = None
         self._held_peaks: list[Peak] | None = None
         self._coregistered_at = -math.inf
 
@@ -165,11 +166,8 @@ class WaveMapper:
             self._core.break_sequence()
         label, peaks = job.label, job.peaks
         chosen = _chosen(peaks, label)
-        if label == FUSED:  # the peaks fused stay while they are there: a family the model
-            held = self._fused_labels  # adds later would rebuild and restart the window
-            if held is None or not held <= {p.label for p in chosen}:
-                held = self._fused_labels = frozenset(p.label for p in chosen)
-            chosen = [p for p in chosen if p.label in held]
+        if label == FUSED:
+            chosen = self._fused_peaks(chosen, job.experiment.peaks)
         chosen = self._held(chosen)
         experiment = replace(
             job.experiment, radius=self._window_radius(label, chosen, peaks, job.experiment)
@@ -205,6 +203,22 @@ class WaveMapper:
             reference=experiment.reference,
             cpu_seconds=time.thread_time() - cpu,
         )
+
+    def _fused_peaks(self, chosen: list[Peak], given: object) -> list[Peak]:
+        """The fused map's peaks: those of its first frame, in the order of their labels,
+        until the labels given change.
+
+        A family the model adds later is left out, and one a detection misses (on a wavy
+        surface a weak family is found on some frames, not on others) is kept at its last
+        carrier: either would rebuild the demodulator and start the window again.
+        """
+        current = {p.label: p for p in chosen}
+        if self._fused is None or self._fused[1] != given:
+            self._fused = (current, given)
+        held = self._fused[0]
+        kept = {name: current.get(name, peak) for name, peak in held.items()}
+        self._fused = (kept, given)
+        return [kept[name] for name in sorted(kept, key=str)]
 
     def _held(self, chosen: list[Peak]) -> list[Peak]:
         """The chosen peaks as first demodulated, while their labels and prefactors stay and
