@@ -20,10 +20,8 @@ block for it.
 
 from __future__ import annotations
 
-import time
 from collections.abc import Callable
 from dataclasses import dataclass, replace
-from multiprocessing import shared_memory
 from typing import Any, TypeVar
 
 import numpy as np
@@ -34,6 +32,7 @@ from holoview.engine.map_step import Coregistration
 from holoview.errors import HoloviewError
 from holoview.live.maps_pipeline import CoregistrationJob, LiveResult, MapsPipeline, spectrum_image
 from holoview.live.side_workers import MatchWorker, PeakWorker, SideWorker, coregistration_work
+from holoview.live.wave_map import SharedFrames
 from holoview.processing.peaks.detection import Peak
 
 __all__ = ["MapsJob", "MapsReply", "MapsServer", "SlotServer"]
@@ -71,15 +70,12 @@ class MapsReply:
         The demodulator's reference mode (None before one is built).
     messages : tuple of str
         Problems met with this frame (a command refused, the side work's errors).
-    cpu_seconds : float
-        The CPU time of the frame's maps (the thread's; the side threads' not counted).
     """
 
     result: LiveResult | None
     peak_set: tuple[tuple[Peak, ...], Experiment]
     reference_mode: str | None
     messages: tuple[str, ...]
-    cpu_seconds: float
 
 
 class MapsServer:
@@ -125,7 +121,6 @@ class MapsServer:
     ) -> MapsReply:
         """Apply ``commands``, then make the maps of ``pixels`` (kept by the side threads:
         not to be modified)."""
-        cpu = time.thread_time()
         self._messages = []
         for name, value in commands:
             try:
@@ -143,7 +138,6 @@ class MapsServer:
             (self.pipeline.peaks, self.pipeline.experiment),
             None if demodulator is None else demodulator.reference,
             tuple(self._messages),
-            time.thread_time() - cpu,
         )
 
     def _exchange_peaks(self, pixels: np.ndarray) -> None:
@@ -188,23 +182,17 @@ class MapsServer:
 
 
 class SlotServer:
-    """The maps process's work: a :class:`MapsServer` on the frames of the shared block ``name``.
+    """The maps process's work: a :class:`MapsServer` on the frames of a shared block.
 
     Made in the child (:class:`~holoview.live.worker.DemodWorker`); called with each job
     once the window's process has put the frame in its place.
     """
 
     def __init__(
-        self,
-        name: str,
-        shape: tuple[int, int, int],
-        dtype: str,
-        experiment: Experiment,
-        saturation: float | None,
+        self, frames: SharedFrames, experiment: Experiment, saturation: float | None
     ) -> None:
-        self._memory = shared_memory.SharedMemory(name=name)
-        self._frames = np.ndarray(shape, np.dtype(dtype), buffer=self._memory.buf)
-        self.server = MapsServer(experiment, (shape[1], shape[2]), saturation)
+        self._memory, self._frames = frames.attach()
+        self.server = MapsServer(experiment, frames.shape, saturation)
 
     def __call__(self, job: MapsJob) -> MapsReply:
         pixels = np.array(self._frames[job.slot])  # the side threads keep it past this frame

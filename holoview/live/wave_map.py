@@ -36,6 +36,7 @@ __all__ = [
     "COREGISTER_S",
     "HOLD_BINS",
     "FrameSlot",
+    "SharedFrames",
     "SlotMapper",
     "WaveJob",
     "WaveMap",
@@ -304,6 +305,11 @@ class FrameSlot:
             (count, *shape), self.dtype, buffer=self._memory.buf
         )
 
+    @property
+    def shared(self) -> SharedFrames:
+        """What a child needs to attach the block (picklable)."""
+        return SharedFrames(self.name, self.count, self.shape, self.dtype.str)
+
     def put(self, slot: int, pixels: np.ndarray) -> None:
         """Copy a frame into place ``slot``."""
         assert self._frames is not None, "the slot is closed"
@@ -311,8 +317,7 @@ class FrameSlot:
 
     def child_work(self, saturation: float | None) -> Callable[[], SlotMapper]:
         """The ``make`` of a :class:`~holoview.live.child_work.ChildWork` mapping its frames."""
-        shape = (self.count, self.shape[0], self.shape[1])
-        return functools.partial(SlotMapper, self.name, shape, self.dtype.str, saturation)
+        return functools.partial(SlotMapper, self.shared, saturation)
 
     def close(self) -> None:
         """Release and remove the block (the child's view stays valid until it ends)."""
@@ -323,19 +328,32 @@ class FrameSlot:
             memory.unlink()
 
 
+@dataclass(frozen=True)
+class SharedFrames:
+    """A :class:`FrameSlot`'s block as a child attaches it: its name, frames, shape, type."""
+
+    name: str
+    count: int
+    shape: tuple[int, int]
+    dtype: str
+
+    def attach(self) -> tuple[shared_memory.SharedMemory, np.ndarray]:
+        """The block (keep it while the view is used) and a view of its frames."""
+        memory = shared_memory.SharedMemory(name=self.name)
+        frames = np.ndarray((self.count, *self.shape), np.dtype(self.dtype), buffer=memory.buf)
+        return memory, frames
+
+
 class SlotMapper:
-    """The child's work: a :class:`WaveMapper` of the frame in the shared block ``name``.
+    """The child's work: a :class:`WaveMapper` of the frames in a shared block.
 
     Made in the child (:meth:`FrameSlot.child_work`); called with each job once the
     window's process has put the frame in the slot.
     """
 
-    def __init__(
-        self, name: str, shape: tuple[int, int, int], dtype: str, saturation: float | None
-    ) -> None:
-        self._memory = shared_memory.SharedMemory(name=name)
-        self._frames = np.ndarray(shape, np.dtype(dtype), buffer=self._memory.buf)
-        self.mapper = WaveMapper((shape[1], shape[2]), saturation)
+    def __init__(self, frames: SharedFrames, saturation: float | None) -> None:
+        self._memory, self._frames = frames.attach()
+        self.mapper = WaveMapper(frames.shape, saturation)
 
     def __call__(self, job: WaveJob) -> WaveMap:
         return self.mapper.map(self._frames[job.slot], job)

@@ -312,14 +312,7 @@ class DemodWorker(RingWorker[LiveResult]):
 
     def _start_child(self, slot: FrameSlot) -> ChildWork[MapsJob, MapsReply]:
         """A maps process on ``slot``'s frames with the experiment in force, started."""
-        make = functools.partial(
-            SlotServer,
-            slot.name,
-            (1, *self.ring.frame_shape),
-            np.dtype(self.ring.dtype).str,
-            self._experiment,
-            self._saturation,
-        )
+        make = functools.partial(SlotServer, slot.shared, self._experiment, self._saturation)
         # not daemonic: it starts the match's process; ended by stop
         child: ChildWork[MapsJob, MapsReply] = ChildWork(
             make, "holoview-maps", YIELDING_NICENESS, daemon=False
