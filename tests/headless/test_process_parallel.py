@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import logging
 import os
 import signal
 from collections.abc import Iterator
@@ -448,6 +449,21 @@ def test_a_worker_that_cannot_see_the_file_is_named(
         list(runner.run([task]))
     with pytest.raises(InputError, match="cannot read the input"):
         list(runners["dask local"].run([task]))
+
+
+def test_what_fails_on_the_clients_loop_after_it_closes_is_no_error(
+    runners: dict[str, ChunkRunner], caplog: pytest.LogCaptureFixture
+) -> None:
+    """The client's loop reports a future dropped at its close at debug level: asyncio's
+    own handler printed "ERROR asyncio: Future exception was never retrieved" after an
+    interrupted Dask run's last line (CI, stop 31)."""
+    runner = runners["dask local"]
+    assert isinstance(runner, DaskRunner)
+    context = {"message": "Future exception was never retrieved"}
+    with caplog.at_level(logging.DEBUG):
+        runner.client.loop.asyncio_loop.call_exception_handler(context)
+    said = [(r.name, r.levelno) for r in caplog.records if "never retrieved" in r.getMessage()]
+    assert said == [("holoview.headless.parallel.dask_cluster", logging.DEBUG)], said
 
 
 def test_a_worker_that_sees_another_file_is_refused(evaporation: Simulated) -> None:

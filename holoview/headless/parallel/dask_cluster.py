@@ -80,13 +80,16 @@ def check_scheduler(address: str) -> None:
         ) from None
 
 
-def _log_quietly(loop: asyncio.AbstractEventLoop, context: dict[str, Any]) -> None:
-    """Log at debug level what fails on the cluster's loop once nobody waits for it.
+def log_quietly(loop: asyncio.AbstractEventLoop, context: dict[str, Any]) -> None:
+    """Log at debug level what fails on one of Dask's loops once nobody waits for it.
 
     A start interrupted leaves Dask's tasks failing ("Nanny failed to start") after the
-    interruption has been reported.
+    interruption has been reported; a client closed mid-run leaves its batched sender's
+    wait failing with a timeout on a stopped loop, reported by asyncio ("Future
+    exception was never retrieved") when the future is collected, at exit, after the
+    run's last line.
     """
-    logger.debug("on the local Dask cluster's loop: %s", context.get("message"))
+    logger.debug("on a Dask event loop: %s", context.get("message"))
 
 
 class LocalDask:
@@ -114,7 +117,7 @@ class LocalDask:
         self._cluster: Any = None
         self._before = set(multiprocessing.active_children())
         self._loop = asyncio.new_event_loop()
-        self._loop.set_exception_handler(_log_quietly)
+        self._loop.set_exception_handler(log_quietly)
         self._thread = threading.Thread(
             target=self._loop.run_forever, name="holoview-dask-cluster", daemon=True
         )

@@ -50,7 +50,12 @@ from typing import Any, Self
 
 from holoview.errors import HoloviewError, InputError
 from holoview.headless.parallel.chunks import ChunkResult, ChunkTask, measure_chunk
-from holoview.headless.parallel.dask_cluster import CONNECT_TIMEOUT_S, LocalDask, check_scheduler
+from holoview.headless.parallel.dask_cluster import (
+    CONNECT_TIMEOUT_S,
+    LocalDask,
+    check_scheduler,
+    log_quietly,
+)
 
 logger = logging.getLogger(__name__)
 
@@ -326,6 +331,9 @@ class DaskRunner(ChunkRunner):
                 raise InputError(
                     f"--scheduler {scheduler}: no Dask scheduler answers there ({exc})"
                 ) from None
+            # the client's loop runs on a thread of Dask's: what its close leaves failing
+            # is said at debug level, not as an asyncio error after the run's last line
+            self._client.loop.asyncio_loop.set_exception_handler(log_quietly)
             try:
                 self._client.wait_for_workers(1, timeout=WORKERS_TIMEOUT_S)
             except (OSError, TimeoutError) as exc:
