@@ -98,6 +98,35 @@ def test_a_missed_family_keeps_its_last_match_while_the_model_still_puts_it_ther
     assert "RB2" not in resolve_peaks(experiment, _detected("RB1", "FB1", "RF"), SHAPE).labelled
 
 
+def test_three_labels_that_agree_stand_among_peaks_of_no_lattice_point() -> None:
+    """On a wavy surface the other detected peaks are the waves' sidebands around RB1,
+    none a lattice point. Three labels that sit on one lattice check each other: the model
+    still places the families and RB2, missed by this detection, keeps its last match.
+    Before: "the lattice of RB1, RF, FB1 explains none of the other 3 detected peaks:
+    check the labels and their twins", and RB2's map dropped (travelling-waves
+    recording, every detection after the waves start). Two labels are checked by the
+    other peaks alone, so with two that still is said."""
+    carriers = {
+        "RB1": RB1,
+        "FB1": FB1,
+        "RF": infer_carriers({"RB1": RB1, "FB1": FB1}, N1, N2)["RF"],
+    }
+    three = Experiment(n1=N1, n2=N2, peaks=tuple(LabelledPeak(k, c) for k, c in carriers.items()))
+    first = resolve_peaks(three, _detected("RB1", "FB1", "RF", "RB2"), SHAPE)
+    sidebands = [
+        Peak((RB1[0] + dx, RB1[1] + dy), amplitude=0.01, snr=12.0, flags=frozenset({"weak"}))
+        for dx, dy in ((0.05, 0.04), (-0.05, -0.04), (-0.07, 0.0))
+    ]
+    wavy = [*_detected("RB1", "FB1", "RF"), *sidebands]
+    later = resolve_peaks(three, wavy, SHAPE, previous={p.label: p for p in first.peaks})
+    assert later.labelling is not None and later.notes == first.notes, later.notes
+    assert later.labelled["RB2"] == first.labelled["RB2"]
+    two = Experiment(n1=N1, n2=N2, peaks=three.peaks[:2])
+    alone = resolve_peaks(two, [*_detected("RB1", "FB1"), *sidebands], SHAPE)
+    assert alone.labelling is None
+    assert any("explains none of the other 3 detected peaks" in n for n in alone.notes)
+
+
 def test_custom_labels_get_no_model() -> None:
     experiment = Experiment(peaks=(LabelledPeak("mine", RB1), LabelledPeak("other", FB1)))
     resolution = resolve_peaks(experiment, _detected("RB1", "FB1", "RF"), SHAPE)

@@ -13,8 +13,8 @@ The basis
   RB1 and RF, RB1 and RB2, ...), each snapped to the detected peak within ``snap``
   bins on the twin given; more labels are checked against it. Labels that disagree
   with each other, or with the lattice that explains the most peaks, are an error that
-  names the label (never a silent wrong name); so is a basis that explains none of the
-  other detected peaks.
+  names the label (never a silent wrong name); so is a basis of two labels that explains
+  none of the other detected peaks (three labels or more that agree check each other).
 - **Automatically** (:mod:`holoview.processing.naming.lattice_search`): every pair of the
   brightest detected peaks, read as every pair of RF, RB1, FB1, RB2, FB2 and RB3 that
   spans the lattice, on both relative twins, gives a candidate basis; each is refined
@@ -241,8 +241,8 @@ def identify_lattice(
     ------
     InputError
         Fewer than two detected peaks or none on a lattice, ``n2 <= n1``, labels that do
-        not fix the lattice or contradict it or each other, a basis that explains none
-        of the other peaks, or a label or carrier that is not valid.
+        not fix the lattice or contradict it or each other, a basis of two labels that
+        explains none of the other peaks, or a label or carrier that is not valid.
 
     Examples
     --------

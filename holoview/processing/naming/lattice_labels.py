@@ -263,7 +263,11 @@ def from_labels(
     others = [m for m in chosen.matches if m.peak not in anchored]
     n_peaks = fitter.carriers.shape[0]
     names = ", ".join(a.label for a in anchors)
-    if not others and n_peaks > len(anchors):
+    # Two labels fix a lattice and nothing checks it but the other peaks; three or more
+    # that sit where one lattice puts them check each other. Those then stand though
+    # the other peaks are none of its points: on a wavy surface they are the waves'
+    # sidebands, and a weak family the detection misses on such frames is kept.
+    if not others and n_peaks > len(anchors) and len(anchors) < 3:
         raise InputError(
             f"the lattice of {names} explains none of the other {n_peaks - len(anchors)} "
             "detected peaks: check the labels and their twins"
