@@ -100,6 +100,23 @@ def test_every_command_spells_the_optics_the_same_way() -> None:
         assert "--wavelength" not in options and "--pixel-pitch" not in options, name
 
 
+def test_the_commands_and_the_window_start_without_scipy_stats() -> None:
+    """scipy.stats takes a second to import (its distributions' docstrings): the noise
+    floors' chi-square median is computed without it, and nothing a command or the live
+    window imports at start brings it in."""
+    code = (
+        "import sys\n"
+        "import holoview.cli.process, holoview.headless.run, holoview.live.session\n"
+        "import holoview.ui.main_window\n"
+        "print('scipy.stats' in sys.modules)\n"
+    )
+    env = {**os.environ, "QT_QPA_PLATFORM": "offscreen"}
+    done = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, env=env, check=True
+    )
+    assert done.stdout.strip() == "False", done.stdout + done.stderr
+
+
 @pytest.mark.parametrize("given", [None, "2"])
 def test_the_commands_run_blas_on_one_thread_unless_told(given: str | None) -> None:
     """OpenBLAS's pool only spun beside the small products (bench_process: +29 % a frame)."""

@@ -22,7 +22,7 @@ from holoview.processing.maps.demodulate import Demodulator
 from holoview.processing.peaks.detection import find_peaks
 from holoview.processing.peaks.matched import MIN_RADIUS_BINS
 from holoview.processing.peaks.radii import surface_band, window_neighbours
-from holoview.processing.peaks.surface_spectrum import measure_spectrum
+from holoview.processing.peaks.surface_spectrum import chi2_median, measure_spectrum
 
 EDGE_PX = 24
 FRAMES = 5
@@ -220,3 +220,11 @@ def test_the_weakest_family_s_map_holds_up_where_its_waves_near_its_noise(seed: 
         use = inner & r.mask
         true = waves(t / 400.0, x, y) - waves(0.0, x, y)
         assert _correlation(r.delta_h[use], true[use]) >= 0.97, (t, window)
+
+
+@pytest.mark.parametrize("dof", [1.0, 2.0, 3.5, 62.0, 2000.0])
+def test_the_chi_square_median_is_scipys(dof: float) -> None:
+    """The noise floors' median of a chi-square, against scipy.stats (imported here only)."""
+    from scipy import stats
+
+    assert chi2_median(dof) == pytest.approx(float(stats.chi2.median(dof)), rel=1e-12)

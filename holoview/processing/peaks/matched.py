@@ -43,7 +43,6 @@ from dataclasses import dataclass
 
 import numpy as np
 import pyfftw
-from scipy import stats
 
 from holoview.processing.fourier.boxes import border_mask, box_layout, box_shape_for, box_weights
 from holoview.processing.fourier.fftplans import ifft2_plan
@@ -52,6 +51,7 @@ from holoview.processing.peaks.surface_spectrum import (
     CENTRE_BINS,
     MEASURABLE_SIGMAS,
     SurfaceSpectrum,
+    chi2_median,
 )
 
 __all__ = ["Window", "map_errors", "matched_window"]
@@ -388,7 +388,7 @@ def _varying_annuli(
     order = np.argsort(which, kind="stable")
     starts = np.searchsorted(which[order], np.arange(len(middles) + 1))
     dof = max(mean.frames - 1.0, 1.0)
-    median = float(stats.chi2.median(2.0 * dof)) / (2.0 * dof)  # of noise alone, per floor
+    median = chi2_median(2.0 * dof) / (2.0 * dof)  # of noise alone, per floor
     standing = np.zeros(len(middles), dtype=bool)
     for j in np.flatnonzero((middles > inner) & (np.diff(starts) > 0) & ~seen):
         values = varying[order[starts[j] : starts[j + 1]]] / mean.floor
