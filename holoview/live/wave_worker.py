@@ -9,13 +9,16 @@ peak's, or the fused map of every peak with a height) made in a process of its o
 the frame passed in shared memory, the thread waiting without the interpreter's lock),
 into a :class:`~holoview.live.wave_window.WaveHistory`:
 
-- every frame while a map takes less than :data:`TARGET_BUSY` of the camera's frame
-  interval (``stride`` 1); else every second frame (``frame_id`` even), every fourth,
-  ...: the maps stay evenly spaced at ``camera rate / stride`` and the panel says that
-  the frequency axis ends at half that rate. Once a smaller stride has sufficed for
-  :data:`RELAX_S` seconds the stride becomes the largest that was needed meanwhile (one
-  step: each change of stride starts the window again); a smaller stride that had to be
-  left again within :data:`RELAX_S` is next tried twice as late (up to
+- every frame while a map takes less than the camera's frame interval (``stride`` 1);
+  else every second frame (``frame_id`` even), every fourth, ...: the maps stay evenly
+  spaced at ``camera rate / stride`` and the panel says that the frequency axis ends at
+  half that rate. The stride rises when a map takes longer than the time between two
+  kept frames, to the smallest at which it takes :data:`TARGET_BUSY` of it; it falls only
+  to a stride at which a map would take at most :data:`RELAX_BUSY` (a band between the
+  two, since each change of stride starts the window again and a map costs more where
+  more are made). Once a smaller stride has sufficed for :data:`RELAX_S` seconds the
+  stride becomes the largest that was needed meanwhile (one step); a smaller stride
+  that had to be left again within :data:`HELD_S` is next tried twice as late (up to
   :data:`MAX_RELAX_S`), so that a machine at the edge settles on the stride it keeps.
 - a replay played as fast as it reads waits for it
   (:meth:`~holoview.live.worker.RingWorker.wait_for_room`), so a replay at full speed
@@ -75,6 +78,7 @@ __all__ = [
     "FIT_SHARE",
     "FIT_SHARE_BEHIND",
     "MAX_STRIDE",
+    "RELAX_BUSY",
     "TARGET_BUSY",
     "WAVES_HZ",
     "WavesWorker",
@@ -91,10 +95,16 @@ FIT_SHARE = 0.25
 FIT_SHARE_BEHIND = 0.1
 #: Largest stride (camera frames per map).
 MAX_STRIDE = 16
-#: Most of the time between two kept frames a map may take (median of the last 16). A map is
+#: Share of the time between two kept frames a map takes at the stride chosen when it had
+#: to rise (median of the last 16); it rises once a map takes more than all of it. A map is
 #: timed as this thread's time per kept frame, the map's process making the previous one
 #: meanwhile; the ring holds seconds of frames against a map that comes late now and then.
 TARGET_BUSY = 0.9
+#: Share a map must take at most, timed at the stride in use, for a smaller stride to be
+#: tried. On two cores (``benchmarks/bench_gui.py --waves RB1``) a map timed 15 ms of a
+#: 16.7 ms interval at stride 1 and 31 ms at stride 2; with one bound (0.9) for both ways
+#: the stride went 1, 2, 1, 2, 4, 2, 4 in 30 s, each change the window anew.
+RELAX_BUSY = 0.7
 #: Maps timed (since the demodulator was built) before the stride follows their cost.
 MIN_COSTS = 8
 #: Niceness of the map's process: after the series and the window, which must keep up and
@@ -107,6 +117,11 @@ MAP_NICENESS = YIELDING_NICENESS
 IN_FLIGHT = 2
 #: Seconds a smaller stride must have sufficed before the stride is lowered to it.
 RELAX_S = 5.0
+#: Seconds a smaller stride must hold for the next one to be tried as soon again. The maps
+#: are timed over the last 16: a stride that a machine cannot keep is left 5-7 s after it
+#: was tried (``benchmarks/bench_gui.py --waves RB1``, two cores), which a bound of
+#: :data:`RELAX_S` did not count as failing, so the stride went 1, 2, 1, 2 every 5-6 s.
+HELD_S = 15.0
 #: Longest wait before a smaller stride is tried again after it failed.
 MAX_RELAX_S = 80.0
 
@@ -354,17 +369,23 @@ class WavesWorker(RingWorker[LiveWaves]):
             self._in_flight.clear()
 
     def _needed_stride(self) -> int:
-        """The smallest power-of-two stride at which a map takes :data:`TARGET_BUSY` of the time
-        between two kept frames (1 while the source waits for this worker, :attr:`paced`)."""
+        """The power-of-two stride a map's time asks for (1 while the source waits for this
+        worker, :attr:`paced`): a larger one where a map takes longer than the time between
+        two kept frames, the smallest at which it takes :data:`TARGET_BUSY` of it; a smaller
+        one at which it would take at most :data:`RELAX_BUSY`; else the stride in use."""
         if self.paced():
             return 1
         rate = self.camera_rate()
         if len(self._costs) < MIN_COSTS or rate <= 0:
             return self.stride
-        per_map = self.map_seconds()
-        needed = 1
-        while needed < MAX_STRIDE and per_map * rate / needed > TARGET_BUSY:
-            needed *= 2
+        busy = self.map_seconds() * rate  # a map's share of a camera frame's interval
+        needed = self.stride
+        if busy > needed:
+            while needed < MAX_STRIDE and busy / needed > TARGET_BUSY:
+                needed *= 2
+        else:
+            while needed > 1 and busy / (needed // 2) <= RELAX_BUSY:
+                needed //= 2
         backlog = self.backlog()
         if backlog > max(self.ring.capacity // 2, self._backlog_at_change):
             needed = max(needed, min(2 * self.stride, MAX_STRIDE))  # far behind, and more so
@@ -377,7 +398,7 @@ class WavesWorker(RingWorker[LiveWaves]):
         if needed > stride:
             stride = needed
             self._relaxed_since = None
-            if now - self._lowered_at < RELAX_S:  # the smaller stride did not hold
+            if now - self._lowered_at < HELD_S:  # the smaller stride did not hold
                 self._relax_s = min(2 * self._relax_s, MAX_RELAX_S)
         elif needed < stride:
             if self._relaxed_since is None:

@@ -309,6 +309,37 @@ def test_a_smaller_stride_that_does_not_hold_is_tried_later_and_later(monkeypatc
     assert needs_one.index(1) == len(needs_one) - 1  # RELAX_S after the first (t = 1 + 5)
     assert at(6.5, 2) == 2  # did not hold: the next try comes twice as late
     assert [at(t, 1) for t in (12.0, 17.0, 22.0)] == [2, 2, 1]  # 10 s after t = 12, not 5
-    assert at(30.0, 2) == 2  # held 13 s: no longer wait
-    assert [at(t, 1) for t in (31.0, 36.0, 41.0)] == [2, 2, 1]  # still 10 s
-    assert wave_worker.RELAX_S == 5.0 and wave_worker.MAX_RELAX_S >= 20.0
+    assert at(28.0, 2) == 2  # held 6 s, as a stride a machine cannot keep does: 20 s
+    assert [at(t, 1) for t in (29.0, 39.0, 49.0)] == [2, 2, 1]
+    assert at(70.0, 2) == 2  # held 21 s: no longer wait
+    assert [at(t, 1) for t in (71.0, 81.0, 91.0)] == [2, 2, 1]  # still 20 s
+    assert wave_worker.RELAX_S == 5.0 and wave_worker.HELD_S > wave_worker.RELAX_S
+    assert wave_worker.MAX_RELAX_S >= 20.0
+
+
+def test_the_stride_rises_when_a_map_outlasts_its_interval_and_falls_with_room(
+    monkeypatch,
+) -> None:
+    """A band between rising and falling: a map timed at 0.92 of the camera's interval
+    keeps every frame, one at 1.8 of it keeps every second (stride 4 before); a smaller
+    stride is tried only where a map would take at most RELAX_BUSY of its interval."""
+    ring = FrameRing(4, (64, 64), np.uint16)
+    worker = WavesWorker(ring, cast(DemodWorker, None), (64, 64), WaveSettings(label="RB1"))
+    worker._costs.extend([0.01] * wave_worker.MIN_COSTS)
+    share = {"busy": 0.0}
+    monkeypatch.setattr(worker, "paced", lambda: False)
+    monkeypatch.setattr(worker, "camera_rate", lambda: 60.0)
+    monkeypatch.setattr(worker, "map_seconds", lambda: share["busy"] / 60.0)
+
+    def needed(stride: int, busy: float) -> int:
+        worker.stride, share["busy"] = stride, busy
+        return worker._needed_stride()
+
+    assert needed(1, 0.92) == 1  # keeps up: every frame (2 before)
+    assert needed(1, 1.2) == 2 and needed(1, 2.5) == 4  # behind: to TARGET_BUSY at once
+    assert needed(2, 1.8) == 2  # the edge at stride 2: stays (4 before)
+    assert needed(2, 2.1) == 4
+    assert needed(2, 0.9) == 2  # no room at stride 1: not tried (1 before)
+    assert needed(2, wave_worker.RELAX_BUSY) == 1
+    assert needed(8, 0.5) == 1  # far below: the smallest with room
+    assert wave_worker.TARGET_BUSY > wave_worker.RELAX_BUSY

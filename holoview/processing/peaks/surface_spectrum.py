@@ -111,7 +111,6 @@ def _turned_change(
     return value - (turn / abs(turn) if abs(turn) > 0 else 1.0) * ref
 
 
-
 def chi2_median(dof: float) -> float:
     """The median of a chi-square distribution of ``dof`` degrees of freedom.
 
@@ -125,6 +124,7 @@ def chi2_median(dof: float) -> float:
     1.386294
     """
     return 2.0 * float(special.gammaincinv(dof / 2.0, 0.5))
+
 
 @dataclass(frozen=True)
 class MeanChange:
