@@ -156,8 +156,12 @@ def main() -> int:
         window.waves.length_box.setCurrentIndex(window.waves.length_box.findData(128))
         replay_control = window.session.replay
         if replay_control is not None:  # played as fast as it reads: a map of every frame
-            replay_control.set_loop(True)
-            replay_control.set_speed(FASTEST)
+            # once from the first frame to the last, not looped: a loop's jump starts the
+            # window again, and the recording is a few dozen frames, one segment or two;
+            # through the transport bar, as a click would, so the source panel follows
+            window.transport.set_loop(False)
+            window.transport.set_speed(FASTEST)
+            window.transport.to_start()
             replay_control.play()
         # a spectrum (a fit too where the recording has waves; an evaporation's fails)
         until(app, lambda: (w := window.session.waves()) is not None and w.spectrum is not None, 60)
@@ -167,6 +171,7 @@ def main() -> int:
             window.waves.set_centre(
                 (cols // 2 * waves.pixel_size[1], rows // 2 * waves.pixel_size[0])
             )
+            until(app, lambda: (w := window.session.waves()) is not None and w.mf is not None, 30)
             wait(app, args.settle)
         save("7-waves")
         window.close()
