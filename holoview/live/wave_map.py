@@ -214,9 +214,8 @@ class WaveMapper:
         carrier: either would rebuild the demodulator and start the window again.
         """
         current = {p.label: p for p in chosen}
-        if self._fused is None or self._fused[1] != given:
-            self._fused = (current, given)
-        held = self._fused[0]
+        fused = self._fused
+        held = fused[0] if fused is not None and fused[1] == given else current
         kept = {name: current.get(name, peak) for name, peak in held.items()}
         self._fused = (kept, given)
         return [kept[name] for name in sorted(kept, key=str)]
