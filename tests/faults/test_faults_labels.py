@@ -175,7 +175,11 @@ def test_the_live_window_says_a_contradiction_aloud_and_runs(
     (and is logged), so a later message may replace it: it is read from the log.
     """
     experiment = experiment_file(tmp_path / "experiment.json", **swapped(truth))
-    window = MainWindow(source=f"replay:{evaporation}", experiment_path=experiment)
+    # the replay carries the same labels: a recording's own experiment replaces the
+    # window's when it opens (as process does), and the simulator's names the true peaks,
+    # so the contradiction lasted only until then and a loaded machine could miss it
+    replayed = store_experiment(evaporation, tmp_path / "swapped.h5", **swapped(truth))
+    window = MainWindow(source=f"replay:{replayed}", experiment_path=experiment)
     qtbot.addWidget(window)
     window.show()
     try:
