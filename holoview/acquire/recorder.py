@@ -4,9 +4,10 @@ It reads the ring as an ``"every"`` consumer, so it gets every frame in order an
 counts exactly the frames the ring overwrote before it could write them. It
 flushes the file at least every ``flush_interval_s`` of the writer, also when no
 frame comes. It stops when the ring closes (after writing what remains), once it
-has written ``max_frames`` or ``max_seconds`` have passed since it started (frames
-that arrived before are written, whenever the thread gets to them; no caller needs
-to poll), on :meth:`Recorder.stop`, or on a write error (kept in
+has written ``max_frames`` or ``max_seconds`` have passed since the first frame it
+records arrived (a GigE camera can take seconds to start streaming; frames that
+arrived within the time are written, whenever the thread gets to them; no caller
+needs to poll), on :meth:`Recorder.stop`, or on a write error (kept in
 :attr:`Recorder.error`: a full disk, an I/O error); in every case it closes the
 file, so everything written stays readable, also by plain h5py. After a write
 error :meth:`Recorder.accounting` counts the frames the camera went on acquiring
@@ -83,8 +84,8 @@ class Recorder:
     max_frames : int, optional
         Stop after writing this many frames (None: until stopped or the ring closes).
     max_seconds : float, optional
-        Record the frames that arrive within this many seconds of :meth:`start` (by
-        their host arrival time), then stop (None: no time limit).
+        Record the frames that arrive within this many seconds of the first one
+        recorded (by their host arrival times), then stop (None: no time limit).
     carried : callable, optional
         ``carried(index)``: the experiment (JSON text, or None) a replayed file carries
         for its frame ``index`` (:meth:`Source.carried_experiment`). Each frame's is
@@ -118,7 +119,8 @@ class Recorder:
         self.writer = writer
         self.max_frames = max_frames
         self.max_seconds = max_seconds
-        self._deadline = math.inf  # host time (UNIX epoch, s) past which frames are not recorded
+        # host time (UNIX epoch, s) past which frames are not recorded: set by the first frame
+        self._deadline = math.inf
         self._consumer = ring.consumer("recorder", mode="every")
         #: The error that ended recording early, or None.
         self.error: BaseException | None = None
@@ -210,9 +212,7 @@ class Recorder:
         return Accounting(acquired, recorded, self._dropped_at_end, lost, status.transport_lost)
 
     def start(self) -> None:
-        """Start the thread (and the clock of ``max_seconds``)."""
-        if self.max_seconds is not None:
-            self._deadline = time.time() + self.max_seconds
+        """Start the thread (the clock of ``max_seconds`` starts with the first frame)."""
         self._span[0] = time.monotonic()
         self._thread.start()
 
@@ -260,6 +260,8 @@ class Recorder:
                 if not isinstance(item, tuple):  # CLOSED
                     break
                 pixels, meta = item
+                if self.max_seconds is not None and self._deadline == math.inf:  # the first frame
+                    self._deadline = meta.t_host + self.max_seconds
                 if meta.t_host >= self._deadline:  # this frame and the later ones are not asked for
                     self._end_at_limit()
                     break

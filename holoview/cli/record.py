@@ -52,7 +52,9 @@ def add_parser(
     )
     length = parser.add_mutually_exclusive_group()
     length.add_argument("--frames", type=int, metavar="N", help="stop after N frames")
-    length.add_argument("--seconds", type=float, metavar="S", help="stop after S seconds")
+    length.add_argument(
+        "--seconds", type=float, metavar="S", help="stop S seconds after the first frame"
+    )
     parser.add_argument(
         "--set",
         action="append",

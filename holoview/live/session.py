@@ -75,7 +75,7 @@ class RecordRequest:
     path : Path
         The HDF5 file to write.
     duration_s : float or None
-        Stop after this many seconds (None: no time limit).
+        Stop this many seconds after the first frame recorded (None: no time limit).
     frames : int or None
         Stop after this many frames (None: no frame limit).
     """

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import time
 from pathlib import Path
 
 import numpy as np
@@ -141,6 +142,28 @@ def test_recorder_stops_itself_after_max_seconds_counting_only_what_was_asked(
     with RecordingReader(tmp_path / "r.h5") as reader:
         assert len(reader) == count.recorded
         assert float(reader.t_host[-1] - reader.t_host[0]) < 0.5  # frames within the time
+
+
+def test_the_recording_time_counts_from_the_first_frame(tmp_path: Path) -> None:
+    """A camera that starts streaming late (a GigE camera takes seconds) still gives the
+    seconds asked for: the clock starts with the first frame, not with the recorder."""
+    with CountingSource(rate_hz=100.0) as source:
+        ring = FrameRing(64, source.frame_shape, source.dtype)
+        writer = RecordingWriter(tmp_path / "r.h5", source.frame_shape, source.dtype)
+        recorder = Recorder(ring, writer, max_seconds=0.4)
+        camera = CameraThread(source, ring)
+        recorder.start()
+        time.sleep(0.6)  # longer than the duration: nothing has arrived yet
+        assert recorder.running
+        camera.start()
+        try:
+            assert recorder.join(timeout=30)
+        finally:
+            camera.stop()
+    with RecordingReader(tmp_path / "r.h5") as reader:
+        span = float(reader.t_host[-1] - reader.t_host[0])
+        assert len(reader) >= 10  # about 40 at 100 frames/s
+    assert 0.2 < span < 0.4
 
 
 def test_recorder_refuses_a_duration_that_is_not_positive(tmp_path: Path) -> None:
