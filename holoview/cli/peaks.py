@@ -53,10 +53,16 @@ def add_parser(
     return parser
 
 
+def _names(peak: dict[str, Any]) -> str:
+    """A row's names: the model's labels landing on it, else the lattice's name (a ghost's
+    ``RB1~g0``: no model label lands on a ghost)."""
+    return "/".join(peak["labels"]) or peak["label"] or ""
+
+
 def _table(document: dict[str, Any]) -> str:
     rows, cols = document["frame_shape"]
     detected = document["detected"]
-    width = max([7] + [len("/".join(p["labels"])) for p in detected]) + 1
+    width = max([7] + [len(_names(p)) for p in detected]) + 1
     lines = [
         f"{document['input']} frame {document['frame']} ({rows} x {cols}): "
         f"{len(detected)} peaks; carriers in cycles/pixel (fx along columns); lattice "
@@ -66,7 +72,7 @@ def _table(document: dict[str, Any]) -> str:
     ]
     for peak in detected:
         twin = {True: "yes", False: "no", None: "-"}[peak["twin"]]
-        names = "/".join(peak["labels"]) or "-"
+        names = _names(peak) or "-"
         fx, fy = peak["carrier"]
         point = "-" if peak["lattice"] is None else "{},{}".format(*peak["lattice"])
         resid = "-" if peak["residual_bins"] is None else f"{peak['residual_bins']:.2f}"

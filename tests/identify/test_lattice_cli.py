@@ -68,3 +68,23 @@ def test_simulated_evaporation_is_named_by_the_lattice(
     assert set(NAMED) <= set(summary["peaks"])
     for label in NAMED:
         assert "unexplained" not in summary["peaks"][label]["flags"]
+
+
+def test_peaks_names_a_ghost_the_model_does_not_label(
+    tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    """A beam-splitter ghost of the reference arm repeats RB1, RF, RB2 at an offset. The
+    recording's labels (the model) name no ghost; the table shows the lattice's name for
+    it (``RB1~g0``) rather than a bare ``-`` beside its lattice indices."""
+    path = tmp_path / "ghost.h5"
+    simulate = ["simulate", str(path), "--scenario", "evaporation", "--frames", "1"]
+    ghost = ["--ghost", "reference", "0.3", "-0.2", "0.3"]
+    assert main(["-q", *simulate, "--size", "256", "--seed", "3", *ghost]) == 0
+    capsys.readouterr()
+    assert main(["peaks", str(path)]) == 0
+    rows = [line.split() for line in capsys.readouterr().out.splitlines()[2:]]
+    rows = [row for row in rows if row and row[0].isdigit()]
+    named = {row[1] for row in rows}
+    assert {"RB1", "RF", "RB1~g0", "RF~g0"} <= named
+    for row in rows:  # a row on the lattice has a name
+        assert row[1] != "-" or row[7] == "-", row
