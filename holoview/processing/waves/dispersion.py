@@ -330,6 +330,12 @@ class DispersionFit:
         }
 
 
+def _k(wavenumber: float) -> str:
+    """A wavenumber in rad/m for a message: whole numbers from 100 up (``24890``, not
+    ``2.489e+04``)."""
+    return f"{wavenumber:.0f}" if abs(wavenumber) >= 100 else f"{wavenumber:.3g}"
+
+
 def _parse_hold(hold: Iterable[str]) -> tuple[str, ...]:
     names = tuple(dict.fromkeys(h.strip().lower() for h in hold if h.strip()))
     aliases = {"d": "depth", "u": "flow", "surface_tension": "sigma"}
@@ -490,7 +496,7 @@ def fit_dispersion(
     low = 4.0 * max(spectrum.dk) if k_min is None else float(k_min)
     high = spectrum.k_cut if k_max is None else min(float(k_max), spectrum.k_cut)
     if not 0 <= low < high:
-        raise InputError(f"no wavenumbers to fit between {low:.4g} and {high:.4g} rad/m")
+        raise InputError(f"no wavenumbers to fit between {_k(low)} and {_k(high)} rad/m")
     values = {
         "sigma": fluid.surface_tension,
         "depth": float(depth),
@@ -527,7 +533,7 @@ def fit_dispersion(
         if ridge.omega.size < max(3 * n_free, 8):
             raise InputError(
                 f"the dispersion fit has {ridge.omega.size} cells with a clear wave between "
-                f"{low:.4g} and {high:.4g} rad/m ({min_contrast:g} times over the median "
+                f"{_k(low)} and {_k(high)} rad/m ({min_contrast:g} times over the median "
                 "power); too few: the maps show no waves there"
             )
         robust = 2.0 * step if search is None else 0.0
