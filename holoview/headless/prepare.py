@@ -149,9 +149,7 @@ def prepare_run(
     spec = MapsSpec(
         experiment=experiment,
         peaks=tuple(selection.peaks),
-        neighbours=tuple(
-            window_neighbours(detected, on_lattice(selection.labelling, len(detected)))
-        ),
+        neighbours=tuple(window_neighbours(detected, on_lattice(selection.labelling, detected))),
         threads=settings.threads,
         background=background,
         grid=settings.maps_grid,

@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from holoview.engine.experiment import Experiment, check_carrier, check_label, is_model_label
-from holoview.engine.resolve import ON_LATTICE
+from holoview.engine.resolve import own_peak
 from holoview.errors import InputError
 from holoview.processing.naming.labelling import ModelLabelling
 from holoview.processing.naming.lattice import LatticeIdentification
@@ -224,7 +224,7 @@ def describe_peaks(
     rows = []
     for i, peak in enumerate(detected):
         named = None if lattice is None else lattice.peaks[i]
-        if "surface" in peak.flags and (named is None or named.kind not in ON_LATTICE):
+        if "surface" in peak.flags and not own_peak(peak, named):
             rows.append(_sideband_row(i, peak, detected, lattice, labelling))
             continue
         twin = None if named is None else named.twin

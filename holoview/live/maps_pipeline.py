@@ -315,7 +315,7 @@ class MapsPipeline:
             self._detect(frame)
         resolution = self.resolution()
         detected = self._peaks or []
-        placed = on_lattice(resolution.labelling, len(detected))
+        placed = on_lattice(resolution.labelling, detected)
         self._core.configure(self.experiment, resolution.peaks, window_neighbours(detected, placed))
         if self.side_work_inline:
             job = self.match_job(frame, copy=False)

@@ -16,10 +16,13 @@ amplitudes alone (one frame):
    their amplitudes within :data:`PAIR_RATIO` of each other, ``|q|`` at least
    :data:`MIN_OFFSET_BINS` bins and not itself a detected carrier (lattice offsets are:
    ``f_FB1``, ``f_RF``, ...);
-2. an offset is the surface's when its pairs sit around two or more carriers, each
-   within :data:`SPAN` of the carrier's distance to the nearest peak brighter than the
-   pair (or zero frequency), or around one carrier within :data:`SINGLE_SPAN` of it (a
-   lattice line ``-RF, RB1, RB2`` is the same pattern, spaced a whole lattice vector);
+2. an offset is the surface's when its pairs sit around two or more carriers, within
+   :data:`SPAN` of one carrier's distance to the nearest peak brighter than the pair (or
+   zero frequency) and within :data:`CONFIRM_SPAN` of the others' (where waves fill a
+   band, a pair may be detected around one carrier only: significant power at both
+   ``c + q`` and ``c - q`` of another carrier counts as its pair), or around one carrier
+   within :data:`SINGLE_SPAN` of it (a lattice line ``-RF, RB1, RB2`` is the same
+   pattern, spaced a whole lattice vector);
 3. then every peak at ``c + q``, ``c - q`` or ``c +- (q1 +- q2)`` (second order) of a
    carrier ``c`` that is not itself a sideband, at most :data:`MAX_SIDEBAND_RATIO` of
    ``c``, is a sideband of ``c``;
@@ -29,7 +32,8 @@ amplitudes alone (one frame):
    beyond a modulation of 1.4 rad they outshine it (``J1 > J0``).
 
 A lattice point is never a sideband: naming (:mod:`holoview.processing.naming`) overrules
-this by position when it places a peak on the lattice.
+this by position when it places a peak on the lattice, on an intermodulation point only
+within :data:`~holoview.engine.resolve.PRODUCT_SNAP_BINS` of it.
 """
 
 from __future__ import annotations
@@ -41,6 +45,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 __all__ = [
+    "CONFIRM_SPAN",
     "MAX_SIDEBAND_RATIO",
     "MIN_OFFSET_BINS",
     "PAIR_RATIO",
@@ -67,6 +72,11 @@ TOLERANCE_BINS = 1.5
 #: Largest ``|q|`` of an offset seen around two or more carriers, as a fraction of each
 #: carrier's distance to the nearest peak brighter than its sidebands (or zero frequency).
 SPAN = 0.5
+
+#: Largest ``|q|`` of an offset around the other carriers, once one carrier holds it within
+#: :data:`SPAN`: a pair closer to its carrier than any brighter peak (a carrier near
+#: Nyquist has its own twin a few bins away, a neighbour that bounds its window).
+CONFIRM_SPAN = 1.0
 
 #: Largest ``|q|`` of an offset seen around one carrier only, likewise.
 SINGLE_SPAN = 0.25
@@ -181,7 +191,7 @@ def surface_sidebands(
     offsets: list[np.ndarray] = []
     while True:  # a confirmed offset's sidebands no longer hem in the others
         explained = np.array([s is not None for s in _classify(where, amp, parents, offsets)])
-        found = _confirmed(groups, where, amp, explained)
+        found = _confirmed(groups, where, amp, explained, parents=parents, level=level)
         if not found:
             break
         offsets += found
@@ -327,7 +337,13 @@ def _groups(pairs: list[_Pair]) -> list[list[_Pair]]:
 
 
 def _confirmed(
-    groups: list[list[_Pair]], where: _Points, amp: np.ndarray, explained: np.ndarray
+    groups: list[list[_Pair]],
+    where: _Points,
+    amp: np.ndarray,
+    explained: np.ndarray,
+    *,
+    parents: np.ndarray,
+    level: Level | None,
 ) -> list[np.ndarray]:
     """The groups' offsets (bins) that pass rule 2 of the module documentation."""
     out = []
@@ -335,7 +351,41 @@ def _confirmed(
         size = float(np.hypot(*group[0].q))
         room = {id(p): _clearance(where, amp, p, explained) for p in group}
         wide = {p.parent for p in group if size < SPAN * room[id(p)]}
+        clear = {p.parent for p in group if size < CONFIRM_SPAN * room[id(p)]}
         narrow = {p.parent for p in group if size < SINGLE_SPAN * room[id(p)]}
-        if len(wide) >= 2 or narrow:
+        if wide and len(clear) < 2 and level is not None:
+            clear |= _in_spectrum(group[0].q, where, amp, explained, parents=parents, level=level)
+        if (wide and len(clear) >= 2) or narrow:
             out.append(group[0].q)
     return out
+
+
+def _in_spectrum(
+    q: np.ndarray,
+    where: _Points,
+    amp: np.ndarray,
+    explained: np.ndarray,
+    *,
+    parents: np.ndarray,
+    level: Level,
+) -> set[int]:
+    """The carriers with a pair at ``+-q`` in the spectrum, detected or not (rule 2).
+
+    On a surface whose waves fill a band, the local maxima around each carrier fall at
+    different places, and a pair may be detected around one carrier only; the same
+    offset's pair shows around the others as significant power at both ``c + q`` and
+    ``c - q`` (the spectrum is Hermitian: one twin says it for both).
+    """
+    size = float(np.hypot(*q))
+    found = set()
+    for a in parents:
+        if explained[a]:
+            continue
+        sides = [level(where.bins[a] + q), level(where.bins[a] - q)]
+        low, high = min(sides), max(sides)
+        if low <= 0 or high > MAX_SIDEBAND_RATIO * amp[a] or high > PAIR_RATIO * low:
+            continue
+        pair = _Pair(int(a), 1, q, high)
+        if size < CONFIRM_SPAN * _clearance(where, amp, pair, explained):
+            found.add(int(a))
+    return found
