@@ -47,6 +47,42 @@ def test_report_png_is_1366_pixels_wide_and_drawn(
     ]
 
 
+def test_every_text_of_the_report_lies_on_the_page(
+    evaporation: Simulated,
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture,
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """The spectrum panel's title had run off the figure's left edge ("...es: each peak's
+    window"): every text drawn must lie within the page."""
+    from matplotlib.figure import Figure
+    from matplotlib.text import Text
+
+    drawn: list[Figure] = []
+    savefig = Figure.savefig
+
+    def keep(figure: Figure, *args: object, **kwargs: object) -> None:
+        drawn.append(figure)
+        savefig(figure, *args, **kwargs)
+
+    monkeypatch.setattr(Figure, "savefig", keep)
+    out = tmp_path / "r"
+    argv = ["process", str(evaporation.path), "--out", str(out), "--frames", ":30"]
+    status, _, _ = run_cli([*argv, *evaporation.label_args("RB1", "FB1")], capsys)
+    assert status == 0 and len(drawn) == 1
+    figure = drawn[0]
+    renderer = figure.canvas.get_renderer()  # type: ignore[attr-defined]
+    page = figure.bbox
+    outside = [
+        text.get_text()
+        for text in figure.findobj(Text)
+        if text.get_visible() and text.get_text().strip()
+        for box in [text.get_window_extent(renderer)]
+        if box.x0 < page.x0 - 1 or box.x1 > page.x1 + 1 or box.y0 < page.y0 - 1
+    ]
+    assert outside == []
+
+
 def test_report_svg_says_the_labels_and_rates_of_the_summary(
     waves: Simulated, tmp_path: Path, capsys: pytest.CaptureFixture
 ) -> None:

@@ -183,10 +183,11 @@ def _spectrum_panel(
             "top", functions=(lambda f: np.asarray(f) * per_mm, lambda k: np.asarray(k) / per_mm)
         )
         top.set_xlabel("cycles/mm (object side)")
-    axes.set_title(
+    low, high = f"{min(radii):.3g}", f"{max(radii):.3g}"
+    span = low if low == high else f"{low} to {high}"
+    axes.set_title(  # within the panel's width: a longer line ran off the figure's edge
         f"spectrum of the first frame (log magnitude)\n"
-        f"circles: each peak's window ({min(radii):.3g} to {max(radii):.3g} cycles/pixel); "
-        "dots: twins; grey: other peaks",
+        f"circles: windows ({span} cycles/px); dots: twins; grey: others",
         fontsize=10,
     )
 
