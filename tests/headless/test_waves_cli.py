@@ -11,7 +11,9 @@ import h5py
 import numpy as np
 import pytest
 import xarray
+from figure_layout import layout_problems
 from headless_sim import run_cli
+from matplotlib.figure import Figure
 
 from holoview.headless.waves.analysis import WaveOptions, analyse_waves
 from holoview.headless.waves.maps import open_wave_maps
@@ -199,7 +201,7 @@ def field_maps(surface, frames: int, fps: float, size: int, pixel: float, *, noi
 
 @pytest.mark.slow
 def test_partial_waves_and_ringdown_through_the_command(
-    tmp_path: Path, capsys: pytest.CaptureFixture
+    tmp_path: Path, capsys: pytest.CaptureFixture, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     size, pixel, fps = 72, 0.6e-3, 100.0
     centre = (21.5e-3, 20.2e-3)
@@ -237,9 +239,22 @@ def test_partial_waves_and_ringdown_through_the_command(
         "14.3",
         "--depth-mm",
         "5",
+        "--threads",
+        "1",  # every figure drawn here, for its layout to be read
     ]
+    drawn: list[Figure] = []
+    savefig = Figure.savefig
+
+    def keep(figure: Figure, *args: object, **kwargs: object) -> None:
+        drawn.append(figure)
+        savefig(figure, *args, **kwargs)
+
+    monkeypatch.setattr(Figure, "savefig", keep)
     status, _, err = run_cli(argv, capsys)
     assert status == 0, err
+    assert len(drawn) == 6
+    problems = [f"{k}: {p}" for k, figure in enumerate(drawn) for p in layout_problems(figure)]
+    assert not problems, "\n".join(problems)
     summary = json.loads((out / "waves.json").read_text())
     found = summary["centre_m"]
     assert np.hypot(found[0] - centre[0], found[1] - centre[1]) < 0.2 * pixel

@@ -24,6 +24,7 @@ from pathlib import Path
 
 import numpy as np
 from matplotlib import colormaps
+from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.colors import LogNorm
 from matplotlib.figure import Figure
@@ -177,13 +178,34 @@ def energy_figure(results: WaveResults, path: Path) -> None:
     right.set_ylabel("E(f) (m² per Hz)")
     for axes in (left, right):
         axes.grid(True, which="both", alpha=0.3)
+        _plain_log(axes)
     figure.suptitle(
         f"{results.maps.label}: energy spectra, mean square height "
         f"{np.trapezoid(e_k, k) * 1e18:.3g} nm² (up to the cut-off)",
         fontsize=10,
     )
-    figure.subplots_adjust(left=0.08, right=0.98, bottom=0.12, top=0.88, wspace=0.25)
+    figure.subplots_adjust(left=0.1, right=0.98, bottom=0.12, top=0.88, wspace=0.25)
     _save(figure, path)
+
+
+def _plain_log(axes: Axes, which: str = "x") -> None:
+    """A log axis (``which``: ``"x"`` or ``"y"``) labelled in plain numbers (``200``,
+    ``500``, ``1000``): matplotlib's ``3 x 10^2`` labels between the decades ran into each
+    other on a decade of k, and its 7, 8, 9 on a ringdown's envelope. The 2s and 5s between
+    decades are labelled where the axis spans under three decades."""
+    low, high = axes.get_xlim() if which == "x" else axes.get_ylim()
+    low, high = min(low, high), max(low, high)
+    decades = math.log10(high / low) if low > 0 else math.inf
+
+    def minor(value: float, _: int) -> str:
+        if decades >= 3 or value <= 0:
+            return ""
+        leading = round(value / 10 ** math.floor(math.log10(value)), 6)
+        return f"{value:g}" if leading in (2.0, 5.0) else ""
+
+    axis = axes.xaxis if which == "x" else axes.yaxis
+    axis.set_major_formatter(FuncFormatter(lambda value, _: f"{value:g}"))
+    axis.set_minor_formatter(FuncFormatter(minor))
 
 
 def mf_figure(results: WaveResults, path: Path) -> None:
@@ -260,12 +282,10 @@ def ringdown_figure(results: WaveResults, path: Path) -> None:
     series, model = fit.series * 1e9, fit.model * 1e9  # nm
     left.semilogy(fit.times, np.abs(series), ".", ms=2, color="k", label="band-passed |z|")
     left.semilogy(fit.times, np.abs(model), color="C3", label="fit: |C| exp(-γ t)")
+    _plain_log(left, "y")
     left.set_xlabel("time t (s)")
     left.set_ylabel("|z|, the rings combined (nm)")
     left.set_title("envelope", fontsize=9)
-    plain = FuncFormatter(lambda value, _: f"{value:g}")
-    left.yaxis.set_major_formatter(plain)
-    left.yaxis.set_minor_formatter(plain)
     left.legend(fontsize=8)
     right.plot(fit.times, series.real, ".", ms=3, color="k", label="Re z")
     right.plot(fit.times, model.real, color="C3", lw=0.8, label="fit")
@@ -321,7 +341,7 @@ def lockin_figure(results: WaveResults, path: Path) -> None:
     if results.centre is not None:
         axes_list[0].legend(fontsize=7, loc="upper right")
     figure.subplots_adjust(
-        left=0.6 / width, right=1 - 0.3 / width, bottom=0.14, top=0.9, wspace=0.45
+        left=0.6 / width, right=1 - 0.9 / width, bottom=0.14, top=0.9, wspace=0.45
     )
     _save(figure, path)
 
