@@ -3,7 +3,8 @@
 :class:`~holoview.live.session.LiveSession` runs the camera thread, the frame ring, the
 recorder and the workers (:mod:`holoview.live.worker`), each frame's maps made by
 :class:`~holoview.live.maps_pipeline.MapsPipeline` on the engine's per-frame core, in a
-process of its own (:mod:`holoview.live.maps_server`). The GUI
+process of its own (:mod:`holoview.live.maps_server`), and the series of every frame in
+another (:mod:`holoview.live.series_server`). The GUI
 (:mod:`holoview.ui`) only reads the latest result and sends commands; a script or a
 test can do the same without a display; a replay is steered through
 :class:`~holoview.live.replay_control.ReplayControl` (``LiveSession.replay``). While the

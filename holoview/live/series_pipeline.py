@@ -105,9 +105,18 @@ class SeriesPipeline:
         ``(rows, cols)`` of the frames, pixels.
     saturation : float, optional
         Raw value at which the camera saturates.
+    trend_hz : float, optional
+        Highest rate of the trends' summaries (:data:`TREND_HZ` when None, as it is when
+        a frame comes).
     """
 
-    def __init__(self, frame_shape: tuple[int, int], saturation: float | None = None) -> None:
+    def __init__(
+        self,
+        frame_shape: tuple[int, int],
+        saturation: float | None = None,
+        trend_hz: float | None = None,
+    ) -> None:
+        self.trend_hz = trend_hz
         self.carriers = CarrierCore(frame_shape, saturation)
         self.series: PhaseSeries | None = None
         self.pca = False
@@ -168,7 +177,7 @@ class SeriesPipeline:
             empty = np.empty(0)
             return TrendSummary(self._seq, empty, {}, None, None, None, segment=meta.segment)
         now = time.monotonic()
-        if now - self._trend_at < 1.0 / TREND_HZ:
+        if now - self._trend_at < 1.0 / (self.trend_hz or TREND_HZ):
             return None
         self._trend_at = now
         return self.trend()

@@ -31,7 +31,7 @@ from holoview.engine.true_labels import true_experiment
 from holoview.errors import HoloviewError, InputError
 from holoview.live.maps_pipeline import LiveResult
 from holoview.live.replay_control import FASTEST, ReplayControl
-from holoview.live.series_pipeline import SeriesPipeline, TrendSummary
+from holoview.live.series_pipeline import TrendSummary
 from holoview.live.wave_window import LiveWaves, WaveSettings
 from holoview.live.wave_worker import WavesWorker
 from holoview.live.worker import DemodWorker, SeriesWorker
@@ -185,8 +185,7 @@ class LiveSession:
             self.ring, self.experiment, saturation=saturation, every_frame=self.every_frame
         )
         self.worker.listener = self._maps_listener
-        self.series = SeriesPipeline(shape, saturation=saturation)
-        self.series_worker = SeriesWorker(self.ring, self.series, self.worker)
+        self.series_worker = SeriesWorker(self.ring, self.worker, saturation=saturation)
         self.camera.pace = self._pace_replay
         self.waves_worker = None
         if self._waves_settings is not None:
@@ -199,9 +198,9 @@ class LiveSession:
     def start(self) -> None:
         """Start streaming and processing."""
         self.worker.start()
+        self.series_worker.start()  # its process starts beside the maps'
         self.worker.wait_ready()  # a second or two: the maps' process starts
         self.camera.start()
-        self.series_worker.start()
         if self.waves_worker is not None:
             self.waves_worker.start()
 
@@ -379,8 +378,14 @@ class LiveSession:
         )
 
     def summary(self) -> DepthSummary | None:
-        """Depths and rates of the series so far; call once the workers are stopped."""
-        return self.series.summary()
+        """Depths and rates of the series so far; call once the workers are stopped.
+
+        Raises
+        ------
+        HoloviewError
+            The series cannot be summarised (the message says why).
+        """
+        return self.series_worker.summary()
 
     def drain_messages(self) -> list[str]:
         """Problems met by the workers, the camera or the recorder since the last call."""

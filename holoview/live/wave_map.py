@@ -311,8 +311,13 @@ class FrameSlot:
 
     def put(self, slot: int, pixels: np.ndarray) -> None:
         """Copy a frame into place ``slot``."""
+        np.copyto(self.frame(slot), pixels)
+
+    def frame(self, slot: int) -> np.ndarray:
+        """Place ``slot`` itself (a reader may copy a frame straight into it)."""
         assert self._frames is not None, "the slot is closed"
-        np.copyto(self._frames[slot], pixels)
+        frame: np.ndarray = self._frames[slot]
+        return frame
 
     def child_work(self, saturation: float | None) -> Callable[[], SlotMapper]:
         """The ``make`` of a :class:`~holoview.live.child_work.ChildWork` mapping its frames."""

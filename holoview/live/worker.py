@@ -1,9 +1,11 @@
 """The live workers: threads that take frames from the ring, the series and the maps.
 
-- The series worker (``holoview-series``) takes *every* frame from the ring and runs a
-  :class:`~holoview.live.series_pipeline.SeriesPipeline` on it: the carrier values, so the
-  trends, rates and the temporal unwrapping see the camera's full rate; frames the ring
-  overwrote before it read them are counted (:meth:`RingWorker.status`), never hidden.
+- The series worker (``holoview-series``) takes *every* frame from the ring and has a
+  :class:`~holoview.live.series_pipeline.SeriesPipeline` run on it, in a process of its
+  own (``holoview-series``, :mod:`holoview.live.series_server`): the carrier values, so
+  the trends, rates and the temporal unwrapping see the camera's full rate; frames the
+  ring overwrote before it read them are counted (:meth:`RingWorker.status`), never
+  hidden.
 - The maps worker (``holoview-demod``) takes the *newest* frame (the series has the
   others, so a map is never older than it must be), or every frame in order when
   asked (scripted runs, the parity test), and has a
@@ -33,12 +35,16 @@ import numpy as np
 
 from holoview.acquire.ring import CLOSED, FrameRing, RingConsumer, RingStatus
 from holoview.acquire.source import FrameMeta
+from holoview.engine.depth import DepthSummary
 from holoview.engine.experiment import Experiment
+from holoview.engine.series import PhaseSeries
 from holoview.errors import HoloviewError
+from holoview.live import series_pipeline
 from holoview.live.child_work import ChildWork
 from holoview.live.maps_pipeline import LiveResult
 from holoview.live.maps_server import MapsJob, MapsReply, MapsServer, SlotServer
 from holoview.live.series_pipeline import SeriesPipeline, TrendSummary
+from holoview.live.series_server import SeriesJob, SeriesReply, SlotSeries
 from holoview.live.side_workers import YIELDING_NICENESS, wait_at_exit, yield_to_others
 from holoview.live.wave_map import FrameSlot
 from holoview.processing.peaks.detection import Peak
@@ -93,6 +99,8 @@ class RingWorker(Generic[R]):
         self._taking = False  # taking frames (not waiting for something first, _ready)
         self._taking_since = time.monotonic()  # when it started or stopped taking frames
         self._thread = threading.Thread(target=self._run, name=name, daemon=True)
+        #: Where frames are read to (None: a copy each); the frame is only valid until the next.
+        self._out: np.ndarray | None = None
         #: Called on this worker's thread after each new result (a window's wake-up).
         self.listener: Callable[[], None] | None = None
 
@@ -212,7 +220,7 @@ class RingWorker(Generic[R]):
                 if not taking:
                     self._stop.wait(0.005)
                     continue
-                item = self._consumer.get(timeout=0.1)
+                item = self._consumer.get(timeout=0.1, out=self._out)
                 with self._room:
                     self._room.notify_all()
                 if item is None or item is CLOSED:
@@ -393,7 +401,15 @@ class DemodWorker(RingWorker[LiveResult]):
 
 
 class SeriesWorker(RingWorker[TrendSummary]):
-    """The series: a :class:`SeriesPipeline` on every frame, on ``holoview-series``.
+    """The series: a :class:`SeriesPipeline` on every frame, in a process of its own.
+
+    The thread (``holoview-series``) reads each frame from the ring straight into shared
+    memory and waits, without the interpreter's lock, for the series process
+    (``holoview-series``, :mod:`holoview.live.series_server`) to add it. Where no process
+    or shared memory can be had (a sandbox), or when asked, the pipeline runs on the
+    thread. A series process that ends (killed, out of memory) is said once and started
+    again at the next frame: a new series. When the thread ends (stopped, or the stream
+    ended), the series comes back for :meth:`summary` and :attr:`series`.
 
     It takes no frame until the maps worker has resolved its first set of peaks (the
     frames wait in the ring), so a series starts at the stream's first frame; it then
@@ -403,31 +419,153 @@ class SeriesWorker(RingWorker[TrendSummary]):
     ----------
     ring : FrameRing
         Frames to measure (an ``"every"`` consumer: overwritten frames are counted).
-    pipeline : SeriesPipeline
-        What to do with each frame; commands (``pca``, ``reset``) between frames.
     maps : DemodWorker
         Where the peaks come from.
+    saturation : float, optional
+        Raw value at which the camera saturates.
+    in_process : bool
+        Run the pipeline on the thread rather than in a process of its own.
     """
 
-    def __init__(self, ring: FrameRing, pipeline: SeriesPipeline, maps: DemodWorker) -> None:
+    def __init__(
+        self,
+        ring: FrameRing,
+        maps: DemodWorker,
+        saturation: float | None = None,
+        in_process: bool = False,
+    ) -> None:
         super().__init__(ring, "holoview-series", ring.consumer("series", mode="every"))
-        self.pipeline = pipeline
         self.maps = maps
+        self._saturation = saturation
+        self._in_process = in_process
+        #: The pipeline, where it runs on the thread (None while it runs in its process).
+        self.pipeline: SeriesPipeline | None = None
+        #: The series process (None where the pipeline runs on the thread).
+        self.child: ChildWork[SeriesJob, SeriesReply] | None = None
+        self._slot: FrameSlot | None = None
+        self._peak_set: tuple[tuple[Peak, ...], Experiment] | None = None
+        self._sent: tuple[tuple[Peak, ...], Experiment] | None = None  # the child's peaks
+        self._pending: list[tuple[str, Any]] = []
+        self._pca = False
+        self._end: SeriesReply | None = None
+        #: The id of the last frame the series took (None before one).
+        self.last_frame: int | None = None
+
+    def start(self) -> None:
+        """Start the series process (or the pipeline on the thread) and the thread."""
+        if not self._in_process:
+            try:
+                self._slot = FrameSlot(self.ring.frame_shape, self.ring.dtype, 1)
+                self.child = self._start_child(self._slot)
+                self._out = self._slot.frame(0)
+            except OSError as exc:  # no shared memory or no process here: on the thread
+                logger.warning("the series runs in the window's process: %s", exc)
+                self._close_child()
+        if self.child is None:
+            self.pipeline = SeriesPipeline(self.ring.frame_shape, saturation=self._saturation)
+        super().start()
+
+    def _start_child(self, slot: FrameSlot) -> ChildWork[SeriesJob, SeriesReply]:
+        # the summaries' rate in force here (a test may change it)
+        make = functools.partial(
+            SlotSeries, slot.shared, self._saturation, series_pipeline.TREND_HZ
+        )
+        child: ChildWork[SeriesJob, SeriesReply] = ChildWork(make, "holoview-series", 0)
+        child.start()
+        self._sent = None  # a new process has no peaks yet, nor the PCA setting
+        self._pending = [("pca", True)] if self._pca else []
+        return child
+
+    def stop(self, timeout: float = 5.0) -> None:
+        """Stop and join the thread (it brings the series back), then end the process."""
+        super().stop(timeout)
+        self._close_child()
+
+    def _close_child(self) -> None:
+        child, self.child = self.child, None
+        if child is not None:
+            child.close()
+        slot, self._slot = self._slot, None
+        self._out = None
+        if slot is not None:
+            slot.close()
 
     def latest(self) -> TrendSummary | None:
         """The newest trends summary, or None before the first."""
         with self._lock:
             return self._latest
 
+    @property
+    def series(self) -> PhaseSeries | None:
+        """The series: while running on the thread, else once the thread has ended."""
+        if self.pipeline is not None:
+            return self.pipeline.series
+        return None if self._end is None else self._end.series
+
+    def summary(self) -> DepthSummary | None:
+        """Depths and rates of the series (as :attr:`series`); None before three frames.
+
+        Raises
+        ------
+        HoloviewError
+            The series cannot be summarised (the message says why).
+        """
+        if self.pipeline is not None:
+            return self.pipeline.summary()
+        if self._end is not None and self._end.problem is not None:
+            raise HoloviewError(self._end.problem)
+        return None if self._end is None else self._end.summary
+
     def _apply(self, name: str, value: Any) -> None:
-        self.pipeline.apply(name, value)
+        if name not in ("pca", "reset"):
+            raise ValueError(f"unknown series command {name!r}")
+        if name == "pca":
+            self._pca = bool(value)
+        if self.pipeline is not None:
+            self.pipeline.apply(name, value)
+        else:
+            self._pending.append((name, value))  # sent with the next frame
 
     def _ready(self) -> bool:
         peak_set = self.maps.peak_set()
         if peak_set is None:  # no peaks yet: wait, unless the maps worker has ended
             return not self.maps.running
-        self.pipeline.set_peaks(*peak_set)
+        self._peak_set = peak_set
+        if self.pipeline is not None:
+            self.pipeline.set_peaks(*peak_set)
         return True
 
     def _step(self, pixels: np.ndarray, meta: FrameMeta) -> None:
-        self._publish(self.pipeline.process(pixels, meta))
+        self.last_frame = meta.frame_id
+        if self.pipeline is not None:
+            self._publish(self.pipeline.process(pixels, meta))
+            return
+        self._publish(self._in_child(meta).trend)
+
+    def _in_child(self, meta: FrameMeta | None) -> SeriesReply:
+        """A job for the series process (the frame is in the slot already); one started
+        again if it had ended."""
+        assert self.child is not None and self._slot is not None
+        if self.child.pid is None and not self._stop.is_set():  # it ended: a new one
+            self.child.close()
+            self.child = self._start_child(self._slot)
+        peak_set = None if self._peak_set is self._sent else self._peak_set
+        commands, self._pending = tuple(self._pending), []
+        try:
+            self.child.submit(SeriesJob(meta, peak_set, commands))
+            reply = self.child.result()
+        except HoloviewError as exc:
+            if self.child.pid is None and not self._stop.is_set():
+                logger.warning("series: %s", exc)  # said once: the next frame starts a new one
+            raise
+        self._sent = self._peak_set
+        return reply
+
+    def _run(self) -> None:
+        super()._run()
+        if self.child is None:
+            return
+        try:  # the series comes back for the session's summary
+            self._end = self._in_child(None)
+        except HoloviewError as exc:
+            logger.warning("the series could not be brought back: %s", exc)

@@ -71,7 +71,7 @@ def test_live_engine_and_process_agree_on_every_frame(
     for worker in (session.worker, session.series_worker):
         status = worker.status()
         assert status.dropped == 0 and status.skipped == 0 and status.read == 60
-    live, headless = session.series.series, outcome.data.series
+    live, headless = session.series_worker.series, outcome.data.series
     assert live is not None and live.labels == headless.labels
     assert {"RB1", "RF", "FB1", "RB2"} <= set(live.labels)
     np.testing.assert_array_equal(live.frames, headless.frames)

@@ -150,8 +150,8 @@ def test_a_steered_session_follows_seeks_and_restarts_its_trends(
         assert session.running  # a bad seek changes nothing
     finally:
         session.close()
-    assert session.series.series is not None
-    np.testing.assert_array_equal(session.series.series.frames, [30, 31, 32, 33])
+    assert session.series_worker.series is not None  # brought back when the thread ended
+    np.testing.assert_array_equal(session.series_worker.series.frames, [30, 31, 32, 33])
 
 
 def test_maps_start_at_a_frame_sought_and_follow_frames_the_maps_skipped(
@@ -226,11 +226,12 @@ def test_a_replay_at_full_speed_waits_for_the_series(simulate_evaporation, monke
     try:
         assert session.ring.capacity == 8 and session._replay_paced()
         session.start()
-        _wait(lambda: session.series.series is not None and 199 in session.series.series.frames)
-        frames = np.asarray(session.series.series.frames)
+        _wait(lambda: session.series_worker.last_frame == 199)
         missed = session.series_worker.status().dropped
     finally:
         session.close()
+    assert session.series_worker.series is not None
+    frames = np.asarray(session.series_worker.series.frames)
     # none lost, even while the series waited for the maps worker's first peaks (the
     # replay waited too); its newest series began where the peaks last changed
     assert missed == 0
