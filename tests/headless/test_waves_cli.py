@@ -422,3 +422,26 @@ def test_earlier_outputs_are_kept_without_overwrite(
     assert (out / "waves.json").read_bytes() == before
     assert run_cli([*argv, "--overwrite"], capsys)[0] == 0
     shutil.rmtree(out)
+
+
+def test_a_fused_map_cut_short_by_one_window_names_the_map_that_reaches_further(
+    travelling_waves: Path, tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    """On the tests' travelling waves RF sits near Nyquist, its own twin 9 bins away: its
+    window (4.5 bins) bounds the fused map's band at 695 rad/m, where the waves reach
+    1500 rad/m and RB1's window passes them. The default (fused) map has too few cells for
+    the dispersion fit; the one line says which map reaches further."""
+    out = tmp_path / "processed"
+    status, _, err = run_cli(
+        ["process", str(travelling_waves), "--out", str(out), "--maps"], capsys
+    )
+    assert status == 0, err
+    status, _, err = run_cli(
+        ["waves", str(out / "results.h5"), "--out", str(tmp_path / "w")], capsys
+    )
+    assert status == 2
+    assert len(err.strip().splitlines()) == 1, err
+    assert "maps/fused pass waves up to" in err and "try --label RB1" in err, err
+    argv = ["waves", str(out / "results.h5"), "--out", str(tmp_path / "rb1"), "--label", "RB1"]
+    status, _, err = run_cli([*argv, "--depth-mm", "1", "--hold", "depth"], capsys)
+    assert status == 0, err

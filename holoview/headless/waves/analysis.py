@@ -245,15 +245,24 @@ def _pass_spectrum(maps: WaveMaps, options: WaveOptions, results: WaveResults) -
     results.timing["spectrum_s"] = time.perf_counter() - started
     if options.fit:
         started = time.perf_counter()
-        results.dispersion = fit_dispersion(
-            results.spectrum,
-            options.fluid,
-            depth=options.depth,
-            flow=options.flow,
-            hold=options.hold,
-            k_min=options.k_range[0],
-            k_max=options.k_range[1],
-        )
+        try:
+            results.dispersion = fit_dispersion(
+                results.spectrum,
+                options.fluid,
+                depth=options.depth,
+                flow=options.flow,
+                hold=options.hold,
+                k_min=options.k_range[0],
+                k_max=options.k_range[1],
+            )
+        except InputError as exc:
+            if maps.wider is None:
+                raise
+            other, k_cut = maps.wider
+            raise InputError(
+                f"{exc}; maps/{maps.label} pass waves up to {maps.k_cut:.0f} rad/m, "
+                f"maps/{other} up to {k_cut:.0f} rad/m: try --label {other}"
+            ) from exc
         results.timing["fit_s"] = time.perf_counter() - started
 
 

@@ -39,10 +39,14 @@ from holoview.processing.waves.clock import FrameClock, frame_clock
 
 logger = logging.getLogger(__name__)
 
-__all__ = ["CHECKPOINT", "WaveMaps", "open_wave_maps", "results_path"]
+__all__ = ["CHECKPOINT", "WIDER", "WaveMaps", "open_wave_maps", "results_path"]
 
 #: Frames between the kept running sums of relative maps.
 CHECKPOINT = 256
+
+#: A map whose cut-off is more than this many times another's is named where the other's
+#: band is too short for the dispersion fit.
+WIDER = 1.25
 
 
 @dataclass
@@ -67,6 +71,10 @@ class WaveMaps:
         rad/m.
     k_cut_source : str
         Where ``k_cut`` comes from.
+    wider : (str, float) or None
+        Another map of the file whose cut-off (rad/m) is more than :data:`WIDER` times
+        this one's, the widest (the fused map's is its narrowest peak's: a single peak
+        may reach further), for a message where this map's band is too short.
     reference : str
         The maps' reference mode.
     """
@@ -81,6 +89,7 @@ class WaveMaps:
     time_origin: float
     k_cut: float
     k_cut_source: str
+    wider: tuple[str, float] | None
     reference: str
     _file: h5py.File
     _dataset: h5py.Dataset
@@ -269,15 +278,18 @@ def _open(
             f"{time_range}; the maps span {times[0]:.4g} to {times[-1]:.4g} s"
         )
     clock = frame_clock(times[first:stop] - times[first])
-    step = np.atleast_1d(np.asarray(attrs.get("pixel_step_px", [np.nan]), dtype=np.float64))
-    radius = _cut_off_radius(attrs.get("radius_cpp"))
-    nyquist = min(math.pi / size[0], math.pi / size[1])
-    if radius is not None and np.all(np.isfinite(step)):
-        pitch = size[1] / float(step[-1])
-        k_cut = min(2.0 * math.pi * radius / pitch, nyquist)
-        source = "the demodulation window (radius_cpp)"
-    else:
-        k_cut, source = nyquist, "the map grid's Nyquist wavenumber"
+    k_cut, source = _k_cut(attrs, size)
+    others = {
+        name: _k_cut(file["maps"][name].attrs, size)[0]
+        for name in labels
+        if name != label
+        and file["maps"][name].ndim == 3
+        and _attr(file["maps"][name].attrs, "units") in (None, "m")
+    }
+    widest = max(others, key=lambda name: others[name], default=None)
+    wider = None
+    if widest is not None and others[widest] > WIDER * k_cut:
+        wider = (widest, others[widest])
     reference = _attr(attrs, "reference") or "absolute"
     sums = {0: np.zeros((int(dataset.shape[1]), int(dataset.shape[2])), np.float32)}
     if reference == "relative":
@@ -293,11 +305,23 @@ def _open(
         time_origin=float(times[first]),
         k_cut=k_cut,
         k_cut_source=source,
+        wider=wider,
         reference=str(reference),
         _file=file,
         _dataset=dataset,
         _sums=sums,
     )
+
+
+def _k_cut(attrs: h5py.AttributeManager, size: tuple[float, float]) -> tuple[float, str]:
+    """A map's wavenumber cut-off (rad/m) and where it comes from (module docstring)."""
+    step = np.atleast_1d(np.asarray(attrs.get("pixel_step_px", [np.nan]), dtype=np.float64))
+    radius = _cut_off_radius(attrs.get("radius_cpp"))
+    nyquist = min(math.pi / size[0], math.pi / size[1])
+    if radius is not None and np.all(np.isfinite(step)):
+        pitch = size[1] / float(step[-1])
+        return min(2.0 * math.pi * radius / pitch, nyquist), "the demodulation window (radius_cpp)"
+    return nyquist, "the map grid's Nyquist wavenumber"
 
 
 def _cut_off_radius(value: object) -> float | None:
