@@ -441,7 +441,7 @@ def test_a_fused_map_cut_short_by_one_window_names_the_map_that_reaches_further(
     )
     assert status == 2
     assert len(err.strip().splitlines()) == 1, err
-    assert "maps/fused pass waves up to" in err and "try --label RB1" in err, err
+    assert "maps/fused pass waves up to" in err and "try holoview waves --label RB1" in err, err
     argv = ["waves", str(out / "results.h5"), "--out", str(tmp_path / "rb1"), "--label", "RB1"]
     status, _, err = run_cli([*argv, "--depth-mm", "1", "--hold", "depth"], capsys)
     assert status == 0, err

@@ -261,7 +261,7 @@ def _pass_spectrum(maps: WaveMaps, options: WaveOptions, results: WaveResults) -
             other, k_cut = maps.wider
             raise InputError(
                 f"{exc}; maps/{maps.label} pass waves up to {maps.k_cut:.0f} rad/m, "
-                f"maps/{other} up to {k_cut:.0f} rad/m: try --label {other}"
+                f"maps/{other} up to {k_cut:.0f} rad/m: try holoview waves --label {other}"
             ) from exc
         results.timing["fit_s"] = time.perf_counter() - started
 
