@@ -267,11 +267,14 @@ class LiveWaves:
     seconds : float
         Time the analysis took, s.
     map_seconds : float
-        Time one map takes the waves worker (median of the last 16), s; 0 before it is
-        known. Beside the camera's frame interval it says why ``stride`` is what it is.
+        The waves worker's time per map (median of the last 16), s, from handing a frame
+        to the map's process to taking the previous frame's map back: a map's time where
+        the map's process limits the rate, less where it waits for frames (a full-speed
+        replay paced by another worker); 0 before it is known. Beside the camera's frame
+        interval it says why ``stride`` is what it is.
     map_cpu_seconds : float
-        CPU time one map takes the worker's thread (median of the last 16), s; 0 before
-        it is known. ``map_seconds`` less this is time the map waited for a core or the GIL.
+        CPU time one map takes in the map's process (median of the last 16), s; 0 before
+        it is known. Where ``map_seconds`` is longer, the map waited for a core.
     """
 
     seq: int
