@@ -7,7 +7,8 @@ frame comes. It stops when the ring closes (after writing what remains), once it
 has written ``max_frames`` or ``max_seconds`` have passed since the first frame it
 records arrived (a GigE camera can take seconds to start streaming; frames that
 arrived within the time are written, whenever the thread gets to them; no caller
-needs to poll), on :meth:`Recorder.stop`, or on a write error (kept in
+needs to poll; with no frame at all, after :data:`FIRST_FRAME_WAIT_S` or
+``max_seconds``, whichever is longer), on :meth:`Recorder.stop`, or on a write error (kept in
 :attr:`Recorder.error`: a full disk, an I/O error); in every case it closes the
 file, so everything written stays readable, also by plain h5py. After a write
 error :meth:`Recorder.accounting` counts the frames the camera went on acquiring
@@ -34,6 +35,10 @@ from holoview.acquire.source import Source
 from holoview.errors import InputError
 
 logger = logging.getLogger(__name__)
+
+#: Seconds a recorder with a duration waits for a first frame (a GigE camera can take a
+#: few to stream), or the duration where that is longer, before it ends with none.
+FIRST_FRAME_WAIT_S = 10.0
 
 
 def _significant_bits(pixel_format: object) -> int | None:
@@ -121,6 +126,7 @@ class Recorder:
         self.max_seconds = max_seconds
         # host time (UNIX epoch, s) past which frames are not recorded: set by the first frame
         self._deadline = math.inf
+        self._first = True  # no frame recorded yet
         self._consumer = ring.consumer("recorder", mode="every")
         #: The error that ended recording early, or None.
         self.error: BaseException | None = None
@@ -213,6 +219,8 @@ class Recorder:
 
     def start(self) -> None:
         """Start the thread (the clock of ``max_seconds`` starts with the first frame)."""
+        if self.max_seconds is not None:  # until a first frame comes
+            self._deadline = time.time() + max(self.max_seconds, FIRST_FRAME_WAIT_S)
         self._span[0] = time.monotonic()
         self._thread.start()
 
@@ -260,8 +268,9 @@ class Recorder:
                 if not isinstance(item, tuple):  # CLOSED
                     break
                 pixels, meta = item
-                if self.max_seconds is not None and self._deadline == math.inf:  # the first frame
+                if self._first and self.max_seconds is not None:
                     self._deadline = meta.t_host + self.max_seconds
+                self._first = False
                 if meta.t_host >= self._deadline:  # this frame and the later ones are not asked for
                     self._end_at_limit()
                     break

@@ -16,6 +16,8 @@ from faults_helpers import (
     write_recording,
 )
 
+from holoview.acquire import recorder
+
 
 @pytest.mark.parametrize(
     ("args", "message"),
@@ -76,8 +78,12 @@ def test_record_refuses_implausible_setups_and_rings(
     assert list(tmp_path.iterdir()) == []
 
 
-def test_a_recording_with_no_frame_is_not_kept(tmp_path: Path, capsys: pytest.CaptureFixture):
-    """A source that gave nothing: no empty file blocks the next attempt."""
+def test_a_recording_with_no_frame_is_not_kept(
+    tmp_path: Path, capsys: pytest.CaptureFixture, monkeypatch: pytest.MonkeyPatch
+):
+    """A source that gave nothing: no empty file blocks the next attempt. The duration counts
+    from the first frame; with none, the recorder ends after its wait for one."""
+    monkeypatch.setattr(recorder, "FIRST_FRAME_WAIT_S", 0.5)
     frames = np.zeros((3, 32, 32), np.uint16) + np.arange(32, dtype=np.uint16)
     source = write_recording(tmp_path / "in.h5", frames)
     out = tmp_path / "rec.h5"
