@@ -136,7 +136,8 @@ def test_a_steered_session_follows_seeks_and_restarts_its_trends(
         for i in (31, 32, 33):
             control.step(1)
             assert _shown(session, i).segment == 1
-        _wait(lambda: (t := session.trend()) is not None and len(t.times_s) == 4)
+        # the series may still be on segment 0's four frames (0 to 3) when the steps end
+        _wait(lambda: (t := session.trend()) is not None and t.segment == 1 and len(t.times_s) == 4)
         trend = session.trend()
         assert trend is not None and trend.segment == 1
         np.testing.assert_allclose(trend.times_s, [0.0, 0.05, 0.1, 0.15], atol=1e-9)
