@@ -63,6 +63,9 @@ READY_WAIT_S = 10.0
 
 #: The type of a worker's results.
 R = TypeVar("R")
+#: The types of a child process's jobs and replies.
+J = TypeVar("J")
+T = TypeVar("T")
 
 
 class RingWorker(Generic[R]):
@@ -242,7 +245,61 @@ class RingWorker(Generic[R]):
             )
 
 
-class DemodWorker(RingWorker[LiveResult]):
+class ChildRingWorker(RingWorker[R], Generic[R, J, T]):
+    """A ring worker whose work runs in a child process, on frames in shared memory.
+
+    The thread puts each frame in a one-frame :class:`~holoview.live.wave_map.FrameSlot`
+    and waits, without the interpreter's lock, for the child's reply. A child that ended
+    (killed, out of memory) is said once and started again at the next frame. Subclasses
+    make the child (:meth:`_start_child`) and keep their work on the thread where no
+    process or shared memory can be had.
+    """
+
+    def __init__(self, ring: FrameRing, name: str, consumer: RingConsumer) -> None:
+        super().__init__(ring, name, consumer)
+        #: The child process (None where the work runs on the thread).
+        self.child: ChildWork[J, T] | None = None
+        self._slot: FrameSlot | None = None
+
+    def _start_child(self, slot: FrameSlot) -> ChildWork[J, T]:
+        raise NotImplementedError
+
+    def _open_child(self, what: str) -> None:
+        """Make the slot and start the child; log ``what`` runs on the thread where neither
+        can be had."""
+        try:
+            self._slot = FrameSlot(self.ring.frame_shape, self.ring.dtype, 1)
+            self.child = self._start_child(self._slot)
+        except OSError as exc:  # no shared memory or no process here: on the thread
+            logger.warning("%s in the window's process: %s", what, exc)
+            self._close_child()
+
+    def _close_child(self) -> None:
+        child, self.child = self.child, None
+        if child is not None:
+            child.close()
+        slot, self._slot = self._slot, None
+        self._out = None
+        if slot is not None:
+            slot.close()
+
+    def _exchange(self, job: Callable[[FrameSlot], J], what: str) -> T:
+        """``job(slot)``'s reply from the child (one started again if it had ended): the job
+        is made after that, its frame put in the slot by it where need be."""
+        assert self.child is not None and self._slot is not None
+        if self.child.pid is None and not self._stop.is_set():  # it ended: a new one
+            self.child.close()
+            self.child = self._start_child(self._slot)
+        try:
+            self.child.submit(job(self._slot))
+            return self.child.result()
+        except HoloviewError as exc:
+            if self.child.pid is None and not self._stop.is_set():
+                logger.warning("%s: %s", what, exc)  # said once: the next frame starts a new one
+            raise
+
+
+class DemodWorker(ChildRingWorker[LiveResult, MapsJob, MapsReply]):
     """The maps: a :class:`~holoview.live.maps_server.MapsServer` on the newest frame.
 
     The server runs in a process of its own (``holoview-maps``): the thread
@@ -285,9 +342,6 @@ class DemodWorker(RingWorker[LiveResult]):
         self._in_process = in_process
         #: The server, where it runs on the thread (None while it runs in its process).
         self.server: MapsServer | None = None
-        #: The maps process (None where the server runs on the thread).
-        self.child: ChildWork[MapsJob, MapsReply] | None = None
-        self._slot: FrameSlot | None = None
         self._pending: list[tuple[str, Any]] = []
         self._peak_set: tuple[tuple[Peak, ...], Experiment] | None = None
         self._reference_mode: str | None = None
@@ -295,12 +349,7 @@ class DemodWorker(RingWorker[LiveResult]):
     def start(self) -> None:
         """Start the maps process (or the server on the thread) and the thread."""
         if not self._in_process:
-            try:
-                self._slot = FrameSlot(self.ring.frame_shape, self.ring.dtype, 1)
-                self.child = self._start_child(self._slot)
-            except OSError as exc:  # no shared memory or no process here: on the thread
-                logger.warning("the maps run in the window's process: %s", exc)
-                self._close_child()
+            self._open_child("the maps run")
         if self.child is None:
             self.server = MapsServer(self._experiment, self.ring.frame_shape, self._saturation)
             self.niceness = YIELDING_NICENESS  # the thread makes the maps: it yields
@@ -340,14 +389,6 @@ class DemodWorker(RingWorker[LiveResult]):
         if not self._thread.is_alive():
             self._close_child()
 
-    def _close_child(self) -> None:
-        child, self.child = self.child, None
-        if child is not None:
-            child.close()
-        slot, self._slot = self._slot, None
-        if slot is not None:
-            slot.close()
-
     def latest(self) -> LiveResult | None:
         """The newest result, or None before the first."""
         with self._lock:
@@ -385,22 +426,16 @@ class DemodWorker(RingWorker[LiveResult]):
     def _in_child(
         self, pixels: np.ndarray, meta: FrameMeta, commands: tuple[tuple[str, Any], ...]
     ) -> MapsReply:
-        """The frame's maps from the maps process (one started again if it had ended)."""
-        assert self.child is not None and self._slot is not None
-        if self.child.pid is None and not self._stop.is_set():  # it ended: a new one
-            self.child.close()
-            self.child = self._start_child(self._slot)
-        self._slot.put(0, pixels)
-        try:
-            self.child.submit(MapsJob(0, meta, commands))
-            return self.child.result()
-        except HoloviewError as exc:
-            if self.child.pid is None and not self._stop.is_set():
-                logger.warning("maps: %s", exc)  # said once: the next frame starts a new one
-            raise
+        """The frame's maps from the maps process."""
+
+        def job(slot: FrameSlot) -> MapsJob:
+            slot.put(0, pixels)
+            return MapsJob(0, meta, commands)
+
+        return self._exchange(job, "maps")
 
 
-class SeriesWorker(RingWorker[TrendSummary]):
+class SeriesWorker(ChildRingWorker[TrendSummary, SeriesJob, SeriesReply]):
     """The series: a :class:`SeriesPipeline` on every frame, in a process of its own.
 
     The thread (``holoview-series``) reads each frame from the ring straight into shared
@@ -440,9 +475,6 @@ class SeriesWorker(RingWorker[TrendSummary]):
         self._in_process = in_process
         #: The pipeline, where it runs on the thread (None while it runs in its process).
         self.pipeline: SeriesPipeline | None = None
-        #: The series process (None where the pipeline runs on the thread).
-        self.child: ChildWork[SeriesJob, SeriesReply] | None = None
-        self._slot: FrameSlot | None = None
         self._peak_set: tuple[tuple[Peak, ...], Experiment] | None = None
         self._sent: tuple[tuple[Peak, ...], Experiment] | None = None  # the child's peaks
         self._pending: list[tuple[str, Any]] = []
@@ -454,13 +486,9 @@ class SeriesWorker(RingWorker[TrendSummary]):
     def start(self) -> None:
         """Start the series process (or the pipeline on the thread) and the thread."""
         if not self._in_process:
-            try:
-                self._slot = FrameSlot(self.ring.frame_shape, self.ring.dtype, 1)
-                self.child = self._start_child(self._slot)
-                self._out = self._slot.frame(0)
-            except OSError as exc:  # no shared memory or no process here: on the thread
-                logger.warning("the series runs in the window's process: %s", exc)
-                self._close_child()
+            self._open_child("the series runs")
+        if self._slot is not None:
+            self._out = self._slot.frame(0)  # frames are read into the slot itself
         if self.child is None:
             self.pipeline = SeriesPipeline(self.ring.frame_shape, saturation=self._saturation)
         super().start()
@@ -480,15 +508,6 @@ class SeriesWorker(RingWorker[TrendSummary]):
         """Stop and join the thread (it brings the series back), then end the process."""
         super().stop(timeout)
         self._close_child()
-
-    def _close_child(self) -> None:
-        child, self.child = self.child, None
-        if child is not None:
-            child.close()
-        slot, self._slot = self._slot, None
-        self._out = None
-        if slot is not None:
-            slot.close()
 
     def latest(self) -> TrendSummary | None:
         """The newest trends summary, or None before the first."""
@@ -543,21 +562,14 @@ class SeriesWorker(RingWorker[TrendSummary]):
         self._publish(self._in_child(meta).trend)
 
     def _in_child(self, meta: FrameMeta | None) -> SeriesReply:
-        """A job for the series process (the frame is in the slot already); one started
-        again if it had ended."""
-        assert self.child is not None and self._slot is not None
-        if self.child.pid is None and not self._stop.is_set():  # it ended: a new one
-            self.child.close()
-            self.child = self._start_child(self._slot)
-        peak_set = None if self._peak_set is self._sent else self._peak_set
-        commands, self._pending = tuple(self._pending), []
-        try:
-            self.child.submit(SeriesJob(meta, peak_set, commands))
-            reply = self.child.result()
-        except HoloviewError as exc:
-            if self.child.pid is None and not self._stop.is_set():
-                logger.warning("series: %s", exc)  # said once: the next frame starts a new one
-            raise
+        """A job for the series process (the frame is in the slot already)."""
+
+        def job(_: FrameSlot) -> SeriesJob:  # after a restart: the new process's peaks
+            peak_set = None if self._peak_set is self._sent else self._peak_set
+            commands, self._pending = tuple(self._pending), []
+            return SeriesJob(meta, peak_set, commands)
+
+        reply = self._exchange(job, "series")
         self._sent = self._peak_set
         return reply
 
