@@ -15,7 +15,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
-from figure_layout import layout_problems
+from figure_layout import layout_problems, saved_figures
 from headless_sim import Simulated, run_cli
 
 from holoview.processing.series.rate_fits import format_rate
@@ -56,16 +56,7 @@ def test_every_text_of_the_report_lies_on_the_page(
 ) -> None:
     """The spectrum panel's title had run off the figure's left edge ("...es: each peak's
     window"): every text drawn must lie within the page, no tick labels overlapping."""
-    from matplotlib.figure import Figure
-
-    drawn: list[Figure] = []
-    savefig = Figure.savefig
-
-    def keep(figure: Figure, *args: object, **kwargs: object) -> None:
-        drawn.append(figure)
-        savefig(figure, *args, **kwargs)
-
-    monkeypatch.setattr(Figure, "savefig", keep)
+    drawn = saved_figures(monkeypatch)
     out = tmp_path / "r"
     argv = ["process", str(evaporation.path), "--out", str(out), "--frames", ":30"]
     status, _, _ = run_cli([*argv, *evaporation.label_args("RB1", "FB1")], capsys)

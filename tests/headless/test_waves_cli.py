@@ -11,9 +11,8 @@ import h5py
 import numpy as np
 import pytest
 import xarray
-from figure_layout import layout_problems
+from figure_layout import layout_problems, saved_figures
 from headless_sim import run_cli
-from matplotlib.figure import Figure
 
 from holoview.headless.waves.analysis import WaveOptions, analyse_waves
 from holoview.headless.waves.maps import open_wave_maps
@@ -242,14 +241,7 @@ def test_partial_waves_and_ringdown_through_the_command(
         "--threads",
         "1",  # every figure drawn here, for its layout to be read
     ]
-    drawn: list[Figure] = []
-    savefig = Figure.savefig
-
-    def keep(figure: Figure, *args: object, **kwargs: object) -> None:
-        drawn.append(figure)
-        savefig(figure, *args, **kwargs)
-
-    monkeypatch.setattr(Figure, "savefig", keep)
+    drawn = saved_figures(monkeypatch)
     status, _, err = run_cli(argv, capsys)
     assert status == 0, err
     assert len(drawn) == 6
