@@ -496,7 +496,13 @@ def fit_dispersion(
     low = 4.0 * max(spectrum.dk) if k_min is None else float(k_min)
     high = spectrum.k_cut if k_max is None else min(float(k_max), spectrum.k_cut)
     if not 0 <= low < high:
-        raise InputError(f"no wavenumbers to fit between {_k(low)} and {_k(high)} rad/m")
+        why = ""
+        if k_min is None and high <= low:  # the field is too small for the window's band
+            why = (
+                f": the maps' cut-off {_k(spectrum.k_cut)} rad/m is not above the first "
+                f"wavenumber fitted, four steps of the field's {_k(max(spectrum.dk))} rad/m"
+            )
+        raise InputError(f"no wavenumbers to fit between {_k(low)} and {_k(high)} rad/m{why}")
     values = {
         "sigma": fluid.surface_tension,
         "depth": float(depth),

@@ -97,6 +97,17 @@ def test_noise_alone_has_no_waves_to_fit():
     assert "e+" not in str(raised.value)  # wavenumbers written out, as the axes give them
 
 
+def test_a_cut_off_below_the_first_wavenumber_fitted_is_said() -> None:
+    """A small field and a narrow window: nothing lies between four wave-vector steps and
+    the cut-off, and the line says why rather than naming an empty range alone."""
+    rng = np.random.default_rng(6)
+    step = 2 * np.pi / (SIZE * PIXEL)  # rad/m
+    acc = OmegaKAccumulator((SIZE, SIZE), PIXEL, 1 / FPS, segment=64, k_cut=3 * step)
+    acc.extend(rng.normal(0, 1e-9, (128, SIZE, SIZE)), np.arange(128) / FPS)
+    with pytest.raises(InputError, match="is not above the first wavenumber fitted"):
+        fit_dispersion(acc.spectrum())
+
+
 def test_deep_water_does_not_fix_the_depth():
     deep = travelling(seed=4, depth=0.05, k_range=(600.0, 1600.0), flow=(0.0, 0.0))
     spectrum = spectrum_of(deep, frames=256)
