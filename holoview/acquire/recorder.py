@@ -126,7 +126,6 @@ class Recorder:
         self.max_seconds = max_seconds
         # host time (UNIX epoch, s) past which frames are not recorded: set by the first frame
         self._deadline = math.inf
-        self._first = True  # no frame recorded yet
         self._consumer = ring.consumer("recorder", mode="every")
         #: The error that ended recording early, or None.
         self.error: BaseException | None = None
@@ -268,9 +267,8 @@ class Recorder:
                 if not isinstance(item, tuple):  # CLOSED
                     break
                 pixels, meta = item
-                if self._first and self.max_seconds is not None:
+                if self.max_seconds is not None and len(writer) == 0:  # the first frame
                     self._deadline = meta.t_host + self.max_seconds
-                self._first = False
                 if meta.t_host >= self._deadline:  # this frame and the later ones are not asked for
                     self._end_at_limit()
                     break

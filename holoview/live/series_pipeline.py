@@ -35,10 +35,12 @@ from holoview.processing.peaks.detection import Peak
 
 logger = logging.getLogger(__name__)
 
-__all__ = ["TREND_HZ", "SeriesPipeline", "TrendSummary", "trend_summary"]
+__all__ = ["COMMANDS", "TREND_HZ", "SeriesPipeline", "TrendSummary", "trend_summary"]
 
 #: Highest rate at which depths, rate and PCA are recomputed from the series, Hz.
 TREND_HZ = 2.0
+#: The commands a series takes between frames (:meth:`SeriesPipeline.apply`).
+COMMANDS = ("pca", "reset")
 
 
 @dataclass(frozen=True)
@@ -127,13 +129,13 @@ class SeriesPipeline:
 
     def apply(self, name: str, value: object = None) -> None:
         """Apply a command: ``pca`` (bool) or ``reset``."""
+        if name not in COMMANDS:
+            raise ValueError(f"unknown series command {name!r}")
         if name == "pca":
             self.pca = bool(value)
             self._trend_at = -math.inf
-        elif name == "reset":
+        else:  # reset
             self.series = None
-        else:
-            raise ValueError(f"unknown series command {name!r}")
 
     def set_peaks(self, peaks: tuple[Peak, ...], experiment: Experiment) -> None:
         """Measure ``peaks`` from the next frame (a new series when they or the optics changed)."""

@@ -536,14 +536,14 @@ class SeriesWorker(ChildRingWorker[TrendSummary, SeriesJob, SeriesReply]):
         return None if self._end is None else self._end.summary
 
     def _apply(self, name: str, value: Any) -> None:
-        if name not in ("pca", "reset"):
-            raise ValueError(f"unknown series command {name!r}")
-        if name == "pca":
-            self._pca = bool(value)
         if self.pipeline is not None:
             self.pipeline.apply(name, value)
-        else:
-            self._pending.append((name, value))  # sent with the next frame
+            return
+        if name not in series_pipeline.COMMANDS:  # as the pipeline would say
+            raise ValueError(f"unknown series command {name!r}")
+        if name == "pca":
+            self._pca = bool(value)  # for a process started again
+        self._pending.append((name, value))  # sent with the next frame
 
     def _ready(self) -> bool:
         peak_set = self.maps.peak_set()

@@ -39,10 +39,13 @@ from holoview.processing.waves.clock import FrameClock, frame_clock
 
 logger = logging.getLogger(__name__)
 
-__all__ = ["CHECKPOINT", "WIDER", "WaveMaps", "open_wave_maps", "results_path"]
+__all__ = ["CHECKPOINT", "HEIGHT_UNITS", "WIDER", "WaveMaps", "open_wave_maps", "results_path"]
 
 #: Frames between the kept running sums of relative maps.
 CHECKPOINT = 256
+
+#: The units of maps of heights (none said: heights, as results.h5 1.0 wrote them).
+HEIGHT_UNITS = (None, "m")
 
 #: A map whose cut-off is more than this many times another's is named where the other's
 #: band is too short for the dispersion fit.
@@ -236,8 +239,8 @@ def _open(
     if dataset.ndim != 3:
         raise InputError(f"{path}: maps/{label} is not a (frames, rows, cols) stack")
     attrs = dataset.attrs
-    unit = _attr(attrs, "units") or _attr(attrs, "unit")  # results.h5 2.0, else 1.0
-    if unit not in (None, "m"):
+    unit = _unit(attrs)
+    if unit not in HEIGHT_UNITS:
         raise InputError(
             f"{path}: maps/{label} holds {_attr(attrs, 'quantity') or unit} ({unit}), not "
             "heights (m): its peak has no alpha"
@@ -284,7 +287,7 @@ def _open(
         for name in labels
         if name != label
         and file["maps"][name].ndim == 3
-        and _attr(file["maps"][name].attrs, "units") in (None, "m")
+        and _unit(file["maps"][name].attrs) in HEIGHT_UNITS
     }
     widest = max(others, key=lambda name: others[name], default=None)
     wider = None
@@ -311,6 +314,12 @@ def _open(
         _dataset=dataset,
         _sums=sums,
     )
+
+
+def _unit(attrs: h5py.AttributeManager) -> str | None:
+    """A map's unit: ``units`` in results.h5 2.0, ``unit`` in 1.0."""
+    unit: str | None = _attr(attrs, "units") or _attr(attrs, "unit")
+    return unit
 
 
 def _k_cut(attrs: h5py.AttributeManager, size: tuple[float, float]) -> tuple[float, str]:
