@@ -263,6 +263,8 @@ def summary_line(out: Path, summary: dict[str, Any]) -> str:
             f"({fit['flow_stderr_m_per_s'][0] * 1e3:.2g}, "
             f"{fit['flow_stderr_m_per_s'][1] * 1e3:.2g}) mm/s"
         )
+    elif summary.get("dispersion_problem"):
+        parts.append("no dispersion fit (waves.json's notes say why)")
     if summary.get("partial_waves"):
         parts.append(f"{len(summary['partial_waves'])} partial waves")
     ring = summary.get("ringdown")

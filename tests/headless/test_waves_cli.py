@@ -340,7 +340,6 @@ def test_two_threads_give_the_numbers_of_one(tmp_path: Path) -> None:
         ("short", "fewer than a segment"),
         ("all nan", "all NaN"),
         ("centre outside", "outside the maps"),
-        ("noise", "no waves there"),
         ("no label", "has no maps of 'RB7'"),
         ("hold depth", "--hold depth needs --depth-mm"),
         ("no file", "no such file"),
@@ -374,6 +373,37 @@ def test_bad_input_is_one_line_exit_2_and_writes_nothing(
     assert message in err
     assert err.count("\n") == 1 and "Traceback" not in err
     assert not out.exists() or not any(out.iterdir())
+
+
+def test_a_dispersion_fit_that_cannot_be_made_keeps_the_spectra_and_other_analyses(
+    tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    """Maps with no travelling wave (noise, and a standing oscillation at 12 Hz): the fit
+    alone asked for is one line and exit 2 after the spectra are written; asked beside a
+    lock-in, the lock-in stands and the run succeeds, the reason in waves.json."""
+    rng = np.random.default_rng(3)
+    times = np.arange(128) / 100.0
+    drive = np.cos(2 * np.pi * 12.0 * times)[:, None, None]
+    maps = 5e-9 * drive * np.ones((1, 24, 24)) + rng.normal(0, 1e-9, (128, 24, 24))
+    path = results_file(tmp_path / "results.h5", maps, times, 1e-3)
+    alone = tmp_path / "alone"
+    status, out, err = run_cli(["waves", str(path), "--out", str(alone), "--segment", "64"], capsys)
+    assert status == 2 and out == ""
+    assert err.count("\n") == 1 and "Traceback" not in err
+    assert "no waves there" in err and "--no-fit leaves the fit out" in err, err
+    summary = json.loads((alone / "waves.json").read_text())
+    assert summary["dispersion"] is None
+    assert "no waves there" in summary["dispersion_problem"]
+    assert {"omega_k.png", "energy.png", "waves.h5"} <= {p.name for p in alone.iterdir()}
+    beside = tmp_path / "beside"
+    argv = ["waves", str(path), "--out", str(beside), "--segment", "64", "--drive-hz", "12"]
+    status, out, err = run_cli(argv, capsys)
+    assert status == 0, err
+    assert "no dispersion fit" in out
+    summary = json.loads((beside / "waves.json").read_text())
+    assert "no waves there" in summary["dispersion_problem"]
+    assert any("no dispersion fit" in note for note in summary["notes"])
+    assert summary["lockin"]["median_amplitude_m"][0] == pytest.approx(5e-9, rel=0.05)
 
 
 def test_phase_maps_are_refused_and_a_1_0_file_reads_as_2_0(

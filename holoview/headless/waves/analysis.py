@@ -15,7 +15,9 @@ segment's whatever the number of frames:
    (:func:`refine_tone`) and its Hankel fit, and the ringdown fit.
 
 Times are from the first frame analysed (phases of complex amplitudes refer to it).
-Every fit that fails raises :class:`~holoview.errors.InputError` with the reason.
+Every fit that fails raises :class:`~holoview.errors.InputError` with the reason, but
+the dispersion fit: without it the spectra and the other analyses still stand, so its
+reason is kept (:attr:`WaveResults.fit_problem`, a note) for the caller to say.
 """
 
 from __future__ import annotations
@@ -130,6 +132,12 @@ class WaveOptions:
         """True when a centre is given or asked for."""
         return self.centre is not None
 
+    @property
+    def fit_alone(self) -> bool:
+        """True when the dispersion fit is the one analysis asked for (no centre, drive
+        or band filter): its failure is then the command's."""
+        return self.fit and self.centre is None and self.drive is None and self.band is None
+
 
 @dataclass
 class WaveResults:
@@ -149,6 +157,8 @@ class WaveResults:
     tones: list[tuple[int, float, np.ndarray]] = field(default_factory=list)
     partial_waves: list[PartialWaveFit] = field(default_factory=list)
     ringdown: Ringdown | None = None
+    #: Why the dispersion fit asked for was not made (None: made, or not asked for).
+    fit_problem: str | None = None
     notes: list[str] = field(default_factory=list)
     timing: dict[str, float] = field(default_factory=dict)
 
@@ -256,13 +266,15 @@ def _pass_spectrum(maps: WaveMaps, options: WaveOptions, results: WaveResults) -
                 k_max=options.k_range[1],
             )
         except InputError as exc:
-            if maps.wider is None:
-                raise
-            other, k_cut = maps.wider
-            raise InputError(
-                f"{exc}; maps/{maps.label} pass waves up to {maps.k_cut:.0f} rad/m, "
-                f"maps/{other} up to {k_cut:.0f} rad/m: try holoview waves --label {other}"
-            ) from exc
+            # the spectra and the other analyses stand without it (the caller says it)
+            results.fit_problem = str(exc)
+            if maps.wider is not None:
+                other, k_cut = maps.wider
+                results.fit_problem += (
+                    f"; maps/{maps.label} pass waves up to {maps.k_cut:.0f} rad/m, "
+                    f"maps/{other} up to {k_cut:.0f} rad/m: try holoview waves --label {other}"
+                )
+            results.notes.append(f"no dispersion fit: {results.fit_problem}")
         results.timing["fit_s"] = time.perf_counter() - started
 
 
@@ -429,7 +441,8 @@ def analyse_waves(maps: WaveMaps, options: WaveOptions) -> WaveResults:
     ------
     InputError
         Fewer frames than a segment, all-NaN maps, a centre outside the maps, or a fit
-        that does not converge (the message says which).
+        that does not converge (the message says which; a dispersion fit's reason is in
+        :attr:`WaveResults.fit_problem` instead).
     """
     _check_frames(maps, options.segment)
     if options.ringdown is not None and options.centre is None:
@@ -465,6 +478,7 @@ def summary_values(results: WaveResults) -> dict[str, Any]:
             "relative_stderr": spectrum.relative_stderr,
         },
         "dispersion": None if results.dispersion is None else results.dispersion.as_dict(),
+        "dispersion_problem": results.fit_problem,
         "centre_m": None if results.centre is None else list(results.centre),
         "centre_stderr_m": None if results.centre is None else list(results.centre_stderr),
         "centre_method": results.centre_method or None,

@@ -30,7 +30,8 @@ coordinates attached as HDF5 dimension scales (xarray reads each group with
   ``x``; the band in the attributes.
 
 ``waves.json`` (format ``holoview-waves-summary`` 1.0): the input, the clock, every value
-with its standard error and unit (:func:`~holoview.headless.waves.analysis.summary_values`), the
+with its standard error and unit (:func:`~holoview.headless.waves.analysis.summary_values`),
+``dispersion_problem`` (why a dispersion fit asked for was not made, else null), the
 notes, the figures and the timing.
 """
 
@@ -49,7 +50,7 @@ import h5py
 import numpy as np
 
 from holoview import __version__
-from holoview.errors import OutputError, os_error_text
+from holoview.errors import InputError, OutputError, os_error_text
 from holoview.headless.results.output_folder import OutputFolder
 from holoview.headless.waves.analysis import WaveOptions, WaveResults, analyse_waves, summary_values
 from holoview.headless.waves.figures import FIGURES, draw_figures
@@ -310,10 +311,16 @@ def run_waves(
     of this command are replaced only with ``overwrite``, and only when every file is
     complete.
 
+    A dispersion fit that cannot be made does not hold back the spectra, figures and
+    other analyses: they are written, the reason is a note, and it is raised after the
+    writing when the fit was the one analysis asked for (:attr:`WaveOptions.fit_alone`),
+    else logged as a warning.
+
     Raises
     ------
     InputError
-        Bad input or a fit that does not converge (nothing is written).
+        Bad input or a fit that does not converge (nothing is written), or the dispersion
+        fit alone asked for could not be made (the rest is written).
     OutputError
         A file could not be written (nothing is replaced).
     """
@@ -348,6 +355,13 @@ def run_waves(
                 raise OutputError(f"cannot write {WAVES_JSON}: {os_error_text(exc)}") from exc
         files = outputs.finish(interrupted=False)
     logger.info("wrote %s", ", ".join(p.name for p in files))
+    if results.fit_problem is not None:
+        if options.fit_alone:
+            raise InputError(
+                f"{results.fit_problem} (the spectra and figures are in {folder}; "
+                "--no-fit leaves the fit out)"
+            )
+        logger.warning("no dispersion fit: %s", results.fit_problem)
     return WavesOutcome(folder, results, summary, files)
 
 
