@@ -7,7 +7,8 @@ segment's whatever the number of frames:
 1. every frame into the omega-k accumulator (and, with a drive frequency, the lock-in
    maps); then E(k), E(omega) and the fit of sigma, d and U to the ridge;
 2. with a centre (given, or ``auto``: found on the lock-in map at the drive frequency,
-   made in pass 1, or else at the strongest peak of E(omega), one more pass): every
+   made in pass 1, or else at the strongest peak of E(omega), within the ringdown's
+   band when one is asked for, one more pass): every
    frame into the azimuthal accumulator, which gives the (m, f) spectrum, lock-ins of
    every ``m`` at a comb of frequencies around each candidate tone (the strongest peaks
    of E(omega), the drive's harmonics, or the modes asked for) and the series of the
@@ -55,6 +56,13 @@ __all__ = ["WaveOptions", "WaveResults", "analyse_waves"]
 
 #: Candidate tones taken from E(omega) when no mode is asked for.
 CANDIDATE_TONES = 6
+
+#: Tones (the centre's frequency, the candidates) are sought in E(omega) of the waves
+#: beyond this many wave-vector steps: the spatial taper spreads a uniform oscillation
+#: (the reference arm's vibration in the RF and RB maps, nanometres) over the steps next
+#: to zero, where it outweighed a mode larger than the field (the ringdown simulation's
+#: 12 Hz mode, 18.6 mm long in a 5.1 mm field: E(omega)'s peak had been at 6.5 Hz).
+UNIFORM_SPREAD_STEPS = 1.5
 
 #: Lock-in frequencies per candidate tone, and their spacing in units of 1 / duration.
 COMB_POINTS = 9
@@ -180,11 +188,27 @@ def _hann_weights(times: np.ndarray, span: tuple[float, float]) -> np.ndarray:
     return np.sin(np.pi * np.clip(phase, 0.0, 1.0)) ** 2
 
 
-def _peaks_of(omega: np.ndarray, energy: np.ndarray, count: int, low: int) -> list[float]:
-    """Frequencies (Hz) of the largest local maxima of ``energy`` above bin ``low``."""
+def _tone_energy(spectrum: OmegaKSpectrum) -> tuple[np.ndarray, np.ndarray]:
+    """E(omega) of the waves beyond :data:`UNIFORM_SPREAD_STEPS` wave-vector steps, where
+    tones are sought."""
+    return spectrum.energy_omega(k_min=UNIFORM_SPREAD_STEPS * max(spectrum.dk))
+
+
+def _peaks_of(
+    omega: np.ndarray,
+    energy: np.ndarray,
+    count: int,
+    low: int,
+    band: tuple[float, float] | None = None,
+) -> list[float]:
+    """Frequencies (Hz) of the largest local maxima of ``energy`` above bin ``low``
+    (and within ``band``, Hz, when given)."""
     found = []
+    hz = omega / (2 * math.pi)
     for i in np.argsort(energy)[::-1]:
         if i <= max(low, 0) or i >= energy.size - 1:
+            continue
+        if band is not None and not band[0] <= hz[i] <= band[1]:
             continue
         if energy[i] < energy[i - 1] or energy[i] < energy[i + 1]:
             continue
@@ -301,11 +325,13 @@ def _auto_centre(maps: WaveMaps, options: WaveOptions, results: WaveResults) -> 
     frequency = options.drive
     if frequency is not None and results.centre_lockins:
         amplitudes = [lockin.amplitude[0] for lockin in results.centre_lockins]
-    else:
-        omega, energy = results.spectrum.energy_omega()
-        peaks = _peaks_of(omega, energy, 1, 2)
+    else:  # a ringdown asked for is the mode to centre on, not E(omega)'s strongest peak
+        omega, energy = _tone_energy(results.spectrum)
+        band = None if options.ringdown is None else options.ringdown[1:]
+        peaks = _peaks_of(omega, energy, 1, 2, band)
         if not peaks:
-            raise InputError("no centre can be found: E(omega) has no peak")
+            where = "" if band is None else f" in the ringdown's band {band[0]:g}-{band[1]:g} Hz"
+            raise InputError(f"no centre can be found: E(omega) has no peak{where}")
         frequency = peaks[0]
         lockins = _centre_lockins(maps, frequency)
         for times, block in maps.blocks(options.block):
@@ -345,7 +371,7 @@ def _candidates(results: WaveResults, options: WaveOptions) -> list[float]:
     found: list[float] = []
     if options.drive is not None:
         found = [options.drive * n for n in range(1, options.harmonics + 1)]
-    omega, energy = results.spectrum.energy_omega()
+    omega, energy = _tone_energy(results.spectrum)
     for f in _peaks_of(omega, energy, CANDIDATE_TONES, 2):
         if all(abs(f - g) > 2 * results.spectrum.df for g in found):
             found.append(f)

@@ -164,14 +164,19 @@ class OmegaKSpectrum:
         energy = np.bincount(flat[inside], per_cell.ravel()[inside], minlength=centres.size)
         return centres, energy / width
 
-    def energy_omega(self) -> tuple[np.ndarray, np.ndarray]:
+    def energy_omega(self, k_min: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
         """Return ``omega`` (rad/s) and ``E(omega)`` (m^2 s / rad), waves up to ``k_cut``.
 
         ``E(omega) d omega`` is the mean square height of the waves with angular
         frequencies in ``[omega, omega + d omega)``.
+
+        Parameters
+        ----------
+        k_min : float
+            Only waves with wavenumbers above this, rad/m (default all).
         """
         dky, dkx = self.dk
-        inside = self.k <= self.k_cut
+        inside = (self.k <= self.k_cut) & (self.k > k_min)
         per_f = np.tensordot(self.power.astype(np.float64), inside, axes=([1, 2], [0, 1]))
         return 2.0 * np.pi * self.frequency, per_f * dky * dkx / (2.0 * np.pi)
 
