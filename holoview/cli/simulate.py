@@ -68,6 +68,7 @@ from holoview.cli.simulate_waves import (
     add_wave_scenario_options,
     build_waves,
     warn_aliasing,
+    warn_field,
     write_wave_truth,
 )
 from holoview.errors import InputError
@@ -543,6 +544,7 @@ def run(args: argparse.Namespace) -> int:
         setup, args.scenario, config, np.random.default_rng(args.seed), build_waves(args)
     )
     warn_aliasing(surface, args.fps)
+    warn_field(surface, args.size * setup.pixel_pitch, args.size * setup.pixel_pitch)
     sequence = simulate(
         setup,
         args.scenario,

@@ -1,11 +1,13 @@
-"""``holoview simulate``'s wave scenarios: their options, their truth, an aliasing warning.
+"""``holoview simulate``'s wave scenarios: their options, their truth, warnings (a field
+too small for the waves around a centre, waves aliased in time).
 
 The scenarios ``travelling``, ``partial-waves`` and ``ringdown``
 (:mod:`holoview.optics.wave_fields`): the options that set a
 :class:`~holoview.optics.wave_fields.WaveConfig` (mm, mm/s, rad/m, Hz, nm on the
 command line; SI inside), the ``/truth/waves`` group each surface's ``truth()`` fills
-(layout in :mod:`holoview.cli.simulate`), and a warning when the waves' frequencies pass
-the Nyquist frequency of the frame rate.
+(layout in :mod:`holoview.cli.simulate`), and warnings when the field is too small for
+waves around a centre or the waves' frequencies pass the Nyquist frequency of the frame
+rate.
 """
 
 from __future__ import annotations
@@ -151,6 +153,48 @@ def write_wave_truth(group: h5py.Group, surface: object, setup: Setup) -> None:
         else:
             waves[name] = array
         waves[name].attrs["unit"] = unit
+
+
+def warn_field(surface: object, width: float, height: float) -> None:
+    """Warn when a field around a centre (partial waves, a mode) cannot show its waves.
+
+    ``width``, ``height``: the field, m, centred on the frame's centre as the surface's
+    coordinates are. The partial waves are held down within 1.5 core radii of their
+    centre, and a wave longer than the field leaves less than one wavelength in the maps:
+    the defaults of these scenarios need a field of centimetres (``--pixel-pitch-um``),
+    not the 5-10 mm of the camera's defaults.
+    """
+    inner = getattr(surface, "surface", surface)  # a SwitchedOn wrapper
+    centre = getattr(inner, "centre", None)
+    if centre is None:
+        return
+    field = f"the field ({width * 1e3:.3g} x {height * 1e3:.3g} mm)"
+    widen = "widen it with --pixel-pitch-um or --size"
+    core = float(getattr(inner, "core_radius", 0.0))
+    x0, y0 = centre
+    far = max(
+        math.hypot(sx * width / 2 - x0, sy * height / 2 - y0) for sx in (-1, 1) for sy in (-1, 1)
+    )
+    if core > 0 and far < 1.5 * core:
+        logger.warning(
+            "%s lies within 1.5 core radii of the partial waves' centre, where the core holds "
+            "them down (zero within %.3g mm, full beyond %.3g mm): %s, or give --core-mm",
+            field,
+            core * 1e3,
+            1.5 * core * 1e3,
+            widen,
+        )
+        return
+    wavenumbers = getattr(inner, "wavenumbers", None) or [getattr(inner, "wavenumber", 0.0)]
+    shortest_k = min(k for k in wavenumbers if k > 0) if any(k > 0 for k in wavenumbers) else 0
+    if shortest_k and 2 * math.pi / shortest_k > min(width, height):
+        logger.warning(
+            "the waves reach a wavelength of %.3g mm, longer than %s: the maps hold less "
+            "than one wavelength of them (%s)",
+            2 * math.pi / shortest_k * 1e3,
+            field,
+            widen,
+        )
 
 
 def warn_aliasing(surface: object, fps: float) -> None:
