@@ -70,12 +70,19 @@ class MapsReply:
         The demodulator's reference mode (None before one is built).
     messages : tuple of str
         Problems met with this frame (a command refused, the side work's errors).
+    spectrum_kept : bool
+        The result's spectrum is the one sent before, not sent again (its ``spectrum``
+        None): the display spectrum comes at most
+        :data:`~holoview.live.maps_pipeline.SPECTRUM_HZ` times a second, the maps up to
+        the camera's rate, and each spectrum sent is unpickled into a new array that the
+        window would take for a new one and draw again.
     """
 
     result: LiveResult | None
     peak_set: tuple[tuple[Peak, ...], Experiment]
     reference_mode: str | None
     messages: tuple[str, ...]
+    spectrum_kept: bool = False
 
 
 class MapsServer:
@@ -193,10 +200,15 @@ class SlotServer:
     ) -> None:
         self._memory, self._frames = frames.attach()
         self.server = MapsServer(experiment, frames.shape, saturation)
+        self._sent_spectrum: np.ndarray | None = None
 
     def __call__(self, job: MapsJob) -> MapsReply:
         pixels = np.array(self._frames[job.slot])  # the side threads keep it past this frame
         reply = self.server.step(pixels, job.meta, job.commands)
         if reply.result is None:
             return reply
-        return replace(reply, result=replace(reply.result, frame=NO_FRAME))
+        spectrum = reply.result.spectrum
+        kept = spectrum is not None and spectrum is self._sent_spectrum
+        self._sent_spectrum = spectrum
+        result = replace(reply.result, frame=NO_FRAME, spectrum=None if kept else spectrum)
+        return replace(reply, result=result, spectrum_kept=kept)

@@ -345,6 +345,8 @@ class DemodWorker(ChildRingWorker[LiveResult, MapsJob, MapsReply]):
         self._pending: list[tuple[str, Any]] = []
         self._peak_set: tuple[tuple[Peak, ...], Experiment] | None = None
         self._reference_mode: str | None = None
+        #: The display spectrum the maps process sent last (results that keep it share it).
+        self._spectrum: np.ndarray | None = None
 
     def start(self) -> None:
         """Start the maps process (or the server on the thread) and the thread."""
@@ -421,7 +423,11 @@ class DemodWorker(ChildRingWorker[LiveResult, MapsJob, MapsReply]):
             self._peak_set = reply.peak_set
             self._reference_mode = reply.reference_mode
         if reply.result is not None:
-            self._publish(replace(reply.result, frame=pixels))
+            if reply.spectrum_kept:
+                self._publish(replace(reply.result, frame=pixels, spectrum=self._spectrum))
+            else:
+                self._spectrum = reply.result.spectrum
+                self._publish(replace(reply.result, frame=pixels))
 
     def _in_child(
         self, pixels: np.ndarray, meta: FrameMeta, commands: tuple[tuple[str, Any], ...]
