@@ -97,17 +97,20 @@ def test_existing_recording_is_not_overwritten(
     [
         ("partial-waves", "20", "within 1.5 core radii"),  # a 2.6 mm field, a 4 mm core
         ("ringdown", "20", "wavelength of 18.7 mm"),  # the 12 Hz mode in a 2.6 mm field
+        ("travelling", "20", "below the first wavenumber"),  # 1.8 mm waves, 2.6 mm field
         ("partial-waves", "320", None),  # 41 mm: rings around the core
         ("ringdown", "320", None),
+        ("travelling", "320", None),  # waves to 1800 rad/m, fitted from 613 (41 mm)
     ],
 )
-def test_a_field_too_small_for_waves_around_a_centre_is_warned_of(
+def test_a_field_too_small_for_the_waves_is_warned_of(
     tmp_path: Path, caplog: pytest.LogCaptureFixture, scenario: str, pitch_um: str, warned: str
 ) -> None:
     argv = ["simulate", str(tmp_path / "w.h5"), "--scenario", scenario, "--size", "128"]
     tilts = ["--m-r-mrad", "0.4", "0.025", "--m-b-mrad", "0.025", "0.3"]  # carriers for 320 um
     with caplog.at_level("WARNING", logger="holoview.cli.simulate_waves"):
-        assert main([*argv, *tilts, "--frames", "2", "--pixel-pitch-um", pitch_um]) == 0
+        frames = ["--frames", "2", "--fps", "300"]  # the travelling waves reach 111 Hz
+        assert main([*argv, *tilts, *frames, "--pixel-pitch-um", pitch_um]) == 0
     said = [r.getMessage() for r in caplog.records if r.name == "holoview.cli.simulate_waves"]
     if warned is None:
         assert said == []

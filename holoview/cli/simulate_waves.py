@@ -156,20 +156,41 @@ def write_wave_truth(group: h5py.Group, surface: object, setup: Setup) -> None:
 
 
 def warn_field(surface: object, width: float, height: float) -> None:
-    """Warn when a field around a centre (partial waves, a mode) cannot show its waves.
+    """Warn when the field cannot show the waves as holoview waves analyses them.
 
     ``width``, ``height``: the field, m, centred on the frame's centre as the surface's
-    coordinates are. The partial waves are held down within 1.5 core radii of their
-    centre, and a wave longer than the field leaves less than one wavelength in the maps:
-    the defaults of these scenarios need a field of centimetres (``--pixel-pitch-um``),
-    not the 5-10 mm of the camera's defaults.
+    coordinates are. Travelling waves all below
+    :data:`~holoview.processing.waves.dispersion.FIRST_STEPS` steps of the field's
+    wave vector leave the dispersion fit nothing; partial waves are held down within 1.5
+    core radii of their centre; a wave around a centre longer than the field leaves less
+    than one wavelength in the maps. The scenarios' defaults need a field of centimetres
+    (``--pixel-pitch-um``), not the 5-10 mm of the camera's defaults.
     """
+    from holoview.processing.waves.dispersion import FIRST_STEPS
+
     inner = getattr(surface, "surface", surface)  # a SwitchedOn wrapper
+    field = f"the field ({width * 1e3:.3g} x {height * 1e3:.3g} mm)"
+    widen = "widen it with --pixel-pitch-um or --size"
+    vectors = getattr(inner, "wavevectors", None)
+    if vectors is not None and len(vectors):
+        first = FIRST_STEPS * 2 * math.pi / min(width, height)
+        top = float(max(math.hypot(float(kx), float(ky)) for kx, ky in vectors))
+        if top < first:
+            logger.warning(
+                "the waves reach %.0f rad/m, below the first wavenumber holoview waves fits "
+                "in a %.3g x %.3g mm field, %.0f rad/m (%g steps of its wave vector): the "
+                "field is too small for them: %s, or raise --wave-k",
+                top,
+                width * 1e3,
+                height * 1e3,
+                first,
+                FIRST_STEPS,
+                widen,
+            )
+        return
     centre = getattr(inner, "centre", None)
     if centre is None:
         return
-    field = f"the field ({width * 1e3:.3g} x {height * 1e3:.3g} mm)"
-    widen = "widen it with --pixel-pitch-um or --size"
     core = float(getattr(inner, "core_radius", 0.0))
     x0, y0 = centre
     far = max(

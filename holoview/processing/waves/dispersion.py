@@ -64,6 +64,10 @@ FIRST_CONTRAST = 0.01
 #: The parameters that can be held: surface tension, depth, flow (both components).
 PARAMETERS = ("sigma", "depth", "flow")
 
+#: The lowest wavenumber fitted by default, in steps of the field's wave vector: below,
+#: a wave spans too few cells of the spectrum for a frequency of its own.
+FIRST_STEPS = 4.0
+
 #: Bounds of the fitted depth (m) and surface tension (N/m).
 DEPTH_BOUNDS = (1e-5, 10.0)
 SIGMA_BOUNDS = (1e-4, 1.0)
@@ -473,7 +477,8 @@ def fit_dispersion(
     hold : iterable of str
         Parameters held at their given values: ``sigma``, ``depth``, ``flow``.
     k_min, k_max : float, optional
-        Wavenumbers fitted, rad/m (defaults: 4 wave-vector steps, and the cut-off).
+        Wavenumbers fitted, rad/m (defaults: :data:`FIRST_STEPS` wave-vector steps, and
+        the cut-off).
     min_contrast : float
         Least ratio of a cell's peak power to its median power.
 
@@ -493,14 +498,15 @@ def fit_dispersion(
         raise InputError(f"the depth must be positive, got {depth!r} m")
     if fluid.surface_tension <= 0 and "sigma" not in held:
         raise InputError("the surface tension's starting value must be positive")
-    low = 4.0 * max(spectrum.dk) if k_min is None else float(k_min)
+    low = FIRST_STEPS * max(spectrum.dk) if k_min is None else float(k_min)
     high = spectrum.k_cut if k_max is None else min(float(k_max), spectrum.k_cut)
     if not 0 <= low < high:
         why = ""
         if k_min is None and high <= low:  # the field is too small for the window's band
             why = (
                 f": the maps' cut-off {_k(spectrum.k_cut)} rad/m is not above the first "
-                f"wavenumber fitted, four steps of the field's {_k(max(spectrum.dk))} rad/m"
+                f"wavenumber fitted, {FIRST_STEPS:g} steps of the field's "
+                f"{_k(max(spectrum.dk))} rad/m"
             )
         raise InputError(f"no wavenumbers to fit between {_k(low)} and {_k(high)} rad/m{why}")
     values = {
