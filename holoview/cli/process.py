@@ -280,7 +280,7 @@ def run(args: argparse.Namespace) -> int:
         # the maps step's fused maps, as the run wrote them (results.h5 2.0)
         analysed = run_waves(written[0], outcome.out, waves, overwrite=args.overwrite)
         if not args.quiet:
-            emit(summary_line(outcome.out, analysed.summary))
+            emit(summary_line(outcome.out, analysed))
     return 0
 
 

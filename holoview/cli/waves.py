@@ -16,10 +16,13 @@ import argparse
 import logging
 import math
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from holoview.cli.signals import emit
 from holoview.errors import InputError
+
+if TYPE_CHECKING:
+    from holoview.headless.waves.outputs import WavesOutcome
 
 logger = logging.getLogger(__name__)
 
@@ -250,19 +253,16 @@ def wave_options(args: argparse.Namespace) -> Any:
     )
 
 
-def summary_line(out: Path, summary: dict[str, Any]) -> str:
+def summary_line(out: Path, outcome: WavesOutcome) -> str:
     """One line of what came out (value ± error, units)."""
+    from holoview.processing.waves.fit_text import fit_values, with_error
+
+    summary = outcome.summary
     parts = [f"{out}: {summary['input']['frames']} frames of {summary['input']['label']}"]
-    fit = summary.get("dispersion")
-    if fit:
-        parts.append(
-            f"sigma {fit['surface_tension_n_per_m'] * 1e3:.4g} ± "
-            f"{fit['surface_tension_stderr_n_per_m'] * 1e3:.2g} mN/m, depth "
-            f"{fit['depth_m'] * 1e3:.4g} ± {fit['depth_stderr_m'] * 1e3:.2g} mm, flow "
-            f"({fit['flow_m_per_s'][0] * 1e3:.3g}, {fit['flow_m_per_s'][1] * 1e3:.3g}) ± "
-            f"({fit['flow_stderr_m_per_s'][0] * 1e3:.2g}, "
-            f"{fit['flow_stderr_m_per_s'][1] * 1e3:.2g}) mm/s"
-        )
+    fit = outcome.results.dispersion
+    if fit is not None:
+        sigma, depth, flow = fit_values(fit)
+        parts.append(f"sigma {sigma}, depth {depth}, flow {flow}")
     elif summary.get("dispersion_problem"):
         parts.append("no dispersion fit (waves.json's notes say why)")
     if summary.get("partial_waves"):
@@ -270,8 +270,8 @@ def summary_line(out: Path, summary: dict[str, Any]) -> str:
     ring = summary.get("ringdown")
     if ring:
         parts.append(
-            f"ringdown {ring['frequency_hz']:.5g} ± {ring['frequency_stderr_hz']:.2g} Hz, "
-            f"decay {ring['decay_per_s']:.4g} ± {ring['decay_stderr_per_s']:.2g} 1/s"
+            f"ringdown {with_error(ring['frequency_hz'], ring['frequency_stderr_hz'])} Hz, "
+            f"decay {with_error(ring['decay_per_s'], ring['decay_stderr_per_s'])} 1/s"
         )
     return "; ".join(parts)
 
@@ -300,5 +300,5 @@ def run(args: argparse.Namespace) -> int:
     """Analyse, write, print one line."""
     outcome = analyse(args)
     if not args.quiet:
-        emit(summary_line(args.out, outcome.summary))
+        emit(summary_line(args.out, outcome))
     return 0

@@ -37,6 +37,7 @@ from PyQt6.QtWidgets import (
 from holoview.live.wave_window import FUSED, LiveWaves, WaveSettings
 from holoview.optics.surfaces import FLUID_MECHANICS
 from holoview.processing.waves.dispersion import DispersionFit, Fluid, wave_omega
+from holoview.processing.waves.fit_text import fit_values
 
 #: Frames the panel can keep (the window analysed).
 LENGTHS = (128, 256, 512, 1024)
@@ -73,31 +74,9 @@ def _log_image(power: np.ndarray) -> tuple[np.ndarray, tuple[float, float]]:
     return image, (low, high if high > low else low + 1.0)
 
 
-def with_error(value: float, error: float) -> str:
-    """``value ± error`` with the error to two significant digits and the value to the same
-    decimal place (``76.76, 3.4`` -> ``76.8 ± 3.4``)."""
-    if not (math.isfinite(error) and error > 0):
-        return f"{value:.4g} ± {error:.2g}"
-    decimals = max(0, 1 - math.floor(math.log10(error)))
-    return f"{value:.{decimals}f} ± {error:.{decimals}f}"
-
-
 def _fit_text(fit: DispersionFit) -> str:
     """sigma, d and U with their standard errors (or 'held'), in mN/m, mm, mm/s."""
-
-    def value(number: float, error: float, scale: float, unit: str, held: bool) -> str:
-        if held:
-            return f"{number * scale:.4g} {unit} (held)"
-        return f"{with_error(number * scale, error * scale)} {unit}"
-
-    held = set(fit.held)
-    sigma = value(fit.surface_tension, fit.surface_tension_stderr, 1e3, "mN/m", "sigma" in held)
-    depth = value(fit.depth, fit.depth_stderr, 1e3, "mm", "depth" in held)
-    if "flow" in held:
-        flow = f"({fit.flow[0] * 1e3:.3g}, {fit.flow[1] * 1e3:.3g}) mm/s (held)"
-    else:
-        ux, uy = (with_error(fit.flow[i] * 1e3, fit.flow_stderr[i] * 1e3) for i in (0, 1))
-        flow = f"({ux}, {uy}) mm/s"
+    sigma, depth, flow = fit_values(fit)
     return f"σ = {sigma}   d = {depth}   U = {flow}"
 
 

@@ -497,5 +497,7 @@ def test_a_fused_map_cut_short_by_one_window_names_the_map_that_reaches_further(
     assert len(err.strip().splitlines()) == 1, err
     assert "maps/fused pass waves up to" in err and "try holoview waves --label RB1" in err, err
     argv = ["waves", str(out / "results.h5"), "--out", str(tmp_path / "rb1"), "--label", "RB1"]
-    status, _, err = run_cli([*argv, "--depth-mm", "1", "--hold", "depth"], capsys)
+    status, out, err = run_cli([*argv, "--depth-mm", "1", "--hold", "depth"], capsys)
     assert status == 0, err
+    # a held depth is said to be held, not written "1 ± 0"; the others with their errors
+    assert "depth 1 mm (held)" in out and "mN/m" in out and " ± " in out, out

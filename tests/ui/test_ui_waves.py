@@ -15,8 +15,9 @@ from PyQt6.QtCore import QPoint, QPointF, Qt
 from holoview.acquire.recording_reader import RecordingReader
 from holoview.engine.experiment import Experiment
 from holoview.live.wave_window import LiveWaves, WaveHistory, WaveSettings, analyse_window
+from holoview.processing.waves.fit_text import with_error
 from holoview.ui.main_window import MainWindow
-from holoview.ui.waves_view import WavesView, rate_text, with_error
+from holoview.ui.waves_view import WavesView, rate_text
 
 pytestmark = [
     pytest.mark.gui,
