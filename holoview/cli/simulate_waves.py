@@ -166,6 +166,7 @@ def warn_field(surface: object, width: float, height: float) -> None:
     than one wavelength in the maps. The scenarios' defaults need a field of centimetres
     (``--pixel-pitch-um``), not the 5-10 mm of the camera's defaults.
     """
+    from holoview.optics.wave_fields import CORE_FULL
     from holoview.processing.waves.dispersion import FIRST_STEPS
 
     inner = getattr(surface, "surface", surface)  # a SwitchedOn wrapper
@@ -196,23 +197,25 @@ def warn_field(surface: object, width: float, height: float) -> None:
     far = max(
         math.hypot(sx * width / 2 - x0, sy * height / 2 - y0) for sx in (-1, 1) for sy in (-1, 1)
     )
-    if core > 0 and far < 1.5 * core:
+    if core > 0 and far < CORE_FULL * core:
         logger.warning(
-            "%s lies within 1.5 core radii of the partial waves' centre, where the core holds "
+            "%s lies within %g core radii of the partial waves' centre, where the core holds "
             "them down (zero within %.3g mm, full beyond %.3g mm): %s, or give --core-mm",
             field,
+            CORE_FULL,
             core * 1e3,
-            1.5 * core * 1e3,
+            CORE_FULL * core * 1e3,
             widen,
         )
         return
+    # the partial waves' wavenumbers, or the mode's
     wavenumbers = getattr(inner, "wavenumbers", None) or [getattr(inner, "wavenumber", 0.0)]
-    shortest_k = min(k for k in wavenumbers if k > 0) if any(k > 0 for k in wavenumbers) else 0
-    if shortest_k and 2 * math.pi / shortest_k > min(width, height):
+    longest = max((2 * math.pi / k for k in wavenumbers if k > 0), default=0.0)  # wavelength
+    if longest > min(width, height):
         logger.warning(
             "the waves reach a wavelength of %.3g mm, longer than %s: the maps hold less "
             "than one wavelength of them (%s)",
-            2 * math.pi / shortest_k * 1e3,
+            longest * 1e3,
             field,
             widen,
         )

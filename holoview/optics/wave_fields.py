@@ -44,6 +44,7 @@ from holoview.optics.surfaces import (
 )
 
 __all__ = [
+    "CORE_FULL",
     "DampedMode",
     "PartialWave",
     "PartialWaves",
@@ -52,6 +53,10 @@ __all__ = [
     "WaveConfig",
     "random_travelling_waves",
 ]
+
+#: Partial waves are at full height beyond this many core radii of their centre (zero
+#: inside one, a smooth rise between).
+CORE_FULL = 1.5
 
 #: Truth: ``(attributes, {name: (array, unit)})`` for ``/truth/waves``.
 Truth = tuple[dict[str, Any], dict[str, tuple[np.ndarray, str]]]
@@ -229,10 +234,10 @@ def _polar(x: np.ndarray, y: np.ndarray, centre: tuple[float, float]) -> tuple[n
 
 
 def _core_ramp(r: np.ndarray, core: float) -> np.ndarray:
-    """0 inside ``core``, 1 beyond ``1.5 core``, a smooth (sin^2) rise between."""
+    """0 inside ``core``, 1 beyond :data:`CORE_FULL` ``core``, a smooth (sin^2) rise between."""
     if core <= 0:
         return np.ones_like(r)
-    s = np.clip((r - core) / (0.5 * core), 0.0, 1.0)
+    s = np.clip((r - core) / ((CORE_FULL - 1.0) * core), 0.0, 1.0)
     return np.sin(0.5 * math.pi * s) ** 2
 
 
