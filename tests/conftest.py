@@ -44,6 +44,19 @@ def _no_leaked_threads() -> Iterator[None]:
     assert not leaked, f"threads outlived the test: {[t.name for t in leaked]}"
 
 
+@pytest.fixture(autouse=True)
+def _garbage_between_events(request: pytest.FixtureRequest) -> Iterator[None]:
+    """In a Qt test, collect cyclic garbage as the window does: on the GUI thread between
+    events (:mod:`holoview.ui.garbage`), the test's own widgets once it has closed them."""
+    if "qtbot" not in request.fixturenames:
+        yield
+        return
+    from holoview.ui.garbage import collect_between_events
+
+    with collect_between_events(request.getfixturevalue("qapp")):
+        yield
+
+
 @pytest.fixture
 def real_data() -> Path:
     """The folder of real holograms; skips with the reason when it is not beside the repo."""

@@ -30,6 +30,7 @@ from types import FrameType
 from PyQt6.QtCore import QMessageLogContext, QTimer, QtMsgType, qInstallMessageHandler
 from PyQt6.QtWidgets import QApplication
 
+from holoview.ui.garbage import collect_between_events
 from holoview.ui.main_window import MainWindow
 
 logger = logging.getLogger(__name__)
@@ -186,7 +187,7 @@ def run_live(
             if quit_after is not None:
                 close_after_opening(window, quit_after)
             logger.info("main window open on source %s", source)
-            with close_on_signals(window) as received:
+            with close_on_signals(window) as received, collect_between_events(app):
                 status = app.exec()
         except KeyboardInterrupt:
             for built in windows:
