@@ -59,6 +59,7 @@ from machine import machine
 from PyQt6.QtCore import QEventLoop, QTimer
 
 from holoview.ui.app import application
+from holoview.ui.garbage import collect_between_events
 from holoview.ui.main_window import MainWindow
 
 
@@ -198,7 +199,7 @@ def main() -> int:
         options = {"shape": (args.size, args.size), "frame_rate_hz": args.fps}
     elif args.source.startswith("replay:"):
         options = {"rate_hz": args.fps}
-    with tempfile.TemporaryDirectory() as tmp:
+    with tempfile.TemporaryDirectory() as tmp, collect_between_events(app):
         os.environ["XDG_CONFIG_HOME"] = tmp
         window = MainWindow(
             source=args.source,

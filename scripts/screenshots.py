@@ -34,6 +34,7 @@ from PyQt6.QtWidgets import QApplication
 from holoview.live.replay_control import FASTEST
 from holoview.live.session import RecordRequest
 from holoview.ui.app import application
+from holoview.ui.garbage import collect_between_events
 from holoview.ui.main_window import MainWindow
 
 
@@ -90,7 +91,7 @@ def main() -> int:
     screen = app.primaryScreen().geometry()
     args.out = args.out / f"{screen.width()}x{screen.height()}"
     args.out.mkdir(parents=True, exist_ok=True)
-    with tempfile.TemporaryDirectory() as tmp:
+    with tempfile.TemporaryDirectory() as tmp, collect_between_events(app):
         os.environ["XDG_CONFIG_HOME"] = tmp  # the default layout, not the user's
         # rendered live: a cycle's loop would put a jump back in the run recorded (6-replay)
         options = (

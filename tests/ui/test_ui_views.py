@@ -256,6 +256,33 @@ def test_a_short_trends_plot_keeps_its_time_axis(qtbot) -> None:
 
 
 @pytest.mark.qt_log_ignore(r"This plugin does not support propagateSizeHints\(\)")
+def test_trends_that_grow_are_painted_once_per_update(qtbot) -> None:
+    """The time axis takes its new range before the paint: one paint per update (two when
+    pyqtgraph ranged the view as the paint started; 21 ms each at 1920 x 1080)."""
+    view = TrendsView()
+    qtbot.addWidget(view)
+    view.resize(560, 300)
+    view.show()
+    qtbot.waitExposed(view)
+    times = np.linspace(0.0, 2.0, 50)
+    view.set_series(times, {"RB1": -times * 1e-8})
+    qtbot.wait(200)
+    paints: list[int] = []
+    plain = type(view.plot).paintEvent
+
+    def counted(event) -> None:
+        paints.append(1)
+        plain(view.plot, event)
+
+    view.plot.paintEvent = counted
+    for step in range(1, 4):
+        longer = np.linspace(0.0, 2.0 + step, 50 + 10 * step)
+        view.set_series(longer, {"RB1": -longer * 1e-8})
+        qtbot.wait(150)
+    assert len(paints) == 3
+
+
+@pytest.mark.qt_log_ignore(r"This plugin does not support propagateSizeHints\(\)")
 def test_hologram_subsampled_to_the_screen_keeps_saturation(qtbot) -> None:
     view = HologramView()
     qtbot.addWidget(view)
