@@ -8,12 +8,14 @@ reason, where PyGObject or Aravis 0.8 cannot be imported.
 
 from __future__ import annotations
 
+import fcntl
 import itertools
 import os
 import select
 import signal
 import subprocess
 import sys
+import tempfile
 import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
@@ -63,9 +65,24 @@ class Served:
         return self.frames[(raw_id(frame_id) - 1) % len(self.frames)]
 
 
+#: Held while a test serves fake cameras: they all answer on 127.0.0.1's GVCP port, and
+#: two tests serving at once (``pytest -n 2`` without ``--dist loadfile``) read each
+#: other's frames and lost register writes.
+LOOPBACK_LOCK = Path(tempfile.gettempdir()) / "holoview-fake-gige.lock"
+
+
 @pytest.fixture
 def serve(tmp_path: Path) -> Iterator[Callable[..., Served]]:
-    """Start fake GigE cameras in child processes; always stop them afterwards."""
+    """Start fake GigE cameras in child processes; always stop them afterwards.
+
+    One test at a time on the machine serves them (:data:`LOOPBACK_LOCK`)."""
+    with open(LOOPBACK_LOCK, "a") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        yield from _served(tmp_path)
+
+
+def _served(tmp_path: Path) -> Iterator[Callable[..., Served]]:
+    """What :func:`serve` yields, and the children stopped after the test."""
     children: list[subprocess.Popen] = []
 
     def start(frames: np.ndarray, lost_ratio: float = 0.0) -> Served:
