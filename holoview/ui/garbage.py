@@ -7,7 +7,7 @@ demodulation thread), and in the middle of whatever that thread is doing, a pain
 event of the GUI thread included. A Qt object deleted there frees what a paint in
 progress may still use: the test suite crashed so (a paint engine freed under
 ``QPainter::drawImage`` while an image item painted; 4 runs of 10 of three GUI test
-files on 2 workers, none in 12 once collection was moved between events).
+files on 2 workers, none in 22 once collection was moved between events).
 
 :func:`collect_between_events` turns automatic collection off and collects from a
 timer of the GUI thread instead, by Python's own rule: a generation when its count
