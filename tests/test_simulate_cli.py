@@ -116,3 +116,28 @@ def test_a_field_too_small_for_the_waves_is_warned_of(
         assert said == []
     else:
         assert len(said) == 1 and warned in said[0] and "--pixel-pitch-um" in said[0], said
+
+
+def test_a_pixel_pitch_given_alone_keeps_the_carriers_where_they_were(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    """The default tilts suit 20 um: at 320 um (the wave scenarios' field of centimetres,
+    what their warning asks for) RB1 lay past Nyquist and simulate refused. A pitch given
+    without tilts scales them; the carriers keep their place in cycles/pixel."""
+    common = ["--scenario", "travelling", "--size", "64", "--frames", "2", "--fps", "300"]
+    paths = {pitch: tmp_path / f"p{pitch}.h5" for pitch in ("20", "320")}
+    with caplog.at_level("WARNING", logger="holoview.cli.simulate_waves"):
+        for pitch, path in paths.items():
+            assert main(["-q", "simulate", str(path), *common, "--pixel-pitch-um", pitch]) == 0
+    carriers = {}
+    for pitch, path in paths.items():
+        with h5py.File(path, "r") as f:
+            labels = [s.decode() for s in f["truth/families/label"][:]]
+            cpp = f["truth/families/carrier_cpp"][:]
+            carriers[pitch] = {name: cpp[labels.index(name)] for name in ("RF", "RB1", "FB1")}
+    for name in ("RF", "RB1", "FB1"):
+        np.testing.assert_allclose(carriers["320"][name], carriers["20"][name], rtol=1e-9)
+    # the waves (to 1800 rad/m: 0.09 cycles/pixel at 320 um) now spread the holograms,
+    # 0.16 cycles/pixel apart, into one another: said, with the options that spread them
+    said = [r.getMessage() for r in caplog.records if "bands overlap" in r.getMessage()]
+    assert len(said) == 1 and "320 um" in said[0] and "--m-r-mrad" in said[0], said

@@ -69,6 +69,7 @@ from holoview.cli.simulate_waves import (
     build_waves,
     warn_aliasing,
     warn_field,
+    warn_overlap,
     write_wave_truth,
 )
 from holoview.errors import InputError
@@ -154,8 +155,13 @@ def add_parser(
     setup.add_argument("--n2", type=float, help="refractive index of the fluid")
     setup.add_argument("--wavelength-nm", type=float, help="laser wavelength, nm")
     setup.add_argument("--pixel-pitch-um", type=float, help="object-side pixel pitch, um")
-    setup.add_argument("--m-r-mrad", type=float, nargs=2, metavar=("MX", "MY"))
-    setup.add_argument("--m-b-mrad", type=float, nargs=2, metavar=("MX", "MY"))
+    tilt = "tilt, mrad (default: the setup's, scaled with --pixel-pitch-um: see below)"
+    setup.add_argument(
+        "--m-r-mrad", type=float, nargs=2, metavar=("MX", "MY"), help=f"reference mirror {tilt}"
+    )
+    setup.add_argument(
+        "--m-b-mrad", type=float, nargs=2, metavar=("MX", "MY"), help=f"submerged mirror {tilt}"
+    )
     setup.add_argument("--depth-mm", type=float, help="fluid depth over the mirror, mm")
     setup.add_argument("--delta-h-mm", type=float, help="arm-length difference, mm")
     setup.add_argument("--reflectivity", type=float, help="submerged mirror power reflectance")
@@ -239,6 +245,7 @@ def build_setup(args: argparse.Namespace) -> Setup:
         tilt = getattr(args, option)
         if tilt is not None:
             changes[name] = (tilt[0] * 1e-3, tilt[1] * 1e-3)
+    _tilts_for_the_pitch(changes)
     ghosts = []
     for arm, tx, ty, amplitude in args.ghost:
         try:
@@ -247,6 +254,37 @@ def build_setup(args: argparse.Namespace) -> Setup:
             raise InputError(f"--ghost {arm} {tx} {ty} {amplitude}: {exc}") from exc
     changes["ghosts"] = tuple(ghosts)
     return Setup().replace(**changes)
+
+
+def _tilts_for_the_pitch(changes: dict[str, object]) -> None:
+    """Scale the default tilts to a pixel pitch given without them (``changes``, in place).
+
+    A carrier lies at ``2 n m pitch / wavelength`` cycles per pixel: the default tilts,
+    set for the default 20 um pitch, put RB1 past Nyquist from 50 um on, and a wider field
+    (what the wave scenarios need, and what their warning says to ask for) failed. A
+    tilt not given is the default times ``default pitch / pitch``, so the carriers keep
+    their place in the spectrum, as an experimenter aligns them for the optics at hand.
+    """
+    from holoview.optics.setup import Setup
+
+    pitch = changes.get("pixel_pitch")
+    default = Setup()
+    if not isinstance(pitch, float) or pitch == default.pixel_pitch:
+        return
+    scaled = []
+    for name in ("m_r", "m_b"):
+        if name not in changes:
+            tilt = tuple(m * default.pixel_pitch / pitch for m in getattr(default, name))
+            changes[name] = tilt
+            scaled.append(f"{name} ({tilt[0] * 1e3:.4g}, {tilt[1] * 1e3:.4g}) mrad")
+    if scaled:
+        logger.info(
+            "tilts for the %.4g um pitch: %s (the defaults times %.4g: the carriers keep "
+            "their place in cycles/pixel)",
+            pitch * 1e6,
+            ", ".join(scaled),
+            default.pixel_pitch / pitch,
+        )
 
 
 def build_config(args: argparse.Namespace) -> ScenarioConfig:
@@ -545,6 +583,8 @@ def run(args: argparse.Namespace) -> int:
     )
     warn_aliasing(surface, args.fps)
     warn_field(surface, args.size * setup.pixel_pitch, args.size * setup.pixel_pitch)
+    first_order = predict_families(setup, max_order=1, second_order=False)  # RF, RB1, FB1
+    warn_overlap(surface, {f.label: f.observed_carrier for f in first_order}, setup.pixel_pitch)
     sequence = simulate(
         setup,
         args.scenario,

@@ -15,6 +15,7 @@ from __future__ import annotations
 import argparse
 import logging
 import math
+from collections.abc import Mapping
 from typing import TYPE_CHECKING
 
 from holoview.errors import InputError
@@ -26,6 +27,10 @@ if TYPE_CHECKING:
     from holoview.optics.wave_fields import WaveConfig
 
 logger = logging.getLogger(__name__)
+
+#: Carriers closer than this (cycles/pixel) are one point of the spectrum: families whose
+#: fields add into one peak.
+SAME_POINT = 1e-6
 
 
 def _number(name: str, value: float | None, scale: float = 1.0) -> float | None:
@@ -172,11 +177,10 @@ def warn_field(surface: object, width: float, height: float) -> None:
     inner = getattr(surface, "surface", surface)  # a SwitchedOn wrapper
     field = f"the field ({width * 1e3:.3g} x {height * 1e3:.3g} mm)"
     widen = "widen it with --pixel-pitch-um or --size"
-    vectors = getattr(inner, "wavevectors", None)
-    if vectors is not None and len(vectors):
+    if getattr(inner, "wavevectors", None) is not None:
         first = FIRST_STEPS * 2 * math.pi / min(width, height)
-        top = float(max(math.hypot(float(kx), float(ky)) for kx, ky in vectors))
-        if top < first:
+        top = max(_wavenumbers(inner), default=0.0)
+        if top and top < first:
             logger.warning(
                 "the waves reach %.0f rad/m, below the first wavenumber holoview waves fits "
                 "in a %.3g x %.3g mm field, %.0f rad/m (%g steps of its wave vector): the "
@@ -208,9 +212,7 @@ def warn_field(surface: object, width: float, height: float) -> None:
             widen,
         )
         return
-    # the partial waves' wavenumbers, or the mode's
-    wavenumbers = getattr(inner, "wavenumbers", None) or [getattr(inner, "wavenumber", 0.0)]
-    longest = max((2 * math.pi / k for k in wavenumbers if k > 0), default=0.0)  # wavelength
+    longest = max((2 * math.pi / k for k in _wavenumbers(inner) if k > 0), default=0.0)
     if longest > min(width, height):
         logger.warning(
             "the waves reach a wavelength of %.3g mm, longer than %s: the maps hold less "
@@ -219,6 +221,71 @@ def warn_field(surface: object, width: float, height: float) -> None:
             field,
             widen,
         )
+
+
+def warn_overlap(
+    surface: object, carriers: Mapping[str, tuple[float, float]], pixel_pitch: float
+) -> None:
+    """Warn when the waves spread the holograms into one another.
+
+    A wave of wavenumber ``k`` puts sidebands ``k pitch / (2 pi)`` cycles/pixel from every
+    carrier whose hologram the surface modulates: two terms of the spectrum (the
+    ``carriers`` given and their twins, mirrored through zero) closer than twice that
+    share a band, which no window separates. The scenarios' default tilts suit the
+    default 20 um pitch; a field of centimetres for the waves wants carriers farther
+    apart.
+
+    Parameters
+    ----------
+    surface : object
+        The simulated surface (its waves' wave vectors or wavenumbers, rad/m).
+    carriers : mapping of str to (float, float)
+        The families' carriers where the camera sees them, cycles/pixel: the first
+        order's (RF, RB1, FB1), the holograms every experiment labels; a weaker
+        family's band may touch theirs at a few per cent of their amplitude.
+    pixel_pitch : float
+        Object-side pixel pitch, m.
+    """
+    inner = getattr(surface, "surface", surface)  # a SwitchedOn wrapper
+    spread = max(_wavenumbers(inner), default=0.0) * pixel_pitch / (2 * math.pi)
+    if spread <= 0:
+        return
+    terms: list[tuple[str, tuple[float, float]]] = []
+    for name, (fx, fy) in carriers.items():  # families on one point are one peak
+        for term in ((name, (fx, fy)), (f"{name}'s twin", (-fx, -fy))):
+            if all(math.dist(term[1], other) > SAME_POINT for _, other in terms):
+                terms.append(term)
+    pairs = [
+        (math.hypot(a[0] - b[0], a[1] - b[1]), name_a, name_b)
+        for i, (name_a, a) in enumerate(terms)
+        for name_b, b in terms[i + 1 :]
+    ]
+    if not pairs:
+        return
+    distance, first, second = min(pairs)
+    if distance < 2 * spread:
+        logger.warning(
+            "the waves spread each hologram %.3f cycles/pixel around its carrier (%.0f rad/m "
+            "at %.3g um a pixel), and %s and %s lie %.3f apart: their bands overlap and no "
+            "window separates them (spread the carriers with --m-r-mrad and --m-b-mrad, or "
+            "lower --wave-k)",
+            spread,
+            spread * 2 * math.pi / pixel_pitch,
+            pixel_pitch * 1e6,
+            first,
+            second,
+            distance,
+        )
+
+
+def _wavenumbers(inner: object) -> list[float]:
+    """The simulated waves' wavenumbers, rad/m: the travelling waves' (of their wave
+    vectors), the partial waves', or the mode's; empty for a surface without waves."""
+    vectors = getattr(inner, "wavevectors", None)
+    if vectors is not None:
+        return [math.hypot(float(kx), float(ky)) for kx, ky in vectors]
+    numbers = getattr(inner, "wavenumbers", None) or [getattr(inner, "wavenumber", 0.0)]
+    return [float(k) for k in numbers if k]
 
 
 def warn_aliasing(surface: object, fps: float) -> None:
