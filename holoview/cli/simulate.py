@@ -155,7 +155,7 @@ def add_parser(
     setup.add_argument("--n2", type=float, help="refractive index of the fluid")
     setup.add_argument("--wavelength-nm", type=float, help="laser wavelength, nm")
     setup.add_argument("--pixel-pitch-um", type=float, help="object-side pixel pitch, um")
-    tilt = "tilt, mrad (default: the setup's, scaled with --pixel-pitch-um: see below)"
+    tilt = "tilt, mrad (default: the setup's for 20 um, scaled to --pixel-pitch-um)"
     setup.add_argument(
         "--m-r-mrad", type=float, nargs=2, metavar=("MX", "MY"), help=f"reference mirror {tilt}"
     )

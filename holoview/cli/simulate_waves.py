@@ -256,7 +256,7 @@ def warn_overlap(
             if all(math.dist(term[1], other) > SAME_POINT for _, other in terms):
                 terms.append(term)
     pairs = [
-        (math.hypot(a[0] - b[0], a[1] - b[1]), name_a, name_b)
+        (math.dist(a, b), name_a, name_b)
         for i, (name_a, a) in enumerate(terms)
         for name_b, b in terms[i + 1 :]
     ]
@@ -268,7 +268,7 @@ def warn_overlap(
             "the waves spread each hologram %.3f cycles/pixel around its carrier (%.0f rad/m "
             "at %.3g um a pixel), and %s and %s lie %.3f apart: their bands overlap and no "
             "window separates them (spread the carriers with --m-r-mrad and --m-b-mrad, or "
-            "lower --wave-k)",
+            "make the waves longer)",
             spread,
             spread * 2 * math.pi / pixel_pitch,
             pixel_pitch * 1e6,
