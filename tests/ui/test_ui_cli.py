@@ -76,3 +76,32 @@ def test_holoview_file_opens_it_in_the_window(tmp_path: Path, hologram_file: Pat
     result = subprocess.run(argv, capture_output=True, text=True, timeout=120, env=env, check=False)
     assert result.returncode == 2
     assert result.stderr.strip() == f"holoview live: error: {missing}: no such file or folder"
+
+
+def test_the_hologram_view_is_built_without_importing_pyplot() -> None:
+    """The levels' gradient menu lists matplotlib's maps by category without importing
+    ``matplotlib.pyplot`` (1.4 s of each window's start); pyqtgraph's own listing is
+    restored afterwards. In a fresh process: this one may hold pyplot already."""
+    code = (
+        "import sys\n"
+        "import pyqtgraph.widgets.ColorMapMenu as menus\n"
+        "listing = menus.find_mpl_leftovers\n"
+        "from holoview.ui.app import application\n"
+        "app = application()\n"
+        "from holoview.ui.hologram_view import HologramView\n"
+        "view = HologramView()\n"
+        "titles = [action.text() for action in view.histogram.gradient.menu.actions()]\n"
+        "print('matplotlib.pyplot' in sys.modules, 'matplotlib' in titles,"
+        " menus.find_mpl_leftovers is listing)\n"
+    )
+    env = {**os.environ, "QT_QPA_PLATFORM": "offscreen"}
+    result = subprocess.run(
+        [sys.executable, "-c", code],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        env=env,
+        check=False,
+    )
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.split() == ["False", "True", "True"], result.stdout
