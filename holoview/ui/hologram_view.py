@@ -35,11 +35,11 @@ def _no_uncategorised_matplotlib_maps() -> Iterator[None]:
     of the window's 1.8 s build (cProfile, 2 cores), at every start of ``holoview live``.
     The categories' submenus stay (built when opened); only that one is left out.
     """
-    saved = getattr(_MENUS, "find_mpl_leftovers", None)
+    name = "find_mpl_leftovers"  # by name: not part of pyqtgraph's typed interface
+    saved = getattr(_MENUS, name, None)
     if saved is None:  # another pyqtgraph: nothing to leave out
         yield
         return
-    name = "find_mpl_leftovers"  # set by name: not part of pyqtgraph's typed interface
     setattr(_MENUS, name, list)
     try:
         yield
