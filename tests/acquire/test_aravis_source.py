@@ -72,17 +72,16 @@ LOOPBACK_LOCK = Path(tempfile.gettempdir()) / "holoview-fake-gige.lock"
 
 
 @pytest.fixture
-def serve(tmp_path: Path) -> Iterator[Callable[..., Served]]:
-    """Start fake GigE cameras in child processes; always stop them afterwards.
-
-    One test at a time on the machine serves them (:data:`LOOPBACK_LOCK`)."""
+def loopback() -> Iterator[None]:
+    """The machine's loopback for this test's fake cameras alone (:data:`LOOPBACK_LOCK`)."""
     with open(LOOPBACK_LOCK, "a") as lock:
         fcntl.flock(lock, fcntl.LOCK_EX)
-        yield from _served(tmp_path)
+        yield
 
 
-def _served(tmp_path: Path) -> Iterator[Callable[..., Served]]:
-    """What :func:`serve` yields, and the children stopped after the test."""
+@pytest.fixture
+def serve(tmp_path: Path, loopback: None) -> Iterator[Callable[..., Served]]:
+    """Start fake GigE cameras in child processes; always stop them afterwards."""
     children: list[subprocess.Popen] = []
 
     def start(frames: np.ndarray, lost_ratio: float = 0.0) -> Served:
