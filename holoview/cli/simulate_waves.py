@@ -28,10 +28,6 @@ if TYPE_CHECKING:
 
 logger = logging.getLogger(__name__)
 
-#: Carriers closer than this (cycles/pixel) are one point of the spectrum: families whose
-#: fields add into one peak.
-SAME_POINT = 1e-6
-
 
 def _number(name: str, value: float | None, scale: float = 1.0) -> float | None:
     if value is None:
@@ -241,7 +237,8 @@ def warn_overlap(
         The simulated surface (its waves' wave vectors or wavenumbers, rad/m).
     carriers : mapping of str to (float, float)
         The families' carriers where the camera sees them, cycles/pixel: the first
-        order's (RF, RB1, FB1), the holograms every experiment labels; a weaker
+        order's (RF, RB1, FB1), the holograms every experiment labels (three points
+        of the spectrum but in a degenerate setup, where they do overlap); a weaker
         family's band may touch theirs at a few per cent of their amplitude.
     pixel_pitch : float
         Object-side pixel pitch, m.
@@ -250,11 +247,8 @@ def warn_overlap(
     spread = max(_wavenumbers(inner), default=0.0) * pixel_pitch / (2 * math.pi)
     if spread <= 0:
         return
-    terms: list[tuple[str, tuple[float, float]]] = []
-    for name, (fx, fy) in carriers.items():  # families on one point are one peak
-        for term in ((name, (fx, fy)), (f"{name}'s twin", (-fx, -fy))):
-            if all(math.dist(term[1], other) > SAME_POINT for _, other in terms):
-                terms.append(term)
+    terms = [(name, (fx, fy)) for name, (fx, fy) in carriers.items()]
+    terms += [(f"{name}'s twin", (-fx, -fy)) for name, (fx, fy) in carriers.items()]
     pairs = [
         (math.dist(a, b), name_a, name_b)
         for i, (name_a, a) in enumerate(terms)
