@@ -436,19 +436,13 @@ class FrameCore:
         if self._demod is not None:
             self._demod.break_sequence()
 
-    def carrier_values(self, frame: np.ndarray) -> CarrierValues | None:
-        """The carrier probe's values of ``frame`` at the demodulator's peaks (None: no peak)."""
-        if self.build() is None:
-            return None
-        return self._probe.measure(frame)
-
     def process(
         self, frame: np.ndarray, values: Sequence[complex] | np.ndarray | None = None
     ) -> DemodResult | None:
         """Demodulate ``frame`` (not modified); None when there is no peak.
 
-        ``values``: the carrier probe's values of the frame at the demodulator's peaks
-        (:meth:`carrier_values`), when the caller has them already; else measured here.
+        ``values``: the carrier probe's values of the frame at the demodulator's peaks,
+        when the caller has them already (the series measured them); else measured here.
         The maps' mean phases, steps and unwrapping in time follow them.
 
         Raises

@@ -161,11 +161,6 @@ class Coregistration:
             self._key = (tuple(labels), tuple(box_shape))
             self._fixed = list(displacements) or None
 
-    @property
-    def is_fixed(self) -> bool:
-        """Whether the displacements were given, not measured here."""
-        return self._key is not None and self._estimator is None and self._fixed is not None
-
     def add_maps(
         self,
         labels: Sequence[str | None],

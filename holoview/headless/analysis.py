@@ -76,9 +76,6 @@ class PeakOutcome:
     pca_alpha, explained : float or None
         The PCA's prefactor on the stored twin and the share of the peak's variance
         along the principal component.
-    map_scale : float or None
-        Metres per radian of the demodulated phase (sign included): converts the
-        phase maps of an auto run.
     lattice : LatticePeak or None
         Its place on the carrier lattice (point ``(fb1, rf)``, residual in FFT bins,
         kind, coupling), where the identification gave one.
@@ -98,7 +95,6 @@ class PeakOutcome:
     used_in_fused: bool
     pca_alpha: float | None
     explained: float | None
-    map_scale: float | None
     lattice: LatticePeak | None = None
 
 
@@ -377,7 +373,7 @@ def analyse(data: RunData, selection: Selection, optics: Optics, naming: Naming)
         carrier = p.carrier if signs[j] > 0 else p.flipped().carrier
         pca_alpha = naming.pca_alpha[j]
         fit = summary.peak_fits[j]
-        alpha, signed_alpha = alphas[j], signed[j]
+        alpha = alphas[j]
         outcomes.append(
             PeakOutcome(
                 label=labels[j],
@@ -396,7 +392,6 @@ def analyse(data: RunData, selection: Selection, optics: Optics, naming: Naming)
                 used_in_fused=summary.used[j],
                 pca_alpha=None if pca_alpha is None else float(pca_alpha * signs[j]),
                 explained=naming.explained[j],
-                map_scale=None if signed_alpha is None else wavelength / (4 * np.pi * signed_alpha),
                 lattice=_lattice_of(selection, naming, j),
             )
         )

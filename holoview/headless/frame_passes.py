@@ -502,7 +502,6 @@ def _record_maps(
     maps[1].record(position, index, made)
     data.demod_seconds += t1 - t0
     data.maps_seconds += t1 - t0
-    data.write_seconds += time.perf_counter() - t1
 
 
 def maps_pass(

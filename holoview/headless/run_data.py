@@ -108,9 +108,9 @@ class RunData:
         results hold the series of the frames done and no maps.
     notes : list of str
         What the passes noted for the summary.
-    read_seconds, demod_seconds, write_seconds, wall_seconds : float
-        Time reading the input (on the reader threads), demodulating, writing maps,
-        and in all, s (reading and demodulating summed over the processes).
+    read_seconds, demod_seconds, wall_seconds : float
+        Time reading the input (on the reader threads), demodulating, and in all, s
+        (reading and demodulating summed over the processes).
     workers : str
         Where the frames were measured (``"1 process"``, ``"4 processes"``,
         ``"Dask at ..."``).
@@ -140,7 +140,6 @@ class RunData:
     notes: list[str] = field(default_factory=list)
     read_seconds: float = 0.0
     demod_seconds: float = 0.0
-    write_seconds: float = 0.0
     wall_seconds: float = 0.0
     no_signal: int = 0
     demodulated: int = 0

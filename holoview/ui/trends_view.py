@@ -137,7 +137,6 @@ class TrendsView(QWidget):
         layout.addWidget(self.empty_hint)
         layout.addWidget(self.plot, 1)
         layout.addWidget(self.pca_label)
-        self._run_mode = False
 
     # ---- the series --------------------------------------------------------
     def set_series(
@@ -224,14 +223,8 @@ class TrendsView(QWidget):
         )
 
     # ---- a replayed run ----------------------------------------------------
-    @property
-    def run_mode(self) -> bool:
-        """True while the view shows a replayed file's whole run."""
-        return self._run_mode
-
     def set_run_mode(self, on: bool) -> None:
         """Show a whole run (cursor, range fits) or the live series (restart button)."""
-        self._run_mode = on
         self.reset_button.setVisible(not on)
         self.range_button.setVisible(on)
         if not on:

@@ -13,7 +13,7 @@ from holoview.errors import InputError
 from holoview.optics.scenarios import ScenarioConfig
 from holoview.optics.setup import Setup
 from holoview.processing.series.depth_series import track_depth
-from holoview.processing.series.joint_estimation import JointEstimator
+from holoview.processing.series.joint_estimation import JointEstimator, _first_of_each
 from holoview.processing.series.joint_series import estimate_joint
 from holoview.processing.series.phase_series import unwrap_in_time
 
@@ -182,3 +182,17 @@ def test_bad_input_is_a_clear_error():
         estimate_joint(np.ones((3, 2)), [0, 0, 1], [0.3, 1.0], [-1, 1], WAVELENGTH)
     nothing = estimator.update([np.nan, np.nan])
     assert math.isnan(nothing.height)
+
+
+def test_the_search_keeps_numpys_order_of_candidate_integers():
+    """The integer rows' first occurrences, in lexicographic order, as numpy's own unique gives
+    them (the best solution, and so the margins, are picked from that order on ties)."""
+    rng = np.random.default_rng(1)
+    cases = [
+        rng.integers(-3, 4, size=(rng.integers(1, 60), rng.integers(1, 9))) for _ in range(300)
+    ]
+    cases.append(np.array([[0, 0, 0], [2**40, 2**40, 2**40], [0, 0, 0]]))  # keys past int64
+    for turns in cases:
+        rows = turns.astype(np.float64)
+        expected = np.unique(rows, axis=0, return_index=True)[1]
+        np.testing.assert_array_equal(_first_of_each(rows), expected)

@@ -128,10 +128,6 @@ class MeanPhases:
         self._reference = list(state.reference)
         self._unwrapped = list(state.unwrapped)
 
-    def has_reference(self, i: int) -> bool:
-        """Whether peak ``i`` has a reference (synthetic mode needs none)."""
-        return self.mode == "synthetic" or self._reference[i] is not None
-
     def advance(self, i: int, value: complex) -> PhaseStep:
         """Take peak ``i``'s value of the next frame (counts); return what it gives."""
         previous = self._previous[i]
