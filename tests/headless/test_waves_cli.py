@@ -372,9 +372,15 @@ def test_two_threads_give_the_numbers_of_one(tmp_path: Path) -> None:
         ("short", "fewer than a segment"),
         ("all nan", "all NaN"),
         ("centre outside", "outside the maps"),
-        ("no label", "has no maps of 'RB7'"),
+        ("no label", "has no maps of 'RB7'; it has fused\n"),
         ("hold depth", "--hold depth needs --depth-mm"),
         ("no file", "no such file"),
+        # 100 maps/s: above 50 Hz a frequency is another's alias
+        ("drive past nyquist", "the drive at 500 Hz is above the maps' Nyquist frequency 50 Hz"),
+        ("harmonic past nyquist", "harmonic 3 of the 20 Hz drive at 60 Hz is above"),
+        ("mode past nyquist", "the mode m=0 at 70 Hz is above"),
+        ("band past nyquist", "the band filter's lowest frequency at 70 Hz is above"),
+        ("ringdown past nyquist", "the top of the ringdown's band 40:80 Hz at 80 Hz is above"),
     ],
 )
 def test_bad_input_is_one_line_exit_2_and_writes_nothing(
@@ -397,6 +403,11 @@ def test_bad_input_is_one_line_exit_2_and_writes_nothing(
         "centre outside": ["--centre", "100,5"],
         "no label": ["--label", "RB7"],
         "hold depth": ["--hold", "depth"],
+        "drive past nyquist": ["--drive-hz", "500"],
+        "harmonic past nyquist": ["--drive-hz", "20"],
+        "mode past nyquist": ["--centre", "12,12", "--modes", "0:70"],
+        "band past nyquist": ["--band-f", "70:80"],
+        "ringdown past nyquist": ["--centre", "12,12", "--ringdown", "0,40:80"],
     }.get(case, [])
     if case == "no file":
         argv[1] = str(tmp_path / "missing.h5")

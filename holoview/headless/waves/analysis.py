@@ -43,6 +43,7 @@ from holoview.processing.waves.azimuthal import (
     find_centre,
     polar_grid,
 )
+from holoview.processing.waves.clock import FrameClock
 from holoview.processing.waves.dispersion import DispersionFit, Fluid, fit_dispersion
 from holoview.processing.waves.filters import Band
 from holoview.processing.waves.lockin import LockIn, LockInMaps, push_lockins
@@ -431,11 +432,11 @@ def _pass_azimuthal(maps: WaveMaps, options: WaveOptions, results: WaveResults) 
             )
             continue
         block = profiles[nearest * COMB_POINTS : (nearest + 1) * COMB_POINTS, :, m + grid.m_max]
-        frequency, frequency_err, profile = refine_tone(
-            combs[nearest], block, maps.clock.times, weights
-        )
-        results.tones.append((m, frequency, profile))
         try:
+            frequency, frequency_err, profile = refine_tone(
+                combs[nearest], block, maps.clock.times, weights
+            )
+            results.tones.append((m, frequency, profile))
             results.partial_waves.append(
                 fit_partial_wave(
                     grid.radii,
@@ -460,6 +461,26 @@ def _pass_azimuthal(maps: WaveMaps, options: WaveOptions, results: WaveResults) 
     results.timing["azimuthal_s"] = time.perf_counter() - started
 
 
+def _check_frequencies(clock: FrameClock, options: WaveOptions) -> None:
+    """Refuse, before any pass, a frequency asked for that the maps' rate cannot resolve."""
+    if options.drive is not None:
+        for h in range(1, options.harmonics + 1):
+            what = "the drive" if h == 1 else f"harmonic {h} of the {options.drive:.4g} Hz drive"
+            fewer = f" (give --harmonics {h - 1})" if h > 1 else ""
+            try:
+                clock.check_resolved(h * options.drive, what)
+            except InputError as exc:
+                raise InputError(f"{exc}{fewer}") from None
+    for m, f in options.modes:
+        clock.check_resolved(f, f"the mode m={m}")
+    if options.ringdown is not None:
+        _, f1, f2 = options.ringdown
+        clock.check_resolved(f2, f"the top of the ringdown's band {f1:g}:{f2:g} Hz")
+    band = options.band
+    if band is not None and band.f_min is not None:
+        clock.check_resolved(band.f_min, "the band filter's lowest frequency")
+
+
 def analyse_waves(maps: WaveMaps, options: WaveOptions) -> WaveResults:
     """Run the wave analyses on one label's maps (module docstring).
 
@@ -473,6 +494,7 @@ def analyse_waves(maps: WaveMaps, options: WaveOptions) -> WaveResults:
     _check_frames(maps, options.segment)
     if options.ringdown is not None and options.centre is None:
         raise InputError("a ringdown fit needs a centre: give --centre X,Y or --centre auto")
+    _check_frequencies(maps.clock, options)
     if isinstance(options.centre, tuple):  # a centre off the maps is refused before any pass
         polar_grid(
             maps.shape,

@@ -232,7 +232,10 @@ def _open(
 ) -> WaveMaps:
     if "maps" not in file or not isinstance(file["maps"], h5py.Group):
         raise InputError(f"{path} holds no maps (write them with holoview process --maps)")
-    labels = sorted(k for k, v in file["maps"].items() if isinstance(v, h5py.Dataset))
+    # the (frames, rows, cols) stacks; the coordinates (time, frame, y, x) are 1-D
+    labels = sorted(
+        k for k, v in file["maps"].items() if isinstance(v, h5py.Dataset) and v.ndim == 3
+    )
     if label not in labels:
         raise InputError(f"{path} has no maps of {label!r}; it has {', '.join(labels) or 'none'}")
     dataset = file["maps"][label]

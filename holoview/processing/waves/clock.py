@@ -75,6 +75,39 @@ class FrameClock:
         """Time from the first frame to the last, s."""
         return float(self.times[-1] - self.times[0])
 
+    @property
+    def nyquist(self) -> float:
+        """Highest frequency the maps resolve, Hz (half the nominal rate)."""
+        return 0.5 / self.interval
+
+    def check_resolved(self, frequency: float, what: str) -> None:
+        """Refuse a ``frequency`` (Hz) the maps cannot resolve: above :attr:`nyquist`.
+
+        A wave above it is sampled as one at its alias, which the message names.
+
+        Raises
+        ------
+        InputError
+            ``what`` at ``frequency`` lies above the Nyquist frequency.
+
+        Examples
+        --------
+        >>> frame_clock([0.0, 0.01, 0.02]).check_resolved(60.0, "the drive")
+        Traceback (most recent call last):
+        ...
+        holoview.errors.InputError: the drive at 60 Hz is above the maps' Nyquist frequency \
+50 Hz (half of 100 maps/s): a wave there is sampled as one at 40 Hz
+        """
+        if frequency > self.nyquist * (1 + 1e-9):
+            rate = self.rate
+            alias = abs(frequency - rate * round(frequency / rate))
+            seen = f"one at {alias:.4g} Hz" if alias > 1e-9 * rate else "a steady level (0 Hz)"
+            raise InputError(
+                f"{what} at {frequency:.4g} Hz is above the maps' Nyquist frequency "
+                f"{self.nyquist:.4g} Hz (half of {rate:.4g} maps/s): a wave there is sampled "
+                f"as {seen}"
+            )
+
 
 def frame_clock(times: ArrayLike) -> FrameClock:
     """Return the clock of maps taken at ``times`` (s).

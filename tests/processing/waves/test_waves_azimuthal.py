@@ -159,3 +159,14 @@ def test_rings_outside_the_maps_and_centres_outside_are_refused():
     assert g.radii[-1] <= 10e-3 - PIXEL + 1e-12
     with pytest.raises(InputError, match="beyond"):
         AzimuthalAccumulator(g, 0.01, series=(3,))
+
+
+def test_a_tone_at_the_nyquist_frequency_is_refused_not_divided_by_zero():
+    """A comb clipped at the Nyquist frequency holds fewer than three frequencies: one line."""
+    times = np.arange(64) / 100.0
+    comb = np.array([49.8, 49.9, 50.0, 50.0, 50.0])
+    lock_ins = np.ones((comb.size, 3), dtype=np.complex128)
+    with pytest.raises(InputError, match="three frequencies or more"):
+        refine_tone(comb[1:], lock_ins[1:], times, np.ones(times.size))
+    frequency, _, _ = refine_tone(comb, lock_ins, times, np.ones(times.size))
+    assert 49.8 <= frequency <= 50.0
