@@ -186,7 +186,7 @@ def wave_options(args: argparse.Namespace) -> Any:
     """Return the :class:`~holoview.headless.waves.analysis.WaveOptions` the arguments give."""
     from holoview.headless.waves.analysis import WaveOptions
     from holoview.optics.surfaces import FLUID_MECHANICS
-    from holoview.processing.waves.dispersion import Fluid
+    from holoview.processing.waves.dispersion import Fluid, check_fit_settings
 
     name = getattr(args, "fluid", None) or "water"
     if name not in FLUID_MECHANICS:
@@ -231,9 +231,12 @@ def wave_options(args: argparse.Namespace) -> Any:
             raise InputError(f"{option} must be at least 1, got {value}")
     if args.drive_hz is not None and not (math.isfinite(args.drive_hz) and args.drive_hz > 0):
         raise InputError(f"--drive-hz must be positive, got {args.drive_hz}")
+    depth = (args.depth_mm if args.depth_mm is not None else 5.0) * MM
+    if not args.no_fit:  # before process makes its maps, not after
+        check_fit_settings(hold, depth, fluid)
     return WaveOptions(
         fluid=fluid,
-        depth=(args.depth_mm if args.depth_mm is not None else 5.0) * MM,
+        depth=depth,
         flow=(0.0, 0.0) if args.flow_mm_per_s is None else flow,
         hold=hold,
         fit=not args.no_fit,

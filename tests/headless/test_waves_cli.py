@@ -160,6 +160,11 @@ def test_process_maps_waves_in_one_run(
         assert f["filtered"].attrs["f_min"] == 10.0
     status, _, err = run_cli(["process", str(recording), "--out", str(out), "--waves"], capsys)
     assert status == 2 and "--maps" in err
+    # a fit setting no fit takes is refused before the run, not after its maps
+    again = tmp_path / "again"
+    argv = ["process", str(recording), "--out", str(again), "--maps", "--waves", "--hold", "foo"]
+    status, _, err = run_cli(argv, capsys)
+    assert status == 2 and "cannot hold foo" in err and not again.exists()
 
 
 def results_file(
@@ -381,6 +386,10 @@ def test_two_threads_give_the_numbers_of_one(tmp_path: Path) -> None:
         ("mode past nyquist", "the mode m=0 at 70 Hz is above"),
         ("band past nyquist", "the band filter's lowest frequency at 70 Hz is above"),
         ("ringdown past nyquist", "the top of the ringdown's band 40:80 Hz at 80 Hz is above"),
+        # a 24 mm field at 1 mm a pixel: the grid's Nyquist wavenumber is pi/1 mm
+        ("band past cut-off", "wavenumbers from 5000 rad/m lie past the maps' cut-off 3142"),
+        # refused before the spectra are made: the line says nothing of them
+        ("hold typo", "cannot hold foo: the parameters are sigma, depth, flow\n"),
     ],
 )
 def test_bad_input_is_one_line_exit_2_and_writes_nothing(
@@ -408,6 +417,8 @@ def test_bad_input_is_one_line_exit_2_and_writes_nothing(
         "mode past nyquist": ["--centre", "12,12", "--modes", "0:70"],
         "band past nyquist": ["--band-f", "70:80"],
         "ringdown past nyquist": ["--centre", "12,12", "--ringdown", "0,40:80"],
+        "band past cut-off": ["--band-k", "5000:9000"],
+        "hold typo": ["--hold", "sigma,foo"],
     }.get(case, [])
     if case == "no file":
         argv[1] = str(tmp_path / "missing.h5")

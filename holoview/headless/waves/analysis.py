@@ -43,8 +43,12 @@ from holoview.processing.waves.azimuthal import (
     find_centre,
     polar_grid,
 )
-from holoview.processing.waves.clock import FrameClock
-from holoview.processing.waves.dispersion import DispersionFit, Fluid, fit_dispersion
+from holoview.processing.waves.dispersion import (
+    DispersionFit,
+    Fluid,
+    check_fit_settings,
+    fit_dispersion,
+)
 from holoview.processing.waves.filters import Band
 from holoview.processing.waves.lockin import LockIn, LockInMaps, push_lockins
 from holoview.processing.waves.omega_k import OmegaKAccumulator, OmegaKSpectrum
@@ -461,8 +465,19 @@ def _pass_azimuthal(maps: WaveMaps, options: WaveOptions, results: WaveResults) 
     results.timing["azimuthal_s"] = time.perf_counter() - started
 
 
-def _check_frequencies(clock: FrameClock, options: WaveOptions) -> None:
-    """Refuse, before any pass, a frequency asked for that the maps' rate cannot resolve."""
+def _check_asked(maps: WaveMaps, options: WaveOptions) -> None:
+    """Refuse, before any pass, what the maps cannot give or a fit cannot start from: a
+    frequency above the maps' Nyquist frequency, a band of wavenumbers past their cut-off,
+    fit settings that are not a fit's (an option's typo need not wait for the spectra)."""
+    if options.fit:
+        check_fit_settings(options.hold, options.depth, options.fluid)
+    band = options.band
+    if band is not None and band.k_min is not None and band.k_min >= maps.k_cut:
+        raise InputError(
+            f"the band filter's wavenumbers from {band.k_min:.0f} rad/m lie past the maps' "
+            f"cut-off {maps.k_cut:.0f} rad/m ({maps.k_cut_source}): it would keep nothing"
+        )
+    clock = maps.clock
     if options.drive is not None:
         for h in range(1, options.harmonics + 1):
             what = "the drive" if h == 1 else f"harmonic {h} of the {options.drive:.4g} Hz drive"
@@ -476,7 +491,6 @@ def _check_frequencies(clock: FrameClock, options: WaveOptions) -> None:
     if options.ringdown is not None:
         _, f1, f2 = options.ringdown
         clock.check_resolved(f2, f"the top of the ringdown's band {f1:g}:{f2:g} Hz")
-    band = options.band
     if band is not None and band.f_min is not None:
         clock.check_resolved(band.f_min, "the band filter's lowest frequency")
 
@@ -494,7 +508,7 @@ def analyse_waves(maps: WaveMaps, options: WaveOptions) -> WaveResults:
     _check_frames(maps, options.segment)
     if options.ringdown is not None and options.centre is None:
         raise InputError("a ringdown fit needs a centre: give --centre X,Y or --centre auto")
-    _check_frequencies(maps.clock, options)
+    _check_asked(maps, options)
     if isinstance(options.centre, tuple):  # a centre off the maps is refused before any pass
         polar_grid(
             maps.shape,

@@ -49,6 +49,7 @@ __all__ = [
     "DispersionFit",
     "Fluid",
     "Ridge",
+    "check_fit_settings",
     "find_ridge",
     "fit_dispersion",
     "wave_omega",
@@ -354,6 +355,23 @@ def _parse_hold(hold: Iterable[str]) -> tuple[str, ...]:
     return names
 
 
+def check_fit_settings(hold: Iterable[str], depth: float, fluid: Fluid) -> tuple[str, ...]:
+    """Check a dispersion fit's settings before any spectrum is made; return the held names.
+
+    Raises
+    ------
+    InputError
+        An unknown or every parameter held, a depth that is not positive, or no starting
+        surface tension where it is fitted.
+    """
+    held = _parse_hold(hold)
+    if not (math.isfinite(depth) and depth > 0):
+        raise InputError(f"the depth must be positive, got {depth!r} m")
+    if fluid.surface_tension <= 0 and "sigma" not in held:
+        raise InputError("the surface tension's starting value must be positive")
+    return held
+
+
 def _fit_once(
     ridge: Ridge,
     start: dict[str, float],
@@ -493,11 +511,7 @@ def fit_dispersion(
         cannot be determined (infinite error), or a fit that does not converge.
     """
     fluid = fluid or Fluid()
-    held = _parse_hold(hold)
-    if not (math.isfinite(depth) and depth > 0):
-        raise InputError(f"the depth must be positive, got {depth!r} m")
-    if fluid.surface_tension <= 0 and "sigma" not in held:
-        raise InputError("the surface tension's starting value must be positive")
+    held = check_fit_settings(hold, depth, fluid)
     low = FIRST_STEPS * max(spectrum.dk) if k_min is None else float(k_min)
     high = spectrum.k_cut if k_max is None else min(float(k_max), spectrum.k_cut)
     if not 0 <= low < high:
