@@ -523,3 +523,23 @@ def test_a_fused_map_cut_short_by_one_window_names_the_map_that_reaches_further(
     assert status == 0, err
     # a held depth is said to be held, not written "1 ± 0"; the others with their errors
     assert "depth 1 mm (held)" in out and "mN/m" in out and " ± " in out, out
+
+
+@pytest.mark.parametrize("command", ["waves", "export"])
+def test_a_truncated_results_file_is_said_to_be_truncated(
+    tmp_path: Path, capsys: pytest.CaptureFixture, command: str
+) -> None:
+    """An interrupted copy of results.h5: named as such, as process and peaks name a
+    recording's (it was HDF5's own 'truncated file: eof = ...' line)."""
+    rng = np.random.default_rng(1)
+    maps = rng.normal(0, 1e-9, (96, 24, 24))
+    whole = results_file(tmp_path / "results.h5", maps, np.arange(96) / 100.0, 1e-3)
+    cut = tmp_path / "cut.h5"
+    cut.write_bytes(whole.read_bytes()[: whole.stat().st_size // 3])
+    out = tmp_path / "out"
+    extra = ["--to", "netcdf"] if command == "export" else []
+    status, _, err = run_cli([command, str(cut), "--out", str(out), *extra], capsys)
+    assert status == 2
+    assert f"{cut}: truncated: the file has" in err
+    assert err.count("\n") == 1 and "Traceback" not in err
+    assert not out.exists()

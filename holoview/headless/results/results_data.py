@@ -24,6 +24,7 @@ import h5py
 import numpy as np
 import xarray as xr
 
+from holoview.acquire.durability import open_hdf5_for_reading
 from holoview.errors import InputError
 from holoview.headless.results.results_layout import (
     LABEL_NAME,
@@ -73,12 +74,9 @@ def results_version(path: str | Path) -> str:
         The file is not HDF5, not a holoview results file, or of a version not read.
     """
     p = results_path(path)
-    try:
-        with h5py.File(p, "r") as f:
-            kind = _text(f.attrs.get("format", ""))
-            version = _text(f.attrs.get("format_version", ""))
-    except OSError as exc:
-        raise InputError(f"{p}: not an HDF5 file ({exc})") from exc
+    with open_hdf5_for_reading(p) as f:  # a truncated copy said as such
+        kind = _text(f.attrs.get("format", ""))
+        version = _text(f.attrs.get("format_version", ""))
     if kind != RESULTS_FORMAT:
         raise InputError(f"{p}: not a holoview results file (format {kind or 'unknown'!r})")
     try:

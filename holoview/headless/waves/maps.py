@@ -34,6 +34,7 @@ from typing import Any, Self
 import h5py
 import numpy as np
 
+from holoview.acquire.durability import open_hdf5_for_reading
 from holoview.errors import InputError
 from holoview.processing.waves.clock import FrameClock, frame_clock
 
@@ -210,10 +211,7 @@ def open_wave_maps(
     file_path = results_path(path)
     if not file_path.is_file():
         raise InputError(f"{file_path}: no such file")
-    try:
-        file = h5py.File(file_path, "r")
-    except OSError as exc:
-        raise InputError(f"{file_path}: not an HDF5 results file ({exc})") from exc
+    file = open_hdf5_for_reading(file_path)  # a truncated copy said as such
     try:
         return _open(file, file_path, label, time_range, pixel_size=pixel_size, fps=fps)
     except BaseException:
