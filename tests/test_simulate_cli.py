@@ -68,6 +68,14 @@ def test_uniform_scenarios_have_no_height_maps(tmp_path: Path) -> None:
         (["--frames", "0"], "--frames"),
         (["--ghost", "sample", "1", "0", "0.1"], "ghost"),
         (["--png-frame", "60"], "--png-frame"),
+        (
+            ["--scenario", "partial-waves", "--partial-wave", "0", "14", "abc", "12"],
+            "--partial-wave 0 14 abc 12: 'abc' is not IN_NM, an amplitude in nm such as 8",
+        ),
+        (
+            ["--scenario", "partial-waves", "--partial-wave", "x", "14", "8", "12"],
+            "'x' is not M, a whole number",
+        ),
     ],
 )
 def test_bad_input_is_one_line_exit_2(

@@ -16,7 +16,7 @@ import argparse
 import logging
 import math
 from collections.abc import Mapping
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from holoview.errors import InputError
 
@@ -27,6 +27,14 @@ if TYPE_CHECKING:
     from holoview.optics.wave_fields import WaveConfig
 
 logger = logging.getLogger(__name__)
+
+
+def _parsed(text: str, kind: type, given: str, what: str) -> Any:
+    """``kind(text)``, or one line naming the option and what the value should be."""
+    try:
+        return kind(text)
+    except ValueError:
+        raise InputError(f"{given}: {text!r} is not {what}") from None
 
 
 def _number(name: str, value: float | None, scale: float = 1.0) -> float | None:
@@ -104,12 +112,18 @@ def build_waves(args: argparse.Namespace) -> WaveConfig:
             changes[name] = value
     partial = []
     for m, f, incoming, outgoing in args.partial_wave:
+        given = f"--partial-wave {m} {f} {incoming} {outgoing}"
+        amplitude = "an amplitude in nm such as 8 or 8+6j"
+        wave = (
+            int(_parsed(m, int, given, "M, a whole number")),
+            float(_parsed(f, float, given, "F_HZ, a frequency in Hz")),
+            complex(_parsed(incoming, complex, given, f"IN_NM, {amplitude}")) * 1e-9,
+            complex(_parsed(outgoing, complex, given, f"OUT_NM, {amplitude}")) * 1e-9,
+        )
         try:
-            partial.append(
-                PartialWave(int(m), float(f), complex(incoming) * 1e-9, complex(outgoing) * 1e-9)
-            )
+            partial.append(PartialWave(*wave))
         except ValueError as exc:
-            raise InputError(f"--partial-wave {m} {f} {incoming} {outgoing}: {exc}") from exc
+            raise InputError(f"{given}: {exc}") from exc
     if partial:
         changes["partial_waves"] = tuple(partial)
     if args.mode is not None:
