@@ -37,7 +37,8 @@ def _parsed(text: str, kind: type, given: str, what: str) -> Any:
         raise InputError(f"{given}: {text!r} is not {what}") from None
 
 
-def _number(name: str, value: float | None, scale: float = 1.0) -> float | None:
+def finite_number(name: str, value: float | None, scale: float = 1.0) -> float | None:
+    """``value * scale``, None for None; an infinite or NaN ``--name`` is one line."""
     if value is None:
         return None
     if not math.isfinite(value):
@@ -97,17 +98,17 @@ def build_waves(args: argparse.Namespace) -> WaveConfig:
 
     changes: dict[str, object] = {}
     if args.flow_mm_per_s is not None:
-        changes["flow"] = tuple(_number("flow-mm-per-s", v, 1e-3) for v in args.flow_mm_per_s)
+        changes["flow"] = tuple(finite_number("flow-mm-per-s", v, 1e-3) for v in args.flow_mm_per_s)
     if args.wave_k is not None:
-        changes["k_range"] = tuple(_number("wave-k", v) for v in args.wave_k)
+        changes["k_range"] = tuple(finite_number("wave-k", v) for v in args.wave_k)
     if args.wave_components is not None:
         changes["components"] = args.wave_components
     if args.centre_mm is not None:
-        changes["centre"] = tuple(_number("centre-mm", v, 1e-3) for v in args.centre_mm)
+        changes["centre"] = tuple(finite_number("centre-mm", v, 1e-3) for v in args.centre_mm)
     if args.core_mm is not None:
-        changes["core_radius"] = _number("core-mm", args.core_mm, 1e-3)
+        changes["core_radius"] = finite_number("core-mm", args.core_mm, 1e-3)
     for option, name in (("wave_start_s", "start"), ("wave_rise_s", "rise")):
-        value = _number(option.replace("_", "-"), getattr(args, option))
+        value = finite_number(option.replace("_", "-"), getattr(args, option))
         if value is not None:
             changes[name] = value
     partial = []
