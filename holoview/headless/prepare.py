@@ -325,7 +325,8 @@ def choose_peaks(
     """The peaks of a run: the experiment's (``mode`` names where it came from) or auto."""
     if mode == "auto":
         optics.require("n2")
-        return select_auto(choice.auto or DEFAULT_AUTO, detected, shape, choice.anchor)
+        count = DEFAULT_AUTO if choice.auto is None else choice.auto  # --auto 0 is refused
+        return select_auto(count, detected, shape, choice.anchor)
     return select_from_experiment(experiment, detected, shape, mode)
 
 

@@ -342,6 +342,7 @@ def write_garbage(path: Path) -> Path:
         (lambda e, t: [str(e.path), "--experiment", str(t / "none.json")], "cannot be read"),
         (lambda e, t: [str(e.path), "--label", "RB1=0.9,0.1"], "outside the spectrum"),
         (lambda e, t: [str(e.path), "--auto", "4", "--anchor", "RB1=0.01,0.4"], "no detected"),
+        (lambda e, t: [str(e.path), "--auto", "0"], "needs at least 2 peaks for the PCA, got 0"),
     ],
 )
 def test_bad_input_is_one_line_exit_2(
