@@ -114,6 +114,22 @@ class HDF5File(FrameFile):
         self._reader.close()
 
 
+def check_not_results_folder(folder: Path) -> None:
+    """Refuse a run's output folder given as frames (it holds ``results.h5``).
+
+    Raises
+    ------
+    InputError
+        ``folder`` holds a ``results.h5``: the message says where its results open.
+    """
+    if (folder / "results.h5").is_file():
+        raise InputError(
+            f"{folder} is the output folder of a holoview run (results.h5), not frames: "
+            "open the recording it was made from, or its results with holoview waves, "
+            "holoview export or holoview.api.open_results"
+        )
+
+
 def open_frame_file(path: str | Path) -> FrameFile:
     """Open the frame file or folder at ``path`` with the reader its kind needs.
 
@@ -131,6 +147,7 @@ def open_frame_file(path: str | Path) -> FrameFile:
     if not p.exists():
         raise CameraNotFoundError(f"replay: {p}: no such file or folder")
     if p.is_dir():
+        check_not_results_folder(p)  # its report.png would be taken for a frame
         return ImageFolder(p)
     suffix = p.suffix.lower()
     if suffix in HDF5_SUFFIXES:

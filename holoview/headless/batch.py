@@ -50,6 +50,7 @@ from holoview.acquire.frame_file import (
     VIDEO_SUFFIXES,
     natural_key,
 )
+from holoview.acquire.replay_files import check_not_results_folder
 from holoview.atomic import atomic_path
 from holoview.errors import HoloviewError, InputError, OutputError, os_error_text
 from holoview.file_kinds import special_file
@@ -119,6 +120,8 @@ def find_recordings(spec: str | Path) -> list[Path] | None:
             and p.suffix.lower() in RECORDING_SUFFIXES
             and _is_entry(p)
         ]
+        if [p.name for p in found] == ["results.h5"]:  # a run's outputs, no recording
+            check_not_results_folder(path)
         return sorted(found, key=_natural) or None
     return None
 

@@ -162,6 +162,26 @@ def test_macos_companion_files_do_not_spoil_a_folder(
     assert run_main(process_args(folder, tmp_path), capsys).status == 0
 
 
+def test_a_runs_output_folder_is_not_taken_for_frames(
+    frames: np.ndarray, tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    """A run's output folder given as the input: its report.png was read as a frame (peaks
+    and the window said 'frame is damaged'), process took its results.h5 for a recording.
+    Beside recordings, a results.h5 does not stop a batch."""
+    out = tmp_path / "run"
+    out.mkdir()
+    cv2.imwrite(str(out / "report.png"), frames[0])
+    with h5py.File(out / "results.h5", "w") as f:
+        f.attrs["format"] = "holoview-results"
+    for args in (["peaks", str(out)], process_args(out, tmp_path)):
+        done = run_main(args, capsys)
+        one_line_error(done, 2, f"{out} is the output folder of a holoview run (results.h5)")
+    assert not (tmp_path / "out").exists()
+    write_recording(out / "take1.h5", frames[:6])
+    assert run_main(process_args(out, tmp_path), capsys).status == 2  # results.h5: a failed row
+    assert (tmp_path / "out" / "take1" / "summary.json").is_file()
+
+
 @pytest.mark.parametrize(("fourcc", "suffix"), [("MJPG", ".avi"), ("mp4v", ".mp4")])
 def test_lossy_videos_are_read_quietly(
     frames: np.ndarray, tmp_path: Path, fourcc: str, suffix: str
