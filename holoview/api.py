@@ -79,11 +79,12 @@ class _OptionParser(argparse.ArgumentParser):
         raise InputError(f"{self.prog}: {message}")
 
 
-def _argv(options: dict[str, Any]) -> list[str]:
+def _argv(options: dict[str, Any], joined: frozenset[str] = frozenset()) -> list[str]:
     """Keyword options as command-line arguments: ``wave_rms_nm=40`` -> ``--wave-rms-nm 40``.
 
-    True is a flag, None and False leave the option out, a tuple gives several values,
-    a list of tuples repeats the option.
+    True is a flag, None and False leave the option out, a tuple gives several values
+    (one ``X,Y`` value for the options in ``joined``, which take one: ``centre=(3, 2)``
+    -> ``--centre 3,2``), a list of tuples repeats the option.
     """
     argv: list[str] = []
     for name, value in options.items():
@@ -95,6 +96,8 @@ def _argv(options: dict[str, Any]) -> list[str]:
         elif isinstance(value, list):
             for item in value:
                 argv += [option, *(str(v) for v in np.atleast_1d(item))]
+        elif isinstance(value, tuple) and option in joined:
+            argv += [option, ",".join(str(v) for v in value)]
         elif isinstance(value, tuple):
             argv += [option, *(str(v) for v in value)]
         else:
@@ -110,7 +113,14 @@ def _parse_command(
     subparsers = parser.add_subparsers(dest="command")
     module = importlib.import_module(f"holoview.cli.{command}")
     module.add_parser(subparsers)
-    args = parser.parse_args([command, *positional, *_argv(options)])
+    # options of one value (--centre X,Y): a tuple given for one is joined with commas
+    single = frozenset(
+        text
+        for action in subparsers.choices[command]._actions
+        if action.nargs is None
+        for text in action.option_strings
+    )
+    args = parser.parse_args([command, *positional, *_argv(options, single)])
     args.quiet, args.verbose = True, 0
     return module, args
 

@@ -543,3 +543,21 @@ def test_a_truncated_results_file_is_said_to_be_truncated(
     assert f"{cut}: truncated: the file has" in err
     assert err.count("\n") == 1 and "Traceback" not in err
     assert not out.exists()
+
+
+def test_the_api_takes_a_pair_as_a_pair(tmp_path: Path) -> None:
+    """``holoview.api.waves(..., centre=(x, y))`` as ``--centre x,y`` (it was split into two
+    arguments: 'unrecognized arguments'); options of two values still take a tuple."""
+    import holoview.api as hv
+    from holoview.errors import InputError
+
+    rng = np.random.default_rng(2)
+    maps = rng.normal(0, 1e-9, (96, 24, 24))
+    path = results_file(tmp_path / "results.h5", maps, np.arange(96) / 100.0, 1e-3)
+    outcome = hv.waves(path, tmp_path / "w", centre=(12, 11), no_fit=True, segment=64)
+    assert outcome.summary["centre_m"] == pytest.approx([0.012, 0.011])
+    with pytest.raises(InputError, match=r"the centre \(99, 11\) mm is outside the maps"):
+        hv.waves(path, tmp_path / "w2", centre=(99, 11), no_fit=True, segment=64)
+    made = hv.simulate(tmp_path / "s.h5", "evaporation", size=32, frames=2, m_r_mrad=(0.5, 0.3))
+    with h5py.File(made, "r") as f:
+        assert f["setup"].attrs["m_r_rad"] == pytest.approx([0.5e-3, 0.3e-3])
