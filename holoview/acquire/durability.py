@@ -219,15 +219,19 @@ class DiskReserve:
         except OSError as exc:
             raise OutputError(f"cannot write {what}: {os_error_text(exc)}") from exc
         try:
-            _allocate(fd, size)
+            try:
+                _allocate(fd, size)
+            finally:
+                os.close(fd)
         except OSError as exc:
-            os.close(fd)
             self.path.unlink(missing_ok=True)
             raise OutputError(
                 f"cannot write {what}: the disk has less than {size / 1e6:.0f} MB free "
                 f"({os_error_text(exc)})"
             ) from exc
-        os.close(fd)
+        except BaseException:  # a stop signal while it was allocated: nobody holds it
+            self.path.unlink(missing_ok=True)
+            raise
         self.held = True
 
     def release(self) -> None:

@@ -64,7 +64,13 @@ def test_bad_frames_give_one_line_errors(frame: np.ndarray, message: str) -> Non
 
 
 def test_wisdom_is_saved_and_reused(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    import pyfftw
+
     monkeypatch.setenv("HOLOVIEW_CACHE_DIR", str(tmp_path))
+    # the process's wisdom starts empty: what an earlier test on the same worker planned
+    # or loaded stays in FFTW's wisdom, and with this shape in it nothing was planned or
+    # saved (CI, once in many runs)
+    pyfftw.forget_wisdom()
     fftplans.forget_loaded_wisdom()
     fftplans.clear_plans()
     shape = (96, 120)
@@ -72,8 +78,6 @@ def test_wisdom_is_saved_and_reused(tmp_path: Path, monkeypatch: pytest.MonkeyPa
     wisdom = tmp_path / "wisdom.bin"
     assert wisdom.is_file() and wisdom.stat().st_size > 0
     # a fresh process would import the file; forget_wisdom stands in for the restart
-    import pyfftw
-
     pyfftw.forget_wisdom()
     fftplans.forget_loaded_wisdom()
     fftplans.clear_plans()
