@@ -53,7 +53,7 @@ def spectrum_figure(
     from matplotlib import patheffects
 
     from holoview.engine.true_labels import VISIBLE_AMPLITUDE
-    from holoview.headless.results.figures import new_figure
+    from holoview.headless.results.figures import new_figure, spectrum_edges
 
     data = frame.astype(np.float64)
     rows, cols = frame.shape
@@ -89,8 +89,7 @@ def spectrum_figure(
     image_axes.set_xlabel("x (mm)")
     image_axes.set_ylabel("y (mm)")
     image_axes.set_title("hologram (raw camera values)", fontsize=11)
-    x0, x1 = -(cols // 2) / cols - 0.5 / cols, (cols - cols // 2) / cols - 0.5 / cols
-    y0, y1 = -(rows // 2) / rows - 0.5 / rows, (rows - rows // 2) / rows - 0.5 / rows
+    x0, x1, y0, y1 = spectrum_edges(rows, cols)
     low, high = np.percentile(power, (1.0, 99.99))
     spectrum_axes.imshow(
         power,

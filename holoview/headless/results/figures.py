@@ -51,6 +51,23 @@ def new_figure(width_in: float, height_in: float) -> Figure:
     return figure
 
 
+def spectrum_edges(rows: int, cols: int) -> tuple[float, float, float, float]:
+    """The edges ``(x0, x1, y0, y1)`` in cycles/pixel of a centred (shifted) spectrum.
+
+    Bin ``k`` of ``n`` (centred) is the frequency ``(k - n // 2) / n``; the image of a
+    ``(rows, cols)`` spectrum spans half a bin beyond the first and last centres:
+    ``extent=(x0, x1, y1, y0)`` with row 0 at the top.
+
+    Examples
+    --------
+    >>> spectrum_edges(4, 4)
+    (-0.625, 0.375, -0.625, 0.375)
+    """
+    x0, x1 = -(cols // 2) / cols - 0.5 / cols, (cols - cols // 2) / cols - 0.5 / cols
+    y0, y1 = -(rows // 2) / rows - 0.5 / rows, (rows - rows // 2) / rows - 0.5 / rows
+    return x0, x1, y0, y1
+
+
 def figure_format(path: str | Path, option: str) -> str:
     """Return the format of a figure file from its suffix (one of :data:`FORMATS`).
 

@@ -39,7 +39,7 @@ from matplotlib.patches import Circle
 
 from holoview.headless.analysis import Analysis
 from holoview.headless.inputs import Optics
-from holoview.headless.results.figures import DPI, new_figure, save_figure
+from holoview.headless.results.figures import DPI, new_figure, save_figure, spectrum_edges
 from holoview.headless.run_data import RunData
 from holoview.headless.settings import ProcessSettings
 from holoview.processing.peaks.detection import Peak
@@ -129,9 +129,7 @@ def _spectrum_panel(
     pixel_pitch_m: float | None,
 ) -> None:
     rows, cols = spectrum.shape
-    # bin centres: column k (centred) is fx = (k - cols // 2) / cols
-    x0, x1 = -(cols // 2) / cols - 0.5 / cols, (cols - cols // 2) / cols - 0.5 / cols
-    y0, y1 = -(rows // 2) / rows - 0.5 / rows, (rows - rows // 2) / rows - 0.5 / rows
+    x0, x1, y0, y1 = spectrum_edges(rows, cols)
     factor = max(1, min(rows, cols) // SPECTRUM_PIXELS)
     shown = block_mean(spectrum, factor)
     # the bins beyond the last whole block are left out of the image

@@ -259,7 +259,8 @@ def refine_tone(
     f = np.asarray(comb, dtype=np.float64)
     a = np.asarray(lock_ins, dtype=np.complex128)
     rings = np.all(np.isfinite(a), axis=0)
-    if np.unique(f).size < 3 or not np.any(rings):
+    distinct = np.unique(f)  # a comb clipped at Nyquist repeats its last frequency
+    if distinct.size < 3 or not np.any(rings):
         raise InputError("a tone needs lock-ins at three frequencies or more, on finite rings")
     data = a[:, rings]
 
@@ -276,7 +277,7 @@ def refine_tone(
         lambda f0: fit(f0)[0], bounds=(low, high), method="bounded", options={"xatol": 1e-9}
     )
     frequency = float(result.x)
-    step = 1e-3 * float(np.median(np.diff(np.unique(f))))
+    step = 1e-3 * float(np.median(np.diff(distinct)))
     rss = [fit(frequency + d)[0] for d in (-step, 0.0, step)]
     curvature = (rss[0] - 2.0 * rss[1] + rss[2]) / step**2
     dof = max(2 * data.size - 2 * data.shape[1] - 1, 1)
