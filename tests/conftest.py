@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import signal
 import threading
 import time
 from collections.abc import Iterator
@@ -11,6 +12,12 @@ from pathlib import Path
 import pytest
 
 os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
+
+# A suite started in the background of a script (``bash test.sh &``) inherits SIGINT
+# ignored, and holoview keeps an ignored stop signal ignored, as nohup expects; the tests
+# of Ctrl+C need it as a terminal delivers it, in this process and in the children it starts.
+if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+    signal.signal(signal.SIGINT, signal.default_int_handler)
 
 #: The real holograms shared with the project (MIT licence; see their README).
 REAL_DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "real"
