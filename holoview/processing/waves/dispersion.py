@@ -6,15 +6,16 @@ follow ``omega_0^2 = (g k + sigma k^3 / rho) tanh(k d)``
 a wave travelling along ``k`` to ``omega = omega_0(|k|) + k . U`` (the sign convention
 of :mod:`~holoview.processing.waves.omega_k`: power at ``(f, +k)`` travels along ``+k``).
 
-:func:`find_ridge` takes, in every cell of the wave-vector plane between ``k_min`` and
-``k_max``, the frequency of most power (interpolated between bins on the logarithm of
-the power), where it stands ``min_contrast`` times above the cell's median power.
-:func:`fit_dispersion` fits ``sigma``, ``d`` and ``U`` (each can be held) to those
-ridge frequencies by least squares, three times: first on the brightest frequency of
-each cell whose contrast is within a hundredth of the brightest cells' (a soft-L1 loss,
-as cells of noise, of a strong line's leakage or of waves aliased past the Nyquist
-frequency put their peaks anywhere), then within 15 % and 8 % of the model, dropping
-cells more than four robust standard deviations off. The standard errors come from the
+:func:`fit_dispersion` fits ``sigma``, ``d`` and ``U`` (each can be held) to the
+ridge frequencies (:func:`~holoview.processing.waves.ridge.find_ridge`) by least
+squares, three times: first on the brightest frequency of each cell whose contrast is
+within a hundredth of the brightest cells' (a soft-L1 loss, as cells of noise, of a
+strong line's leakage or of waves aliased past the Nyquist frequency put their peaks
+anywhere), then within 15 % and 8 % of the model, dropping cells more than four robust
+standard deviations off. Each fit takes the cells whose line is one wave's (``sharp``:
+a blend of neighbouring waves pulls the frequency, :mod:`~holoview.processing.waves.ridge`)
+while at least :data:`SHARP_SHARE` of the cells and enough for the fit are; where lines
+are broad throughout (damped waves), every cell. The standard errors come from the
 residual scatter; the spatial Hann taper spreads each wave over about 1.5 cells per
 axis, so neighbouring cells are not independent and the covariance is multiplied by
 :data:`CELL_CORRELATION`.
@@ -41,6 +42,7 @@ from holoview.optics.surfaces import (
     dispersion_omega,
 )
 from holoview.processing.waves.omega_k import OmegaKSpectrum
+from holoview.processing.waves.ridge import Ridge, find_ridge
 
 logger = logging.getLogger(__name__)
 
@@ -48,9 +50,7 @@ __all__ = [
     "CELL_CORRELATION",
     "DispersionFit",
     "Fluid",
-    "Ridge",
     "check_fit_settings",
-    "find_ridge",
     "fit_dispersion",
     "wave_omega",
 ]
@@ -61,6 +61,10 @@ CELL_CORRELATION = 2.25
 #: The first fit takes the cells whose contrast is at least this share of the 90th
 #: percentile of the contrasts (but ``min_contrast``).
 FIRST_CONTRAST = 0.01
+
+#: The least share of a ridge's cells that must be sharp (one wave's line) for the fit to
+#: take only those.
+SHARP_SHARE = 0.5
 
 #: The parameters that can be held: surface tension, depth, flow (both components).
 PARAMETERS = ("sigma", "depth", "flow")
@@ -140,126 +144,6 @@ def wave_omega(
         )
     )
     return omega0 + kxx * flow[0] + kyy * flow[1]
-
-
-@dataclass(frozen=True)
-class Ridge:
-    """The frequency of most power in each wave-vector cell with a clear wave.
-
-    Attributes
-    ----------
-    kx, ky : ndarray of float, shape (L,)
-        Wave vector of each cell, rad/m (the direction the wave travels).
-    omega : ndarray of float, shape (L,)
-        Ridge frequency, rad/s.
-    contrast : ndarray of float, shape (L,)
-        Peak power over the cell's median power.
-    """
-
-    kx: NDArray[np.float64]
-    ky: NDArray[np.float64]
-    omega: NDArray[np.float64]
-    contrast: NDArray[np.float64]
-
-    def select(self, keep: NDArray[np.bool_]) -> Ridge:
-        """Return the cells where ``keep`` is True."""
-        return Ridge(self.kx[keep], self.ky[keep], self.omega[keep], self.contrast[keep])
-
-
-def _vertex(left: np.ndarray, centre: np.ndarray, right: np.ndarray) -> np.ndarray:
-    """Offset (bins) of the vertex of the parabola through three log-powers (0 if none)."""
-    curvature = left - 2.0 * centre + right
-    concave = curvature < 0
-    return np.where(concave, 0.5 * (left - right) / np.where(concave, curvature, -1.0), 0.0)
-
-
-def find_ridge(
-    spectrum: OmegaKSpectrum,
-    model: NDArray[np.float64] | None = None,
-    *,
-    k_min: float,
-    k_max: float,
-    search: float = 0.15,
-    min_contrast: float = 10.0,
-) -> Ridge:
-    """Return the ridge of an omega-k spectrum between ``k_min`` and ``k_max`` (rad/m).
-
-    In each wave-vector cell, the frequency bin of most power; the cells kept are
-    those whose peak power is the largest of their eight neighbours' and
-    ``min_contrast`` times their median power (a wave's own cell, not the cells its
-    taper spreads it into). The frequency and both wave-vector components are
-    refined between bins by the vertex of a parabola through the logarithm of the
-    power (exact for a Gaussian line, within a few hundredths of a bin for Hann's).
-
-    Parameters
-    ----------
-    spectrum : OmegaKSpectrum
-    model : ndarray of float, shape (R, C), optional
-        Expected frequency of every cell, rad/s: the peak is sought within
-        ``search`` of it (at least 3 bins either side). Without it, over every
-        frequency but the two lowest and the highest bins.
-    k_min, k_max : float
-        Wavenumbers of the cells considered, rad/m.
-    search : float
-        Relative half-width of the search around the model.
-    min_contrast : float
-        Least ratio of a cell's peak power to its median power.
-    """
-    power = spectrum.power
-    n_f, rows, cols = power.shape
-    step = 2.0 * np.pi * spectrum.df
-    if model is None:
-        low = np.full((rows, cols), 2.0)
-        high = np.full((rows, cols), n_f - 2.0)
-    else:
-        half = np.maximum(search * np.abs(model), 3.0 * step)
-        low = np.maximum(np.floor((model - half) / step), 2.0)
-        high = np.minimum(np.ceil((model + half) / step), n_f - 2.0)
-    index = np.arange(n_f)[:, np.newaxis, np.newaxis]
-    peak = np.argmax(np.where((index >= low) & (index <= high), power, -1.0), axis=0)
-    top = np.take_along_axis(power, peak[np.newaxis], axis=0)[0].astype(np.float64)
-    floor = np.median(power[1:], axis=0).astype(np.float64)
-    tiny = np.finfo(np.float64).tiny
-    contrast = top / np.maximum(floor, tiny)
-    padded = np.pad(top, 1, constant_values=np.inf)
-    neighbours = np.max(
-        [
-            padded[1 + dy : 1 + dy + rows, 1 + dx : 1 + dx + cols]
-            for dy in (-1, 0, 1)
-            for dx in (-1, 0, 1)
-            if dy or dx
-        ],
-        axis=0,
-    )
-    k = spectrum.k
-    keep = (
-        (top > neighbours)
-        & (contrast >= min_contrast)
-        & (peak > low)
-        & (peak < high)
-        & (k >= k_min)
-        & (k <= min(k_max, spectrum.k_cut))
-    )
-    keep[[0, -1], :] = False
-    keep[:, [0, -1]] = False
-    iy, ix = np.nonzero(keep)
-    f = peak[iy, ix]
-
-    def log_power(fi: np.ndarray, yi: np.ndarray, xi: np.ndarray) -> np.ndarray:
-        return np.log(np.maximum(power[fi, yi, xi].astype(np.float64), tiny))
-
-    centre = log_power(f, iy, ix)
-    shift_f = _vertex(log_power(f - 1, iy, ix), centre, log_power(f + 1, iy, ix))
-    shift_y = _vertex(log_power(f, iy - 1, ix), centre, log_power(f, iy + 1, ix))
-    shift_x = _vertex(log_power(f, iy, ix - 1), centre, log_power(f, iy, ix + 1))
-    good = (np.abs(shift_f) <= 1) & (np.abs(shift_y) <= 1) & (np.abs(shift_x) <= 1)
-    dky, dkx = spectrum.dk
-    return Ridge(
-        (spectrum.kx[ix] + shift_x * dkx)[good],
-        (spectrum.ky[iy] + shift_y * dky)[good],
-        ((f + shift_f) * step)[good],
-        contrast[iy, ix][good],
-    )
 
 
 @dataclass(frozen=True)
@@ -470,6 +354,14 @@ def _depth_bounded(
     return float(np.sum(other**2)) - rss > 4.0 * variance
 
 
+def _sharp_cells(ridge: Ridge, least: int) -> Ridge:
+    """The ridge's sharp cells, if they are :data:`SHARP_SHARE` of them and ``least``."""
+    sharp = int(np.count_nonzero(ridge.sharp))
+    if sharp >= least and sharp >= SHARP_SHARE * ridge.omega.size:
+        return ridge.select(ridge.sharp)
+    return ridge
+
+
 def fit_dispersion(
     spectrum: OmegaKSpectrum,
     fluid: Fluid | None = None,
@@ -551,6 +443,7 @@ def fit_dispersion(
             search=search or 0.0,
             min_contrast=min_contrast,
         )
+        ridge = _sharp_cells(ridge, max(3 * n_free, 8))
         if search is None and ridge.omega.size:
             # first fit on the clear waves: leakage of strong lines shows as weak peaks
             bright = max(min_contrast, FIRST_CONTRAST * float(np.percentile(ridge.contrast, 90)))
