@@ -90,6 +90,9 @@ logger = logging.getLogger(__name__)
 #: Mirror passes of the families written to /truth and marked on the figure.
 MAX_ORDER = 4
 
+#: The first-order holograms, whose bands the waves must not make overlap.
+FIRST_ORDER = ("RF", "RB1", "FB1")
+
 #: Largest frame side, pixels (a 8192 x 8192 simulation needs several GB).
 MAX_SIZE = 8192
 
@@ -445,8 +448,8 @@ def run(args: argparse.Namespace) -> int:
     )
     warn_aliasing(surface, args.fps)
     warn_field(surface, args.size * setup.pixel_pitch, args.size * setup.pixel_pitch)
-    first_order = predict_families(setup, max_order=1, second_order=False)  # RF, RB1, FB1
-    warn_overlap(surface, {f.label: f.observed_carrier for f in first_order}, setup.pixel_pitch)
+    first_order = {f.label: f.observed_carrier for f in families if f.label in FIRST_ORDER}
+    warn_overlap(surface, first_order, setup.pixel_pitch)
     sequence = simulate(
         setup,
         args.scenario,
