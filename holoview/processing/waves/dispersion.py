@@ -435,7 +435,7 @@ def fit_dispersion(
                 flow=(values["flow_x"], values["flow_y"]),
                 fluid=fluid,
             )
-        ridge = find_ridge(
+        found = find_ridge(
             spectrum,
             model,
             k_min=low,
@@ -443,7 +443,7 @@ def fit_dispersion(
             search=search or 0.0,
             min_contrast=min_contrast,
         )
-        ridge = _sharp_cells(ridge, max(3 * n_free, 8))
+        ridge = _sharp_cells(found, max(3 * n_free, 8))
         if search is None and ridge.omega.size:
             # first fit on the clear waves: leakage of strong lines shows as weak peaks
             bright = max(min_contrast, FIRST_CONTRAST * float(np.percentile(ridge.contrast, 90)))
@@ -467,10 +467,19 @@ def fit_dispersion(
     if "depth" in stderr and not (
         math.isfinite(stderr["depth"]) and _depth_bounded(ridge, values, held, fluid, residual)
     ):
+        first = float(np.min(np.hypot(ridge.kx, ridge.ky)))
+        blended = np.hypot(found.kx, found.ky)[~found.sharp]
+        longer = ""
+        if ridge.omega.size < found.omega.size and np.min(blended, initial=first) < first:
+            longer = (
+                f"; the lines of longer ones, from {_k(float(np.min(blended)))} rad/m, blend "
+                "with their neighbours' and are left out"
+            )
         raise InputError(
             "the dispersion fit did not converge: the depth is not determined by these waves "
-            "(k d > 3: they do not feel the bottom; ten times deeper fits as well); hold it "
-            "at a known depth"
+            f"(ten times deeper fits as well: the longest waves fitted, {_k(first)} rad/m, "
+            f"feel a bottom deeper than {1e3 / first:.2g} mm little{longer}); hold it at a "
+            "known depth, or fit longer waves (--k-range, a wider field)"
         )
     if not np.all(np.isfinite(errors)):
         raise InputError(

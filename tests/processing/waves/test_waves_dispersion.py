@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import re
 
 import numpy as np
 import pytest
@@ -12,7 +13,7 @@ from holoview.errors import InputError
 from holoview.optics.surfaces import dispersion_omega
 from holoview.optics.wave_fields import random_travelling_waves
 from holoview.processing.waves.dispersion import Fluid, _sharp_cells, fit_dispersion, wave_omega
-from holoview.processing.waves.omega_k import OmegaKAccumulator
+from holoview.processing.waves.omega_k import OmegaKAccumulator, OmegaKSpectrum
 from holoview.processing.waves.ridge import Ridge
 
 SIZE, PIXEL, FPS, FRAMES = 64, 1e-3, 250.0, 384
@@ -113,8 +114,14 @@ def test_a_cut_off_below_the_first_wavenumber_fitted_is_said() -> None:
 def test_deep_water_does_not_fix_the_depth():
     deep = travelling(seed=4, depth=0.05, k_range=(600.0, 1600.0), flow=(0.0, 0.0))
     spectrum = spectrum_of(deep, frames=256)
-    with pytest.raises(InputError, match=r"the depth is not determined.*hold it"):
+    with pytest.raises(InputError, match=r"the depth is not determined.*hold it") as said:
         fit_dispersion(spectrum, Fluid(deep.rho, deep.sigma), depth=0.05)
+    # 600 rad/m waves feel a bottom deeper than 1/k = 1.7 mm little
+    assert re.search(
+        r"the longest waves fitted, 6\d\d rad/m, feel a bottom deeper than 1.[5-7] mm",
+        str(said.value),
+    )
+    assert "blend" not in str(said.value)
     held = fit_dispersion(spectrum, Fluid(deep.rho, 0.05), depth=0.05, hold=["depth"])
     assert held.surface_tension == pytest.approx(deep.sigma, rel=0.03)
 
@@ -138,6 +145,16 @@ def test_fluids_by_name():
     assert math.isfinite(Fluid().gravity)
 
 
+def _dense_spectrum(waves) -> OmegaKSpectrum:
+    """512 frames of 128 x 128 truth maps of an 84 mm field at 250 frames/s."""
+    size, pixel = 128, 84e-3 / 128
+    x, y = (np.arange(size) * pixel)[np.newaxis], (np.arange(size) * pixel)[:, np.newaxis]
+    acc = OmegaKAccumulator((size, size), pixel, 1 / FPS, segment=128)
+    for t in np.arange(512) / FPS:
+        acc.push(waves(t, x, y).astype(np.float32), t)
+    return acc.spectrum()
+
+
 @pytest.mark.parametrize("seed", [2, 4])
 def test_a_dense_field_of_waves_does_not_pull_the_depth(seed: int) -> None:
     """300 waves in an 84 mm field, one to every six cells of the spectrum: the spatial
@@ -150,17 +167,28 @@ def test_a_dense_field_of_waves_does_not_pull_the_depth(seed: int) -> None:
         rng, k_range=(300.0, 1800.0), components=300, rms=10e-9, depth=3e-3,
         flow=(0.02, 0.01), sigma=0.065,
     )  # fmt: skip
-    size, pixel = 128, 84e-3 / 128
-    x, y = (np.arange(size) * pixel)[np.newaxis], (np.arange(size) * pixel)[:, np.newaxis]
-    times = np.arange(512) / FPS
-    acc = OmegaKAccumulator((size, size), pixel, 1 / FPS, segment=128)
-    for t in times:
-        acc.push(waves(t, x, y).astype(np.float32), t)
-    fit = fit_dispersion(acc.spectrum(), Fluid(), depth=5e-3)
+    fit = fit_dispersion(_dense_spectrum(waves), Fluid(), depth=5e-3)
     assert abs(fit.depth / waves.depth - 1) < 0.03
     assert abs(fit.depth - waves.depth) < 2 * fit.depth_stderr
     assert fit.surface_tension == pytest.approx(waves.sigma, rel=0.003)
     assert np.all(fit.ridge.sharp)
+
+
+def test_a_depth_left_undetermined_by_blended_long_waves_says_so() -> None:
+    """Waves from 200 rad/m, one to every three cells of the spectrum, 6 mm deep: the
+    lines of the longest waves blend, the sharp ones (from 475 rad/m, k d 2.9) do not
+    fix the depth, and the line says why."""
+    waves = random_travelling_waves(
+        np.random.default_rng(1), k_range=(200.0, 1200.0), components=300, rms=10e-9,
+        depth=6e-3, flow=(0.05, 0.0), sigma=0.065,
+    )  # fmt: skip
+    with pytest.raises(InputError, match="the depth is not determined") as said:
+        fit_dispersion(_dense_spectrum(waves), Fluid(), depth=5e-3)
+    assert re.search(
+        r"the longest waves fitted, 4\d\d rad/m, feel a bottom deeper than 2.\d mm little; the "
+        r"lines of longer ones, from 3\d\d rad/m, blend with their neighbours' and are left out",
+        str(said.value),
+    )
 
 
 def test_broad_lines_throughout_keep_every_cell() -> None:
