@@ -42,7 +42,7 @@ from holoview.optics.surfaces import (
     dispersion_omega,
 )
 from holoview.processing.waves.omega_k import OmegaKSpectrum
-from holoview.processing.waves.ridge import Ridge, find_ridge
+from holoview.processing.waves.ridge import Ridge, find_ridge, noise_contrast
 
 logger = logging.getLogger(__name__)
 
@@ -390,7 +390,8 @@ def fit_dispersion(
         Wavenumbers fitted, rad/m (defaults: :data:`FIRST_STEPS` wave-vector steps, and
         the cut-off).
     min_contrast : float
-        Least ratio of a cell's peak power to its median power.
+        Least ratio of a cell's peak power to its median power (raised to what noise
+        alone reaches with few segments, :func:`~holoview.processing.waves.ridge.noise_contrast`).
 
     Returns
     -------
@@ -423,6 +424,8 @@ def fit_dispersion(
     }
     kyy, kxx = np.meshgrid(spectrum.ky, spectrum.kx, indexing="ij")
     step = 2.0 * np.pi * spectrum.df
+    chance = noise_contrast(spectrum, low, high)
+    contrast = max(min_contrast, chance)
     model = None
     n_free = 4 - ("sigma" in held) - ("depth" in held) - 2 * ("flow" in held)
     for search in (None, 0.15, 0.08):
@@ -441,19 +444,23 @@ def fit_dispersion(
             k_min=low,
             k_max=high,
             search=search or 0.0,
-            min_contrast=min_contrast,
+            min_contrast=contrast,
         )
         ridge = _sharp_cells(found, max(3 * n_free, 8))
         if search is None and ridge.omega.size:
             # first fit on the clear waves: leakage of strong lines shows as weak peaks
-            bright = max(min_contrast, FIRST_CONTRAST * float(np.percentile(ridge.contrast, 90)))
+            bright = max(contrast, FIRST_CONTRAST * float(np.percentile(ridge.contrast, 90)))
             if np.count_nonzero(ridge.contrast >= bright) >= max(3 * n_free, 8):
                 ridge = ridge.select(ridge.contrast >= bright)
         if ridge.omega.size < max(3 * n_free, 8):
+            seldom = ""
+            if chance > min_contrast:
+                n = spectrum.segments
+                seldom = f", which noise alone seldom reaches in {n} segment{'s' * (n != 1)}"
             raise InputError(
                 f"the dispersion fit has {ridge.omega.size} cells with a clear wave between "
-                f"{_k(low)} and {_k(high)} rad/m ({min_contrast:g} times over the median "
-                "power); too few: the maps show no waves there"
+                f"{_k(low)} and {_k(high)} rad/m ({contrast:.3g} times over the median "
+                f"power{seldom}); too few: the maps show no waves there"
             )
         robust = 2.0 * step if search is None else 0.0
         values, covariance, free, residual = _fit_once(ridge, values, held, fluid, robust)

@@ -100,6 +100,24 @@ def test_noise_alone_has_no_waves_to_fit():
     assert "e+" not in str(raised.value)  # wavenumbers written out, as the axes give them
 
 
+@pytest.mark.parametrize("segments", [1, 2])
+def test_noise_of_few_segments_is_not_taken_for_waves(segments: int) -> None:
+    """The live Waves panel's first seconds, or a surface at rest: one or two segments of
+    180^2 maps of noise. Ten times the median power let 11 to 45 cells through and the
+    fit said 'the sigma ran to its bound; check the fluid and the maps'; the contrast is
+    now what noise seldom reaches with so few segments."""
+    rng = np.random.default_rng(segments)
+    acc = OmegaKAccumulator((180, 180), 1e-4, 1 / 30, segment=32)
+    acc.extend(
+        rng.normal(0, 1e-9, (16 + 16 * segments, 180, 180)), np.arange(16 + 16 * segments) / 30
+    )
+    assert acc.spectrum().segments == segments
+    with pytest.raises(InputError, match="too few: the maps show no waves there") as raised:
+        fit_dispersion(acc.spectrum())
+    plural = "s" if segments > 1 else ""
+    assert f"which noise alone seldom reaches in {segments} segment{plural})" in str(raised.value)
+
+
 def test_a_cut_off_below_the_first_wavenumber_fitted_is_said() -> None:
     """A small field and a narrow window: nothing lies between four wave-vector steps and
     the cut-off, and the line says why rather than naming an empty range alone."""
