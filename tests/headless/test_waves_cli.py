@@ -390,6 +390,8 @@ def test_two_threads_give_the_numbers_of_one(tmp_path: Path) -> None:
         ("band past cut-off", "wavenumbers from 5000 rad/m lie past the maps' cut-off 3142"),
         # refused before the spectra are made: the line says nothing of them
         ("hold typo", "cannot hold foo: the parameters are sigma, depth, flow\n"),
+        # noise (a surface at rest) has no tone to centre on; before, a centre was found
+        ("centre on noise", "no centre can be found: E(omega) has no tone standing 3 times"),
     ],
 )
 def test_bad_input_is_one_line_exit_2_and_writes_nothing(
@@ -419,6 +421,7 @@ def test_bad_input_is_one_line_exit_2_and_writes_nothing(
         "ringdown past nyquist": ["--centre", "12,12", "--ringdown", "0,40:80"],
         "band past cut-off": ["--band-k", "5000:9000"],
         "hold typo": ["--hold", "sigma,foo"],
+        "centre on noise": ["--centre", "auto", "--no-fit"],
     }.get(case, [])
     if case == "no file":
         argv[1] = str(tmp_path / "missing.h5")
