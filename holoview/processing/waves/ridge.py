@@ -198,8 +198,8 @@ def noise_contrast(spectrum: OmegaKSpectrum, k_min: float, k_max: float) -> floa
     cell's median is of a few bins), the contrast that :data:`FALSE_CELLS` cells of the
     band ``k_min`` to ``k_max`` pass by chance, over every frequency searched. From
     about four segments it is below the fit's 10; with one or two, on maps of 180^2
-    pixels, 10 let 11 to 45 cells of white noise through, enough for a fit that ran
-    away, where this contrast (19 to 54) let none or one.
+    and 256^2 pixels, 10 let 11 to 45 cells of white noise through, enough for a fit
+    that ran away, where this contrast (19 to 54) let none or one.
 
     Examples
     --------

@@ -103,7 +103,7 @@ def test_noise_alone_has_no_waves_to_fit():
 @pytest.mark.parametrize("segments", [1, 2])
 def test_noise_of_few_segments_is_not_taken_for_waves(segments: int) -> None:
     """The live Waves panel's first seconds, or a surface at rest: one or two segments of
-    180^2 maps of noise. Ten times the median power let 11 to 45 cells through and the
+    180^2 maps of noise. Ten times the median power let 11 to 24 cells through and the
     fit said 'the sigma ran to its bound; check the fluid and the maps'; the contrast is
     now what noise seldom reaches with so few segments."""
     rng = np.random.default_rng(segments)
