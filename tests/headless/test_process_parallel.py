@@ -13,6 +13,8 @@ import json
 import logging
 import os
 import signal
+import subprocess
+import sys
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -34,7 +36,13 @@ from holoview.headless.parallel.chunks import (
     plan_jobs,
     split_frames,
 )
-from holoview.headless.parallel.runners import ChunkRunner, DaskRunner, ProcessRunner, open_runner
+from holoview.headless.parallel.runners import (
+    TRACKER_QUIET,
+    ChunkRunner,
+    DaskRunner,
+    ProcessRunner,
+    open_runner,
+)
 from holoview.headless.run import ProcessOutcome, process_file
 from holoview.headless.settings import ProcessOptions, ProcessSettings
 
@@ -509,3 +517,25 @@ def test_a_folder_and_a_glob_of_recordings(
         ["-q", "process", str(runs / "day*.h5"), "--out", str(tmp_path / "glob")], capsys
     )
     assert again == 2 and "--overwrite" in err
+
+
+def test_the_pools_resource_tracker_starts_with_its_warnings_off() -> None:
+    """A run refused as its pool started once ended with the resource tracker's 'leaked
+    semaphore' warnings after holoview's one line (CPython's bookkeeping of stopped
+    workers). The tracker, started by a pool in a fresh process, carries the -W option
+    that keeps them off; the process's own warning options are left as they were."""
+    code = (
+        "import sys\n"
+        "from multiprocessing import resource_tracker as t\n"
+        "from holoview.headless.parallel.runners import ProcessRunner\n"
+        "runner = ProcessRunner(1)\n"
+        "print(open(f'/proc/{t._resource_tracker._pid}/cmdline').read().split(chr(0)))\n"
+        "print(sys.warnoptions)\n"
+        "runner.close()\n"
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=120, check=True
+    )
+    tracker, options = done.stdout.splitlines()
+    assert f"-W{TRACKER_QUIET}" in tracker
+    assert options == "[]"

@@ -39,6 +39,7 @@ import multiprocessing
 import os
 import select
 import signal
+import sys
 import threading
 import time
 from abc import ABC, abstractmethod
@@ -71,6 +72,9 @@ SINGLE_THREADED = {
 
 #: What the forkserver imports once for every local worker.
 PRELOAD = ["holoview.headless.parallel.chunks"]
+
+#: The warnings option the resource tracker starts with (:func:`_start_resource_tracker`).
+TRACKER_QUIET = "ignore::UserWarning:multiprocessing.resource_tracker"
 
 #: Seconds between two looks at the parent where the system cannot wait on it (no pidfd).
 PARENT_POLL_S = 0.2
@@ -221,6 +225,7 @@ class ProcessRunner(ChunkRunner):
         self.name = f"{self.workers} processes"
         self.shares_files = True
         self._maps = False  # the chunks carry maps (see abort)
+        _start_resource_tracker()
         context = multiprocessing.get_context("forkserver")
         context.set_forkserver_preload(PRELOAD)
         self._executor = ProcessPoolExecutor(
@@ -289,6 +294,29 @@ class ProcessRunner(ChunkRunner):
     def close(self) -> None:
         self._starting.join()
         self._executor.shutdown(wait=True, cancel_futures=True)
+
+
+def _start_resource_tracker() -> None:
+    """Start multiprocessing's resource tracker, which the pool's queues use, with its
+    warnings off.
+
+    A run refused as its pool starts (an input replaced under it) has ended, once in
+    several hundred, with the tracker printing that a semaphore of the pool had leaked
+    and then that unlinking it failed, as it was unlinked already: CPython's own
+    bookkeeping of a pool whose workers were stopped, three lines of noise after
+    holoview's one. The tracker takes the interpreter's ``-W`` options when it starts
+    (a tracker already running keeps its own).
+    """
+    from multiprocessing import resource_tracker
+
+    added = TRACKER_QUIET not in sys.warnoptions
+    if added:
+        sys.warnoptions.append(TRACKER_QUIET)
+    try:
+        resource_tracker.ensure_running()
+    finally:
+        if added:
+            sys.warnoptions.remove(TRACKER_QUIET)
 
 
 class DaskRunner(ChunkRunner):
