@@ -71,9 +71,9 @@ class Ridge:
         )
 
 
-def _vertex(left: np.ndarray, centre: np.ndarray, right: np.ndarray) -> np.ndarray:
-    """Offset (bins) of the vertex of the parabola through three log-powers (0 if none)."""
-    curvature = left - 2.0 * centre + right
+def _vertex(left: np.ndarray, right: np.ndarray, curvature: np.ndarray) -> np.ndarray:
+    """Offset (bins) of the vertex of the parabola through three log-powers (0 if none),
+    from the outer two and the curvature ``left - 2 centre + right``."""
     concave = curvature < 0
     return np.where(concave, 0.5 * (left - right) / np.where(concave, curvature, -1.0), 0.0)
 
@@ -176,8 +176,11 @@ def find_ridge(
         (log_power(f, iy - 1, ix), log_power(f, iy + 1, ix)),
         (log_power(f, iy, ix - 1), log_power(f, iy, ix + 1)),
     ]
-    shift_f, shift_y, shift_x = (_vertex(a, centre, b) for a, b in sides)
-    sharp = np.all([a - 2.0 * centre + b <= SHARP for a, b in sides], axis=0)
+    curvatures = [a - 2.0 * centre + b for a, b in sides]
+    shift_f, shift_y, shift_x = (
+        _vertex(a, b, c) for (a, b), c in zip(sides, curvatures, strict=True)
+    )
+    sharp = np.all([c <= SHARP for c in curvatures], axis=0)
     good = (np.abs(shift_f) <= 1) & (np.abs(shift_y) <= 1) & (np.abs(shift_x) <= 1)
     dky, dkx = spectrum.dk
     return Ridge(

@@ -107,10 +107,9 @@ def test_noise_of_few_segments_is_not_taken_for_waves(segments: int) -> None:
     fit said 'the sigma ran to its bound; check the fluid and the maps'; the contrast is
     now what noise seldom reaches with so few segments."""
     rng = np.random.default_rng(segments)
+    frames = 16 + 16 * segments  # 32-frame segments, half overlapping
     acc = OmegaKAccumulator((180, 180), 1e-4, 1 / 30, segment=32)
-    acc.extend(
-        rng.normal(0, 1e-9, (16 + 16 * segments, 180, 180)), np.arange(16 + 16 * segments) / 30
-    )
+    acc.extend(rng.normal(0, 1e-9, (frames, 180, 180)), np.arange(frames) / 30)
     assert acc.spectrum().segments == segments
     with pytest.raises(InputError, match="too few: the maps show no waves there") as raised:
         fit_dispersion(acc.spectrum())
