@@ -477,7 +477,8 @@ def fit_dispersion(
         first = float(np.min(np.hypot(ridge.kx, ridge.ky)))
         blended = np.hypot(found.kx, found.ky)[~found.sharp]
         longer = ""
-        if ridge.omega.size < found.omega.size and np.min(blended, initial=first) < first:
+        # the blends were left out (every cell fitted is sharp), longer waves among them
+        if np.all(ridge.sharp) and np.min(blended, initial=first) < first:
             longer = (
                 f"; the lines of longer ones, from {_k(float(np.min(blended)))} rad/m, blend "
                 "with their neighbours' and are left out"
