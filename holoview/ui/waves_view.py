@@ -4,8 +4,9 @@ It draws a :class:`~holoview.live.wave_window.LiveWaves` (computed by the waves 
 :mod:`holoview.live.wave_worker`) and turns its controls into
 :class:`~holoview.live.wave_window.WaveSettings`:
 
-- the omega-k power along a direction (signed wavenumber ``q``, drawn in rad/mm: negative for
-  waves travelling against the direction; frequency in Hz up to half the map rate),
+- the omega-k power along a direction (signed wavenumber ``q`` in rad/m, as in the fits'
+  messages and the command line's options: negative for waves travelling against the
+  direction; frequency in Hz up to half the map rate),
   the window's cut-off ``+-k_cut`` dashed, the fitted dispersion relation drawn over
   it (the fluid's nominal one, dotted, before a fit);
 - sigma, d and U with their standard errors (or held);
@@ -45,8 +46,6 @@ LENGTHS = (128, 256, 512, 1024)
 CURVE_POINTS = 400
 #: The parameters the fit can hold, and their names on the check boxes.
 HOLDS = (("sigma", "σ"), ("depth", "d"), ("flow", "U"))
-#: rad/mm per rad/m: wavenumbers are drawn per mm, as the maps' axes (ticks of a few digits).
-PER_MM = 1e-3
 #: Width over height of the plots' area above which they stand in one row.
 ROW_ASPECT = 2.0
 #: CPU share of a map's time below which the panel says the rest was waiting (the machine's
@@ -113,7 +112,7 @@ def rate_text(waves: LiveWaves) -> str:
     spectrum = waves.spectrum
     if spectrum is not None:
         parts.append(
-            f"k cut-off {spectrum.k_cut * PER_MM:.3g} rad/mm (the demodulation window, dashed); "
+            f"k cut-off {spectrum.k_cut:.0f} rad/m (the demodulation window, dashed); "
             f"{spectrum.segments} segment{'s' if spectrum.segments != 1 else ''} of "
             f"{spectrum.power.shape[0] * 2 - 2} maps"
         )
@@ -203,7 +202,7 @@ class WavesView(QWidget):
 
     def _make_plots(self) -> None:
         self.omega_k = self.graphics.addPlot(row=0, col=0)
-        self.omega_k.setLabel("bottom", "q along the cut (rad/mm); colour: log power")
+        self.omega_k.setLabel("bottom", "q along the cut (rad/m); colour: log power")
         self.omega_k.setLabel("left", "f (Hz)")
         self.omega_k_image = pg.ImageItem(axisOrder="row-major")
         self.omega_k_image.setColorMap(pg.colormap.get("inferno"))
@@ -381,11 +380,11 @@ class WavesView(QWidget):
         q, power = spectrum.along(angle)
         image, levels = _log_image(power)
         self.omega_k_image.setImage(image, levels=levels)
-        dq, df = (q[1] - q[0]) * PER_MM, spectrum.df  # q drawn in rad/mm, as the map's mm
+        dq, df = q[1] - q[0], spectrum.df
         self.omega_k_image.setRect(
-            QRectF(q[0] * PER_MM - dq / 2, -df / 2, dq * q.size, df * spectrum.frequency.size)
+            QRectF(q[0] - dq / 2, -df / 2, dq * q.size, df * spectrum.frequency.size)
         )
-        cut = spectrum.k_cut * PER_MM
+        cut = spectrum.k_cut
         for line, value in zip(self.cut_lines, (-cut, cut), strict=True):
             line.setValue(value)
             line.setVisible(True)
@@ -399,7 +398,7 @@ class WavesView(QWidget):
 
         fit = waves.fit
         if fit is not None:
-            self.fit_curve.setData(grid * PER_MM, curve(fit.omega(kx, ky)))
+            self.fit_curve.setData(grid, curve(fit.omega(kx, ky)))
             self.nominal_curve.setData([], [])
         else:
             settings = self.settings()
@@ -411,7 +410,7 @@ class WavesView(QWidget):
                 fluid=settings.fluid,
             )
             self.fit_curve.setData([], [])
-            self.nominal_curve.setData(grid * PER_MM, curve(nominal))
+            self.nominal_curve.setData(grid, curve(nominal))
         self.omega_k.setTitle(f"{waves.label}, cut at {self.direction.value()}°", size=TITLE_SIZE)
 
     def _draw_field(self, waves: LiveWaves) -> None:

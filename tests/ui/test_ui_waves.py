@@ -108,6 +108,10 @@ def test_a_full_speed_replay_fills_the_panel_and_fits_the_truth(
         view.rate_label.text()
     )
     assert view.omega_k_image.image is not None and view.fit_curve.getData()[0] is not None
+    # wavenumbers drawn in rad/m, the unit of the fit's messages and of --k-range
+    k_cut = view._waves.spectrum.k_cut
+    assert [line.value() for line in view.cut_lines] == pytest.approx([-k_cut, k_cut])
+    assert f"k cut-off {k_cut:.0f} rad/m" in view.rate_label.text()
     assert not view.message_label.isVisibleTo(view)
 
     _click_field(qtbot, view, 0.02, 0.02)  # the centre of the 41 mm field
