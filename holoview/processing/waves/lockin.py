@@ -1,17 +1,28 @@
 """Lock-in maps: amplitude and phase per pixel at a drive frequency and its harmonics.
 
 For each harmonic ``n`` of the drive frequency ``f`` the complex amplitude
-``A_n(y, x)`` (m) with ``h ~ mean + sum_n Re(A_n exp(-i n omega t))`` is estimated as
-``A_n = 2 sum w (h - mean) exp(+i n omega t) / sum w`` over the frames where the pixel
-is finite, on the true frame times (gaps need no closing), with Hann weights ``w`` over
-the record's span (their side lobes fall fast, so other frequencies and the other
-harmonics leak little into each other; with equal weights the leakage falls only as
-``1 / (duration * frequency difference)``). ``|A_n|`` is the amplitude,
+``A_n(y, x)`` (m) of ``h ~ c + sum_n Re(A_n exp(-i n omega t))`` is the weighted least
+squares fit, per pixel, of a constant and a cosine and a sine of each harmonic to the
+frames where the pixel is finite, on the true frame times: lost frames and untrusted
+pixels are left out of the fit, never filled, and cost nothing in accuracy but their
+noise. The weights ``w`` are Hann's over the record's span (their side lobes fall fast,
+so other frequencies leak little into the fit; with equal weights the leakage falls only
+as ``1 / (duration * frequency difference)``). ``|A_n|`` is the amplitude,
 ``phase = arg A_n`` (``h = |A| cos(n omega t - phase)``, ``t`` the frame times).
 
-The standard errors take the residual (what the mean and the harmonics leave) as
-white noise of variance ``s^2`` per pixel: ``var(Re A) = var(Im A) = 2 s^2 sum w^2 /
-(sum w)^2``, the error of ``|A|``, and ``error / |A|`` of the phase (rad).
+The standard errors take the residual (what the constant and the harmonics leave) as
+white noise of variance ``s^2`` per pixel, estimated from the unweighted residual of
+the frames within the span: the fit's covariance is ``s^2 G^-1 (B' W^2 B) G^-1`` with
+``G = B' W B`` (the basis ``B``, the weights ``W``), and a harmonic's error is the root
+mean square of those of ``Re A`` and ``Im A`` (equal where the record holds many
+periods), that of ``|A|``; the phase's is ``error / |A|`` (rad).
+
+Every sum is accumulated in float64 over blocks of maps: the products of the data with
+the weighted basis, and the basis' products with itself over the frames each pixel has
+(for all pixels at once, less what each pixel's untrusted values leave out), so memory
+is a few maps per parameter, whatever the record's length. The residual, a difference
+of such sums, keeps its digits while the maps' offsets stay below about 10^6 times their
+noise (1 mm over 1 nm; a float32 map holds 10^7).
 """
 
 from __future__ import annotations
@@ -27,6 +38,11 @@ from holoview.errors import InputError
 
 __all__ = ["LockIn", "LockInMaps", "push_lockins"]
 
+#: Least eigenvalue of a pixel's normal matrix scaled to unit diagonal for a fit: below
+#: it the frames a pixel has cannot tell the harmonics apart (a drive at the frame rate's
+#: half, or too few frames), and its maps are NaN.
+WELL_POSED = 1e-9
+
 
 @dataclass(frozen=True)
 class LockInMaps:
@@ -39,7 +55,7 @@ class LockInMaps:
     harmonics : tuple of int
         The harmonics ``n`` (1 is the drive itself).
     amplitude : ndarray of complex, shape (H, rows, cols)
-        ``A_n``, m (NaN where a pixel has no finite frame).
+        ``A_n``, m (NaN where a pixel has too few finite frames for the fit).
     stderr : ndarray of float, shape (H, rows, cols)
         Standard error of ``|A_n|`` (and of its real and imaginary parts), m.
     frames : ndarray of int, shape (rows, cols)
@@ -68,8 +84,58 @@ class LockInMaps:
         return self.stderr / np.maximum(self.magnitude, np.finfo(float).tiny)
 
 
+@dataclass(frozen=True)
+class _Lost:
+    """A block's untrusted values: the pixels that have any, and where (None: in every
+    frame of the block, as a hole or a masked core), ``(N, len(pixels))``, 1 or 0."""
+
+    pixels: NDArray[np.intp]
+    frames: NDArray[np.float64] | None
+
+
+class _Gram:
+    """Sums over frames of ``v_t b_t b_t'`` per pixel (upper triangle, ``(Q, pixels)``).
+
+    Held as the sum over every frame (one for all pixels) less, per pixel, the frames
+    where it is untrusted (kept only once a pixel has been).
+    """
+
+    def __init__(self, size: int, pixels: int) -> None:
+        self.rows, self.cols = np.triu_indices(size)
+        self.size, self.pixels = size, pixels
+        self.every = np.zeros(self.rows.size)
+        self.missing: NDArray[np.float64] | None = None
+
+    def products(self, basis: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """``v_t b_i(t) b_j(t)`` for each frame, ``(N, Q)``."""
+        return v[:, np.newaxis] * basis[:, self.rows] * basis[:, self.cols]
+
+    def add(self, products: np.ndarray, lost: _Lost | None) -> None:
+        """Add a block's products ``(N, Q)`` (``lost``: its untrusted values, if any)."""
+        self.every += products.sum(axis=0)
+        if lost is None:
+            return
+        if self.missing is None:
+            self.missing = np.zeros((self.rows.size, self.pixels))
+        if lost.frames is None:  # untrusted in every frame of the block
+            self.missing[:, lost.pixels] += products.sum(axis=0)[:, np.newaxis]
+        else:
+            self.missing[:, lost.pixels] += products.T @ lost.frames
+
+    def matrices(self, pixels: NDArray[np.intp]) -> NDArray[np.float64]:
+        """The symmetric matrices of ``pixels`` and, last, that of a pixel that has had
+        every frame: ``(len(pixels) + 1, size, size)``."""
+        upper = np.repeat(self.every[:, np.newaxis], pixels.size + 1, axis=1)
+        if self.missing is not None:
+            upper[:, :-1] -= self.missing[:, pixels]
+        out = np.empty((pixels.size + 1, self.size, self.size))
+        out[:, self.rows, self.cols] = upper.T
+        out[:, self.cols, self.rows] = upper.T
+        return out
+
+
 class LockIn:
-    """Accumulate lock-in sums over maps pushed in blocks.
+    """Accumulate the lock-in fit's sums over maps pushed in blocks.
 
     Parameters
     ----------
@@ -111,16 +177,15 @@ class LockIn:
         self.harmonics = orders
         self.span = span
         self.window = window
-        rows, cols = self.shape
-        n_h = len(orders)
-        self._weighted = np.zeros((n_h, rows, cols), np.complex128)  # sum w h e^{+i n w t}
-        self._turn = np.zeros((n_h, rows, cols), np.complex128)  # sum w e^{+i n w t}
-        self._w = np.zeros((rows, cols))
-        self._w2 = np.zeros((rows, cols))
-        self._wh = np.zeros((rows, cols))
-        self._count = np.zeros((rows, cols), np.int64)
-        self._h = np.zeros((rows, cols))
-        self._h2 = np.zeros((rows, cols))
+        size = 1 + 2 * len(orders)  # a constant, a cosine and a sine per harmonic
+        pixels = self.shape[0] * self.shape[1]
+        # the fit's normal matrices (weights w), those of its covariance (w^2) and of the
+        # residual (1 within the span), and the data's products with the basis
+        self._grams = tuple(_Gram(size, pixels) for _ in range(3))
+        self._fitted = np.zeros((size, pixels))  # sum w b h
+        self._within = np.zeros((size, pixels))  # sum b h within the span
+        self._squares = np.zeros(pixels)  # sum h^2 within the span
+        self._count = np.zeros(pixels, np.int64)
 
     def _weights(self, times: np.ndarray) -> np.ndarray:
         if self.span is None:
@@ -132,135 +197,120 @@ class LockIn:
             return inside.astype(np.float64)
         return np.where(inside, np.sin(np.pi * phase) ** 2, 0.0)
 
-    def _basis(self, times: np.ndarray) -> np.ndarray:
-        """The block's weights and weighted cosines and sines, (N, 1 + 2H)."""
-        w = self._weights(times)
+    def _basis(self, times: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The block's basis ``(N, 1 + 2H)`` (1, cosines, sines), weights and span."""
         phases = 2.0 * np.pi * self.frequency * np.outer(times, self.harmonics)  # (N, H)
-        return np.column_stack([w, w[:, None] * np.cos(phases), w[:, None] * np.sin(phases)])
+        basis = np.column_stack([np.ones(times.size), np.cos(phases), np.sin(phases)])
+        w = self._weights(times)
+        return basis, w, (w > 0).astype(np.float64)
 
     def push_block(self, frames: ArrayLike, times: ArrayLike) -> None:
         """Add maps ``(N, rows, cols)`` (m, NaN where untrusted) at ``times`` (s).
 
-        Every sum over the frames of a block is one matrix product (float32) with the
-        weights and the weighted cosines and sines, added to float64 totals. Several
-        lock-ins fed the same maps share that work through :func:`push_lockins`.
+        Several lock-ins fed the same maps share the work on them through
+        :func:`push_lockins`.
         """
         push_lockins((self,), frames, times)
 
-    def _add(self, sums: np.ndarray, present: np.ndarray, block: _Block) -> None:
-        """Add this lock-in's rows of the block's products to its totals."""
-        rows, cols = self.shape
-        n_h = len(self.harmonics)
-        self._wh += sums[0].reshape(rows, cols)
-        self._weighted += (sums[1 : 1 + n_h] + 1j * sums[1 + n_h :]).reshape(n_h, rows, cols)
-        self._h += block.total
-        self._h2 += block.squares
-        present = present.reshape(-1, rows, cols)
-        self._w += present[0]
-        self._turn += present[1 : 1 + n_h] + 1j * present[1 + n_h : 1 + 2 * n_h]
-        self._w2 += present[1 + 2 * n_h]
-        self._count += np.rint(present[2 + 2 * n_h]).astype(np.int64)
-
     def result(self) -> LockInMaps:
-        """Return the maps (InputError when no pixel had a weighted finite frame)."""
-        has = self._w > 0
-        if not np.any(has):
-            raise InputError("lock-in: no pixel has a finite value in the frames")
-        w = np.where(has, self._w, 1.0)
-        mean = self._wh / w
-        amplitude = np.where(has, 2.0 * (self._weighted - mean * self._turn) / w, np.nan)
-        # Residual variance from plain sums: sum (h - mean - fitted)^2 is about
-        # sum (h - mean)^2 - n sum |A|^2 / 2 for harmonics orthogonal over the record.
-        count = np.maximum(self._count, 1)
-        spread = self._h2 - self._h**2 / count
-        explained = count * np.sum(np.abs(np.nan_to_num(amplitude)) ** 2, axis=0) / 2.0
-        dof = self._count - 1 - 2 * len(self.harmonics)
-        variance = np.maximum(spread - explained, 0.0) / np.maximum(dof, 1)
-        stderr = np.where(has & (dof > 0), np.sqrt(2.0 * variance * self._w2 / w**2), np.nan)
+        """Return the maps (InputError when no pixel has frames enough for the fit)."""
+        # the pixels that lost frames have matrices of their own; the others share one
+        touched = np.zeros(self._count.size, bool)
+        for gram in self._grams:
+            if gram.missing is not None:
+                touched |= np.any(gram.missing != 0, axis=0)
+        lost = np.flatnonzero(touched)
+        fit, covariance, residual = (gram.matrices(lost) for gram in self._grams)
+        size = fit.shape[1]
+        scale = np.sqrt(np.maximum(np.einsum("pii->pi", fit), np.finfo(float).tiny))
+        unit = fit / (scale[:, :, np.newaxis] * scale[:, np.newaxis, :])
+        dof = residual[:, 0, 0] - size  # frames within the span, less the parameters
+        posed = (dof > 0) & (np.linalg.eigvalsh(unit)[:, 0] > WELL_POSED)
+        fit[~posed] = np.eye(size)  # solvable; those pixels are NaN below
+        index = np.full(self._count.size, lost.size)  # each pixel's matrices
+        index[lost] = np.arange(lost.size)
+        good = posed[index]
+        if not np.any(good):
+            raise InputError(
+                f"lock-in: no pixel has more than {size} finite frames that tell the "
+                f"harmonics apart at {self.frequency:g} Hz"
+            )
+        inverse = np.linalg.inv(fit)
+        # the diagonal of inverse @ covariance @ inverse (the inverse is symmetric)
+        spread = np.sum((inverse @ covariance) * inverse, axis=2)[index]
+        inverse, residual, dof = inverse[index], residual[index], dof[index]
+        beta = (inverse @ self._fitted.T[:, :, np.newaxis])[:, :, 0]  # (pixels, size)
+        rss = (
+            self._squares
+            - 2.0 * np.einsum("pi,ip->p", beta, self._within)
+            + np.einsum("pi,pi->p", beta, (residual @ beta[:, :, np.newaxis])[:, :, 0])
+        )
+        noise = np.maximum(rss, 0.0) / np.maximum(dof, 1.0)
+        variance = spread * noise[:, np.newaxis]
+        n_h = len(self.harmonics)
+        amplitude = beta[:, 1 : 1 + n_h] + 1j * beta[:, 1 + n_h :]
+        stderr = np.sqrt(0.5 * (variance[:, 1 : 1 + n_h] + variance[:, 1 + n_h :]))
+        amplitude[~good] = np.nan
+        stderr[~good] = np.nan
+        rows, cols = self.shape
         return LockInMaps(
             frequency=self.frequency,
             harmonics=self.harmonics,
-            amplitude=amplitude,
-            stderr=np.broadcast_to(stderr, amplitude.shape).copy(),
-            frames=self._count.copy(),
+            amplitude=np.ascontiguousarray(amplitude.T).reshape(n_h, rows, cols),
+            stderr=np.ascontiguousarray(stderr.T).reshape(n_h, rows, cols),
+            frames=self._count.reshape(rows, cols).copy(),
         )
 
 
-@dataclass(frozen=True)
-class _Block:
-    """One block of maps as every lock-in fed it uses it (computed once for all).
-
-    ``clean`` is (N, pixels) float32 with untrusted values 0; ``finite`` is None when
-    every value is finite, a (pixels,) mask when one mask holds for the whole block,
-    else the (N, pixels) mask; ``total`` and ``squares`` are the sums over the frames of
-    ``h`` and ``h^2`` per pixel (float64, rows x cols).
-    """
-
-    stamps: NDArray[np.float64]
-    clean: NDArray[np.float32]
-    finite: NDArray[np.bool_] | None
-    total: NDArray[np.float64]
-    squares: NDArray[np.float64]
-
-
-def _block(frames: ArrayLike, times: ArrayLike, shape: tuple[int, ...]) -> _Block:
-    block = np.asarray(frames, dtype=np.float32)
+def _block(
+    frames: ArrayLike, times: ArrayLike, shape: tuple[int, ...]
+) -> tuple[NDArray[np.float64], NDArray[np.float64], _Lost | None]:
+    """The block's times, its maps ``(N, pixels)`` in float64 with untrusted values 0,
+    and where they are untrusted (None: nowhere)."""
+    block = np.asarray(frames, dtype=np.float64)
     stamps = np.asarray(times, dtype=np.float64).ravel()
     if block.ndim != 3 or block.shape[1:] != shape or block.shape[0] != stamps.size:
         raise InputError(
             f"lock-in: maps of shape {block.shape} and {stamps.size} times do not match "
             f"maps of {shape}"
         )
-    rows, cols = shape
-    flat = block.reshape(stamps.size, rows * cols)
-    finite: NDArray[np.bool_] | None = np.isfinite(flat)
-    assert finite is not None
-    if bool(np.all(finite)):
-        clean, finite = flat, None
-    else:
-        clean = np.where(finite, flat, np.float32(0.0))
-        if np.array_equal(finite.min(axis=0), finite.max(axis=0)):  # one mask for the block
-            finite = finite[0]
-    return _Block(
-        stamps=stamps,
-        clean=clean,
-        finite=finite,
-        total=clean.sum(axis=0, dtype=np.float64).reshape(rows, cols),
-        squares=np.einsum("np,np->p", clean, clean).reshape(rows, cols).astype(np.float64),
-    )
+    flat = block.reshape(stamps.size, -1)
+    untrusted = ~np.isfinite(flat)
+    pixels = np.flatnonzero(untrusted.any(axis=0))
+    if not pixels.size:
+        return stamps, flat, None
+    where = untrusted[:, pixels]
+    lost = _Lost(pixels, None if where.all() else where.astype(np.float64))
+    return stamps, np.where(untrusted, 0.0, flat), lost
 
 
 def push_lockins(lockins: Sequence[LockIn], frames: ArrayLike, times: ArrayLike) -> None:
     """Add maps ``(N, rows, cols)`` at ``times`` (s) to every lock-in of ``lockins``.
 
     The same as each lock-in's :meth:`LockIn.push_block`, with the work on the maps done
-    once: their mask, their sums, and one matrix product with every lock-in's weighted
-    cosines and sines stacked.
+    once: their mask, and one matrix product with every lock-in's weighted basis stacked.
     """
     if not lockins:
         return
     shape = lockins[0].shape
     if any(lockin.shape != shape for lockin in lockins):
         raise InputError("lock-ins fed the same maps must have the same map shape")
-    block = _block(frames, times, shape)
-    bases = [lockin._basis(block.stamps) for lockin in lockins]
-    stacked = np.column_stack(bases)  # (N, sum of 1 + 2H)
-    sums = (stacked.astype(np.float32).T @ block.clean).astype(np.float64)
-    # per lock-in: its basis, the sum of w^2 and the frame count, over the present frames
-    counts = np.column_stack(
-        [np.column_stack([basis, basis[:, 0] ** 2, np.ones(block.stamps.size)]) for basis in bases]
-    )
-    pixels = block.clean.shape[1]
-    if block.finite is None:
-        present = np.broadcast_to(counts.sum(axis=0)[:, None], (counts.shape[1], pixels))
-    elif block.finite.ndim == 1:
-        present = np.outer(counts.sum(axis=0), block.finite)
-    else:
-        present = counts.astype(np.float32).T @ block.finite.astype(np.float32)
-    present = np.asarray(present, dtype=np.float64)
-    row = col = 0
-    for lockin, basis in zip(lockins, bases, strict=True):
-        width = basis.shape[1]
-        lockin._add(sums[row : row + width], present[col : col + width + 2], block)
-        row += width
-        col += width + 2
+    stamps, clean, lost = _block(frames, times, shape)
+    parts = [lockin._basis(stamps) for lockin in lockins]
+    columns = [np.column_stack([w[:, None] * b, s[:, None] * b]) for b, w, s in parts]
+    sums = np.column_stack(columns).T @ clean
+    squares = np.column_stack([s for _, _, s in parts]).T @ (clean * clean)
+    row = 0
+    for j, (lockin, (basis, w, inside)) in enumerate(zip(lockins, parts, strict=True)):
+        size = basis.shape[1]
+        lockin._fitted += sums[row : row + size]
+        lockin._within += sums[row + size : row + 2 * size]
+        lockin._squares += squares[j]
+        row += 2 * size
+        lockin._count += stamps.size
+        if lost is not None:
+            lockin._count[lost.pixels] -= (
+                stamps.size if lost.frames is None else lost.frames.sum(axis=0).astype(np.int64)
+            )
+        for gram, v in zip(lockin._grams, (w, w * w, inside), strict=True):
+            gram.add(gram.products(basis, v), lost)
