@@ -392,20 +392,29 @@ def test_two_threads_give_the_numbers_of_one(tmp_path: Path) -> None:
         ("hold typo", "cannot hold foo: the parameters are sigma, depth, flow\n"),
         # noise (a surface at rest) has no tone to centre on; before, a centre was found
         ("centre on noise", "no centre can be found: E(omega) has no tone standing 3 times"),
+        # the maps' own times would be replaced by even ones, their gap closed
+        ("fps over times", "the maps carry their own frame times (maps/time, 1 gap)"),
+        # 100 maps/s, then 77 from frame 200: analysed at 100, its f would be 1.3 times
+        ("rate changes", "the frame rate changes: around frame 19"),
     ],
 )
 def test_bad_input_is_one_line_exit_2_and_writes_nothing(
     tmp_path: Path, capsys: pytest.CaptureFixture, case: str, message: str
 ) -> None:
     rng = np.random.default_rng(1)
-    frames = 40 if case == "short" else 96
+    frames = {"short": 40, "rate changes": 300}.get(case, 96)
     maps = rng.normal(0, 1e-9, (frames, 24, 24))
     if case == "all nan":
         maps[:] = np.nan
+    times = np.arange(frames) / 100.0
+    if case == "fps over times":
+        times[50:] += 0.1  # 10 frames lost
+    if case == "rate changes":
+        times[200:] = times[200] + 1.3 * (times[200:] - times[200])
     path = results_file(
         tmp_path / "results.h5",
         maps,
-        None if case == "no times" else np.arange(frames) / 100.0,
+        None if case == "no times" else times,
         None if case == "no pixel size" else 1e-3,
     )
     out = tmp_path / "out"
@@ -422,6 +431,7 @@ def test_bad_input_is_one_line_exit_2_and_writes_nothing(
         "band past cut-off": ["--band-k", "5000:9000"],
         "hold typo": ["--hold", "sigma,foo"],
         "centre on noise": ["--centre", "auto", "--no-fit"],
+        "fps over times": ["--fps", "100"],
     }.get(case, [])
     if case == "no file":
         argv[1] = str(tmp_path / "missing.h5")

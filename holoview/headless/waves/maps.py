@@ -258,14 +258,21 @@ def _open(
     if not all(math.isfinite(v) and v > 0 for v in size):
         raise InputError(f"{path}: maps/{label} have a bad pixel size {size} m")
     n_frames = int(dataset.shape[0])
+    found = _times(file, dataset)
+    if found is not None and fps is not None:
+        gaps = frame_clock(found).gaps if found.size > 1 else 0
+        raise InputError(
+            f"{path}: the maps carry their own frame times (maps/time, {gaps} "
+            f"gap{'' if gaps == 1 else 's'}): --fps is for maps without them (it would space "
+            "them evenly, closing any gap); leave it out"
+        )
     if fps is not None:
         times = np.arange(n_frames) / float(fps)
+    elif found is None:
+        raise InputError(
+            f"{path} carries no frame times (maps/time); give the frame rate with --fps"
+        )
     else:
-        found = _times(file, dataset)
-        if found is None:
-            raise InputError(
-                f"{path} carries no frame times (maps/time); give the frame rate with --fps"
-            )
         times = found
     if times.size != n_frames:
         raise InputError(f"{path}: {times.size} frame times for {n_frames} maps of {label}")

@@ -13,6 +13,9 @@ except where frames were lost: a step between two frames longer than
 
 Within a run the frames are taken to be evenly spaced at the nominal interval (the
 median step); the largest departure from it is reported (:attr:`FrameClock.jitter`).
+A frame rate that changes within the maps is refused, where it changes: its frames
+would be analysed at the nominal rate, their frequencies scaled. (Halving the rate
+cannot be told from losing every other frame: such steps are gaps.)
 """
 
 from __future__ import annotations
@@ -29,6 +32,12 @@ __all__ = ["GAP_TOLERANCE", "FrameClock", "frame_clock"]
 
 #: A step longer than ``1 + GAP_TOLERANCE`` nominal intervals is a gap (lost frames).
 GAP_TOLERANCE = 0.5
+#: Steps over which the local rate is taken: their mean, the time they span over their
+#: number, in which a clock's jitter of each time stamp falls as ``1 / RATE_STEPS``.
+RATE_STEPS = 64
+#: Largest departure of the local interval from the nominal one, as a share of it, before
+#: the frame rate is taken to have changed.
+RATE_CHANGE = 0.05
 
 
 @dataclass(frozen=True)
@@ -124,8 +133,11 @@ def frame_clock(times: ArrayLike) -> FrameClock:
     Raises
     ------
     InputError
-        Fewer than two times, a time that is not finite, or times that do not increase
-        (the message names the first such frame).
+        Fewer than two times, a time that is not finite, times that do not increase, or
+        a frame rate that changes: the mean of :data:`RATE_STEPS` steps (a gap counted
+        as the intervals it spans) departs from the nominal interval by more than
+        :data:`RATE_CHANGE` of it (the message names the first such frame). A run at
+        another rate would be analysed as if at the nominal one, its frequencies scaled.
 
     Examples
     --------
@@ -152,7 +164,30 @@ def frame_clock(times: ArrayLike) -> FrameClock:
     cuts = np.flatnonzero(gap) + 1
     edges = [0, *cuts.tolist(), t.size]
     runs = tuple((int(a), int(b)) for a, b in itertools.pairwise(edges))
-    lost = int(np.sum(np.rint(steps[gap] / interval) - 1))
+    spans = np.where(gap, np.rint(steps / interval), 1.0)  # nominal intervals per step
+    lost = int(np.sum(spans - 1))
+    _check_rate(steps, spans, interval)
     inside = steps[~gap]
     jitter = float(np.max(np.abs(inside - interval))) if inside.size else 0.0
     return FrameClock(t, interval, runs, lost, jitter)
+
+
+def _check_rate(steps: np.ndarray, intervals: np.ndarray, interval: float) -> None:
+    """Refuse ``steps`` whose local mean, over the nominal ``intervals`` each spans (more
+    than one across a gap), departs from ``interval`` (:func:`frame_clock`)."""
+    if steps.size < RATE_STEPS:
+        return
+    time, count = (np.concatenate([[0.0], np.cumsum(v)]) for v in (steps, intervals))
+    local = (time[RATE_STEPS:] - time[:-RATE_STEPS]) / (count[RATE_STEPS:] - count[:-RATE_STEPS])
+    off = np.flatnonzero(np.abs(local - interval) > RATE_CHANGE * interval)
+    if off.size:
+        # where it changed: the first window nearly all past it (the next windows'
+        # largest departure, nine tenths of it)
+        ahead = np.abs(local[off[0] : off[0] + RATE_STEPS] - interval)
+        start = int(off[0]) + int(np.argmax(ahead >= 0.9 * ahead.max()))
+        after = float(np.median(steps[start : start + RATE_STEPS]))
+        raise InputError(
+            f"the frame rate changes: around frame {start + 1} the maps come every "
+            f"{after * 1e3:.4g} ms, most of them every {interval * 1e3:.4g} ms; "
+            "analyse each rate apart (a time range)"
+        )

@@ -46,3 +46,24 @@ def test_jitter_within_the_tolerance_is_no_gap():
 def test_bad_times_name_the_frame(times, message):
     with pytest.raises(InputError, match=message):
         frame_clock(times)
+
+
+@pytest.mark.parametrize(("after", "refused"), [(0.01, True), (0.012, True), (0.0104, False)])
+def test_a_change_of_frame_rate_is_refused_where_it_happens(after, refused):
+    """450 maps at 50 frames/s then 250 faster: analysed at the nominal 20 ms, a 12.3 Hz
+    wave of the fast part showed at 6.25 Hz. A change within 5 % stands (4 % here)."""
+    before = 0.02 if after == 0.01 else 0.01
+    times = np.concatenate([np.arange(450) * before, 450 * before + np.arange(250) * after])
+    if not refused:
+        assert frame_clock(times).runs == ((0, 700),)
+        return
+    with pytest.raises(InputError, match=r"frame rate changes: around frame 4[45]\d the maps"):
+        frame_clock(times)
+
+
+def test_a_jittery_clock_is_no_change_of_rate():
+    """Time stamps scattered by 8 % of the interval (a host's clock at 400 frames/s)."""
+    rng = np.random.default_rng(2)
+    times = np.arange(20000) / 400 + rng.normal(0, 0.0002, 20000)
+    clock = frame_clock(times)  # a step 4.4 sigma long is a gap now and then: no change
+    assert clock.lost <= 2 and clock.interval == pytest.approx(0.0025, rel=1e-3)
