@@ -394,6 +394,8 @@ def test_two_threads_give_the_numbers_of_one(tmp_path: Path) -> None:
         ("centre on noise", "no centre can be found: E(omega) has no tone standing 3 times"),
         # the maps' own times would be replaced by even ones, their gap closed
         ("fps over times", "the maps carry their own frame times (maps/time, 1 gap)"),
+        # its filter would span 450 frames to pass 10 Hz at one; the maps have 96
+        ("band too narrow", "the band 9.5:10.5 Hz is too narrow to filter at 100 maps/s: its"),
         # 100 maps/s, then 77 from frame 200: analysed at 100, its f would be 1.3 times
         ("rate changes", "the frame rate changes: around frame 19"),
     ],
@@ -432,6 +434,7 @@ def test_bad_input_is_one_line_exit_2_and_writes_nothing(
         "hold typo": ["--hold", "sigma,foo"],
         "centre on noise": ["--centre", "auto", "--no-fit"],
         "fps over times": ["--fps", "100"],
+        "band too narrow": ["--band-f", "9.5:10.5"],
     }.get(case, [])
     if case == "no file":
         argv[1] = str(tmp_path / "missing.h5")

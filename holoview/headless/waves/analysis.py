@@ -49,7 +49,7 @@ from holoview.processing.waves.dispersion import (
     check_fit_settings,
     fit_dispersion,
 )
-from holoview.processing.waves.filters import Band
+from holoview.processing.waves.filters import Band, block_for
 from holoview.processing.waves.lockin import LockIn, LockInMaps, push_lockins
 from holoview.processing.waves.omega_k import OmegaKAccumulator, OmegaKSpectrum
 from holoview.processing.waves.partial_waves import PartialWaveFit, fit_partial_wave, refine_tone
@@ -511,6 +511,9 @@ def _check_asked(maps: WaveMaps, options: WaveOptions) -> None:
         clock.check_resolved(f2, f"the top of the ringdown's band {f1:g}:{f2:g} Hz")
     if band is not None and band.f_min is not None:
         clock.check_resolved(band.f_min, "the band filter's lowest frequency")
+    if band is not None and band.temporal:  # a band its filter cannot make
+        longest = max(stop - start for start, stop in clock.runs)
+        band.frequency_intervals(clock.rate, block_for(band, clock.rate, maps.shape, longest))
 
 
 def analyse_waves(maps: WaveMaps, options: WaveOptions) -> WaveResults:

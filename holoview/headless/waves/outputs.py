@@ -27,7 +27,8 @@ coordinates attached as HDF5 dimension scales (xarray reads each group with
 - ``/lockin``: ``amplitude``, ``amplitude_stderr`` (harmonic, y, x; m), ``phase``,
   ``phase_stderr`` (rad) on ``harmonic``, ``y``, ``x`` (m); attribute ``frequency_hz``.
 - ``/filtered`` (with a band): ``height`` (time, y, x) float32 m on ``time`` (s), ``y``,
-  ``x``; the band in the attributes.
+  ``x``; the band in the attributes, and in time the width of its edges
+  (``transition_hz``).
 
 ``waves.json`` (format ``holoview-waves-summary`` 1.0): the input, the clock, every value
 with its standard error and unit (:func:`~holoview.headless.waves.analysis.summary_values`),
@@ -55,7 +56,7 @@ from holoview.headless.results.output_folder import OutputFolder
 from holoview.headless.waves.analysis import WaveOptions, WaveResults, analyse_waves, summary_values
 from holoview.headless.waves.figures import FIGURES, draw_figures
 from holoview.headless.waves.maps import WaveMaps, open_wave_maps, results_path
-from holoview.processing.waves.filters import band_filter
+from holoview.processing.waves.filters import band_filter, block_for, transition_width
 from holoview.processing.waves.omega_k import SIGN_CONVENTION
 
 logger = logging.getLogger(__name__)
@@ -256,7 +257,9 @@ def _write_filtered(group: h5py.Group, maps: WaveMaps, options: WaveOptions) -> 
         value = getattr(band, name)
         if value is not None:
             group.attrs[name] = value
-    group.attrs["units"] = "k in rad/m, f in Hz, direction and half_width in rad"
+    group.attrs["units"] = (
+        "k in rad/m, f in Hz, direction and half_width in rad, transition_hz in Hz"
+    )
 
     class Stack:
         """The maps analysed, by frame slices (relative maps summed)."""
@@ -267,7 +270,19 @@ def _write_filtered(group: h5py.Group, maps: WaveMaps, options: WaveOptions) -> 
             start, stop, _ = key.indices(maps.frames)
             return maps.read(start, stop)
 
-    band_filter(Stack(), maps.clock.times, maps.pixel_size, band, height, workers=options.workers)
+    longest = max(stop - start for start, stop in maps.clock.runs)
+    block = block_for(band, maps.clock.rate, (rows, cols), longest)
+    if band.temporal:
+        group.attrs["transition_hz"] = transition_width(maps.clock.rate, block)
+    band_filter(
+        Stack(),
+        maps.clock.times,
+        maps.pixel_size,
+        band,
+        height,
+        block=block,
+        workers=options.workers,
+    )
 
 
 class WavesOutcome:
