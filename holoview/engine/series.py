@@ -50,7 +50,17 @@ SERIES_FRAME_FLAGS = ("nonfinite", "saturated", "damaged")
 #: Frames a live series keeps (10 minutes at 60 frames/s).
 LIVE_LENGTH = 36000
 
-_ARRAYS = ("_t", "_frames", "_values", "_noise", "_steps", "_jphase", "_jfused", "_jmargin")
+_ARRAYS = (
+    "_t",
+    "_frames",
+    "_intervals",
+    "_values",
+    "_noise",
+    "_steps",
+    "_jphase",
+    "_jfused",
+    "_jmargin",
+)
 
 
 def coupling_of(label: str | None, n1: float | None, n2: float | None) -> int | None:
@@ -190,6 +200,7 @@ class PhaseSeries:
         n = max(1, capacity if max_length is None else min(capacity, max_length))
         self._t = np.zeros(n)
         self._frames = np.zeros(n, dtype=np.int64)
+        self._intervals = np.ones(n, dtype=np.int64)
         self._values = np.zeros((n, m), dtype=np.complex128)
         self._noise = np.zeros((n, m))
         self._steps = np.zeros((n, m), dtype=bool)
@@ -269,8 +280,9 @@ class PhaseSeries:
             fill = np.nan if array.dtype.kind in "fc" else 0  # no value yet: NaN where it can be
             setattr(self, name, np.concatenate([array, np.full_like(array[:grow], fill)]))
 
-    def add(self, t_s: float, frame: int, measured: CarrierValues) -> None:
-        """Add one frame: its time (s, any origin), input index and carrier values.
+    def add(self, t_s: float, frame: int, measured: CarrierValues, *, intervals: int = 1) -> None:
+        """Add one frame: its time (s, any origin), input index and carrier values, and
+        the frame intervals since the frame before (more than one after lost frames).
 
         A frame flagged ``nonfinite`` has NaN values; the step of a peak is measured
         against its last finite value.
@@ -287,6 +299,7 @@ class PhaseSeries:
         i = self._n
         self._t[i] = t_s - self._t0
         self._frames[i] = frame
+        self._intervals[i] = max(1, intervals)
         self._values[i] = values
         self._noise[i] = measured.noise
         for flag in measured.flags:
@@ -363,7 +376,9 @@ class PhaseSeries:
         values = np.where(self._joint_signs < 0, np.conj(values), values)
         sigma = self._noise[i, cols]
         usable = bool(np.all(np.isfinite(sigma) & (sigma > 0)))
-        frame = self._joint.update(values, sigma if usable else None)
+        frame = self._joint.update(
+            values, sigma if usable else None, intervals=int(self._intervals[i])
+        )
         self._jphase[i, cols] = frame.phases
         self._jfused[i] = (frame.height, frame.vibration)
         self._jmargin[i] = (frame.margin, 1.0 if frame.flagged else 0.0)
@@ -376,6 +391,11 @@ class PhaseSeries:
     def times(self) -> np.ndarray:
         """Frame times, s, from 0 at the first frame added (a view)."""
         return self._t[: self._n]
+
+    @property
+    def intervals(self) -> np.ndarray:
+        """Per frame, the frame intervals since the one before (a view)."""
+        return self._intervals[: self._n]
 
     @property
     def frames(self) -> np.ndarray:

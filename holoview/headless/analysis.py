@@ -315,6 +315,21 @@ def _lattice_of(selection: Selection, naming: Naming, j: int) -> LatticePeak | N
     return selection.lattice[j] if j < len(selection.lattice) else None
 
 
+def _lost_note(intervals: np.ndarray, times: np.ndarray, frames: np.ndarray) -> str | None:
+    """The frames the camera lost (steps of several frame intervals), in one note."""
+    gaps = np.flatnonzero(intervals > 1)
+    if not gaps.size:
+        return None
+    lost = int(np.sum(intervals[gaps] - 1))
+    longest = int(gaps[np.argmax(intervals[gaps])])
+    return (
+        f"{lost} frames lost in {gaps.size} gap{'' if gaps.size == 1 else 's'} (the longest, "
+        f"{int(intervals[longest]) - 1} frames, after frame {int(frames[longest - 1])} at "
+        f"{float(times[longest - 1]):.4g} s): the height steps across each are resolved over "
+        "the frame intervals it spans"
+    )
+
+
 def analyse(data: RunData, selection: Selection, optics: Optics, naming: Naming) -> Analysis:
     """Convert the series to depths, fuse, fit rates, set flags (the peaks ``naming`` says).
 
@@ -337,6 +352,10 @@ def analyse(data: RunData, selection: Selection, optics: Optics, naming: Naming)
     if summary.note is not None:
         notes.append(summary.note)
         logger.warning("%s", summary.note)
+    lost = _lost_note(data.series.intervals, data.series.times, data.series.frames)
+    if lost is not None:
+        notes.append(lost)
+        logger.warning("%s", lost)
     flagged, margins = summary.flagged, summary.margins
     if flagged is not None and margins is not None and flagged.any():
         count, smallest = int(flagged.sum()), float(np.min(margins))

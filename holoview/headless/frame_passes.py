@@ -35,7 +35,7 @@ import numpy as np
 from holoview.engine.experiment import Experiment
 from holoview.engine.frame_core import CarrierCore, FrameCore
 from holoview.engine.map_step import Coregistration, FrameMaps, MapStep, regridded
-from holoview.headless.inputs import InputFile
+from holoview.headless.inputs import FrameTimes, InputFile
 from holoview.headless.reader import DEFAULT_DEPTH, FrameReader
 from holoview.headless.run_data import (
     DAMAGED_BIT,
@@ -154,7 +154,7 @@ class MapsSpec:
 def measure_frames(
     source: InputFile,
     frames: range,
-    times: np.ndarray,
+    times: FrameTimes,
     data: RunData,
     peaks: Sequence[Peak],
     *,
@@ -171,8 +171,8 @@ def measure_frames(
         The input (read from a ``holoview-reader`` thread during the call).
     frames : range
         Input frame indices to process.
-    times : ndarray, shape (len(frames),)
-        Their times, s.
+    times : FrameTimes
+        Their times, s, and the frame intervals before each.
     data : RunData
         The run's record (its series set up).
     peaks : sequence of Peak
@@ -208,7 +208,12 @@ def measure_frames(
                 t0 = time.perf_counter()
                 measured = carriers.measure(frame)
                 assert measured is not None
-                series.add(float(times[position]), index, measured)
+                series.add(
+                    float(times.times[position]),
+                    index,
+                    measured,
+                    intervals=times.interval(position),
+                )
                 bits = flag_bits(measured.flags)
                 data.frame_bits[position] = bits
                 t1 = time.perf_counter()

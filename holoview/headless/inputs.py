@@ -37,6 +37,7 @@ from holoview.errors import InputError
 from holoview.file_kinds import special_file
 from holoview.optics.setup import FLUIDS, check_optics
 from holoview.processing.fourier.frames import check_frame, check_frame_content, frame_damage
+from holoview.processing.series.frame_gaps import spans
 
 logger = logging.getLogger(__name__)
 
@@ -354,11 +355,47 @@ class FrameTimes:
         Which clock (or ``--fps``) timed which frames, and why not the camera's.
     warning : bool
         True when the camera's clock was damaged and another was used.
+    intervals : ndarray of int, optional
+        Per frame, the frame intervals since the one before (more than one after
+        frames the camera lost; 1 for the first): :func:`frame_intervals`.
     """
 
     times: np.ndarray
     note: str
     warning: bool = False
+    intervals: np.ndarray | None = None
+
+    def interval(self, position: int) -> int:
+        """The frame intervals before the frame at ``position`` (1 when not known)."""
+        return 1 if self.intervals is None else int(self.intervals[position])
+
+
+def frame_intervals(times: np.ndarray, camera: bool, ids: np.ndarray) -> np.ndarray:
+    """Per frame, the frame intervals since the one before (1 for the first).
+
+    A camera's clock says how much time passed, which is what the surface's motion
+    follows: a step over ``1 + GAP_TOLERANCE`` median steps spans ``round(step /
+    median)`` intervals (:func:`~holoview.processing.series.frame_gaps.spans`; a pause
+    of the camera counts as well as its lost frames). Host arrival times come late and
+    in bursts: there, and under ``--fps``, the camera's frame counter says what was lost,
+    where it steps forward throughout; else every step is one interval.
+
+    Examples
+    --------
+    >>> frame_intervals(np.array([0.0, 0.05, 0.1, 0.6]), True, np.arange(4))
+    array([ 1,  1,  1, 10])
+    >>> frame_intervals(np.array([0.0, 0.01, 0.3, 0.31]), False, np.array([7, 8, 10, 11]))
+    array([1, 1, 2, 1])
+    """
+    out = np.ones(len(times), dtype=np.int64)
+    if len(times) < 3:
+        return out
+    if camera:
+        steps = np.diff(times)
+        out[1:] = spans(steps, float(np.median(steps))).astype(np.int64)
+    elif np.all(np.diff(ids) >= 1):
+        out[1:] = np.diff(ids)
+    return out
 
 
 class InputFile:
@@ -512,13 +549,22 @@ class InputFile:
                     f"({FPS_RANGE[0]:g} to {FPS_RANGE[1]:g} frames/s)"
                 )
             note = f"frame times of {span}: --fps {fps_hz:g} (the file's own times not used)"
-            return FrameTimes((indices - indices[0]) / float(fps_hz), note)
+            times = (indices - indices[0]) / float(fps_hz)
+            return FrameTimes(
+                times, note, intervals=frame_intervals(times, False, self._ids(frames))
+            )
         if indices.size == 1:
             return FrameTimes(np.zeros(1), f"{span}: one frame, no times needed")
         clock = self._file.clock(frames)
         if not clock.usable:
             raise InputError(f"{self.path}: {clock.note}: give --fps (frames per second)")
-        return FrameTimes(clock.times - clock.times[0], clock.note, warning=clock.fallback)
+        times = clock.times - clock.times[0]
+        intervals = frame_intervals(times, clock.source == "camera", self._ids(frames))
+        return FrameTimes(times, clock.note, warning=clock.fallback, intervals=intervals)
+
+    def _ids(self, frames: range) -> np.ndarray:
+        """The camera's frame counter of ``frames`` (their indices where it has none)."""
+        return np.array([self._file.frame_id(i) for i in frames], dtype=np.int64)
 
     def close(self) -> None:
         """Release the file."""

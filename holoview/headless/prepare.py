@@ -185,7 +185,7 @@ def prepare_run(
     run = RunFrames(
         source,
         selected,
-        frame_times.times,
+        frame_times,
         selection,
         spec,
         experiment,

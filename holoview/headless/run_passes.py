@@ -29,8 +29,6 @@ import logging
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 
-import numpy as np
-
 from holoview.engine.experiment import Experiment
 from holoview.headless.analysis import Naming, known_joint, name_peaks
 from holoview.headless.frame_passes import (
@@ -41,7 +39,7 @@ from holoview.headless.frame_passes import (
     spread_pass,
 )
 from holoview.headless.input_identity import InputIdentity
-from holoview.headless.inputs import InputFile, Optics
+from holoview.headless.inputs import FrameTimes, InputFile, Optics
 from holoview.headless.parallel.runners import ChunkRunner
 from holoview.headless.parallel.spread_threads import spread_in_threads
 from holoview.headless.parallel.stitch import map_chunks, measure_chunks
@@ -64,8 +62,8 @@ class RunFrames:
         The input.
     frames : range
         Input frame indices to process.
-    times : ndarray, shape (len(frames),)
-        Their times, s.
+    times : FrameTimes
+        Their times, s, and the frame intervals before each.
     selection : Selection
         The peaks chosen (labelled, or to be identified in auto mode).
     spec : MapsSpec
@@ -87,7 +85,7 @@ class RunFrames:
 
     source: InputFile
     frames: range
-    times: np.ndarray
+    times: FrameTimes
     selection: Selection
     spec: MapsSpec
     experiment: Experiment

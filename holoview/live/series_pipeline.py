@@ -172,7 +172,11 @@ class SeriesPipeline:
             return None
         if self.series is None:
             self.series = self._new_series()
-        self.series.add(frame_time(meta.t_device, meta.t_host), meta.frame_id, measured)
+        before = self.series.frames  # the camera's counter says how many were lost
+        intervals = int(meta.frame_id - before[-1]) if before.size else 1
+        self.series.add(
+            frame_time(meta.t_device, meta.t_host), meta.frame_id, measured, intervals=intervals
+        )
         if broken:
             self._seq += 1
             self._trend_at = time.monotonic()

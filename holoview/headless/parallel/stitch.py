@@ -42,7 +42,7 @@ import numpy as np
 
 from holoview.headless.frame_passes import MapsSpec
 from holoview.headless.input_identity import InputIdentity
-from holoview.headless.inputs import InputFile
+from holoview.headless.inputs import FrameTimes, InputFile
 from holoview.headless.parallel.chunk_maps import MapsWork, map_bytes
 from holoview.headless.parallel.chunks import ChunkResult, make_tasks, split_frames
 from holoview.headless.parallel.runners import ChunkRunner
@@ -169,7 +169,7 @@ def _gather(
 def measure_chunks(
     source: InputFile,
     frames: range,
-    times: np.ndarray,
+    times: FrameTimes,
     data: RunData,
     peaks: Sequence[Peak],
     *,
@@ -188,8 +188,8 @@ def measure_chunks(
         The input (its path is what the workers open).
     frames : range
         Input frame indices to process.
-    times : ndarray, shape (len(frames),)
-        Their times, s.
+    times : FrameTimes
+        Their times, s, and the frame intervals before each.
     data : RunData
         The run's record (its series set up, a joint estimate tracked where known).
     peaks : sequence of Peak
@@ -236,7 +236,7 @@ def measure_chunks(
 def _measure_chunks(
     source: InputFile,
     frames: range,
-    times: np.ndarray,
+    times: FrameTimes,
     data: RunData,
     peaks: Sequence[Peak],
     *,
@@ -282,7 +282,12 @@ def _measure_chunks(
         start = time.perf_counter()
         for k in range(len(result)):
             position = result.start + k
-            series.add(float(times[position]), frames[position], result.measured(k))
+            series.add(
+                float(times.times[position]),
+                frames[position],
+                result.measured(k),
+                intervals=times.interval(position),
+            )
             data.frame_bits[position] = result.flags[k]
         if maps is not None and result.maps is not None:
             _record_chunk(maps[1], frames, result)

@@ -25,12 +25,15 @@ Per frame, :class:`JointEstimator` minimises
 over the integers ``n`` and ``dx = (du, dpsi)``. The second term is a prediction from
 the past frames (the height keeps its last step, the reference-arm phase does not move;
 ``P`` is learned from how far the steps departed from it, widened four times), as a
-Kalman filter carries a float solution in real-time kinematic GNSS. The search runs in
-``dx``-space, where the problem has two dimensions whatever the number of peaks (the
-ambiguity function method of Counselman and Gourevitch, IEEE Trans. Geosci. Remote Sens.
-GE-19, 244 (1981), searches position the same way): the integers of the two peaks
-whose steps the prediction fixes best are enumerated over the prediction's window
-(4.5 standard deviations, and one more integer each side), each pair fixes a ``dx``,
+Kalman filter carries a float solution in real-time kinematic GNSS. Across lost frames
+(a step spanning ``n`` frame intervals, :mod:`.frame_gaps`) the height is predicted to
+keep its step in each, ``n`` times the last, the prediction's spread ``n`` times wider.
+The search runs in ``dx``-space, where the problem has two dimensions whatever the
+number of peaks (the ambiguity function method of Counselman and Gourevitch, IEEE Trans.
+Geosci. Remote Sens. GE-19, 244 (1981), searches position the same way): the integers
+of the two peaks whose steps the prediction fixes best are enumerated over the
+prediction's window (4.5 standard deviations, and one more integer each side), each
+pair fixes a ``dx``,
 every other peak's integer is rounded to it, and ``dx`` is solved again with them
 (integer bootstrapping, Teunissen, J. Geodesy 72, 606 (1998)). The best ``J`` wins.
 
@@ -279,7 +282,9 @@ class JointEstimator:
             return self._wide() ** 2
         return INFLATE * self._innovation + FLOOR**2
 
-    def update(self, values: ArrayLike, sigma: ArrayLike | None = None) -> JointFrame:
+    def update(
+        self, values: ArrayLike, sigma: ArrayLike | None = None, *, intervals: int = 1
+    ) -> JointFrame:
         """Take one frame's carrier values and return the joint estimate.
 
         Parameters
@@ -289,6 +294,9 @@ class JointEstimator:
             rad); NaN where not measured.
         sigma : array_like of float, shape (M,), optional
             This frame's phase noise per peak, rad (else the given or learned ones).
+        intervals : int
+            Frame intervals since the frame before (more than one after lost frames:
+            :func:`~holoview.processing.series.frame_gaps.intervals_since`).
 
         Returns
         -------
@@ -319,7 +327,7 @@ class JointEstimator:
             before = self._last_variance[seen]
             variance = now[seen] + np.where(np.isfinite(before), before, now[seen])
             n, step, margin, vibration_margin = self._resolve(
-                self._design[seen], y, offset, variance
+                self._design[seen], y, offset, variance, intervals
             )
             turns[seen] = n
             flagged = margin < self.min_margin
@@ -331,11 +339,12 @@ class JointEstimator:
                 step,
                 flagged=flagged,
                 noise=sigma is None,
+                spread=intervals == 1,
             )
         fresh = present & ~np.isfinite(self._phase)
         x = self._solve(present & ~fresh, now)
         if np.any(seen):
-            self._step = x - self._x
+            self._step = (x - self._x) / intervals
         self._x = x
         self._phase[fresh] = self._design[fresh] @ x
         self._x_at[present] = x
@@ -377,12 +386,14 @@ class JointEstimator:
         y: NDArray[np.float64],
         offset: NDArray[np.float64],
         variance: NDArray[np.float64],
+        intervals: int,
     ) -> tuple[NDArray[np.int64], NDArray[np.float64], float, float]:
         """The integers, the step and the margins of one frame (module documentation)."""
-        predicted = self._step.copy()
+        predicted = self._step * intervals
         if self._dims == 2:
             predicted[1] = 0.0
-        best = _search(a, y - offset, variance, predicted, self._prior_variance())
+        prior = self._prior_variance() * intervals**2
+        best = _search(a, y - offset, variance, predicted, prior)
         dof = max(a.shape[0] - self._dims, 1)
         if best.observed > dof + CHI2_SIGMAS * math.sqrt(2 * dof) + CHI2_SIGMAS**2:
             wide = _search(a, y - offset, variance, predicted, self._wide() ** 2)
@@ -399,22 +410,25 @@ class JointEstimator:
         *,
         flagged: bool,
         noise: bool,
+        spread: bool,
     ) -> None:
-        """Update the prediction's spread (every frame: a wrong step widens it) and the
-        peaks' noise (frames resolved with confidence only) from a frame.
+        """Update the prediction's spread (every frame one interval after the last: a
+        wrong step widens it) and the peaks' noise (frames resolved with confidence
+        only) from a frame.
 
         ``rows`` are the peaks of ``steps`` (their unwrapped steps less the offsets of
         missed frames), ``step`` the frame's solution; ``noise``: learn the peaks'
-        noise (not when this frame's was given).
+        noise (not when this frame's was given); ``spread``: learn the spread.
         """
-        rate = 1.0 / min(self._updates + 1, MEMORY)
-        predicted = self._step * np.array([1.0, 0.0])[: self._dims]
-        innovation = (step - predicted) ** 2
-        if np.all(np.isfinite(self._innovation)):
-            self._innovation = (1 - rate) * self._innovation + rate * innovation
-        else:
-            self._innovation = innovation
-        self._updates += 1
+        if spread:
+            rate = 1.0 / min(self._updates + 1, MEMORY)
+            predicted = self._step * np.array([1.0, 0.0])[: self._dims]
+            innovation = (step - predicted) ** 2
+            if np.all(np.isfinite(self._innovation)):
+                self._innovation = (1 - rate) * self._innovation + rate * innovation
+            else:
+                self._innovation = innovation
+            self._updates += 1
         a = self._design[rows]
         if flagged or not noise or self._fixed_sigma is not None or rows.size <= self._dims:
             return

@@ -17,6 +17,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from holoview.errors import InputError
+from holoview.processing.series.frame_gaps import spans
 from holoview.processing.series.joint_estimation import DEFAULT_MIN_MARGIN, JointEstimator
 from holoview.processing.series.rate_fits import RateFit, check_times, fit_rate
 
@@ -92,6 +93,7 @@ class JointSeries:
 def _run(
     estimator: JointEstimator,
     values: NDArray[np.complex128],
+    times: NDArray[np.float64],
     sigma: NDArray[np.float64] | None = None,
 ) -> tuple[
     NDArray[np.float64],
@@ -101,14 +103,20 @@ def _run(
     NDArray[np.float64],
     NDArray[np.bool_],
 ]:
-    """Every frame through ``estimator``: phases, height, vibration, margins, flags."""
+    """Every frame through ``estimator`` (the intervals between them from ``times``,
+    :func:`~holoview.processing.series.frame_gaps.spans`): phases, height, vibration,
+    margins, flags."""
     n, m = values.shape
     phases = np.full((n, m), np.nan)
     fused, vibration = np.full(n, np.nan), np.full(n, np.nan)
     margins, vibration_margins = np.full(n, np.inf), np.full(n, np.inf)
     flagged = np.zeros(n, dtype=bool)
+    steps = np.diff(times)
+    intervals = [1, *spans(steps, float(np.median(steps))).astype(int)] if n > 2 else [1] * n
     for t in range(n):
-        frame = estimator.update(values[t], None if sigma is None else sigma[t])
+        frame = estimator.update(
+            values[t], None if sigma is None else sigma[t], intervals=int(intervals[t])
+        )
         phases[t], fused[t], vibration[t] = frame.phases, frame.height, frame.vibration
         margins[t], vibration_margins[t] = frame.margin, frame.vibration_margin
         flagged[t] = frame.flagged
@@ -185,7 +193,7 @@ def estimate_joint(
         else:
             raise InputError(f"sigma has shape {given.shape}; give (peaks,) or {z.shape}")
     first = JointEstimator(alphas, couplings, wavelength, sigma=fixed, min_margin=min_margin)
-    phases, fused, vibration, margins, vibration_margins, flagged = _run(first, z, per_frame)
+    phases, fused, vibration, margins, vibration_margins, flagged = _run(first, z, t, per_frame)
     k = 4 * np.pi / wavelength
     design = np.column_stack([first.alphas, first.couplings])
     state = np.column_stack([fused * k, np.nan_to_num(vibration)])
@@ -223,7 +231,9 @@ def estimate_joint(
             spread=np.maximum(spread, 1e-3),
             step=(float(np.median(steps[:5, 0])), 0.0),
         )
-        phases, fused, vibration, margins, vibration_margins, flagged = _run(second, z, per_frame)
+        phases, fused, vibration, margins, vibration_margins, flagged = _run(
+            second, z, t, per_frame
+        )
     depths = phases * wavelength / (4 * np.pi * first.alphas)
     fit = fit_rate(t, fused) if np.count_nonzero(np.isfinite(fused)) >= 3 else None
     peak_fits = tuple(

@@ -27,11 +27,10 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from holoview.errors import InputError
+from holoview.processing.series.frame_gaps import GAP_TOLERANCE, spans
 
 __all__ = ["GAP_TOLERANCE", "FrameClock", "frame_clock"]
 
-#: A step longer than ``1 + GAP_TOLERANCE`` nominal intervals is a gap (lost frames).
-GAP_TOLERANCE = 0.5
 #: Steps over which the local rate is taken: their mean, the time they span over their
 #: number, in which a clock's jitter of each time stamp falls as ``1 / RATE_STEPS``.
 RATE_STEPS = 64
@@ -160,13 +159,13 @@ def frame_clock(times: ArrayLike) -> FrameClock:
             f"{float(t[i - 1])!r} s"
         )
     interval = float(np.median(steps))
-    gap = steps > (1.0 + GAP_TOLERANCE) * interval
+    intervals = spans(steps, interval)
+    gap = intervals > 1
     cuts = np.flatnonzero(gap) + 1
     edges = [0, *cuts.tolist(), t.size]
     runs = tuple((int(a), int(b)) for a, b in itertools.pairwise(edges))
-    spans = np.where(gap, np.rint(steps / interval), 1.0)  # nominal intervals per step
-    lost = int(np.sum(spans - 1))
-    _check_rate(steps, spans, interval)
+    lost = int(np.sum(intervals - 1))
+    _check_rate(steps, intervals, interval)
     inside = steps[~gap]
     jitter = float(np.max(np.abs(inside - interval))) if inside.size else 0.0
     return FrameClock(t, interval, runs, lost, jitter)
