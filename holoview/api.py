@@ -385,8 +385,10 @@ def open_results(
 
     ``maps`` gives ``h(time, y, x)`` per peak and ``fused`` (m; ``time`` in s, ``y``
     and ``x`` in m on the object side, at the map pixels' centres); ``trends`` the
-    series by ``(time, label)``; ``peaks`` the table by ``label``. Format 1.0 files
-    open the same way (:mod:`holoview.headless.results.results_data`).
+    series by ``(time, label)``; ``peaks`` the table by ``label``. Booleans are
+    booleans and ``carrier_value`` complex, as the file stores them (int8 0/1 and two
+    float parts, which every netCDF reader reads); files of the earlier formats 2.0
+    and 1.0 open the same way (:mod:`holoview.headless.results.results_data`).
 
     Parameters
     ----------

@@ -29,6 +29,8 @@ apt_packages=(
   libaravis-0.8-0 gir1.2-aravis-0.8 aravis-tools-cli libgirepository1.0-dev
   gobject-introspection libcairo2-dev
   # FFmpeg codecs for OpenCV video replay come with the wheel; nothing more here
+  # the system's netCDF-C tools (ncdump, 4.9.0 on Debian 12): the tests read results.h5 with them
+  netcdf-bin
 )
 
 install_apt() {

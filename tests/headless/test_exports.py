@@ -23,9 +23,10 @@ import zarr
 from headless_sim import Simulated, run_cli
 
 from holoview.headless.results import cf, export_mat, exports
-from holoview.headless.results.results_layout import map_dimensions
+from holoview.headless.results.results_layout import RESULTS_VERSION, map_dimensions
 
 V1_FILE = Path(__file__).parent / "data" / "results_v1.h5"
+V2_0_FILE = Path(__file__).parent / "data" / "results_v2_0.h5"
 
 
 @pytest.fixture(scope="module")
@@ -44,6 +45,11 @@ def h5(run: Path, name: str) -> np.ndarray:
         return f[name][()]
 
 
+def carrier_value(run: Path) -> np.ndarray:
+    """``/trends/carrier_value`` of results.h5: its two parts joined."""
+    return h5(run, "trends/carrier_value_real") + 1j * h5(run, "trends/carrier_value_imag")
+
+
 def labels_of(run: Path) -> list[str]:
     return [s.decode() for s in h5(run, "trends/label")]
 
@@ -53,7 +59,7 @@ def test_netcdf_read_back_by_netcdf_c_and_xarray(run: Path, tmp_path: Path) -> N
     done = exports.export_results(run, "netcdf", out)
     assert done.groups == ("maps", "trends", "peaks") and "fused" in done.maps
     with netCDF4.Dataset(out) as nc:
-        assert nc.format_version == "2.0" and nc.interrupted == 0
+        assert nc.format_version == RESULTS_VERSION and nc.interrupted == 0
         fused = nc["maps"]["fused"]
         assert fused.dimensions == ("time", "y", "x") and fused.units == "m"
         np.testing.assert_array_equal(fused[:].filled(np.nan), h5(run, "maps/fused"))
@@ -61,13 +67,13 @@ def test_netcdf_read_back_by_netcdf_c_and_xarray(run: Path, tmp_path: Path) -> N
         trends = nc["trends"]
         assert trends["mean_height_m"].dimensions == ("time", "label")
         assert list(trends["label"][:]) == labels_of(run)
-        value = h5(run, "trends/carrier_value")
+        value = carrier_value(run)
         np.testing.assert_array_equal(trends["carrier_value_real"][:], value.real)
         np.testing.assert_array_equal(trends["carrier_value_imag"][:], value.imag)
         assert trends["carrier_value_imag"].units == "count"
         assert trends["fused_volume_m3"].units == "m3"
     with xr.open_dataset(out, group="peaks", engine="netcdf4") as peaks:
-        np.testing.assert_array_equal(peaks.used_in_fused, h5(run, "peaks/used_in_fused"))
+        np.testing.assert_array_equal(peaks.used_in_fused, h5(run, "peaks/used_in_fused") == 1)
         assert peaks.used_in_fused.dtype == bool
 
 
@@ -81,7 +87,7 @@ def test_zarr_read_back_by_zarr(run: Path, tmp_path: Path) -> None:
     assert fused.attrs["_ARRAY_DIMENSIONS"] == ["time", "y", "x"]
     assert fused.chunks[0] == 1
     np.testing.assert_array_equal(fused[:], h5(run, "maps/fused"))
-    np.testing.assert_array_equal(root["trends/carrier_value"][:], h5(run, "trends/carrier_value"))
+    np.testing.assert_array_equal(root["trends/carrier_value"][:], carrier_value(run))
     with xr.open_zarr(out, group="trends") as trends:
         assert trends.mean_height_m.dims == ("time", "label")
         assert list(trends.label.values) == labels_of(run)
@@ -99,10 +105,10 @@ def test_mat_v5_read_back_by_scipy(run: Path, tmp_path: Path) -> None:
     assert maps["attributes"]["RB1"]["alpha"] == pytest.approx(h5(run, "peaks/alpha")[0])
     trends = mat["trends"]
     np.testing.assert_array_equal(trends["mean_height_m"], h5(run, "trends/mean_height_m"))
-    np.testing.assert_array_equal(trends["carrier_value"], h5(run, "trends/carrier_value"))
+    np.testing.assert_array_equal(trends["carrier_value"], carrier_value(run))
     assert [s.strip() for s in trends["label"]] == labels_of(run)
     assert trends["units"]["fused_volume_m3"] == "m3"
-    assert mat["attributes"]["format_version"] == "2.0"
+    assert mat["attributes"]["format_version"] == RESULTS_VERSION
 
 
 def test_mat_v73_read_back_by_h5py(run: Path, tmp_path: Path) -> None:
@@ -120,9 +126,7 @@ def test_mat_v73_read_back_by_h5py(run: Path, tmp_path: Path) -> None:
         rows = ["".join(map(chr, row)).strip() for row in label[()].T]
         assert rows == labels_of(run)
         value = f["trends/carrier_value"][()].T
-        np.testing.assert_array_equal(
-            value["real"] + 1j * value["imag"], h5(run, "trends/carrier_value")
-        )
+        np.testing.assert_array_equal(value["real"] + 1j * value["imag"], carrier_value(run))
         np.testing.assert_array_equal(f["trends/time"][()], h5(run, "trends/time")[None, :])
         assert f["peaks/used_in_fused"].attrs["MATLAB_class"] == b"logical"
 
@@ -154,6 +158,24 @@ def test_format_1_exports_too(tmp_path: Path) -> None:
         assert nc["maps"]["RB1"].dimensions == ("time", "y", "x")
         assert nc["trends"]["fused_volume_m3"].units == "m3"
         np.testing.assert_array_equal(nc["maps"]["RB1"][:].filled(np.nan), h5(V1_FILE, "maps/RB1"))
+
+
+def test_format_2_0_exports_as_2_1_does(run: Path, tmp_path: Path) -> None:
+    """A 2.0 file's booleans and complex carrier value (h5py's HDF5 enum and compound
+    types) export with the types a 2.1 file's export has."""
+    exports.export_results(V2_0_FILE, "netcdf", tmp_path / "old.nc")
+    exports.export_results(run, "netcdf", tmp_path / "new.nc")
+    with netCDF4.Dataset(tmp_path / "old.nc") as old, netCDF4.Dataset(tmp_path / "new.nc") as new:
+        for group in ("trends", "peaks"):
+            for name, variable in new[group].variables.items():
+                assert old[group][name].dtype == variable.dtype, (group, name)
+        value = h5(V2_0_FILE, "trends/carrier_value")
+        np.testing.assert_array_equal(old["trends"]["carrier_value_real"][:], value.real)
+        np.testing.assert_array_equal(old["trends"]["carrier_value_imag"][:], value.imag)
+        used = old["peaks"]["used_in_fused"]
+        np.testing.assert_array_equal(used[:], h5(V2_0_FILE, "peaks/used_in_fused"))
+        assert used.dtype == np.int8 and used.getncattr("dtype") == "bool"
+        assert old.interrupted == 0
 
 
 @pytest.fixture(scope="module")

@@ -1,4 +1,4 @@
-"""results.h5 format 2.0 opened by xarray itself: dimensions, coordinates in s and m, units.
+"""results.h5 format 2.1 opened by xarray itself: dimensions, coordinates in s and m, units.
 
 The coordinates are checked against numbers the writer did not compute: the
 simulator's true frame times and true height maps (whose pixel (i, j) sits at
@@ -6,12 +6,20 @@ simulator's true frame times and true height maps (whose pixel (i, j) sits at
 writer of holoview 0.1.0 before this change (``data/results_v1.h5``: ``holoview
 simulate rec.h5 --scenario evaporation --size 64 --frames 8 --fps 20 --seed 5
 --evaporation-um-per-min 60`` then ``holoview process rec.h5 --out out --maps --jobs 1
---area 0.01`` at commit fea880d), still opens into the same Datasets.
+--area 0.01`` at commit fea880d), still opens into the same Datasets, and so does format
+2.0 (``data/results_v2_0.h5``, booleans and complex numbers in h5py's HDF5 enum and
+compound types: ``holoview simulate rec.h5 --scenario waves --size 64 --frames 8 --fps
+20 --seed 5 --wave-rms-nm 40`` then ``holoview process rec.h5 --out out --maps --jobs 1
+--area 0.01`` at commit 8e2a7cb). Debian 12's ncdump (netCDF-C 4.9.0, which drops
+those types without a word) is run on results.h5 where it is installed.
 """
 
 from __future__ import annotations
 
 import csv
+import re
+import shutil
+import subprocess
 from pathlib import Path
 
 import h5py
@@ -25,8 +33,10 @@ from headless_sim import Simulated, run_cli
 from holoview.errors import InputError
 from holoview.headless.results.exports import export_results
 from holoview.headless.results.results_data import map_labels, open_results, results_version
+from holoview.headless.results.results_layout import RESULTS_VERSION
 
 V1_FILE = Path(__file__).parent / "data" / "results_v1.h5"
+V2_0_FILE = Path(__file__).parent / "data" / "results_v2_0.h5"
 
 
 @pytest.fixture(scope="module")
@@ -94,14 +104,14 @@ def test_every_numeric_variable_has_units_and_no_dimension_is_phony(wave_maps: P
                     assert "unit" not in variable.attrs, (group, name)
                 assert variable.attrs.get("long_name"), (group, name)
     with h5py.File(path, "r") as f:
-        assert f.attrs["format_version"] == "2.0"
+        assert f.attrs["format_version"] == RESULTS_VERSION
         assert f.attrs["Conventions"] == "CF-1.11"
 
 
 def test_trends_by_time_and_label_agree_with_trends_csv(wave_maps: Path) -> None:
     with xr.open_dataset(wave_maps / "results.h5", group="trends", engine="h5netcdf") as trends:
         assert trends.mean_height_m.dims == ("time", "label")
-        assert trends.carrier_value.dims == ("time", "label")
+        assert trends.carrier_value_real.dims == trends.carrier_value_imag.dims == ("time", "label")
         assert trends.fused_height_m.dims == ("time",)
         assert trends.fused_volume_m3.attrs["units"] == "m3"
         assert "frame" in trends.coords
@@ -125,6 +135,89 @@ def test_netcdf_c_reads_results_h5_itself(wave_maps: Path) -> None:
         assert fused.units == "m"
         assert nc["trends"]["mean_height_m"].dimensions == ("time", "label")
         assert nc["maps"]["time"].units == "s"
+
+
+def test_debian_ncdump_reads_every_item_of_results_h5(wave_maps: Path) -> None:
+    """netCDF-C before 4.10 (Debian 12's ncdump, 4.9.0) drops HDF5 enum and compound types
+    without a word: results.h5 2.0's booleans and complex carrier value. The system's
+    ncdump shows every one of them in 2.1: the attributes ``interrupted`` and
+    ``displacement_measured``, the variables ``ambiguity_flagged``, ``used_in_fused``
+    and the carrier value's two parts, with their values."""
+    ncdump = shutil.which("ncdump")
+    if ncdump is None:
+        pytest.skip("no ncdump here (netCDF-C's tool; on Debian: apt-get install netcdf-bin)")
+
+    def dump(*options: str) -> str:
+        argv = [ncdump, *options, str(wave_maps / "results.h5")]
+        return subprocess.run(argv, capture_output=True, text=True, check=True).stdout
+
+    header = dump("-h")
+    assert "\t\t:interrupted = 0b ;" in header
+    with open_results(wave_maps, "maps") as maps:
+        measured = {
+            label: maps[label].attrs["displacement_measured"]
+            for label in map_labels(maps)
+            if label != "fused"
+        }
+    for label, value in measured.items():
+        assert f"{label}:displacement_measured = {int(value)}b ;" in header, label
+    for declaration in (
+        "byte ambiguity_flagged(time) ;",
+        "byte used_in_fused(label) ;",
+        "float carrier_value_real(time, label) ;",
+        "float carrier_value_imag(time, label) ;",
+    ):
+        assert declaration in header
+    with open_results(wave_maps, "trends") as trends, open_results(wave_maps, "peaks") as peaks:
+        expected = {
+            "/trends/ambiguity_flagged": trends.ambiguity_flagged.values,
+            "/peaks/used_in_fused": peaks.used_in_fused.values,
+            "/trends/carrier_value_real": trends.carrier_value.values.real,
+            "/trends/carrier_value_imag": trends.carrier_value.values.imag,
+        }
+    for name, values in expected.items():
+        short = name.rsplit("/", 1)[1]
+        data = re.search(rf"\n\s*{short} =([^;]*);", dump("-p", "9", "-v", name))
+        assert data is not None, name
+        dumped = np.array([float(v) for v in data.group(1).replace("\n", " ").split(",")])
+        np.testing.assert_allclose(dumped, values.ravel(), rtol=1e-6, err_msg=name)
+
+
+def test_format_2_0_opens_into_the_same_datasets(wave_maps: Path) -> None:
+    """results.h5 2.0 (booleans and the complex carrier value in h5py's types) opens with
+    the variables and types of 2.1: booleans as booleans, ``carrier_value`` complex64."""
+    assert results_version(V2_0_FILE) == "2.0"
+    for group in ("maps", "trends", "peaks"):
+        with open_results(V2_0_FILE, group) as old, open_results(wave_maps, group) as new:
+            names = set(old.variables) - set(map_labels(old))
+            assert names == set(new.variables) - set(map_labels(new)), group
+            for name in names:
+                assert old[name].dims == new[name].dims, (group, name)
+                assert old[name].dtype.kind == new[name].dtype.kind, (group, name)
+                assert old[name].attrs.get("units") == new[name].attrs.get("units"), name
+                assert old[name].attrs.get("long_name") == new[name].attrs.get("long_name")
+            assert old.attrs["interrupted"] is new.attrs["interrupted"] is False
+    with (
+        h5py.File(V2_0_FILE, "r") as raw,
+        open_results(V2_0_FILE, "trends") as trends,
+        open_results(V2_0_FILE, "peaks") as peaks,
+        open_results(V2_0_FILE, "maps") as maps,
+        open_results(wave_maps, "maps") as new_maps,
+        open_results(wave_maps, "trends") as new_trends,
+    ):
+        assert trends.carrier_value.dtype == np.complex64 == new_trends.carrier_value.dtype
+        np.testing.assert_array_equal(trends.carrier_value, raw["trends/carrier_value"][()])
+        assert trends.ambiguity_flagged.dtype == peaks.used_in_fused.dtype == bool
+        np.testing.assert_array_equal(peaks.used_in_fused, raw["peaks/used_in_fused"][()])
+        for dataset in (maps, new_maps):
+            assert all(
+                type(dataset[label].attrs["displacement_measured"]) is bool
+                for label in map_labels(dataset)
+                if label != "fused"
+            )
+        assert maps.RB1.attrs["displacement_measured"] is bool(
+            raw["maps/RB1"].attrs["displacement_measured"]
+        )
 
 
 WINDOW_VARIABLES = {"radius_cpp", "window_taper", "window_rule", "window_reason"}

@@ -15,6 +15,15 @@ coordinates in the groups above.
 Units are CF/UDUNITS spellings: ``m``, ``s``, ``rad``, ``m3``, ``m s-1``, ``count``
 (camera counts), and ``1`` for a plain number. Strings carry no unit.
 
+Only the netCDF-4 types that every netCDF-C release reads are written: h5py's booleans
+(an HDF5 enum) and complex numbers (an HDF5 compound) are dropped without a word by
+netCDF-C before 4.10 (Debian 12's ncdump, 4.9.0, shows neither). So a boolean variable
+is int8 0/1 with CF's ``flag_values`` and ``flag_meanings`` and xarray's marker
+``dtype = "bool"`` (:func:`flags`; xarray reads it back as booleans), a boolean
+attribute an int8 0/1 (:func:`flag_attribute`), and a complex variable two float
+variables ``<name>_real`` and ``<name>_imag`` (:func:`complex_parts`;
+:func:`split_complex` and :func:`join_complex` do the same to xarray Datasets).
+
 Examples
 --------
 >>> import tempfile
@@ -38,9 +47,16 @@ from typing import Any
 
 import h5py
 import numpy as np
+import xarray as xr
 
 #: The conventions the files follow (the ``Conventions`` root attribute).
 CONVENTIONS = "CF-1.11"
+
+#: The parts a complex variable is stored as, ``<name>_real`` and ``<name>_imag``.
+COMPLEX_PARTS = ("real", "imag")
+
+#: The CF flag attributes of a boolean variable stored as int8 0/1.
+FLAG_ATTRIBUTES = {"flag_values": np.array([0, 1], dtype=np.int8), "flag_meanings": "false true"}
 
 
 def describe(dataset: h5py.Dataset, *, units: str | None, long_name: str, **more: Any) -> None:
@@ -133,6 +149,117 @@ def variable(
     attach(dataset, [group[d] for d in dims])
     describe(dataset, units=units, long_name=long_name, **more)
     return dataset
+
+
+def flags(
+    group: h5py.Group,
+    name: str,
+    values: np.ndarray | Sequence[bool],
+    dims: Sequence[str],
+    *,
+    long_name: str,
+    **more: Any,
+) -> h5py.Dataset:
+    """Create the boolean variable ``name``: int8 0/1, flagged as booleans (module docstring).
+
+    Its attributes are ``units`` ``1``, ``long_name``, :data:`FLAG_ATTRIBUTES` and
+    ``dtype = "bool"``, the marker with which xarray writes booleans and reads them back.
+    """
+    array = np.asarray(values, dtype=bool).astype(np.int8)
+    return variable(
+        group,
+        name,
+        array,
+        dims,
+        units="1",
+        long_name=long_name,
+        **FLAG_ATTRIBUTES,
+        dtype="bool",
+        **more,
+    )
+
+
+def flag_attribute(value: bool) -> np.int8:
+    """A boolean attribute as netCDF-C reads it: int8 0/1."""
+    return np.int8(value)
+
+
+def complex_parts(
+    group: h5py.Group,
+    name: str,
+    values: np.ndarray,
+    dims: Sequence[str],
+    *,
+    units: str,
+    long_name: str,
+    **more: Any,
+) -> tuple[h5py.Dataset, h5py.Dataset]:
+    """Create the complex variable ``name`` as ``<name>_real`` and ``<name>_imag``.
+
+    Each part has the real type of ``values`` (float32 for complex64), the ``units``
+    and the ``long_name`` followed by `` (real part)`` or `` (imag part)``:
+    :func:`join_complex` joins them again.
+    """
+    array = np.asarray(values)
+    real, imag = (
+        variable(
+            group,
+            f"{name}_{part}",
+            getattr(array, part),
+            dims,
+            units=units,
+            long_name=_part_name(long_name, part),
+            **more,
+        )
+        for part in COMPLEX_PARTS
+    )
+    return real, imag
+
+
+def _part_name(long_name: str, part: str) -> str:
+    return f"{long_name} ({part} part)"
+
+
+def split_complex(dataset: xr.Dataset) -> xr.Dataset:
+    """``dataset`` with each complex variable split into ``<name>_real`` and ``<name>_imag``."""
+    out = dataset.copy()
+    for name in list(out.data_vars):
+        array = out[name]
+        if np.issubdtype(array.dtype, np.complexfloating):
+            for part in COMPLEX_PARTS:
+                attrs = dict(array.attrs)
+                attrs["long_name"] = _part_name(attrs.get("long_name", str(name)), part)
+                out[f"{name}_{part}"] = getattr(array, part).assign_attrs(attrs)
+            out = out.drop_vars([name])
+    return out
+
+
+def join_complex(dataset: xr.Dataset) -> xr.Dataset:
+    """``dataset`` with each pair ``<name>_real``, ``<name>_imag`` joined into complex ``<name>``.
+
+    The inverse of :func:`split_complex` and :func:`complex_parts`: the attributes are
+    the real part's, its ``long_name`` without `` (real part)``; the variables keep
+    their order, and the file stays open until the returned Dataset is closed.
+    """
+    real, imag = (f"_{part}" for part in COMPLEX_PARTS)
+    names = [str(name) for name in dataset.data_vars]
+    stems = [
+        n.removesuffix(real)
+        for n in names
+        if n.endswith(real) and n.removesuffix(real) + imag in names
+    ]
+    if not stems:
+        return dataset
+    parts = {stem + suffix: stem for stem in stems for suffix in (real, imag)}
+    for stem in stems:
+        real_part = dataset[stem + real]
+        long_name = str(real_part.attrs.get("long_name", stem)).removesuffix(_part_name("", "real"))
+        joined = (real_part + 1j * dataset[stem + imag]).assign_attrs(
+            {**real_part.attrs, "long_name": long_name}
+        )
+        dataset = dataset.drop_vars([stem + real, stem + imag]).assign({stem: joined})
+    order = dict.fromkeys(parts.get(n, n) for n in names)  # each stem where its real part was
+    return dataset[list(order)]
 
 
 def netcdf_attribute(value: Any) -> Any:

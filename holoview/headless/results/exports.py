@@ -1,6 +1,6 @@
 """A run's results where users live: NetCDF, Zarr, MATLAB and TIFF stacks.
 
-:func:`export_results` reads a ``results.h5`` (format 2.0, or 1.0) through
+:func:`export_results` reads a ``results.h5`` (format 2.x, or 1.0) through
 :func:`~holoview.headless.results.results_data.open_results` and writes:
 
 ``netcdf``
@@ -9,7 +9,8 @@
     root attributes as global attributes. netCDF has neither complex numbers nor
     booleans: ``carrier_value`` becomes ``carrier_value_real`` and
     ``carrier_value_imag``, booleans become 0/1 bytes (xarray reads them back as
-    booleans). Read by xarray, netCDF4, ncdump, Panoply, MATLAB's ``ncread``.
+    booleans), as in ``results.h5`` itself. Read by xarray, netCDF4, ncdump, Panoply,
+    MATLAB's ``ncread``.
 ``zarr``
     A Zarr store (a folder, Zarr format 2: format 3 has no specification for strings
     yet, and MATLAB and most non-Python readers read format 2) with the same groups
@@ -46,7 +47,7 @@ import xarray as xr
 
 from holoview.atomic import atomic_folder, atomic_path
 from holoview.errors import InputError, OutputError, os_error_text
-from holoview.headless.results.cf import netcdf_attribute
+from holoview.headless.results.cf import netcdf_attribute, split_complex
 from holoview.headless.results.export_mat import mat_tree, write_mat5, write_mat73
 from holoview.headless.results.results_data import (
     map_labels,
@@ -143,7 +144,7 @@ def export_results(
     Parameters
     ----------
     results : str or Path
-        ``results.h5`` (format 2.0 or 1.0), or the output folder holding it.
+        ``results.h5`` (format 2.x or 1.0), or the output folder holding it.
     to : str
         ``"netcdf"``, ``"zarr"``, ``"mat"`` or ``"tiff"``.
     out : str or Path
@@ -273,15 +274,7 @@ class _TaskProgress:
 
 def _for_netcdf(dataset: xr.Dataset) -> xr.Dataset:
     """Complex variables split into real and imaginary parts, booleans in attributes as 0/1."""
-    out = dataset.copy()
-    for name in list(out.data_vars):
-        array = out[name]
-        if np.issubdtype(array.dtype, np.complexfloating):
-            for part, values in (("real", np.real(array)), ("imag", np.imag(array))):
-                attrs = dict(array.attrs)
-                attrs["long_name"] = f"{attrs.get('long_name', name)} ({part} part)"
-                out[f"{name}_{part}"] = values.assign_attrs(attrs)
-            out = out.drop_vars([name])
+    out = split_complex(dataset)
     for variable in out.variables.values():
         variable.attrs = {k: netcdf_attribute(v) for k, v in variable.attrs.items()}
     return out

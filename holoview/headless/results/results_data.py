@@ -7,10 +7,15 @@ holds one) lazily: ``maps`` gives ``h(time, y, x)`` per peak and ``fused``, in m
 carries ``units`` (CF spelling) and ``long_name``; the Dataset's attributes are the
 file's root attributes (format, optics, settings).
 
-Format 2.0 files (:mod:`holoview.headless.results.results_layout`) are netCDF-4 and open
-through xarray's ``h5netcdf`` engine. Format 1.0 files (written before dimension
-scales) are read here into the same Datasets: coordinates rebuilt from the maps'
-``pixel_step_px`` and ``pixel_size_m`` and the trends' ``time_s``, ``unit``
+Format 2.x files (:mod:`holoview.headless.results.results_layout`) are netCDF-4 and open
+through xarray's ``h5netcdf`` engine. Whatever their version, the Datasets hold the
+same types: booleans as booleans (format 2.1 stores them as int8 0/1, which xarray
+reads back as booleans by their ``dtype`` marker; the attributes
+:data:`~holoview.headless.results.results_layout.BOOLEAN_ATTRIBUTES` are made booleans
+here) and ``carrier_value`` complex (2.1 stores its parts, joined here by
+:func:`~holoview.headless.results.cf.join_complex`). Format 1.0 files (written before
+dimension scales) are read here into the same Datasets: coordinates rebuilt from the
+maps' ``pixel_step_px`` and ``pixel_size_m`` and the trends' ``time_s``, ``unit``
 attributes turned into ``units`` in CF spelling; their maps stay on disk (dask).
 """
 
@@ -26,7 +31,9 @@ import xarray as xr
 
 from holoview.acquire.durability import open_hdf5_for_reading
 from holoview.errors import InputError
+from holoview.headless.results.cf import join_complex
 from holoview.headless.results.results_layout import (
+    BOOLEAN_ATTRIBUTES,
     LABEL_NAME,
     RESULTS_FORMAT,
     RESULTS_VERSION,
@@ -66,7 +73,7 @@ def results_path(path: str | Path) -> Path:
 
 
 def results_version(path: str | Path) -> str:
-    """The ``format_version`` of a holoview results file (``"1.0"``, ``"2.0"``).
+    """The ``format_version`` of a holoview results file (``"1.0"``, ``"2.0"``, ``"2.1"``).
 
     Raises
     ------
@@ -131,14 +138,16 @@ def open_results(
         raise InputError(f"unknown results group {group!r}; choose one of {', '.join(GROUPS)}")
     version = results_version(p)
     with h5py.File(p, "r") as f:
-        root = {k: _plain(v) for k, v in f.attrs.items()}
+        root = _booleans({k: _plain(v) for k, v in f.attrs.items()})
         if group not in f or (group == "maps" and not _map_names(f["maps"])):
             hint = ": run holoview process with --maps" if group == "maps" else ""
             raise InputError(f"{p} holds no {group}{hint}")
     if version.startswith("1."):
         dataset = _open_v1(p, group, chunks)
     else:
-        dataset = xr.open_dataset(p, group=group, engine="h5netcdf", chunks=chunks)
+        dataset = join_complex(xr.open_dataset(p, group=group, engine="h5netcdf", chunks=chunks))
+        for variable in dataset.variables.values():
+            variable.attrs = _booleans(variable.attrs)
     dataset.attrs.update(root)
     return dataset
 
@@ -164,6 +173,11 @@ def _plain(value: Any) -> Any:
     if isinstance(value, np.ndarray) and value.dtype.kind in "OS":
         return [_text(v) for v in value]
     return value
+
+
+def _booleans(attrs: dict[Any, Any]) -> dict[Any, Any]:
+    """``attrs`` with :data:`BOOLEAN_ATTRIBUTES` as booleans (format 2.1 stores int8 0/1)."""
+    return {k: bool(v) if k in BOOLEAN_ATTRIBUTES else v for k, v in attrs.items()}
 
 
 def _units(dataset: h5py.Dataset) -> dict[str, str]:

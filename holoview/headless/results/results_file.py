@@ -1,6 +1,6 @@
 """``results.h5`` while a run writes it: :class:`ResultsFile`.
 
-Format ``holoview-results`` 2.0, netCDF-4 in the CF manner: its layout is documented in
+Format ``holoview-results`` 2.1, netCDF-4 in the CF manner: its layout is documented in
 :mod:`holoview.headless.results.results_layout`, which writes its series and peaks
 tables and the maps' dimensions; :class:`ResultsFile` writes the maps as they come
 (checking the room on the disk a batch at a time) and the rest at the end. A failed
@@ -222,7 +222,7 @@ class ResultsFile:
                 "holoview_version": __version__,
                 "created_utc": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
                 "input": input_path,
-                "interrupted": data.interrupted,
+                "interrupted": cf.flag_attribute(data.interrupted),
                 "wavelength_m": optics.wavelength_m or math.nan,
                 "pixel_pitch_m": optics.pixel_pitch_m or math.nan,
                 "n1": optics.n1,
@@ -303,7 +303,7 @@ class ResultsFile:
                     {
                         "displacement_px": list(shift.shift),
                         "displacement_stderr_px": list(shift.stderr),
-                        "displacement_measured": shift.measured,
+                        "displacement_measured": cf.flag_attribute(shift.measured),
                     }
                 )
         if "fused" in group:

@@ -1,33 +1,42 @@
 """The layout of ``results.h5``: a netCDF-4 file that xarray and netCDF tools read whole.
 
-Format ``holoview-results`` 2.0 is HDF5 laid out in the netCDF-4/CF manner
+Format ``holoview-results`` 2.1 is HDF5 laid out in the netCDF-4/CF manner
 (:mod:`holoview.headless.results.cf`): the axes of each group are HDF5 dimension scales, so
 ``xarray.open_dataset(path, group="maps", engine="h5netcdf")`` gives ``h(time, y, x)``
 with its coordinates, and every numeric variable has ``units`` (UDUNITS spelling: ``m``,
 ``s``, ``rad``, ``m3``, ``m s-1``, ``count``, ``1``) and a ``long_name``; strings carry no
-unit. Format 1.0 (no dimension scales, ``/trends/time_s`` instead of ``time``, a ``unit``
-attribute instead of ``units``) is still read by :mod:`holoview.headless.results.results_data`.
+unit. Its types are those every netCDF-C 4.x reads (no HDF5 enum or compound):
+booleans are int8 0/1 (variables with ``flag_values`` 0, 1, ``flag_meanings`` ``false
+true`` and xarray's ``dtype`` ``bool``, which xarray reads as booleans; the attributes
+:data:`BOOLEAN_ATTRIBUTES` plain int8), the complex carrier value is two float32
+variables, ``carrier_value_real`` and ``carrier_value_imag``.
+
+Earlier formats are still read by :mod:`holoview.headless.results.results_data`, into
+the same Datasets: 2.0 (booleans as h5py's enum, ``carrier_value`` complex64, which
+netCDF-C before 4.10 drops without a word) and 1.0 (no dimension scales,
+``/trends/time_s`` instead of ``time``, a ``unit`` attribute instead of ``units``).
 
 Root attributes
     ``format``, ``format_version``, ``Conventions`` (``CF-1.11``), ``uuid``,
-    ``holoview_version``, ``created_utc``, ``input``, ``interrupted`` (the run was
-    stopped: the frames done only), and the parameters (``wavelength_m``, ``n1``,
+    ``holoview_version``, ``created_utc``, ``input``, ``interrupted`` (0 or 1: the run
+    was stopped, the frames done only), and the parameters (``wavelength_m``, ``n1``,
     ``n2``, ``pixel_pitch_m``, ``reference``, ``window``, ``radius``: ``"matched"``,
     ``"bound"`` or the radius given in cycles/pixel, ``unwrap``).
 ``/trends``
     Dimensions ``time`` (N,: s from the first processed frame) and ``label`` (M,: the
     peaks). ``frame`` (time: the input's frame index, a coordinate); ``alpha``
-    (label); ``mean_phase_rad``, ``mean_height_m``, ``carrier_value`` (complex, camera
-    counts), ``phase_noise_rad`` (the maps' per-pixel noise where a frame was
-    demodulated), each (time, label); ``fused_height_m``, ``fused_spread_m``, with
-    ``--area`` ``fused_volume_m3``, and with the joint estimate ``vibration_rad`` (the
+    (label); ``mean_phase_rad``, ``mean_height_m``, ``carrier_value_real`` and
+    ``carrier_value_imag`` (the complex carrier value's parts, camera counts),
+    ``phase_noise_rad`` (the maps' per-pixel noise where a frame was demodulated), each
+    (time, label); ``fused_height_m``, ``fused_spread_m``, with ``--area``
+    ``fused_volume_m3``, and with the joint estimate ``vibration_rad`` (the
     reference-arm phase), ``ambiguity_margin`` (noise standard deviations) and
-    ``ambiguity_flagged``, each (time).
+    ``ambiguity_flagged`` (a boolean), each (time).
 ``/peaks``
     Dimensions ``label`` and ``component`` (``fx``, ``fy``). ``carrier_cpp`` (label,
     component; cycles/pixel on the twin whose phase grows with h), and per label
     ``alpha``, ``amplitude``, ``snr``, ``rate_m_per_s``, ``rate_stderr_m_per_s``,
-    ``used_in_fused``, ``flags`` (comma-separated), and the window each peak was
+    ``used_in_fused`` (a boolean), ``flags`` (comma-separated), and the window each peak was
     demodulated with: ``radius_cpp`` (its cut-off, cycles/pixel), ``window_taper``,
     ``window_rule`` (``matched``, ``bound`` or ``given``) and ``window_reason``.
 ``/maps`` (with ``process --maps``; none in a run interrupted before any frame's maps)
@@ -46,7 +55,7 @@ Root attributes
     with (``radius_cpp``, its cut-off in cycles/pixel; ``window_taper``,
     ``window_rule``, ``window_bound_cpp``, ``window_content_cpp`` where matched,
     ``window_reason``) and its measured shift against the first peak
-    (``displacement_px``, ``displacement_stderr_px``, ``displacement_measured``; the
+    (``displacement_px``, ``displacement_stderr_px``, ``displacement_measured`` 0 or 1; the
     maps are not moved, their coordinates are the camera's), and for ``fused`` its
     ``labels``, their radii ``radius_cpp`` (one per label) and ``grid_of`` (the maps
     are moved onto that peak's grid before fusing). The maps, the fused one included,
@@ -80,7 +89,10 @@ from holoview.processing.peaks.matched import Window
 
 #: Format name and version of ``results.h5``.
 RESULTS_FORMAT = "holoview-results"
-RESULTS_VERSION = "2.0"
+RESULTS_VERSION = "2.1"
+
+#: Attributes holding a boolean as int8 0/1: the root's and each peak map's.
+BOOLEAN_ATTRIBUTES = ("interrupted", "displacement_measured")
 
 #: The ``long_name`` of the time and label dimensions.
 TIME_NAME = "time since the first processed frame"
@@ -153,12 +165,6 @@ def write_trends(
         ),
         "mean_phase_rad": (analysis.phases, by_peak, "rad", "mean phase change"),
         "mean_height_m": (analysis.heights, by_peak, "m", "mean height change"),
-        "carrier_value": (
-            data.values.astype(np.complex64),
-            by_peak,
-            "count",
-            "complex carrier value (demodulated amplitude and phase), camera counts",
-        ),
         "phase_noise_rad": (data.noise_rad, by_peak, "rad", "per-pixel phase noise of maps"),
     }
     if analysis.fused is not None:
@@ -184,12 +190,6 @@ def write_trends(
             "1",
             "joint estimate's ambiguity margin, noise standard deviations",
         )
-        series["ambiguity_flagged"] = (
-            analysis.flagged,
-            by_frame,
-            "1",
-            "frame whose joint estimate is ambiguous",
-        )
     if analysis.vibration is not None:
         series["vibration_rad"] = (
             analysis.vibration,
@@ -200,6 +200,24 @@ def write_trends(
     for name, (values, dims, units, long_name) in series.items():
         more = {"coordinates": "frame"} if dims[0] == "time" and name != "frame" else {}
         cf.variable(group, name, values, dims, units=units, long_name=long_name, **more)
+    cf.complex_parts(
+        group,
+        "carrier_value",
+        data.values.astype(np.complex64),
+        by_peak,
+        units="count",
+        long_name="complex carrier value (demodulated amplitude and phase), camera counts",
+        coordinates="frame",
+    )
+    if analysis.flagged is not None:
+        cf.flags(
+            group,
+            "ambiguity_flagged",
+            analysis.flagged,
+            by_frame,
+            long_name="frame whose joint estimate is ambiguous",
+            coordinates="frame",
+        )
 
 
 def write_peaks(group: h5py.Group, analysis: Analysis, windows: Sequence[Window] = ()) -> None:
@@ -235,12 +253,11 @@ def write_peaks(group: h5py.Group, analysis: Analysis, windows: Sequence[Window]
     ):
         array = np.array([math.nan if v is None else v for v in values], dtype=np.float64)
         cf.variable(group, name, array, ("label",), units=units, long_name=long_name)
-    cf.variable(
+    cf.flags(
         group,
         "used_in_fused",
-        np.array([p.used_in_fused for p in peaks], dtype=bool),
+        [p.used_in_fused for p in peaks],
         ("label",),
-        units="1",
         long_name="peak used in the fused height",
     )
     cf.variable(

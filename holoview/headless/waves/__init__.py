@@ -1,7 +1,7 @@
 """The wave analyses of a run's height maps, headless: ``holoview waves`` and ``process --waves``.
 
 The analyses themselves are Qt-free functions of :mod:`holoview.processing.waves`; here
-they are run over a ``results.h5`` (the maps step's maps, results.h5 2.0 layout) a block
+they are run over a ``results.h5`` (the maps step's maps, results.h5 2.x layout) a block
 of frames at a time, so memory stays a segment's whatever the length. Read in this order:
 
 - :mod:`.maps`: one label's maps, their pixel size, frame times (gaps kept) and the

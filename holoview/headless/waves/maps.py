@@ -1,7 +1,7 @@
 """The height maps of a ``results.h5`` for the wave analyses, read a block of frames at a time.
 
 The maps are ``/maps/<label>``, as the maps step writes them (``holoview process
---maps``; results.h5 2.0, layout in :mod:`holoview.headless.results.results_layout`),
+--maps``; results.h5 2.x, layout in :mod:`holoview.headless.results.results_layout`),
 read through h5py by dataset name; a 1.0 file (``unit``, ``/trends/time_s``) reads the
 same. Each needs:
 
@@ -158,7 +158,7 @@ class WaveMaps:
 
 
 def _times(file: h5py.File, dataset: h5py.Dataset) -> np.ndarray | None:
-    """The maps' ``time`` dimension scale (2.0), else ``/trends/time_s`` (1.0), s."""
+    """The maps' ``time`` dimension scale (2.x), else ``/trends/time_s`` (1.0), s."""
     for scale in dataset.dims[0].values() if len(dataset.dims) else ():
         name = scale.name.rsplit("/", 1)[-1]
         if name in ("time", "time_s"):
@@ -325,7 +325,7 @@ def _open(
 
 
 def _unit(attrs: h5py.AttributeManager) -> str | None:
-    """A map's unit: ``units`` in results.h5 2.0, ``unit`` in 1.0."""
+    """A map's unit: ``units`` in results.h5 2.x, ``unit`` in 1.0."""
     unit: str | None = _attr(attrs, "units") or _attr(attrs, "unit")
     return unit
 
