@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from scipy import special
 from waves_synth import sample
 
 from holoview.errors import InputError
@@ -13,6 +14,30 @@ from holoview.processing.waves.ringdown import band_pass_taps, fit_ringdown
 
 SIZE, PIXEL, FPS = 64, 0.6e-3, 100.0
 CENTRE = (19.1e-3, 18.7e-3)
+RADII = np.arange(1e-3, 17e-3, 0.6e-3)
+
+
+def ring_series(
+    decay: float,
+    *,
+    onset: float = 0.0,
+    noise: float = 2e-9,
+    seed: int = 0,
+    tone: float | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """``h_2(r, t)`` on ``RADII`` of a 12 Hz mode of 60 nm switched on at ``onset`` (s),
+    400 frames, with white noise (``noise`` per pixel of 0.6 mm) and, with ``tone`` (Hz),
+    a steady wave of the same shape and amplitude."""
+    times = np.arange(400) / FPS
+    after = np.clip(times - onset, 0.0, None)
+    envelope = np.where(times >= onset, np.exp(-(decay + 2j * np.pi * 12.0) * after), 0.0)
+    if tone is not None:
+        envelope = envelope + np.exp(-2j * np.pi * tone * times + 0.7j)
+    series = 60e-9 * np.outer(envelope, special.jv(2, 480.0 * RADII))
+    rng = np.random.default_rng(seed)
+    sd = noise / np.sqrt(2 * np.pi * RADII / 0.6e-3)  # a ring's pixels averaged
+    series += (rng.normal(size=series.shape) + 1j * rng.normal(size=series.shape)) * sd / 2**0.5
+    return times, series
 
 
 @pytest.fixture(scope="module")
@@ -75,3 +100,50 @@ def test_the_filter_leaves_most_of_a_short_record_to_fit(ringing):
     longest = 240  # frames 160-399, after the gap
     taps = band_pass_taps((11.0, 13.0), 1 / FPS, max_taps=longest // 4)
     assert taps.size == 59
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+@pytest.mark.parametrize("start", [None, 0.6])
+def test_a_mode_that_starts_within_the_record_keeps_its_decay_rate(seed, start):
+    # the filter's outputs within half its length after the onset mixed in the frames
+    # before it: +7.5 % (5 standard errors) from the default start
+    times, series = ring_series(3.0, onset=0.5, noise=5e-9, seed=seed)
+    fit = fit_ringdown(times, series, (9.0, 15.0), m=2, radii=RADII, start=start)
+    assert fit.t0 >= 0.5
+    assert fit.decay == pytest.approx(3.0, rel=0.05)
+    assert abs(fit.decay - 3.0) < 3 * fit.decay_stderr
+    assert abs(fit.frequency - 12.0) < 3 * fit.frequency_stderr
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_a_decay_faster_than_the_filter_is_measured_from_its_first_frames(seed):
+    # Q = 3.8: gone (e^-4.9) before the 99-tap filter's first whole output, and refused
+    # as "no damped mode stands out of the noise (1.4 standard errors)"
+    times, series = ring_series(10.0, seed=seed)
+    fit = fit_ringdown(times, series, (9.0, 15.0), m=2, radii=RADII)
+    assert fit.t0 == 0.0
+    assert fit.decay == pytest.approx(10.0, rel=0.05)
+    assert abs(fit.decay - 10.0) < 3 * fit.decay_stderr
+    assert abs(fit.frequency - 12.0) < 3 * fit.frequency_stderr
+
+
+def test_a_fast_decay_in_strong_noise_is_refused_as_not_out_of_the_noise():
+    times, series = ring_series(10.0, noise=200e-9)
+    with pytest.raises(InputError, match="no damped mode stands out of the noise"):
+        fit_ringdown(times, series, (9.0, 15.0), m=2, radii=RADII)
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_a_wave_outside_the_band_does_not_leak_in_where_the_filter_meets_the_start(seed):
+    # the outputs that reach before the start took a steady 6.5 Hz wave as strong as the
+    # mode for -8.5 % of the decay rate: they are left out where they disagree
+    times, series = ring_series(3.0, noise=5e-9, seed=seed, tone=6.5)
+    fit = fit_ringdown(times, series, (9.0, 15.0), m=2, radii=RADII)
+    assert fit.decay == pytest.approx(3.0, rel=0.03)
+    assert abs(fit.decay - 3.0) < 3 * fit.decay_stderr
+
+
+def test_a_decay_rate_the_record_does_not_determine_is_refused():
+    times, series = ring_series(0.003, noise=20e-9)
+    with pytest.raises(InputError, match=r"decay rate is not determined: .* decay times\)"):
+        fit_ringdown(times, series, (9.0, 15.0), m=2, radii=RADII)
