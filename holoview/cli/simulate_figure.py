@@ -53,7 +53,7 @@ def spectrum_figure(
     from matplotlib import patheffects
 
     from holoview.engine.true_labels import VISIBLE_AMPLITUDE
-    from holoview.headless.results.figures import new_figure, spectrum_edges
+    from holoview.headless.results.figures import map_edges, new_figure, spectrum_edges
 
     data = frame.astype(np.float64)
     rows, cols = frame.shape
@@ -64,8 +64,8 @@ def spectrum_figure(
     spectrum_axes = figure.add_axes((0.55, 0.09, 0.32, 0.74))
     mm = pixel_pitch_m * 1e3
     low, high = np.percentile(data, (0.5, 99.5))
-    extent = (0, cols * mm, rows * mm, 0)
-    shown = image_axes.imshow(data, cmap="gray", vmin=low, vmax=high, extent=extent)
+    x0, x1, y0, y1 = map_edges(rows, cols, mm, mm)  # pixel (r, c) at (c, r) pitches
+    shown = image_axes.imshow(data, cmap="gray", vmin=low, vmax=high, extent=(x0, x1, y1, y0))
     # the fringes alias at this scale: the centre's, pixel for pixel, in an inset
     side = min(48, rows, cols)
     top_row, left_col = (rows - side) // 2, (cols - side) // 2

@@ -13,6 +13,7 @@ import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import cv2
+import h5py
 import numpy as np
 import pytest
 from figure_layout import layout_problems, saved_figures
@@ -62,6 +63,33 @@ def test_every_text_of_the_report_lies_on_the_page(
     status, _, _ = run_cli([*argv, *evaporation.label_args("RB1", "FB1")], capsys)
     assert status == 0 and len(drawn) == 1
     assert layout_problems(drawn[0]) == []
+
+
+def test_the_report_draws_each_map_pixel_where_results_h5_puts_it(
+    evaporation: Simulated,
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture,
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Map pixel (r, c) at (x[c], y[r]) of results.h5: the maps were drawn from the
+    frame's edges, half a map pixel (2.7 frame pixels at 256^2) down and right."""
+    drawn = saved_figures(monkeypatch)
+    out = tmp_path / "r"
+    argv = ["process", str(evaporation.path), "--out", str(out), "--frames", ":30", "--maps"]
+    status, _, _ = run_cli([*argv, *evaporation.label_args("RB1", "FB1")], capsys)
+    assert status == 0 and len(drawn) == 1
+    with h5py.File(out / "results.h5", "r") as f:
+        x, y = f["maps/x"][:] * 1e3, f["maps/y"][:] * 1e3  # mm, as the report
+    maps = [im for ax in drawn[0].axes for im in ax.get_images() if im.get_array().ndim == 2]
+    maps = [im for im in maps if im.get_array().shape == (y.size, x.size)]
+    assert maps
+    for image in maps:
+        left, right, bottom, top = image.get_extent()
+        step_x, step_y = (right - left) / x.size, (bottom - top) / y.size
+        assert left + step_x / 2 == pytest.approx(x[0], abs=1e-9)
+        assert right - step_x / 2 == pytest.approx(x[-1], rel=1e-9)
+        assert top + step_y / 2 == pytest.approx(y[0], abs=1e-9)
+        assert bottom - step_y / 2 == pytest.approx(y[-1], rel=1e-9)
 
 
 def test_report_svg_says_the_labels_and_rates_of_the_summary(

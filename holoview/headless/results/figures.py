@@ -68,6 +68,19 @@ def spectrum_edges(rows: int, cols: int) -> tuple[float, float, float, float]:
     return x0, x1, y0, y1
 
 
+def map_edges(rows: int, cols: int, dy: float, dx: float) -> tuple[float, float, float, float]:
+    """The edges ``(x0, x1, y0, y1)`` of a ``(rows, cols)`` map whose pixel ``(r, c)``
+    stands at ``(c dx, r dy)``, as in ``results.h5``: half a pixel beyond the first and
+    last centres (``extent=(x0, x1, y1, y0)`` with row 0 at the top).
+
+    Examples
+    --------
+    >>> map_edges(2, 4, 1.0, 0.5)
+    (-0.25, 1.75, -0.5, 1.5)
+    """
+    return -0.5 * dx, (cols - 0.5) * dx, -0.5 * dy, (rows - 0.5) * dy
+
+
 def figure_format(path: str | Path, option: str) -> str:
     """Return the format of a figure file from its suffix (one of :data:`FORMATS`).
 

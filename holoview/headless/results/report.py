@@ -39,7 +39,13 @@ from matplotlib.patches import Circle
 
 from holoview.headless.analysis import Analysis
 from holoview.headless.inputs import Optics
-from holoview.headless.results.figures import DPI, new_figure, save_figure, spectrum_edges
+from holoview.headless.results.figures import (
+    DPI,
+    map_edges,
+    new_figure,
+    save_figure,
+    spectrum_edges,
+)
 from holoview.headless.run_data import RunData
 from holoview.headless.settings import ProcessSettings
 from holoview.processing.peaks.detection import Peak
@@ -322,7 +328,6 @@ def _map_panels(
 ) -> None:
     rows, cols = frame_shape
     scale, unit = (pixel_pitch_m * 1e3, "mm") if pixel_pitch_m is not None else (1.0, "pixels")
-    extent = (0.0, cols * scale, rows * scale, 0.0)
     side = max(rows, cols)
     width, height = MAP_IN * cols / side, MAP_IN * rows / side
     step = (WIDTH_IN - 0.75) / MAPS_PER_ROW
@@ -334,11 +339,14 @@ def _map_panels(
             cmap, norm, label = "viridis", Normalize(*_limits([panel.values])), "\u0394h (nm)"
         else:
             cmap, norm, label = "twilight", Normalize(-np.pi, np.pi), "phase (rad)"
+        # a map pixel stands where results.h5 puts it: (c, r) map steps from the corner
+        r, c = panel.values.shape
+        x0, x1, y0, y1 = map_edges(r, c, rows * scale / r, cols * scale / c)
         shown = axes.imshow(
             np.ma.masked_invalid(panel.values),
             cmap=colormaps[cmap].with_extremes(bad="0.6"),
             norm=norm,
-            extent=extent,
+            extent=(x0, x1, y1, y0),
             interpolation="nearest",
         )
         bar = layout.axes(left + width + 0.08, y, 0.1, height)

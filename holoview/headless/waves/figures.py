@@ -31,6 +31,7 @@ from matplotlib.figure import Figure
 from matplotlib.ticker import FuncFormatter
 from scipy import special
 
+from holoview.headless.results.figures import map_edges
 from holoview.headless.waves.analysis import WaveResults
 
 __all__ = ["FIGURES", "draw_figures"]
@@ -314,7 +315,8 @@ def lockin_figure(results: WaveResults, path: Path) -> None:
     assert lockin is not None
     dy, dx = results.maps.pixel_size
     rows, cols = results.maps.shape
-    extent = (0.0, (cols - 1) * dx * 1e3, (rows - 1) * dy * 1e3, 0.0)
+    x0, x1, y0, y1 = map_edges(rows, cols, dy * 1e3, dx * 1e3)
+    extent = (x0, x1, y1, y0)
     panels = 2 + len(lockin.harmonics) - 1
     width = 4.2 * panels
     figure = Figure(figsize=(width, 4.0))
