@@ -274,3 +274,5 @@ def test_frames_the_camera_lost_keep_the_height_across_the_gap(
     said = f"{count} frames lost in 1 gap (the longest, {count} frames, "
     said += f"after frame {lost.start - 1} at {(lost.start - 1) / 20:.4g} s)"
     assert said in " ".join(summary["notes"]), summary["notes"]
+    assert summary["input"]["frames_lost"] == count  # the camera's rate, not the mean's
+    assert summary["parameters"]["fps_hz"] == pytest.approx(20.0, rel=1e-9)

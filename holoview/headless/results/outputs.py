@@ -164,10 +164,11 @@ def summary_document(
 
     Keys: ``format``, ``format_version``, ``holoview_version``, ``created_utc``;
     ``input`` (path, kind, frames in the file, frame shape, dtype, the processed
-    ``frames`` as ``[start, stop]``, ``interrupted``, and a recording's uuid, source,
-    creation time);
+    ``frames`` as ``[start, stop]``, ``interrupted``, ``frames_lost`` (in gaps between
+    them, by the frame intervals), and a recording's uuid, source, creation time);
     ``parameters`` (``wavelength_m``, ``pixel_pitch_m``, ``n1``, ``n2`` and where each
-    came from, ``fps_hz`` (mean), ``reference``, ``window``, ``radius`` (``"matched"``,
+    came from, ``fps_hz`` (the camera's: the frame intervals, lost frames counted, over
+    the duration), ``reference``, ``window``, ``radius`` (``"matched"``,
     ``"bound"`` or the number given, cycles/pixel), ``unwrap``, ``maps``, ``maps_grid``,
     ``area_m2``,
     ``peaks_from``); ``peaks`` (per label: ``window``, the one it was demodulated
@@ -191,6 +192,8 @@ def summary_document(
     """
     n = len(data.frames)
     duration = float(data.times[-1] - data.times[0]) if n > 1 else 0.0
+    steps = data.series.intervals[1:]  # the frame intervals between the frames
+    intervals, lost = int(np.sum(steps)), int(np.sum(steps - 1))
     fused = None
     if analysis.fused is not None:
         fused = {
@@ -217,6 +220,7 @@ def summary_document(
             **input_info,
             "frames": [int(data.frames[0]), int(data.frames[-1]) + 1],
             "interrupted": data.interrupted,
+            "frames_lost": lost,
         },
         "parameters": {
             "wavelength_m": optics.wavelength_m,
@@ -224,7 +228,7 @@ def summary_document(
             "n1": optics.n1,
             "n2": optics.n2,
             "optics_from": dict(optics.sources),
-            "fps_hz": (n - 1) / duration if duration > 0 else None,
+            "fps_hz": intervals / duration if duration > 0 else None,
             "reference": settings.reference,
             "background": settings.background,
             "window": settings.window,
