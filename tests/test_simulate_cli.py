@@ -34,6 +34,9 @@ def test_waves_recording_with_truth_and_figure(tmp_path: Path) -> None:
     with h5py.File(out, "r") as f:
         truth = f["truth"]
         assert truth.attrs["scenario"] == "waves"
+        # a waves scenario lets nothing evaporate: its truth lists no rate it does not apply
+        assert "evaporation_rate_m_per_s" not in truth.attrs
+        assert "injection_rate_m3_per_s" not in truth.attrs
         np.testing.assert_allclose(truth["time_s"][:], np.arange(4) / 20.0)
         np.testing.assert_allclose(truth["height_m"][2], expected[2][1].height, rtol=1e-6)
         np.testing.assert_allclose(truth["mean_height_m"][:], [t.mean_height for _, t in expected])
@@ -53,6 +56,7 @@ def test_uniform_scenarios_have_no_height_maps(tmp_path: Path) -> None:
     assert main([*args, "--frames", "3", "--evaporation-um-per-min", "6"]) == 0
     with h5py.File(out, "r") as f:
         assert "height_m" not in f["truth"]
+        assert f["truth"].attrs["evaporation_rate_m_per_s"] == pytest.approx(1e-7)
         heights = f["truth/mean_height_m"][:]
         times = f["truth/time_s"][:]
     np.testing.assert_allclose(heights, -6e-6 / 60 * times, atol=1e-18)

@@ -22,7 +22,8 @@ option is checked before the simulation starts.
 attributes
     ``scenario`` (str), ``seed`` (int, -1 when none), ``fps_hz``, ``noise`` (str), and
     every :class:`~holoview.optics.scenarios.ScenarioConfig` field with its SI unit in
-    the name (``evaporation_rate_m_per_s``, ``injection_rate_m3_per_s``,
+    the name (``evaporation_rate_m_per_s`` for an evaporation only,
+    ``injection_rate_m3_per_s`` for an injection only,
     ``basin_area_m2``, ``basin_side_m``, ``wave_rms_m``, ``vibration_rms_m``,
     ``vibration_time_s``, ...).
 ``time_s`` (n,) float64
@@ -113,6 +114,8 @@ _CONFIG_UNITS = {
     "vibration_rms": "_m",
     "vibration_time": "_s",
 }
+#: The rates only their scenario applies (a waves scenario has no evaporation).
+_RATES = {"evaporation_rate": "evaporation", "injection_rate": "injection"}
 
 
 def add_parser(
@@ -334,7 +337,8 @@ def write_truth(
         group.attrs["fps_hz"] = float(args.fps)
         group.attrs["noise"] = args.noise
         for name, value in asdict(config).items():
-            group.attrs[name + _CONFIG_UNITS.get(name, "")] = value
+            if _RATES.get(name, args.scenario) == args.scenario:  # a rate of its scenario
+                group.attrs[name + _CONFIG_UNITS.get(name, "")] = value
         group["time_s"] = np.array([t.time for t in truths])
         group["mean_height_m"] = np.array([t.mean_height for t in truths])
         group["reference_path_m"] = np.array([t.reference_path for t in truths])
