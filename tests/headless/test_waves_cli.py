@@ -273,6 +273,13 @@ def test_partial_waves_and_ringdown_through_the_command(
     with h5py.File(out / "waves.h5", "r") as f:
         assert f["lockin/amplitude"].shape == (3, size, size)
         assert f["partial_waves/incoming_real_m"].attrs["unit"] == "m"
+        for kind in ("incoming", "outgoing"):  # the modulus's error, then the phase's
+            json_errors = [fits[m][f"{kind}_phase_stderr_rad"] for m in sorted(fits)]
+            rows = dict(
+                zip(f["partial_waves/m"][:], f[f"partial_waves/{kind}_phase_stderr_rad"][:])
+            )
+            assert [rows[m] for m in sorted(fits)] == pytest.approx(json_errors)
+            assert all(0 < e < 0.1 for e in json_errors)
 
 
 def test_a_mode_larger_than_the_field_is_centred_beside_a_stronger_uniform_vibration(

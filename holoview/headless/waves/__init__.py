@@ -6,6 +6,7 @@ of frames at a time, so memory stays a segment's whatever the length. Read in th
 
 - :mod:`.maps`: one label's maps, their pixel size, frame times (gaps kept) and the
   window's wavenumber cut-off, read a block at a time (relative maps summed into heights);
+- :mod:`.tones`: the tones of E(omega), where the centre and the modes are sought;
 - :mod:`.analysis`: :class:`~.analysis.WaveOptions` and :func:`~.analysis.analyse_waves`,
   the passes over the frames (omega-k, E(k), E(omega), the dispersion fit; the centre,
   the (m, f) spectrum, partial waves, ringdown, lock-ins) into a

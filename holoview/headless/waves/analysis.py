@@ -34,15 +34,15 @@ import numpy as np
 
 from holoview.errors import InputError
 from holoview.headless.waves.maps import WaveMaps
+from holoview.headless.waves.tones import PROMINENCE, find_tones, tone_energy
 from holoview.optics.surfaces import dispersion_k
 from holoview.processing.waves.azimuthal import (
-    CENTRE_TOLERANCE_PX,
     AzimuthalAccumulator,
     MFSpectrum,
     PolarGrid,
-    find_centre,
     polar_grid,
 )
+from holoview.processing.waves.centre import CENTRE_SEGMENTS, centre_stderr, find_centre
 from holoview.processing.waves.dispersion import (
     DispersionFit,
     Fluid,
@@ -61,20 +61,6 @@ __all__ = ["WaveOptions", "WaveResults", "analyse_waves"]
 
 #: Candidate tones taken from E(omega) when no mode is asked for.
 CANDIDATE_TONES = 6
-
-#: Tones (the centre's frequency, the candidates) are sought in E(omega) of the waves
-#: beyond this many wave-vector steps: the spatial taper spreads a uniform oscillation
-#: (the reference arm's vibration in the RF and RB maps, nanometres) over the steps next
-#: to zero, where it outweighed a mode larger than the field (the ringdown simulation's
-#: 12 Hz mode, 18.6 mm long in a 5.1 mm field: E(omega)'s peak had been at 6.5 Hz).
-UNIFORM_SPREAD_STEPS = 1.5
-
-#: A tone stands this many times over E(omega) around it (the median of the bins within
-#: :data:`TONE_SURROUNDINGS` of it, its own two either side left out). Measured: the
-#: simulated partial waves' and ringdown's tones 89 to 20000 times, the lumps of 300
-#: travelling plane waves 1.3 to 2.7, noise (a surface at rest) 1.03 to 1.2.
-PROMINENCE = 3.0
-TONE_SURROUNDINGS = 8
 
 #: Lock-in frequencies per candidate tone, and their spacing in units of 1 / duration.
 COMB_POINTS = 9
@@ -200,46 +186,6 @@ def _hann_weights(times: np.ndarray, span: tuple[float, float]) -> np.ndarray:
     return np.sin(np.pi * np.clip(phase, 0.0, 1.0)) ** 2
 
 
-def _tone_energy(spectrum: OmegaKSpectrum) -> tuple[np.ndarray, np.ndarray]:
-    """E(omega) of the waves beyond :data:`UNIFORM_SPREAD_STEPS` wave-vector steps, where
-    tones are sought."""
-    return spectrum.energy_omega(k_min=UNIFORM_SPREAD_STEPS * max(spectrum.dk))
-
-
-def _peaks_of(
-    omega: np.ndarray,
-    energy: np.ndarray,
-    count: int,
-    low: int,
-    band: tuple[float, float] | None = None,
-) -> list[float]:
-    """Frequencies (Hz) of the largest tones of ``energy`` above bin ``low`` (and
-    within ``band``, Hz, when given): local maxima :data:`PROMINENCE` times over their
-    surroundings."""
-    found = []
-    hz = omega / (2 * math.pi)
-    for i in np.argsort(energy)[::-1]:
-        if i <= max(low, 0) or i >= energy.size - 1:
-            continue
-        if band is not None and not band[0] <= hz[i] <= band[1]:
-            continue
-        if energy[i] < energy[i - 1] or energy[i] < energy[i + 1]:
-            continue
-        around = np.r_[
-            energy[max(i - TONE_SURROUNDINGS, 1) : max(i - 2, 1)],
-            energy[i + 3 : i + TONE_SURROUNDINGS + 1],
-        ]
-        if around.size and energy[i] < PROMINENCE * float(np.median(around)):
-            continue
-        logs = np.log(np.maximum(energy[i - 1 : i + 2], np.finfo(float).tiny))
-        curvature = logs[0] - 2 * logs[1] + logs[2]
-        shift = 0.5 * (logs[0] - logs[2]) / curvature if curvature < 0 else 0.0
-        found.append(float((omega[i] + shift * (omega[1] - omega[0])) / (2 * math.pi)))
-        if len(found) >= count:
-            break
-    return found
-
-
 def _check_frames(maps: WaveMaps, segment: int) -> None:
     longest = max(b - a for a, b in maps.clock.runs)
     if longest < segment:
@@ -321,21 +267,19 @@ def _pass_spectrum(maps: WaveMaps, options: WaveOptions, results: WaveResults) -
         results.timing["fit_s"] = time.perf_counter() - started
 
 
-def _halves(maps: WaveMaps) -> tuple[tuple[float, float], tuple[float, float]]:
-    start, stop = _span(maps)
-    middle = 0.5 * (start + stop)
-    return (start, middle), (middle, stop)
-
-
 def _centre_lockins(maps: WaveMaps, frequency: float) -> list[LockIn]:
-    """Lock-ins for the centre: the whole record and its halves, equal weights.
+    """Lock-ins for the centre: the whole record, then its consecutive segments (the
+    centre's error, :func:`~holoview.processing.waves.centre.centre_stderr`), equal
+    weights.
 
     Equal weights, not Hann's: a ringdown fades, and Hann's weight on the middle of the
-    record would favour the noise.
+    record would favour the noise. The segments hold as many frames each (to one).
     """
+    parts = np.array_split(maps.clock.times, CENTRE_SEGMENTS)
+    spans = [(float(part[0]), float(part[-1])) for part in parts if part.size > 1]
     return [
         LockIn(maps.shape, frequency, (1,), span=span, window="flat")
-        for span in (_span(maps), *_halves(maps))
+        for span in (_span(maps), *spans)
     ]
 
 
@@ -345,9 +289,9 @@ def _auto_centre(maps: WaveMaps, options: WaveOptions, results: WaveResults) -> 
     if frequency is not None and results.centre_lockins:
         amplitudes = [lockin.amplitude[0] for lockin in results.centre_lockins]
     else:  # a ringdown asked for is the mode to centre on, not E(omega)'s strongest peak
-        omega, energy = _tone_energy(results.spectrum)
+        omega, energy = tone_energy(results.spectrum)
         band = None if options.ringdown is None else options.ringdown[1:]
-        peaks = _peaks_of(omega, energy, 1, 2, band)
+        peaks = find_tones(omega, energy, 1, 2, band)
         if not peaks:
             where = "" if band is None else f" in the ringdown's band {band[0]:g}-{band[1]:g} Hz"
             raise InputError(
@@ -363,28 +307,17 @@ def _auto_centre(maps: WaveMaps, options: WaveOptions, results: WaveResults) -> 
     dy, dx = maps.pixel_size
     rows, cols = maps.shape
     radius = options.r_range[1] or 0.35 * min((rows - 1) * dy, (cols - 1) * dx)
-    centres: list[tuple[float, float]] = []
-    for amplitude in amplitudes:  # the whole record first, then its halves from there
-        centres.append(
-            find_centre(
-                amplitude,
-                maps.pixel_size,
-                radius=radius,
-                r_min=options.r_range[0],
-                m_max=options.m_max,
-                start=centres[0] if centres else None,
-            )
-        )
-    results.centre = centres[0]
-    results.centre_stderr = (  # never below where the search stops
-        max(0.5 * abs(centres[1][0] - centres[2][0]), CENTRE_TOLERANCE_PX * dx),
-        max(0.5 * abs(centres[1][1] - centres[2][1]), CENTRE_TOLERANCE_PX * dy),
+    r_min, m_max = options.r_range[0], options.m_max
+    results.centre = find_centre(
+        amplitudes[0], maps.pixel_size, radius=radius, r_min=r_min, m_max=m_max
+    )
+    results.centre_stderr = centre_stderr(
+        amplitudes[1:], maps.pixel_size, results.centre, radius=radius, r_min=r_min, m_max=m_max
     )
     results.centre_method = (
         f"auto: least entropy over m of the lock-in map (equal weights) at "
-        f"{frequency:.4g} Hz, "
-        f"rings to {radius * 1e3:.3g} mm; error: half the difference of the two halves' "
-        f"centres, at least the search's tolerance ({CENTRE_TOLERANCE_PX:g} pixel)"
+        f"{frequency:.4g} Hz, rings to {radius * 1e3:.3g} mm; error: jackknife over "
+        f"{len(amplitudes) - 1} segments of the record, widened by Student's t"
     )
 
 
@@ -394,11 +327,82 @@ def _candidates(results: WaveResults, options: WaveOptions) -> list[float]:
     found: list[float] = []
     if options.drive is not None:
         found = [options.drive * n for n in range(1, options.harmonics + 1)]
-    omega, energy = _tone_energy(results.spectrum)
-    for f in _peaks_of(omega, energy, CANDIDATE_TONES, 2):
+    omega, energy = tone_energy(results.spectrum)
+    for f in find_tones(omega, energy, CANDIDATE_TONES, 2):
         if all(abs(f - g) > 2 * results.spectrum.df for g in found):
             found.append(f)
     return found
+
+
+def _comb(maps: WaveMaps, frequency: float) -> np.ndarray:
+    """The lock-in frequencies around a tone, Hz (clipped to 0 and Nyquist)."""
+    duration = max(float(maps.clock.times[-1]), 1e-300)
+    offsets = (np.arange(COMB_POINTS) - COMB_POINTS // 2) * COMB_SPACING / duration
+    comb: np.ndarray = np.clip(frequency + offsets, 1e-9, 0.5 / maps.clock.interval)
+    return comb
+
+
+def _mode_lock_ins(
+    maps: WaveMaps,
+    options: WaveOptions,
+    results: WaveResults,
+    candidates: list[float],
+    profiles: np.ndarray,
+) -> list[tuple[int, float, np.ndarray, np.ndarray]]:
+    """The modes to fit (given, or the strongest (m, f) peaks), each with its comb and
+    lock-ins, shape (C, R).
+
+    A mode takes its candidate tone's comb (``profiles``, made in pass 2) where its own
+    (m, f) peak lies within that comb or half a bin of the candidate (a peak's precision
+    in a long record, where the comb is narrower; a drive's harmonic is exact), and else
+    a comb around its own peak, the lock-ins made in one more pass over the maps:
+    E(omega) sums every ``m`` and blends tones closer than about two bins into one peak
+    between them (``m = 1`` at 18 Hz and ``m = -1`` at 19 Hz in bins of 0.78 Hz: one
+    candidate at 18.2 Hz, around which the 19 Hz tone was fitted at the comb's end,
+    18.6 Hz, its amplitude 75 % low), where the (m, f) spectrum tells them apart. A mode
+    with no candidate within two bins is a note, not fitted.
+    """
+    grid, mf = results.grid, results.mf
+    assert grid is not None and mf is not None
+    bin_hz = float(mf.frequency[1])
+    if options.modes:
+        chosen = list(options.modes)
+    else:
+        chosen = mf.strongest(options.n_modes, f_min=2 * bin_hz)
+    modes: list[tuple[int, float, np.ndarray, int]] = []  # with the index of its comb
+    own: list[np.ndarray] = []  # the combs of one more pass, indexed after the candidates'
+    for m, f in chosen:
+        if abs(m) > options.m_max:
+            raise InputError(f"mode m={m} is beyond --m-max {options.m_max}")
+        distances = [abs(f - c) for c in candidates]
+        nearest = int(np.argmin(distances)) if candidates else -1
+        if nearest < 0 or distances[nearest] > 2 * bin_hz:
+            results.notes.append(
+                f"(m, f) = ({m}, {f:.4g} Hz): no candidate tone near it in E(omega); not fitted"
+            )
+            continue
+        comb = _comb(maps, candidates[nearest])
+        if comb[0] <= f <= comb[-1] or distances[nearest] <= 0.5 * bin_hz:
+            modes.append((m, f, comb, nearest))
+        else:
+            own.append(_comb(maps, f))
+            modes.append((m, f, own[-1], len(candidates) + len(own) - 1))
+    if own:
+        accumulator = AzimuthalAccumulator(
+            grid,
+            maps.clock.interval,
+            segment=options.segment,
+            lock_in=np.concatenate(own).tolist(),
+            span=_span(maps),
+            workers=options.workers,
+        )
+        for times, block in maps.blocks(options.block):
+            accumulator.push_block(block, times)
+        profiles = np.concatenate([profiles, accumulator.profiles()])
+    return [
+        (m, f, comb, profiles[index * COMB_POINTS : (index + 1) * COMB_POINTS, :, m + grid.m_max])
+        for m, f, comb, index in modes
+    ]
 
 
 def _pass_azimuthal(maps: WaveMaps, options: WaveOptions, results: WaveResults) -> None:
@@ -420,11 +424,8 @@ def _pass_azimuthal(maps: WaveMaps, options: WaveOptions, results: WaveResults) 
         m_max=options.m_max,
     )
     results.grid = grid
-    duration = float(maps.clock.times[-1])
     candidates = _candidates(results, options)
-    nyquist = 0.5 / maps.clock.interval
-    offsets = (np.arange(COMB_POINTS) - COMB_POINTS // 2) * COMB_SPACING / max(duration, 1e-300)
-    combs = [np.clip(f + offsets, 1e-9, nyquist) for f in candidates]
+    combs = [_comb(maps, f) for f in candidates]
     series = () if options.ringdown is None else (options.ringdown[0],)
     accumulator = AzimuthalAccumulator(
         grid,
@@ -438,36 +439,30 @@ def _pass_azimuthal(maps: WaveMaps, options: WaveOptions, results: WaveResults) 
     for times, block in maps.blocks(options.block):
         accumulator.push_block(block, times)
     results.mf = accumulator.spectrum()
-    profiles = accumulator.profiles()
     weights = _hann_weights(maps.clock.times, _span(maps))
-    if options.modes:
-        chosen = list(options.modes)
-    else:
-        chosen = results.mf.strongest(options.n_modes, f_min=2 * results.mf.frequency[1])
-    for m, f in chosen:
-        if abs(m) > options.m_max:
-            raise InputError(f"mode m={m} is beyond --m-max {options.m_max}")
-        nearest = int(np.argmin([abs(f - c) for c in candidates])) if candidates else -1
-        if nearest < 0 or abs(candidates[nearest] - f) > 2 * results.mf.frequency[1]:
-            results.notes.append(
-                f"(m, f) = ({m}, {f:.4g} Hz): no candidate tone near it in E(omega); not fitted"
-            )
-            continue
-        block = profiles[nearest * COMB_POINTS : (nearest + 1) * COMB_POINTS, :, m + grid.m_max]
+    for m, f, comb, block in _mode_lock_ins(
+        maps, options, results, candidates, accumulator.profiles()
+    ):
         try:
-            frequency, frequency_err, profile = refine_tone(
-                combs[nearest], block, maps.clock.times, weights
-            )
-            results.tones.append((m, frequency, profile))
+            tone = refine_tone(comb, block, maps.clock.times, weights)
+        except InputError as exc:
+            problem = f"(m, f) = ({m}, {f:.4g} Hz): {exc}"
+            if options.modes:
+                raise InputError(problem) from None
+            results.notes.append(f"{problem}; not fitted")
+            continue
+        results.tones.append((m, tone.frequency, tone.profile))
+        try:
             results.partial_waves.append(
                 fit_partial_wave(
                     grid.radii,
-                    profile,
+                    tone.profile,
                     m,
-                    frequency,
-                    results.wavenumber(frequency),
+                    tone.frequency,
+                    results.wavenumber(tone.frequency),
                     k_cut=maps.k_cut,
-                    frequency_stderr=frequency_err,
+                    frequency_stderr=tone.frequency_stderr,
+                    phase_stderr=tone.phase_stderr,
                 )
             )
         except InputError as exc:

@@ -20,8 +20,10 @@ coordinates attached as HDF5 dimension scales (xarray reads each group with
   ``A_m(r)``.
 - ``/partial_waves``: one row per fit: ``m``, ``frequency_hz`` (and stderr),
   ``wavenumber_rad_per_m`` (and stderr), ``incoming_real_m``, ``incoming_imag_m``,
-  ``outgoing_real_m``, ``outgoing_imag_m``, their stderr, ``incoming_over_outgoing``
-  and its stderr.
+  ``outgoing_real_m``, ``outgoing_imag_m``, the standard errors of their moduli
+  (``incoming_stderr_m``, ``outgoing_stderr_m``) and of their phases
+  (``*_phase_stderr_rad``: with k and the frequency fitted, a phase is known less well
+  than a modulus), ``incoming_over_outgoing`` and its stderr.
 - ``/ringdown``: attributes of :meth:`Ringdown.as_dict`; ``time`` (s), ``series_real``,
   ``series_imag``, ``model_real``, ``model_imag`` (the combined rings, arbitrary scale).
 - ``/lockin``: ``amplitude``, ``amplitude_stderr`` (harmonic, y, x; m), ``phase``,
@@ -205,9 +207,11 @@ def _write_partial_waves(group: h5py.Group, results: WaveResults) -> None:
         ("incoming_real_m", [p.incoming.real for p in fits], "m"),
         ("incoming_imag_m", [p.incoming.imag for p in fits], "m"),
         ("incoming_stderr_m", [p.incoming_stderr for p in fits], "m"),
+        ("incoming_phase_stderr_rad", [p.incoming_phase_stderr for p in fits], "rad"),
         ("outgoing_real_m", [p.outgoing.real for p in fits], "m"),
         ("outgoing_imag_m", [p.outgoing.imag for p in fits], "m"),
         ("outgoing_stderr_m", [p.outgoing_stderr for p in fits], "m"),
+        ("outgoing_phase_stderr_rad", [p.outgoing_phase_stderr for p in fits], "rad"),
         ("incoming_over_outgoing", [p.ratio for p in fits], "1"),
         ("incoming_over_outgoing_stderr", [p.ratio_stderr for p in fits], "1"),
     ]

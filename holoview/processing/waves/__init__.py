@@ -11,7 +11,8 @@ Read in this order: :mod:`.clock` (frame times, gaps, runs), :mod:`.omega_k` (th
 Welch omega-k spectrum, E(k), E(omega)), :mod:`.dispersion` (the capillary-gravity
 relation with a flow, its fit of sigma, d and U; :mod:`.fit_text` writes its values with
 their errors), :mod:`.azimuthal` (rings around a
-centre, the (m, f) spectrum, radial profiles, the centre found), :mod:`.partial_waves`
+centre, the (m, f) spectrum, radial profiles), :mod:`.centre` (the centre found, its
+error), :mod:`.partial_waves`
 (incoming and outgoing Hankel parts), :mod:`.ringdown` (a damped mode in one band),
 :mod:`.lockin` (amplitude and phase maps at a drive frequency), :mod:`.filters` (band
 filters giving filtered maps).

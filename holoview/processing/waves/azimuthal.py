@@ -21,20 +21,7 @@ in a frame is NaN in that frame. The rings must lie inside the map.
   exp(i (m theta - omega t)))``;
 - the series ``h_m(r, t)`` of chosen ``m`` (for a ringdown fit).
 
-:func:`find_centre` finds a centre from a complex amplitude map (a lock-in at the
-strongest frequency): the point around which that map's power is spread over the
-fewest azimuthal numbers (the least entropy of its ``|A_m|^2`` over ``m``, on rings two
-pixels apart sampled bilinearly), searched by Nelder-Mead from the best of the
-power-weighted centroid and a coarse grid over the maps (the entropy has local minima).
-A field of partial waves around one centre puts its power in a few ``m``; seen from
-another point, each spreads over ``m +- n`` with weights ``J_n(k delta)^2`` (Graf's
-addition theorem). The map's mean is removed first: a uniform part (the reference arm's
-vibration in the RF and RB maps) is ``m = 0`` around every point. The search keeps to
-where the rings asked for fit; a centre it finds at that region's edge is sought again
-with rings to half the radius (:data:`WIDE_RINGS`), and one beyond the region is
-refused with the radius that fits: held at the edge, a centre a pixel off took 2 to
-3 % of the partial waves' amplitudes (``J_0(k delta)``; ``benchmarks/accuracy_waves.py``,
-maps of 180 pixels of 0.467 mm, rings to 38 mm).
+The centre itself is found by :mod:`.centre`.
 """
 
 from __future__ import annotations
@@ -47,8 +34,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy import ndimage, sparse
-from scipy.optimize import minimize
+from scipy import sparse
 
 from holoview.errors import InputError
 from holoview.processing.waves.clock import GAP_TOLERANCE
@@ -56,28 +42,7 @@ from holoview.processing.waves.omega_k import SEGMENT, hann, pixel_pair
 
 logger = logging.getLogger(__name__)
 
-__all__ = [
-    "CENTRE_TOLERANCE_PX",
-    "AzimuthalAccumulator",
-    "MFSpectrum",
-    "PolarGrid",
-    "find_centre",
-    "polar_grid",
-]
-
-
-#: Points per side of the coarse grid a centre search starts from.
-CENTRE_GRID = 7
-
-#: Where the centre search stops: its steps below this, map pixels.
-CENTRE_TOLERANCE_PX = 0.05
-
-#: A centre found this close to the edge of where the rings fit (map pixels) is sought
-#: again with rings to :data:`WIDE_RINGS` of the radius: the waves' centre may lie beyond.
-CENTRE_EDGE_PX = 0.5
-
-#: Fraction of the radius asked for that the rings of the second search reach.
-WIDE_RINGS = 0.5
+__all__ = ["AzimuthalAccumulator", "MFSpectrum", "PolarGrid", "polar_grid"]
 
 #: Frames whose ring samples are made at once (a few MB: reused, not mapped afresh).
 MODES_CHUNK = 16
@@ -442,155 +407,3 @@ class AzimuthalAccumulator:
             shape = (0, self.grid.radii.size, len(self.series_m))
             return np.zeros(0), np.zeros(shape, np.complex128)
         return np.asarray(self._times), np.concatenate(self._series)
-
-
-def _room(
-    radius: float, width: float, height: float, pixel: float
-) -> tuple[np.ndarray, np.ndarray]:
-    """The lowest and highest centres ``(x, y)`` (m) around which rings to ``radius`` fit.
-
-    Two pixels of margin (``pixel``, m): the rings are sampled by Keys' cubic convolution.
-    """
-    margin = radius + 2.0 * pixel
-    return np.array([margin, margin]), np.array([width - margin, height - margin])
-
-
-def _entropy(
-    field: np.ndarray, centre: np.ndarray, radii: np.ndarray, n_theta: int, m_max: int
-) -> float:
-    """Entropy over ``m`` of the ring-summed ``|A_m|^2`` around ``centre`` (pixels).
-
-    ``field`` is (2, rows, cols): the real and imaginary parts; the rings (radii in
-    pixels) are sampled bilinearly, and rings touching a NaN are left out.
-    """
-    theta = 2.0 * np.pi * np.arange(n_theta) / n_theta
-    rows = centre[1] + radii[:, np.newaxis] * np.sin(theta)
-    cols = centre[0] + radii[:, np.newaxis] * np.cos(theta)
-    parts = [ndimage.map_coordinates(part, [rows, cols], order=1, mode="nearest") for part in field]
-    spectrum = np.fft.fft(parts[0] + 1j * parts[1], axis=1) / n_theta
-    modes = spectrum[:, np.arange(-m_max, m_max + 1) % n_theta]
-    rings = np.all(np.isfinite(modes), axis=1)
-    if np.count_nonzero(rings) < 4:
-        return math.inf
-    power = np.sum(np.abs(modes[rings]) ** 2 * radii[rings, None], axis=0)
-    total = float(power.sum())
-    if total <= 0:
-        return math.inf
-    share = power / total
-    share = share[share > 0]
-    return float(-np.sum(share * np.log(share)))
-
-
-def find_centre(
-    amplitude: ArrayLike,
-    pixel_size: float | ArrayLike,
-    *,
-    radius: float,
-    r_min: float | None = None,
-    m_max: int = 8,
-    start: tuple[float, float] | None = None,
-) -> tuple[float, float]:
-    """Return the centre ``(x0, y0)`` (m) of a field of partial waves (module docstring).
-
-    Parameters
-    ----------
-    amplitude : array_like of complex, shape (rows, cols)
-        Complex amplitude of the field at one frequency (m; NaN where untrusted).
-    pixel_size : float or (float, float)
-        m.
-    radius : float
-        Outer radius of the rings scored, m (the centre is sought where they fit).
-    r_min : float, optional
-        Inner radius, m (default two pixels).
-    m_max : int
-        Largest ``|m|`` scored.
-    start : (float, float), optional
-        Where the search starts, m (default: the power-weighted centroid).
-
-    Raises
-    ------
-    InputError
-        The map is all NaN, no centre leaves room for the rings, or the waves' centre
-        lies where they do not fit (the message gives the radius that does).
-    """
-    field = np.asarray(amplitude, dtype=np.complex128)
-    rows, cols = field.shape
-    dy, dx = pixel_pair(pixel_size)
-    finite = np.isfinite(field)
-    if not np.any(finite):
-        raise InputError("no centre can be found: the amplitude map is all NaN")
-    field = field - field[finite].mean()  # a uniform part is m = 0 around any point
-    power = np.abs(field) ** 2
-    yy, xx = np.mgrid[0:rows, 0:cols]
-    weight = np.where(finite, power, 0.0)
-    total = float(weight.sum())
-    if total <= 0:
-        raise InputError("no centre can be found: the amplitude map is zero")
-    first = (
-        np.array([np.sum(weight * xx) * dx / total, np.sum(weight * yy) * dy / total])
-        if start is None
-        else np.asarray(start, dtype=np.float64)
-    )
-    pixel = min(dx, dy)
-    width, height = (cols - 1) * dx, (rows - 1) * dy
-    low, high = _room(radius, width, height, pixel)
-    if np.any(high < low):
-        raise InputError(
-            f"rings of {radius * 1e3:.3g} mm do not fit in maps of "
-            f"{width * 1e3:.3g} x {height * 1e3:.3g} mm"
-        )
-    parts = np.stack([np.where(finite, field.real, np.nan), np.where(finite, field.imag, np.nan)])
-    ring_step = 2.0 * pixel  # m
-    inner = 2.0 * ring_step if r_min is None else float(r_min)
-    scale = np.array([dx, dy])
-
-    def search(
-        span: tuple[np.ndarray, np.ndarray], outer: float, first: np.ndarray, step: float
-    ) -> np.ndarray:
-        """Nelder-Mead from ``first`` (m) within ``span``, rings from ``inner`` to ``outer``."""
-        radii_px = np.arange(inner, outer + 1e-12, ring_step) / pixel
-        n_theta = max(16, 1 << math.ceil(math.log2(2 * math.pi * radii_px[-1])))
-
-        def score(point: np.ndarray) -> float:
-            if np.any(point < span[0]) or np.any(point > span[1]):
-                return math.inf
-            return _entropy(parts, point / scale, radii_px, n_theta, m_max)
-
-        if start is None and step == 0:  # the entropy has local minima: a coarse grid
-            xs = np.linspace(span[0][0], span[1][0], CENTRE_GRID)
-            ys = np.linspace(span[0][1], span[1][1], CENTRE_GRID)
-            candidates = [first] + [np.array([x, y]) for y in ys for x in xs]
-            first = candidates[int(np.argmin([score(point) for point in candidates]))]
-            step = max(0.5 * float(min(xs[1] - xs[0], ys[1] - ys[0])), pixel)
-        step = step or 0.5 * pixel  # a given start is close already
-        simplex = np.array([first, first + np.array([step, 0.0]), first + np.array([0.0, step])])
-        result = minimize(
-            score,
-            first,
-            method="Nelder-Mead",
-            options={
-                "initial_simplex": simplex,
-                "xatol": CENTRE_TOLERANCE_PX * pixel,
-                "fatol": 1e-7,
-            },
-        )
-        if not np.isfinite(result.fun):
-            raise InputError("no centre can be found: the rings meet untrusted pixels everywhere")
-        return np.asarray(result.x, dtype=np.float64)
-
-    found = search((low, high), radius, np.clip(first, low, high), 0.0)
-    edge = CENTRE_EDGE_PX * pixel
-    outer = max(WIDE_RINGS * radius, inner + 4.0 * ring_step)
-    if outer < radius and (np.any(found - low < edge) or np.any(high - found < edge)):
-        # held at the edge of where the rings fit: the waves' centre may lie beyond it
-        wide = search(_room(outer, width, height, pixel), outer, found, pixel)
-        slack = 2.0 * CENTRE_TOLERANCE_PX * pixel
-        if np.any(wide < low - slack) or np.any(wide > high + slack):
-            room = min(wide[0], width - wide[0], wide[1], height - wide[1]) - 2.0 * pixel
-            raise InputError(
-                f"the waves' centre, near ({wide[0] * 1e3:.4g}, {wide[1] * 1e3:.4g}) mm, "
-                f"leaves room for rings up to {math.floor(room * 1e4) / 10:.1f} mm only, "
-                f"not {radius * 1e3:.3g} mm: ask for rings to at most that"
-            )
-    logger.info("centre found at (%.4g, %.4g) mm", found[0] * 1e3, found[1] * 1e3)
-    return float(found[0]), float(found[1])
