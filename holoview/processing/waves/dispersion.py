@@ -458,7 +458,8 @@ def fit_dispersion(
                 n = spectrum.segments
                 seldom = f", which noise alone seldom reaches in {n} segment{'s' * (n != 1)}"
             raise InputError(
-                f"the dispersion fit has {ridge.omega.size} cells with a clear wave between "
+                f"the dispersion fit has {ridge.omega.size} cell{'s' * (ridge.omega.size != 1)} "
+                "with a clear wave between "
                 f"{_k(low)} and {_k(high)} rad/m ({contrast:.3g} times over the median "
                 f"power{seldom}); too few: the maps show no waves there"
             )
