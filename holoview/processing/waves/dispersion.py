@@ -16,9 +16,13 @@ standard deviations off. Each fit takes the cells whose line is one wave's (``sh
 a blend of neighbouring waves pulls the frequency, :mod:`~holoview.processing.waves.ridge`)
 while at least :data:`SHARP_SHARE` of the cells and enough for the fit are; where lines
 are broad throughout (damped waves), every cell. The standard errors come from the
-residual scatter; the spatial Hann taper spreads each wave over about 1.5 cells per
-axis, so neighbouring cells are not independent and the covariance is multiplied by
-:data:`CELL_CORRELATION`.
+residual scatter. The ridge's cells are local maxima, never neighbours, so their
+residuals are independent (measured: correlations of -0.06 to +0.10 two cells apart):
+over 20 seeds of each of four fields (truth maps: dense and sparse, with 100 nm of
+noise), z = error / standard error has an rms of 1.01 (sigma), 1.13 (depth), 1.10 and
+1.12 (flow), 91-96 % within two. What the depth's error leaves out is its bias in dense
+fields, +0.6 to +1.5 % there (blends of neighbouring lines that sharp cells do not
+wholly avoid, :mod:`~holoview.processing.waves.ridge`).
 """
 
 from __future__ import annotations
@@ -47,7 +51,7 @@ from holoview.processing.waves.ridge import Ridge, find_ridge, noise_contrast
 logger = logging.getLogger(__name__)
 
 __all__ = [
-    "CELL_CORRELATION",
+    "DEPTH_CHI2",
     "DispersionFit",
     "Fluid",
     "check_fit_settings",
@@ -55,8 +59,9 @@ __all__ = [
     "wave_omega",
 ]
 
-#: Cells per independent estimate under a Hann taper in both directions (1.5 x 1.5).
-CELL_CORRELATION = 2.25
+#: A depth is determined when ten times it fits worse by more than this in chi^2 (in
+#: units of the residual variance): three standard errors.
+DEPTH_CHI2 = 9.0
 
 #: The first fit takes the cells whose contrast is at least this share of the 90th
 #: percentile of the contrasts (but ``min_contrast``).
@@ -326,14 +331,16 @@ def _fit_once(
             raise InputError(
                 f"the dispersion fit did not converge: the {name} ran to its bound; {hint}"
             )
-    n, p = ridge.omega.size, len(free)
-    scale = float(np.sum(result.fun**2)) / max(n - p, 1) * CELL_CORRELATION
-    jac = result.jac
+    return unpack(result.x), _covariance(result.jac, result.fun), free, result.fun
+
+
+def _covariance(jac: np.ndarray, residual: np.ndarray) -> np.ndarray:
+    """The parameters' covariance, the residual variance times ``(J' J)^-1``."""
+    n, p = jac.shape
     try:
-        covariance = np.linalg.inv(jac.T @ jac) * scale
+        return np.asarray(np.linalg.inv(jac.T @ jac) * float(np.sum(residual**2)) / max(n - p, 1))
     except np.linalg.LinAlgError:
-        covariance = np.full((p, p), np.nan)
-    return unpack(result.x), covariance, free, result.fun
+        return np.full((p, p), np.nan)
 
 
 def _depth_bounded(
@@ -343,15 +350,15 @@ def _depth_bounded(
     fluid: Fluid,
     residual: np.ndarray,
 ) -> bool:
-    """True when ten times the fitted depth fits worse by more than four in chi^2."""
+    """True when ten times the fitted depth fits worse by :data:`DEPTH_CHI2` in chi^2."""
     deeper = dict(values, depth=min(10.0 * values["depth"], DEPTH_BOUNDS[1] * 0.99))
     try:
         _, _, _, other = _fit_once(ridge, deeper, (*held, "depth"), fluid)
     except InputError:
         return True
     rss, n = float(np.sum(residual**2)), residual.size
-    variance = rss / max(n - 4, 1) * CELL_CORRELATION
-    return float(np.sum(other**2)) - rss > 4.0 * variance
+    variance = rss / max(n - 4, 1)
+    return float(np.sum(other**2)) - rss > DEPTH_CHI2 * variance
 
 
 def _sharp_cells(ridge: Ridge, least: int) -> Ridge:
