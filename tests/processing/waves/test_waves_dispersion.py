@@ -12,7 +12,13 @@ from waves_synth import sample, travelling
 from holoview.errors import InputError
 from holoview.optics.surfaces import dispersion_omega
 from holoview.optics.wave_fields import random_travelling_waves
-from holoview.processing.waves.dispersion import Fluid, _sharp_cells, fit_dispersion, wave_omega
+from holoview.processing.waves.dispersion import (
+    Fluid,
+    _fit_once,
+    _sharp_cells,
+    fit_dispersion,
+    wave_omega,
+)
 from holoview.processing.waves.omega_k import OmegaKAccumulator, OmegaKSpectrum
 from holoview.processing.waves.ridge import Ridge
 
@@ -217,3 +223,40 @@ def test_broad_lines_throughout_keep_every_cell() -> None:
     mostly = Ridge(*(np.ones(n) for _ in range(4)), sharp=np.arange(n) < 30)
     assert _sharp_cells(mostly, 8).omega.size == 30
     assert _sharp_cells(mostly, 31).omega.size == n
+
+
+def test_the_errors_are_the_scatter_of_independent_cells():
+    """Ridge cells are local maxima, never neighbours: their residuals are independent,
+    and the errors must be the scatter's. 200 ridges of 80 cells (300-1800 rad/m, every
+    direction) with 0.5 rad/s of noise on the true relation: z = (fit - truth) / stderr
+    has an rms of 1 (the errors were 1.5 times too large: 0.67)."""
+    fluid = Fluid()
+    truth = {"sigma": 0.065, "depth": 3e-3, "flow_x": 0.02, "flow_y": -0.01}
+    rng = np.random.default_rng(8)
+    z = []
+    for _ in range(200):
+        k = rng.uniform(300.0, 1800.0, 80)
+        angle = rng.uniform(0.0, 2 * np.pi, 80)
+        kx, ky = k * np.cos(angle), k * np.sin(angle)
+        omega = wave_omega(kx, ky, surface_tension=0.065, depth=3e-3, flow=(0.02, -0.01))
+        ridge = Ridge(
+            kx, ky, omega + rng.normal(0.0, 0.5, k.size), np.ones(k.size), np.ones(k.size, bool)
+        )
+        start = {"sigma": 0.072, "depth": 5e-3, "flow_x": 0.0, "flow_y": 0.0}
+        values, covariance, _, _ = _fit_once(ridge, start, (), fluid)
+        errors = np.sqrt(np.diag(covariance))  # log sigma, log depth, flow x, flow y
+        fitted = [
+            math.log(values["sigma"]),
+            math.log(values["depth"]),
+            values["flow_x"],
+            values["flow_y"],
+        ]
+        true = [
+            math.log(truth["sigma"]),
+            math.log(truth["depth"]),
+            truth["flow_x"],
+            truth["flow_y"],
+        ]
+        z.append((np.array(fitted) - true) / errors)
+    rms = np.sqrt(np.mean(np.square(z), axis=0))
+    assert np.all((rms > 0.85) & (rms < 1.15)), rms
