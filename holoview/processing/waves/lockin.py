@@ -296,21 +296,36 @@ def push_lockins(lockins: Sequence[LockIn], frames: ArrayLike, times: ArrayLike)
     if any(lockin.shape != shape for lockin in lockins):
         raise InputError("lock-ins fed the same maps must have the same map shape")
     stamps, clean, lost = _block(frames, times, shape)
-    parts = [lockin._basis(stamps) for lockin in lockins]
-    columns = [np.column_stack([w[:, None] * b, s[:, None] * b]) for b, w, s in parts]
-    sums = np.column_stack(columns).T @ clean
-    squares = np.column_stack([s for _, _, s in parts]).T @ (clean * clean)
-    row = 0
-    for j, (lockin, (basis, w, inside)) in enumerate(zip(lockins, parts, strict=True)):
-        size = basis.shape[1]
-        lockin._fitted += sums[row : row + size]
-        lockin._within += sums[row + size : row + 2 * size]
-        lockin._squares += squares[j]
-        row += 2 * size
+    for lockin in lockins:  # every frame pushed, weighted or not
         lockin._count += stamps.size
         if lost is not None:
             lockin._count[lost.pixels] -= (
                 stamps.size if lost.frames is None else lost.frames.sum(axis=0).astype(np.int64)
             )
+    # the lock-ins whose span meets the block (a record's segments mostly do not), each
+    # with its weighted basis and, where its weights are not all 1, its basis in the span
+    active = []
+    for lockin in lockins:
+        basis, w, inside = lockin._basis(stamps)
+        if np.any(inside):
+            flat = bool(np.array_equal(w, inside))
+            active.append((lockin, basis, w, inside, flat))
+    if not active:
+        return
+    columns = [
+        w[:, None] * basis
+        if flat
+        else np.column_stack([w[:, None] * basis, inside[:, None] * basis])
+        for _, basis, w, inside, flat in active
+    ]
+    sums = np.column_stack(columns).T @ clean
+    squares = np.column_stack([inside for _, _, _, inside, _ in active]).T @ (clean * clean)
+    row = 0
+    for j, (lockin, basis, w, inside, flat) in enumerate(active):
+        size = basis.shape[1]
+        lockin._fitted += sums[row : row + size]
+        lockin._within += sums[row : row + size] if flat else sums[row + size : row + 2 * size]
+        lockin._squares += squares[j]
+        row += size if flat else 2 * size
         for gram, v in zip(lockin._grams, (w, w * w, inside), strict=True):
             gram.add(gram.products(basis, v), lost)
