@@ -276,7 +276,11 @@ def test_partial_waves_and_ringdown_through_the_command(
         for kind in ("incoming", "outgoing"):  # the modulus's error, then the phase's
             json_errors = [fits[m][f"{kind}_phase_stderr_rad"] for m in sorted(fits)]
             rows = dict(
-                zip(f["partial_waves/m"][:], f[f"partial_waves/{kind}_phase_stderr_rad"][:])
+                zip(
+                    f["partial_waves/m"][:],
+                    f[f"partial_waves/{kind}_phase_stderr_rad"][:],
+                    strict=True,
+                )
             )
             assert [rows[m] for m in sorted(fits)] == pytest.approx(json_errors)
             assert all(0 < e < 0.1 for e in json_errors)
