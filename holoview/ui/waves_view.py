@@ -202,7 +202,7 @@ class WavesView(QWidget):
 
     def _make_plots(self) -> None:
         self.omega_k = self.graphics.addPlot(row=0, col=0)
-        self.omega_k.setLabel("bottom", "q along the cut (rad/m); colour: log power")
+        self.omega_k.setLabel("bottom", "q (rad/m); colour: log power")
         self.omega_k.setLabel("left", "f (Hz)")
         self.omega_k_image = pg.ImageItem(axisOrder="row-major")
         self.omega_k_image.setColorMap(pg.colormap.get("inferno"))
