@@ -10,7 +10,7 @@ physical units (k in rad/m, f in Hz, r in mm, heights in nm), for a talk:
 - ``m_f.png``: the (m, f) spectrum, the fitted partial waves marked;
 - ``partial_waves.png``: |A_m(r)| of each fitted partial wave with its Hankel fit and
   its incoming and outgoing parts;
-- ``ringdown.png``: the band's series and the damped-mode fit;
+- ``ringdown.png``: the band's series and the damped-mode fit, band-passed as the series;
 - ``lockin.png``: amplitude and phase at the drive frequency, amplitudes of its harmonics,
   the centre marked.
 """
@@ -33,6 +33,7 @@ from scipy import special
 
 from holoview.headless.results.figures import map_edges
 from holoview.headless.waves.analysis import WaveResults
+from holoview.processing.waves.fit_text import with_error
 
 __all__ = ["FIGURES", "draw_figures"]
 
@@ -282,7 +283,7 @@ def ringdown_figure(results: WaveResults, path: Path) -> None:
     left, right = figure.subplots(1, 2)
     series, model = fit.series * 1e9, fit.model * 1e9  # nm
     left.semilogy(fit.times, np.abs(series), ".", ms=2, color="k", label="band-passed |z|")
-    left.semilogy(fit.times, np.abs(model), color="C3", label="fit: |C| exp(-γ t)")
+    left.semilogy(fit.times, np.abs(model), color="C3", label="fit C exp(-γ t), band-passed")
     _plain_log(left, "y")
     left.set_xlabel("time t (s)")
     left.set_ylabel("|z|, the rings combined (nm)")
@@ -301,8 +302,8 @@ def ringdown_figure(results: WaveResults, path: Path) -> None:
     right.legend(fontsize=8, loc="upper right")
     figure.suptitle(
         f"ringdown m={fit.m}, band {fit.band[0]:g}-{fit.band[1]:g} Hz: "
-        f"f = {fit.frequency:.5g} ± {fit.frequency_stderr:.2g} Hz, "
-        f"γ = {fit.decay:.4g} ± {fit.decay_stderr:.2g} 1/s, Q = {fit.quality:.3g}",
+        f"f = {with_error(fit.frequency, fit.frequency_stderr)} Hz, "
+        f"γ = {with_error(fit.decay, fit.decay_stderr)} 1/s, Q = {fit.quality:.3g}",
         fontsize=10,
     )
     figure.subplots_adjust(left=0.08, right=0.98, bottom=0.12, top=0.86, wspace=0.25)
