@@ -37,7 +37,7 @@ from holoview.errors import InputError
 from holoview.file_kinds import special_file
 from holoview.optics.setup import FLUIDS, check_optics
 from holoview.processing.fourier.frames import check_frame, check_frame_content, frame_damage
-from holoview.processing.series.frame_gaps import spans
+from holoview.processing.series.frame_gaps import intervals_of
 
 logger = logging.getLogger(__name__)
 
@@ -375,7 +375,7 @@ def frame_intervals(times: np.ndarray, camera: bool, ids: np.ndarray) -> np.ndar
 
     A camera's clock says how much time passed, which is what the surface's motion
     follows: a step over ``1 + GAP_TOLERANCE`` median steps spans ``round(step /
-    median)`` intervals (:func:`~holoview.processing.series.frame_gaps.spans`; a pause
+    median)`` intervals (:func:`~holoview.processing.series.frame_gaps.intervals_of`; a pause
     of the camera counts as well as its lost frames). Host arrival times come late and
     in bursts: there, and under ``--fps``, the camera's frame counter says what was lost,
     where it steps forward throughout; else every step is one interval.
@@ -387,13 +387,10 @@ def frame_intervals(times: np.ndarray, camera: bool, ids: np.ndarray) -> np.ndar
     >>> frame_intervals(np.array([0.0, 0.01, 0.3, 0.31]), False, np.array([7, 8, 10, 11]))
     array([1, 1, 2, 1])
     """
-    out = np.ones(len(times), dtype=np.int64)
-    if len(times) < 3:
-        return out
     if camera:
-        steps = np.diff(times)
-        out[1:] = spans(steps, float(np.median(steps))).astype(np.int64)
-    elif np.all(np.diff(ids) >= 1):
+        return intervals_of(times)
+    out = np.ones(len(times), dtype=np.int64)
+    if len(times) >= 3 and np.all(np.diff(ids) >= 1):
         out[1:] = np.diff(ids)
     return out
 

@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["GAP_TOLERANCE", "spans"]
+__all__ = ["GAP_TOLERANCE", "intervals_of", "spans"]
 
 #: A step longer than ``1 + GAP_TOLERANCE`` nominal intervals is a gap (lost frames).
 GAP_TOLERANCE = 0.5
@@ -32,3 +32,20 @@ def spans(steps: NDArray[np.float64], nominal: float) -> NDArray[np.float64]:
     """
     gap = steps > (1.0 + GAP_TOLERANCE) * nominal
     return np.where(gap, np.rint(steps / nominal), 1.0)
+
+
+def intervals_of(times: NDArray[np.float64]) -> NDArray[np.int64]:
+    """Per frame, the frame intervals since the one before (1 for the first), by
+    :func:`spans` of the steps of ``times`` (s) over their median; with fewer than three
+    frames, every step is one interval.
+
+    Examples
+    --------
+    >>> intervals_of(np.array([0.0, 0.05, 0.1, 0.6]))
+    array([ 1,  1,  1, 10])
+    """
+    out = np.ones(len(times), dtype=np.int64)
+    if len(times) >= 3:
+        steps = np.diff(times)
+        out[1:] = spans(steps, float(np.median(steps)))
+    return out

@@ -17,7 +17,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from holoview.errors import InputError
-from holoview.processing.series.frame_gaps import spans
+from holoview.processing.series.frame_gaps import intervals_of
 from holoview.processing.series.joint_estimation import DEFAULT_MIN_MARGIN, JointEstimator
 from holoview.processing.series.rate_fits import RateFit, check_times, fit_rate
 
@@ -104,15 +104,14 @@ def _run(
     NDArray[np.bool_],
 ]:
     """Every frame through ``estimator`` (the intervals between them from ``times``,
-    :func:`~holoview.processing.series.frame_gaps.spans`): phases, height, vibration,
-    margins, flags."""
+    :func:`~holoview.processing.series.frame_gaps.intervals_of`): phases, height,
+    vibration, margins, flags."""
     n, m = values.shape
     phases = np.full((n, m), np.nan)
     fused, vibration = np.full(n, np.nan), np.full(n, np.nan)
     margins, vibration_margins = np.full(n, np.inf), np.full(n, np.inf)
     flagged = np.zeros(n, dtype=bool)
-    steps = np.diff(times)
-    intervals = [1, *spans(steps, float(np.median(steps))).astype(int)] if n > 2 else [1] * n
+    intervals = intervals_of(times)
     for t in range(n):
         frame = estimator.update(
             values[t], None if sigma is None else sigma[t], intervals=int(intervals[t])
