@@ -106,9 +106,9 @@ class _Gram:
         self.every = np.zeros(self.rows.size)
         self.missing: NDArray[np.float64] | None = None
 
-    def products(self, basis: np.ndarray, v: np.ndarray) -> np.ndarray:
-        """``v_t b_i(t) b_j(t)`` for each frame, ``(N, Q)``."""
-        return v[:, np.newaxis] * basis[:, self.rows] * basis[:, self.cols]
+    def pairs(self, basis: np.ndarray) -> np.ndarray:
+        """``b_i(t) b_j(t)`` for each frame, ``(N, Q)`` (weighted, a block's products)."""
+        return basis[:, self.rows] * basis[:, self.cols]
 
     def add(self, products: np.ndarray, lost: _Lost | None) -> None:
         """Add a block's products ``(N, Q)`` (``lost``: its untrusted values, if any)."""
@@ -327,5 +327,6 @@ def push_lockins(lockins: Sequence[LockIn], frames: ArrayLike, times: ArrayLike)
         lockin._within += sums[row : row + size] if flat else sums[row + size : row + 2 * size]
         lockin._squares += squares[j]
         row += size if flat else 2 * size
+        pairs = lockin._grams[0].pairs(basis)  # the three grams share the basis's pairs
         for gram, v in zip(lockin._grams, (w, w * w, inside), strict=True):
-            gram.add(gram.products(basis, v), lost)
+            gram.add(v[:, np.newaxis] * pairs, lost)
