@@ -1,7 +1,8 @@
 """Rates from depth series: a line with an honest standard error, volumes, and display.
 
 1. :func:`fit_rate` fits a line to a depth series; its standard error allows for noise
-   correlated from frame to frame (lag-1 autocorrelation of the residuals).
+   correlated from frame to frame: an AR(1) noise whose correlation is read from the
+   residuals, corrected for the fit's own pull on them (which matters on short records).
 2. :func:`depth_to_volume`, :func:`volume_to_depth` and :func:`compare_rate` relate a
    depth rate to a volume rate for a basin of known area: ``dV = A dh``, so a peak's
    phase moves by ``d phi = 2 k0 alpha dV / A`` (the paper's section 4.2 prints
@@ -18,6 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+from scipy.linalg import lapack
 
 from holoview.errors import InputError
 
@@ -76,14 +78,17 @@ class RateFit:
     rate : float
         Slope in m/s (negative while the fluid evaporates).
     stderr : float
-        Standard error of the slope in m/s, widened by ``sqrt((1 + r) / (1 - r))`` for a
-        positive lag-1 autocorrelation ``r`` of the residuals.
+        Standard error of the slope in m/s, for noise of lag-1 correlation ``lag1`` from
+        frame to frame (AR(1)): about ``sqrt((1 + r) / (1 - r))`` times the white-noise
+        error on long records.
     intercept : float
         Depth at ``t = 0`` in m.
     residual_rms : float
         RMS of the residuals in m.
     lag1 : float
-        Lag-1 autocorrelation of the residuals (dimensionless).
+        Lag-1 correlation of the noise, from frame to frame (dimensionless, 0 to 0.99):
+        the residuals' own, corrected for the line fit, which pulls it low (by
+        ``(2 + 3 r) / n`` on ``n`` frames of a long record; more on a short one).
     n_frames : int
         Frames used.
     """
@@ -131,21 +136,107 @@ def fit_rate(times: ArrayLike, depth: ArrayLike) -> RateFit:
         raise InputError(f"a rate needs at least three measured frames, got {n}")
     t, y = t[valid], y[valid]
     slope, intercept, rms = line_fit(t, y)
-    residual = y - (intercept + slope * t)
-    denominator = float(np.dot(residual, residual))
-    lag1 = float(np.dot(residual[1:], residual[:-1]) / denominator) if denominator > 0 else 0.0
-    lag1 = min(lag1, 0.99)
-    inflation = np.sqrt((1.0 + lag1) / (1.0 - lag1)) if lag1 > 0 else 1.0
-    dt = t - t.mean()
-    stderr = rms / np.sqrt(float(np.dot(dt, dt))) * inflation
+    rho, trace, slope_factor = noise_correlation(t, y - (intercept + slope * t))
+    variance = rms * rms * (n - 2) / trace  # of the noise, per frame
+    stderr = math.sqrt(variance * slope_factor)
     return RateFit(
         rate=slope,
         stderr=float(stderr),
         intercept=intercept,
         residual_rms=rms,
-        lag1=lag1,
+        lag1=rho,
         n_frames=n,
     )
+
+
+#: The largest noise correlation :func:`fit_rate` allows (a random walk has 1).
+MAX_CORRELATION = 0.99
+
+
+def noise_correlation(
+    t: NDArray[np.float64], residual: NDArray[np.float64]
+) -> tuple[float, float, float]:
+    """The lag-1 correlation of AR(1) noise whose line-fit residuals are ``residual``.
+
+    A line fitted to ``n`` frames takes two degrees of freedom from the noise, and so the
+    residuals' lag-1 autocorrelation ``r`` falls short of the noise's own ``rho``: by
+    ``(2 + 3 rho) / n`` on long records, more on short ones (0.2 of 0.5 on 20 frames).
+    This returns the ``rho`` whose expected ``r``, ``E[e' M A M e] / E[e' M e]`` for the
+    fit's projector ``M`` and the lag-1 form ``A``, is the one measured (a secant from
+    the long-record correction: one solve on long records); 0 where ``r`` is below what
+    white noise gives.
+
+    Parameters
+    ----------
+    t : ndarray of float, shape (n,)
+        Frame times in s, ``n >= 3``.
+    residual : ndarray of float, shape (n,)
+        The line fit's residuals, in frame order.
+
+    Returns
+    -------
+    (float, float, float)
+        ``rho`` in ``[0, MAX_CORRELATION]``; at that ``rho``, the residuals' expected sum
+        of squares per unit noise variance, ``tr(M C)``; and the slope's variance per
+        unit noise variance, ``w' C w`` (s^-2), for the noise's correlation ``C``.
+    """
+    model = _ResidualModel(t)
+    total = float(np.dot(residual, residual))
+    measured = float(np.dot(residual[1:], residual[:-1])) / total if total > 0 else 0.0
+    moments = model.moments(0.0)
+    if moments[1] >= measured:
+        return 0.0, moments[0], moments[2]
+    rho = min(max(measured + (2.0 + 3.0 * measured) / t.size, 0.0), MAX_CORRELATION)
+    last: tuple[float, float] | None = None
+    for _ in range(40):
+        moments = model.moments(rho)
+        excess = moments[1] - measured
+        slope = 1.0 if last is None else (excess - last[1]) / (rho - last[0])
+        step = -excess / slope if slope > 0 else -excess
+        following = min(max(rho + step, 0.0), MAX_CORRELATION)
+        if abs(step) < 1e-4 or following == rho:
+            break
+        last, rho = (rho, excess), following
+    return rho, moments[0], moments[2]
+
+
+class _ResidualModel:
+    """What a line fit leaves of AR(1) noise on given frame times, per unit variance.
+
+    For the projector ``M = I - Q Q'`` off an orthonormal basis ``Q`` of the fit's columns
+    (1 and ``t``), the noise's correlation ``C[i, j] = rho ** |i - j|`` (frame order) and
+    the symmetric lag-1 form ``A`` (1/2 beside the diagonal).
+    """
+
+    def __init__(self, t: NDArray[np.float64]) -> None:
+        dt = t - t.mean()
+        self.spread = float(np.dot(dt, dt))
+        self.basis = np.column_stack([np.full(t.size, 1.0 / math.sqrt(t.size)), dt])
+        self.basis[:, 1] /= math.sqrt(self.spread)
+        self.lagged_basis = np.zeros_like(self.basis)  # A Q
+        self.lagged_basis[1:] += 0.5 * self.basis[:-1]
+        self.lagged_basis[:-1] += 0.5 * self.basis[1:]
+        self.qaq = self.basis.T @ self.lagged_basis
+
+    def moments(self, rho: float) -> tuple[float, float, float]:
+        """``tr(M C)``, ``tr(M A M C) / tr(M C)`` (the expected ``r``) and ``w' C w``.
+
+        ``w = (t - mean) / spread`` gives the slope. ``C``'s inverse is tridiagonal:
+        ``(1 + rho^2)`` on the diagonal (1 at both ends) and ``-rho`` beside it, over
+        ``1 - rho^2``; so ``C Q`` is one tridiagonal solve, ``O(n)``.
+        """
+        n = self.basis.shape[0]
+        if rho == 0.0:  # C = I, and Q is orthonormal
+            return n - 2.0, -float(np.trace(self.qaq)) / (n - 2.0), 1.0 / self.spread
+        diagonal = np.full(n, 1.0 + rho * rho)
+        diagonal[[0, -1]] = 1.0
+        beside = np.full(n - 1, -rho)
+        cq = lapack.dgtsv(beside, diagonal, beside, (1.0 - rho * rho) * self.basis)[3]
+        qcq = self.basis.T @ cq
+        trace = n - float(np.trace(qcq))
+        lagged = (n - 1) * rho - 2.0 * float(np.sum(self.lagged_basis * cq))
+        lagged += float(np.sum(self.qaq * qcq))
+        return trace, lagged / trace, float(qcq[1, 1]) / self.spread
 
 
 def depth_to_volume(depth: ArrayLike, area: float) -> NDArray[np.float64]:
