@@ -128,7 +128,8 @@ def map_dimensions(
     ``y`` and ``x`` are in m on the object side, or in frame pixels (``units`` ``1``)
     without a pixel pitch (:func:`map_axis`).
     """
-    time = cf.dimension(group, "time", times, units="s", long_name=TIME_NAME, axis="T")
+    # no axis "T": CF takes a T axis for a calendar time, "seconds since" a date (4.4)
+    time = cf.dimension(group, "time", times, units="s", long_name=TIME_NAME)
     cf.variable(group, "frame", frames, ("time",), units="1", long_name="frame index in the input")
     scales = [time]
     for name, count, step in zip(("y", "x"), box_shape, step_px, strict=True):
@@ -152,7 +153,7 @@ def write_trends(
 ) -> None:
     """Write ``/trends`` (module docstring) into ``group``."""
     peaks = analysis.peaks
-    cf.dimension(group, "time", data.times, units="s", long_name=TIME_NAME, axis="T")
+    cf.dimension(group, "time", data.times, units="s", long_name=TIME_NAME)
     cf.dimension(group, "label", [p.label for p in peaks], units=None, long_name=LABEL_NAME)
     by_frame, by_peak = ("time",), ("time", "label")
     series: dict[str, tuple[Any, tuple[str, ...], str, str]] = {
