@@ -135,7 +135,7 @@ def test_rate_standard_error_allows_for_correlated_noise():
 @pytest.mark.parametrize("correlation", [0.4, 0.7])
 def test_rate_standard_error_holds_on_a_short_record_of_correlated_noise(correlation):
     # 20 frames of AR(1) noise: the residuals' own lag-1 correlation falls short of the
-    # noise's by about (1 + 4 rho) / n, which left the error 20 to 35 % small.
+    # noise's by (2 + 3 rho) / n and more on few frames, which left the error 20-35 % small.
     rng = np.random.default_rng(4)
     trials, n = 1000, 20
     kicks = rng.normal(0, 1e-9, (trials, n))
