@@ -131,6 +131,7 @@ def main() -> None:
         results = folder / "results.h5"
         started = time.perf_counter()
         write_results(results, args.frames)
+        os.sync()  # written out, as a run's results.h5 is: not flushed under the timing
         print(
             f"{args.frames} frames of {SIZE} x {SIZE} maps written in "
             f"{time.perf_counter() - started:.0f} s; load average {os.getloadavg()[0]:.2f}"

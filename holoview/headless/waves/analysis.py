@@ -312,7 +312,13 @@ def _auto_centre(maps: WaveMaps, options: WaveOptions, results: WaveResults) -> 
         amplitudes[0], maps.pixel_size, radius=radius, r_min=r_min, m_max=m_max
     )
     results.centre_stderr = centre_stderr(
-        amplitudes[1:], maps.pixel_size, results.centre, radius=radius, r_min=r_min, m_max=m_max
+        amplitudes[1:],
+        maps.pixel_size,
+        results.centre,
+        radius=radius,
+        r_min=r_min,
+        m_max=m_max,
+        workers=options.workers,
     )
     results.centre_method = (
         f"auto: least entropy over m of the lock-in map (equal weights) at "

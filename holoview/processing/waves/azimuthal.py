@@ -3,12 +3,13 @@
 Map coordinates: ``x = col dx``, ``y = row dy`` (m, from the centre of the first
 pixel), ``theta = atan2(y - y0, x - x0)`` (with rows growing downwards, ``theta``
 grows clockwise on the screen). A :class:`PolarGrid` samples a map on rings of radius
-``r_min .. r_max`` one pixel apart, with enough angles that neighbouring samples of
-the outer ring are at most a pixel apart (a power of two), by Keys' cubic convolution
-(third-order accurate: a wave of ``k dx = 1`` loses far less of its amplitude than
-under bilinear interpolation; one sparse matrix product per map); the FFT over the
-angle gives ``h_m(r)`` for ``|m| <= m_max``. A ring touching an untrusted (NaN) pixel
-in a frame is NaN in that frame. The rings must lie inside the map.
+``r_min .. r_max`` one pixel apart, each with enough angles that neighbouring samples
+are at most a pixel apart (a power of two: an inner ring takes fewer than an outer one),
+by Keys' cubic convolution (third-order accurate: a wave of ``k dx = 1`` loses far less
+of its amplitude than under bilinear interpolation; one sparse matrix product per map);
+the Fourier sum over the angle gives ``h_m(r)`` for ``|m| <= m_max``. A ring touching
+an untrusted (NaN) pixel in a frame is NaN in that frame. The rings must lie inside the
+map.
 
 :class:`AzimuthalAccumulator` takes maps one at a time and gives
 
@@ -67,25 +68,27 @@ class PolarGrid:
         ``(x0, y0)``, m, map coordinates.
     radii : ndarray of float, shape (R,)
         Ring radii, m.
-    n_theta : int
-        Angles per ring.
+    n_theta : ndarray of int, shape (R,)
+        Angles on each ring: a power of two, at most a pixel apart (and at least
+        ``2 m_max + 2``), so rings of the same count follow one another.
     m_max : int
         Largest ``|m|`` kept.
     shape : (int, int)
         The map's shape.
-    matrix : scipy.sparse.csr_matrix, shape (R n_theta, rows cols)
-        Interpolation weights (16 per sample), float32.
-    dft : ndarray of float32, shape (n_theta, 2 (m_max + 1))
-        ``cos(m theta) / n_theta`` then ``-sin(m theta) / n_theta``, ``m = 0 .. m_max``.
+    matrix : scipy.sparse.csr_matrix, shape (sum of n_theta, rows cols)
+        Interpolation weights (16 per sample), float32, ring after ring.
+    dft : tuple of ndarray of float32, shape (n, 2 (m_max + 1))
+        For each count ``n`` of angles, from the inner rings out: ``cos(m theta) / n``
+        then ``-sin(m theta) / n``, ``m = 0 .. m_max``.
     """
 
     centre: tuple[float, float]
     radii: NDArray[np.float64]
-    n_theta: int
+    n_theta: NDArray[np.int64]
     m_max: int
     shape: tuple[int, int]
     matrix: sparse.csr_matrix
-    dft: NDArray[np.float32]
+    dft: tuple[NDArray[np.float32], ...]
 
     @property
     def m(self) -> NDArray[np.int64]:
@@ -105,13 +108,18 @@ class PolarGrid:
         single = block.ndim == 2
         block = block.reshape(-1, self.shape[0] * self.shape[1])
         n = block.shape[0]
-        parts = np.empty((self.radii.size, self.dft.shape[1], n), np.float32)
+        parts = np.empty((self.radii.size, 2 * (self.m_max + 1), n), np.float32)
 
         def chunk(a: int) -> None:  # the samples of a few frames at a time
             b = min(a + MODES_CHUNK, n)
             samples = np.asarray(self.matrix @ block[a:b].T)
-            samples = samples.reshape(self.radii.size, self.n_theta, b - a)
-            parts[:, :, a:b] = np.matmul(self.dft.T, samples)  # (R, 2 (m_max + 1), n)
+            ring = sample = 0
+            for dft in self.dft:  # the rings of each count of angles
+                count = int(np.count_nonzero(self.n_theta == dft.shape[0]))
+                rings = samples[sample : sample + count * dft.shape[0]]
+                rings = rings.reshape(count, dft.shape[0], b - a)
+                parts[ring : ring + count, :, a:b] = np.matmul(dft.T, rings)
+                ring, sample = ring + count, sample + rings.size // (b - a)
 
         starts = range(0, n, MODES_CHUNK)
         if workers > 1 and len(starts) > 1:
@@ -184,10 +192,13 @@ def polar_grid(
     if m_max < 0:
         raise InputError(f"m_max must be >= 0, got {m_max}")
     radii = np.arange(low, high + 1e-9 * step, step)
-    n_theta = max(8, 2 * m_max + 2, 1 << math.ceil(math.log2(2 * math.pi * high / step)))
-    theta = 2.0 * np.pi * np.arange(n_theta) / n_theta
-    col = ((x0 + radii[:, np.newaxis] * np.cos(theta)) / dx).ravel()
-    row = ((y0 + radii[:, np.newaxis] * np.sin(theta)) / dy).ravel()
+    fewest = max(8, 2 * m_max + 2)
+    n_theta = np.array(
+        [max(fewest, 1 << math.ceil(math.log2(max(2 * math.pi * r / step, 1.0)))) for r in radii]
+    )
+    theta = [2.0 * np.pi * np.arange(n) / n for n in n_theta]
+    col = np.concatenate([(x0 + r * np.cos(t)) / dx for r, t in zip(radii, theta, strict=True)])
+    row = np.concatenate([(y0 + r * np.sin(t)) / dy for r, t in zip(radii, theta, strict=True)])
     c0, r0 = np.floor(col).astype(np.int64), np.floor(row).astype(np.int64)
     wc, wr = _keys(col - c0), _keys(row - r0)  # (S, 4) weights of offsets -1, 0, 1, 2
     offsets = np.arange(-1, 3)
@@ -199,9 +210,11 @@ def polar_grid(
     matrix = sparse.csr_matrix(
         (weights.astype(np.float32), (sample, pixels)), shape=(col.size, rows * cols)
     )
-    turns = np.outer(theta, np.arange(m_max + 1))
-    dft = (np.concatenate([np.cos(turns), -np.sin(turns)], axis=1) / n_theta).astype(np.float32)
-    return PolarGrid((x0, y0), radii, int(n_theta), int(m_max), (rows, cols), matrix, dft)
+    dft = []
+    for n in np.unique(n_theta):
+        turns = np.outer(2.0 * np.pi * np.arange(n) / n, np.arange(m_max + 1))
+        dft.append((np.concatenate([np.cos(turns), -np.sin(turns)], axis=1) / n).astype(np.float32))
+    return PolarGrid((x0, y0), radii, n_theta, int(m_max), (rows, cols), matrix, tuple(dft))
 
 
 @dataclass(frozen=True)

@@ -55,6 +55,7 @@ from __future__ import annotations
 
 import logging
 import math
+from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -450,6 +451,7 @@ def centre_stderr(
     radius: float,
     r_min: float | None = None,
     m_max: int = 8,
+    workers: int = 1,
 ) -> tuple[float, float]:
     """Return the standard error ``(se_x, se_y)`` (m) of a centre, by the jackknife.
 
@@ -466,6 +468,9 @@ def centre_stderr(
         around the scan's other least minima: the least of them is that record's.
     radius, r_min, m_max
         As given to :func:`find_centre`.
+    workers : int
+        Threads the records less a segment are searched on (the interpolation releases
+        the GIL; the centres are those of one thread).
 
     Returns
     -------
@@ -493,14 +498,16 @@ def centre_stderr(
     others = [
         p for p, v in whole.candidates() if math.isfinite(v) and math.dist(p, given) > whole.step
     ]
-    centres = []
-    for i in range(count):  # the record less segment i, from its centre or another minimum
+
+    def less(i: int) -> np.ndarray:  # the record less segment i: from its centre or another
         rest = counts - finite[i]
         less = sums - np.where(finite[i], maps[i], 0.0)
         field = np.where(rest > 0, less / np.maximum(rest, 1), np.nan)
         search = _Search(field, *setting, step=whole.step)
-        found = min((search.polish(p) for p in [given, *others]), key=lambda item: item[1])
-        centres.append(found[0])
+        return min((search.polish(p) for p in [given, *others]), key=lambda item: item[1])[0]
+
+    with ThreadPoolExecutor(max_workers=max(1, min(workers, count))) as pool:
+        centres = list(pool.map(less, range(count)))
     spread = np.asarray(centres) * np.array(pair[::-1])
     variance = (count - 1) / count * np.sum((spread - spread.mean(axis=0)) ** 2, axis=0)
     widen = special.stdtrit(count - 1, 0.975) / special.ndtri(0.975)

@@ -267,21 +267,23 @@ def _block(
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], _Lost | None]:
     """The block's times, its maps ``(N, pixels)`` in float64 with untrusted values 0,
     and where they are untrusted (None: nowhere)."""
-    block = np.asarray(frames, dtype=np.float64)
+    block = np.asarray(frames)
     stamps = np.asarray(times, dtype=np.float64).ravel()
     if block.ndim != 3 or block.shape[1:] != shape or block.shape[0] != stamps.size:
         raise InputError(
             f"lock-in: maps of shape {block.shape} and {stamps.size} times do not match "
             f"maps of {shape}"
         )
-    flat = block.reshape(stamps.size, -1)
-    untrusted = ~np.isfinite(flat)
+    untrusted = ~np.isfinite(block.reshape(stamps.size, -1))  # in the maps' own type
     pixels = np.flatnonzero(untrusted.any(axis=0))
+    # float64 for the sums; a copy where untrusted values are set to 0
+    flat = block.reshape(stamps.size, -1).astype(np.float64, copy=pixels.size > 0)
     if not pixels.size:
         return stamps, flat, None
     where = untrusted[:, pixels]
+    flat[:, pixels] = np.where(where, 0.0, flat[:, pixels])
     lost = _Lost(pixels, None if where.all() else where.astype(np.float64))
-    return stamps, np.where(untrusted, 0.0, flat), lost
+    return stamps, flat, lost
 
 
 def push_lockins(lockins: Sequence[LockIn], frames: ArrayLike, times: ArrayLike) -> None:
@@ -319,13 +321,17 @@ def push_lockins(lockins: Sequence[LockIn], frames: ArrayLike, times: ArrayLike)
         for _, basis, w, inside, flat in active
     ]
     sums = np.column_stack(columns).T @ clean
-    squares = np.column_stack([inside for _, _, _, inside, _ in active]).T @ (clean * clean)
+    squares: dict[bytes, np.ndarray] = {}  # sum h^2 over each span's frames, once a span
     row = 0
-    for j, (lockin, basis, w, inside, flat) in enumerate(active):
+    for lockin, basis, w, inside, flat in active:
         size = basis.shape[1]
         lockin._fitted += sums[row : row + size]
         lockin._within += sums[row : row + size] if flat else sums[row + size : row + 2 * size]
-        lockin._squares += squares[j]
+        key = inside.tobytes()
+        if key not in squares:
+            span = clean if inside.all() else clean[inside > 0]
+            squares[key] = np.einsum("fp,fp->p", span, span)
+        lockin._squares += squares[key]
         row += size if flat else 2 * size
         pairs = lockin._grams[0].pairs(basis)  # the three grams share the basis's pairs
         for gram, v in zip(lockin._grams, (w, w * w, inside), strict=True):
