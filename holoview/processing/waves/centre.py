@@ -121,7 +121,8 @@ class _Score:
 
     ``coefficients`` are the cubic spline coefficients of the real and imaginary parts
     (untrusted pixels zero), ``clearance`` each pixel's distance to the nearest
-    untrusted one (pixels).
+    untrusted one (pixels). Each ring has ``n_theta`` angles (one count, or one per ring,
+    rings of a count following one another).
     """
 
     def __init__(
@@ -129,22 +130,27 @@ class _Score:
         coefficients: np.ndarray,
         clearance: np.ndarray,
         radii: np.ndarray,
-        n_theta: int,
+        n_theta: int | np.ndarray,
         m_max: int,
     ) -> None:
         self.coefficients = coefficients
         self.clearance = clearance
         self.radii = radii
-        theta = 2.0 * np.pi * np.arange(n_theta) / n_theta
-        self.cos = radii[:, np.newaxis] * np.cos(theta)
-        self.sin = radii[:, np.newaxis] * np.sin(theta)
-        self.columns = np.arange(-m_max, m_max + 1) % n_theta
-        self.n_theta = n_theta
+        counts = np.broadcast_to(np.asarray(n_theta), radii.shape)
+        self.groups = []  # (ring slice, x and y offsets (Rg, n), FFT columns of m, n)
+        for n in np.unique(counts):
+            rings = np.flatnonzero(counts == n)
+            theta = 2.0 * np.pi * np.arange(n) / n
+            span = slice(int(rings[0]), int(rings[-1]) + 1)
+            cos = radii[span, np.newaxis] * np.cos(theta)
+            sin = radii[span, np.newaxis] * np.sin(theta)
+            self.groups.append((span, cos, sin, np.arange(-m_max, m_max + 1) % n, int(n)))
 
-    def _coordinates(self, points: np.ndarray) -> np.ndarray:
-        """(2, P, R, n_theta) rows and columns of the samples around ``points`` (P, 2)."""
-        rows = points[:, 1, np.newaxis, np.newaxis] + self.sin
-        cols = points[:, 0, np.newaxis, np.newaxis] + self.cos
+    @staticmethod
+    def _coordinates(points: np.ndarray, cos: np.ndarray, sin: np.ndarray) -> np.ndarray:
+        """(2, P, Rg, n) rows and columns of the samples around ``points`` (P, 2)."""
+        rows = points[:, 1, np.newaxis, np.newaxis] + sin
+        cols = points[:, 0, np.newaxis, np.newaxis] + cos
         return np.stack([rows, cols])
 
     def rings(self, points: np.ndarray, reach: float = 0.0) -> np.ndarray:
@@ -153,19 +159,28 @@ class _Score:
         Clear: :data:`CLEAR_PX` from untrusted pixels around every point
         within ``reach`` (pixels) of ``points``.
         """
-        clearance = ndimage.map_coordinates(
-            self.clearance, self._coordinates(points), order=1, mode="nearest"
-        )
-        return np.min(clearance, axis=2) >= CLEAR_PX + reach
+        least = [
+            np.min(
+                ndimage.map_coordinates(
+                    self.clearance, self._coordinates(points, cos, sin), order=1, mode="nearest"
+                ),
+                axis=2,
+            )
+            for _, cos, sin, _, _ in self.groups
+        ]
+        return np.concatenate(least, axis=1) >= CLEAR_PX + reach
 
     def entropy(self, points: np.ndarray, rings: np.ndarray) -> np.ndarray:
         """(P,) entropies around ``points`` (P, 2) over the rings ``rings`` (P, R) marks."""
-        where = self._coordinates(points)
-        real, imag = (
-            ndimage.map_coordinates(part, where, order=3, mode="mirror", prefilter=False)
-            for part in self.coefficients
-        )
-        modes = np.fft.fft(real + 1j * imag, axis=2)[:, :, self.columns] / self.n_theta
+        parts = []
+        for _, cos, sin, columns, n in self.groups:
+            where = self._coordinates(points, cos, sin)
+            real, imag = (
+                ndimage.map_coordinates(part, where, order=3, mode="mirror", prefilter=False)
+                for part in self.coefficients
+            )
+            parts.append(np.fft.fft(real + 1j * imag, axis=2)[:, :, columns] / n)
+        modes = np.concatenate(parts, axis=1)  # (P, R, 2 m_max + 1)
         weight = np.where(rings, self.radii, 0.0)  # (P, R)
         power = np.einsum("pr,prm->pm", weight, np.abs(modes) ** 2)
         total = power.sum(axis=1, keepdims=True)
@@ -226,7 +241,10 @@ class _Search:
             clearance = ndimage.distance_transform_edt(finite)
         ring_step = 2.0 * self.pixel
         radii = np.arange(inner, outer + 1e-9 * ring_step, ring_step) / self.pixel
-        n_theta = max(16, 1 << math.ceil(math.log2(math.pi * radii[-1])))  # 2 pixels apart
+        # angles 2 pixels apart at each ring's radius (a power of two)
+        n_theta = np.array(
+            [max(16, 1 << math.ceil(math.log2(max(math.pi * r, 1.0)))) for r in radii]
+        )
         self.score = _Score(coefficients, clearance, radii, n_theta, m_max)
         few = radii[np.unique(np.linspace(0, radii.size - 1, SCAN_RINGS).round().astype(int))]
         self.coarse = _Score(coefficients, clearance, few, SCAN_ANGLES, m_max)

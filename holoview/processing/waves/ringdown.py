@@ -36,9 +36,9 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+import scipy.fft
 from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import least_squares
-from scipy.signal import fftconvolve
 
 from holoview.errors import InputError
 from holoview.processing.waves.clock import frame_clock
@@ -59,6 +59,14 @@ MAX_DECAY_ERROR = 0.2
 #: The fit of every output from the start is kept while the fit of the outputs whose
 #: taps all lie after it agrees within this many standard errors of their difference.
 AGREEMENT = 3.0
+
+
+def _convolve(x: np.ndarray, kernel: np.ndarray) -> NDArray[np.complex128]:
+    """The full linear convolution of ``x`` with ``kernel`` along axis 0, by FFT."""
+    n = x.shape[0] + kernel.shape[0] - 1
+    size = scipy.fft.next_fast_len(n)
+    product = scipy.fft.fft(x, size, axis=0) * scipy.fft.fft(kernel, size, axis=0)
+    return np.asarray(scipy.fft.ifft(product, axis=0)[:n])
 
 
 @dataclass(frozen=True)
@@ -193,7 +201,7 @@ class _RunFilter:
         half = self.taps.size // 2
         parts = [np.zeros((0, *x.shape[1:]), np.complex128)]
         for a, b, lead in self._spans:
-            parts.append(fftconvolve(x[a:b], kernel, axes=0)[lead - a + half : b - a])
+            parts.append(_convolve(x[a:b], kernel)[lead - a + half : b - a])
         return np.concatenate(parts)
 
     def adjoint(self, y: np.ndarray) -> NDArray[np.complex128]:
@@ -203,7 +211,7 @@ class _RunFilter:
         kernel = self.taps[::-1].conj().reshape((-1,) + (1,) * (y.ndim - 1))
         half = self.taps.size // 2
         for a, b, _ in self._spans:
-            spread[a:b] = fftconvolve(spread[a:b], kernel, axes=0)[half : half + b - a]
+            spread[a:b] = _convolve(spread[a:b], kernel)[half : half + b - a]
         return spread
 
     def noise_power(self) -> float:
