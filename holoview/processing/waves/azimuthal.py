@@ -115,11 +115,11 @@ class PolarGrid:
             samples = np.asarray(self.matrix @ block[a:b].T)
             ring = sample = 0
             for dft in self.dft:  # the rings of each count of angles
-                count = int(np.count_nonzero(self.n_theta == dft.shape[0]))
-                rings = samples[sample : sample + count * dft.shape[0]]
-                rings = rings.reshape(count, dft.shape[0], b - a)
+                angles = dft.shape[0]
+                count = int(np.count_nonzero(self.n_theta == angles))
+                rings = samples[sample : sample + count * angles].reshape(count, angles, b - a)
                 parts[ring : ring + count, :, a:b] = np.matmul(dft.T, rings)
-                ring, sample = ring + count, sample + rings.size // (b - a)
+                ring, sample = ring + count, sample + count * angles
 
         starts = range(0, n, MODES_CHUNK)
         if workers > 1 and len(starts) > 1:

@@ -137,14 +137,12 @@ class _Score:
         self.clearance = clearance
         self.radii = radii
         counts = np.broadcast_to(np.asarray(n_theta), radii.shape)
-        self.groups = []  # (ring slice, x and y offsets (Rg, n), FFT columns of m, n)
+        self.groups = []  # (x and y offsets (Rg, n), the FFT's columns of m, n), rings out
         for n in np.unique(counts):
-            rings = np.flatnonzero(counts == n)
             theta = 2.0 * np.pi * np.arange(n) / n
-            span = slice(int(rings[0]), int(rings[-1]) + 1)
-            cos = radii[span, np.newaxis] * np.cos(theta)
-            sin = radii[span, np.newaxis] * np.sin(theta)
-            self.groups.append((span, cos, sin, np.arange(-m_max, m_max + 1) % n, int(n)))
+            cos = radii[counts == n, np.newaxis] * np.cos(theta)
+            sin = radii[counts == n, np.newaxis] * np.sin(theta)
+            self.groups.append((cos, sin, np.arange(-m_max, m_max + 1) % n, int(n)))
 
     @staticmethod
     def _coordinates(points: np.ndarray, cos: np.ndarray, sin: np.ndarray) -> np.ndarray:
@@ -166,14 +164,14 @@ class _Score:
                 ),
                 axis=2,
             )
-            for _, cos, sin, _, _ in self.groups
+            for cos, sin, _, _ in self.groups
         ]
         return np.concatenate(least, axis=1) >= CLEAR_PX + reach
 
     def entropy(self, points: np.ndarray, rings: np.ndarray) -> np.ndarray:
         """(P,) entropies around ``points`` (P, 2) over the rings ``rings`` (P, R) marks."""
         parts = []
-        for _, cos, sin, columns, n in self.groups:
+        for cos, sin, columns, n in self.groups:
             where = self._coordinates(points, cos, sin)
             real, imag = (
                 ndimage.map_coordinates(part, where, order=3, mode="mirror", prefilter=False)
@@ -519,8 +517,8 @@ def centre_stderr(
 
     def less(i: int) -> np.ndarray:  # the record less segment i: from its centre or another
         rest = counts - finite[i]
-        less = sums - np.where(finite[i], maps[i], 0.0)
-        field = np.where(rest > 0, less / np.maximum(rest, 1), np.nan)
+        remainder = sums - np.where(finite[i], maps[i], 0.0)
+        field = np.where(rest > 0, remainder / np.maximum(rest, 1), np.nan)
         search = _Search(field, *setting, step=whole.step)
         return min((search.polish(p) for p in [given, *others]), key=lambda item: item[1])[0]
 
