@@ -296,7 +296,7 @@ class JointEstimator:
             This frame's phase noise per peak, rad (else the given or learned ones).
         intervals : int
             Frame intervals since the frame before (more than one after lost frames:
-            :func:`~holoview.processing.series.frame_gaps.intervals_since`).
+            :func:`~holoview.processing.series.frame_gaps.intervals_of`).
 
         Returns
         -------
