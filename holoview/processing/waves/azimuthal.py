@@ -43,7 +43,7 @@ from holoview.processing.waves.omega_k import SEGMENT, hann, pixel_pair
 
 logger = logging.getLogger(__name__)
 
-__all__ = ["AzimuthalAccumulator", "MFSpectrum", "PolarGrid", "polar_grid"]
+__all__ = ["AzimuthalAccumulator", "MFSpectrum", "PolarGrid", "polar_grid", "ring_angles"]
 
 #: Frames whose ring samples are made at once (a few MB: reused, not mapped afresh).
 MODES_CHUNK = 16
@@ -135,6 +135,24 @@ class PolarGrid:
         return out[0] if single else out
 
 
+def ring_angles(radii: ArrayLike, spacing: float, *, fewest: int) -> NDArray[np.int64]:
+    """Angles on each ring of ``radii``: the power of two that puts neighbouring samples
+    at most ``spacing`` apart (the radii's unit), and at least ``fewest``.
+
+    Examples
+    --------
+    >>> ring_angles([1.0, 3.0, 10.0], 1.0, fewest=8)
+    array([ 8, 32, 64])
+    """
+    return np.array(
+        [
+            max(fewest, 1 << math.ceil(math.log2(max(2.0 * math.pi * r / spacing, 1.0))))
+            for r in np.asarray(radii, dtype=np.float64)
+        ],
+        dtype=np.int64,
+    )
+
+
 def polar_grid(
     shape: tuple[int, int],
     pixel_size: float | ArrayLike,
@@ -192,10 +210,7 @@ def polar_grid(
     if m_max < 0:
         raise InputError(f"m_max must be >= 0, got {m_max}")
     radii = np.arange(low, high + 1e-9 * step, step)
-    fewest = max(8, 2 * m_max + 2)
-    n_theta = np.array(
-        [max(fewest, 1 << math.ceil(math.log2(max(2 * math.pi * r / step, 1.0)))) for r in radii]
-    )
+    n_theta = ring_angles(radii, step, fewest=max(8, 2 * m_max + 2))
     theta = [2.0 * np.pi * np.arange(n) / n for n in n_theta]
     col = np.concatenate([(x0 + r * np.cos(t)) / dx for r, t in zip(radii, theta, strict=True)])
     row = np.concatenate([(y0 + r * np.sin(t)) / dy for r, t in zip(radii, theta, strict=True)])

@@ -63,6 +63,7 @@ from scipy import ndimage, special
 from scipy.optimize import minimize
 
 from holoview.errors import InputError
+from holoview.processing.waves.azimuthal import ring_angles
 from holoview.processing.waves.omega_k import pixel_pair
 
 logger = logging.getLogger(__name__)
@@ -239,10 +240,7 @@ class _Search:
             clearance = ndimage.distance_transform_edt(finite)
         ring_step = 2.0 * self.pixel
         radii = np.arange(inner, outer + 1e-9 * ring_step, ring_step) / self.pixel
-        # angles 2 pixels apart at each ring's radius (a power of two)
-        n_theta = np.array(
-            [max(16, 1 << math.ceil(math.log2(max(math.pi * r, 1.0)))) for r in radii]
-        )
+        n_theta = ring_angles(radii, 2.0, fewest=16)  # 2 pixels apart on each ring
         self.score = _Score(coefficients, clearance, radii, n_theta, m_max)
         few = radii[np.unique(np.linspace(0, radii.size - 1, SCAN_RINGS).round().astype(int))]
         self.coarse = _Score(coefficients, clearance, few, SCAN_ANGLES, m_max)
