@@ -353,14 +353,17 @@ def _mode_lock_ins(
     options: WaveOptions,
     results: WaveResults,
     candidates: list[float],
+    *,
+    combs: list[np.ndarray],
     profiles: np.ndarray,
 ) -> list[tuple[int, float, np.ndarray, np.ndarray]]:
     """The modes to fit (given, or the strongest (m, f) peaks), each with its comb and
     lock-ins, shape (C, R).
 
-    A mode takes its candidate tone's comb (``profiles``, made in pass 2) where its own
-    (m, f) peak lies within that comb or half a bin of the candidate (a peak's precision
-    in a long record, where the comb is narrower; a drive's harmonic is exact), and else
+    A mode takes its candidate tone's comb (``combs``, their lock-ins ``profiles``, made
+    in pass 2) where its own (m, f) peak lies within that comb or half a bin of the
+    candidate (a peak's precision in a long record, where the comb is narrower; a drive's
+    harmonic is exact), and else
     a comb around its own peak, the lock-ins made in one more pass over the maps:
     E(omega) sums every ``m`` and blends tones closer than about two bins into one peak
     between them (``m = 1`` at 18 Hz and ``m = -1`` at 19 Hz in bins of 0.78 Hz: one
@@ -387,7 +390,7 @@ def _mode_lock_ins(
                 f"(m, f) = ({m}, {f:.4g} Hz): no candidate tone near it in E(omega); not fitted"
             )
             continue
-        comb = _comb(maps, candidates[nearest])
+        comb = combs[nearest]
         if comb[0] <= f <= comb[-1] or distances[nearest] <= 0.5 * bin_hz:
             modes.append((m, f, comb, nearest))
         else:
@@ -447,7 +450,7 @@ def _pass_azimuthal(maps: WaveMaps, options: WaveOptions, results: WaveResults) 
     results.mf = accumulator.spectrum()
     weights = _hann_weights(maps.clock.times, _span(maps))
     for m, f, comb, block in _mode_lock_ins(
-        maps, options, results, candidates, accumulator.profiles()
+        maps, options, results, candidates, combs=combs, profiles=accumulator.profiles()
     ):
         try:
             tone = refine_tone(comb, block, maps.clock.times, weights)
