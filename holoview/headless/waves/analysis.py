@@ -34,7 +34,7 @@ import numpy as np
 
 from holoview.errors import InputError
 from holoview.headless.waves.maps import WaveMaps
-from holoview.headless.waves.tones import PROMINENCE, find_tones, tone_energy
+from holoview.headless.waves.tones import PROMINENCE, check_steady, find_tones, tone_energy
 from holoview.optics.surfaces import dispersion_k
 from holoview.processing.waves.azimuthal import (
     AzimuthalAccumulator,
@@ -454,6 +454,14 @@ def _pass_azimuthal(maps: WaveMaps, options: WaveOptions, results: WaveResults) 
     ):
         try:
             tone = refine_tone(comb, block, maps.clock.times, weights)
+            check_steady(
+                tone,
+                comb,
+                block,
+                weights,
+                times=maps.clock.times,
+                noise=accumulator.profile_noise(m, tone.frequency),
+            )
         except InputError as exc:
             problem = f"(m, f) = ({m}, {f:.4g} Hz): {exc}"
             if options.modes:

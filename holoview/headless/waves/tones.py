@@ -2,7 +2,9 @@
 
 A tone is a local maximum of E(omega) of the waves beyond :data:`UNIFORM_SPREAD_STEPS`
 wave-vector steps, standing :data:`PROMINENCE` times over its surroundings, its
-frequency refined between bins (a parabola on the log-energy).
+frequency refined between bins (a parabola on the log-energy). A mode's tone, refined
+from its lock-ins, is fitted as a partial wave only if it is one steady tone
+(:func:`check_steady`).
 """
 
 from __future__ import annotations
@@ -11,9 +13,18 @@ import math
 
 import numpy as np
 
+from holoview.errors import InputError
 from holoview.processing.waves.omega_k import OmegaKSpectrum
+from holoview.processing.waves.partial_waves import Tone, unsteady_tone
 
-__all__ = ["PROMINENCE", "TONE_SURROUNDINGS", "UNIFORM_SPREAD_STEPS", "find_tones", "tone_energy"]
+__all__ = [
+    "PROMINENCE",
+    "TONE_SURROUNDINGS",
+    "UNIFORM_SPREAD_STEPS",
+    "check_steady",
+    "find_tones",
+    "tone_energy",
+]
 
 #: Tones (the centre's frequency, the candidates) are sought in E(omega) of the waves
 #: beyond this many wave-vector steps: the spatial taper spreads a uniform oscillation
@@ -68,3 +79,41 @@ def find_tones(
         if len(found) >= count:
             break
     return found
+
+
+def check_steady(
+    tone: Tone,
+    comb: np.ndarray,
+    lock_ins: np.ndarray,
+    weights: np.ndarray,
+    *,
+    times: np.ndarray,
+    noise: np.ndarray,
+) -> None:
+    """Refuse a tone whose lock-ins one steady tone does not explain.
+
+    Parameters
+    ----------
+    tone : Tone
+        What :func:`~holoview.processing.waves.partial_waves.refine_tone` made of
+        ``lock_ins`` (C, R) at ``comb`` (C,), with ``weights`` at ``times`` (N,).
+    noise : ndarray of float, shape (R,)
+        Each ring's noise variance beside the tone
+        (:meth:`~holoview.processing.waves.azimuthal.AzimuthalAccumulator.profile_noise`).
+
+    Raises
+    ------
+    InputError
+        Not one steady tone (:func:`~holoview.processing.waves.partial_waves.unsteady_tone`),
+        saying how far from one and where the other lies.
+    """
+    found = unsteady_tone(comb, lock_ins, times, weights, tone=tone, noise=noise)
+    if found is None:
+        return
+    duration = float(times[-1] - times[0])
+    raise InputError(
+        f"not one steady tone: it leaves {found.excess:.3g} times the noise beside it, and "
+        f"a second tone near {found.second:.4g} Hz would move its profile by "
+        f"{100 * found.shift:.3g} % (two waves of this m too close for {duration:.3g} s "
+        "of record to part, or a mode that grows or decays: --ringdown)"
+    )

@@ -48,6 +48,10 @@ __all__ = ["AzimuthalAccumulator", "MFSpectrum", "PolarGrid", "polar_grid", "rin
 #: Frames whose ring samples are made at once (a few MB: reused, not mapped afresh).
 MODES_CHUNK = 16
 
+#: The bins of a ring's (m, f) power whose median is its noise near a frequency
+#: (:meth:`AzimuthalAccumulator.profile_noise`): from the first to the second either side.
+FLOOR_BINS = (3, 8)
+
 
 def _keys(t: np.ndarray) -> np.ndarray:
     """Keys' cubic convolution weights (a = -0.5) of the samples at -1, 0, 1, 2 from ``t``."""
@@ -330,12 +334,15 @@ class AzimuthalAccumulator:
         self._run = 0
         self._last_time: float | None = None
         self._sum = np.zeros((n_m, self.segment // 2 + 1))
+        self._ring_sum = np.zeros((n_m, n_r, self.segment // 2 + 1))  # per ring, for noise
+        self._ring_segments = np.zeros(n_r)
         self.segments = 0
         self.frames = 0
         self.frequencies = np.asarray(lock_in, dtype=np.float64)
         self.span = span
         self._lock = np.zeros((self.frequencies.size, n_r, n_m), np.complex128)
         self._lock_weight = np.zeros(n_r)
+        self._lock_weight_squares = np.zeros(n_r)
         self.series_m = tuple(int(m) for m in series)
         self._series: list[np.ndarray] = []
         self._times: list[float] = []
@@ -368,6 +375,7 @@ class AzimuthalAccumulator:
         w = weights[:, np.newaxis] * finite  # (N, R)
         weighted = np.where(finite[:, :, np.newaxis], modes, 0.0) * w[:, :, np.newaxis]
         self._lock_weight += w.sum(axis=0)
+        self._lock_weight_squares += (w**2).sum(axis=0)
         turns = np.exp(2j * np.pi * np.outer(self.frequencies, times))  # (F, N)
         n = times.size
         self._lock += (turns @ weighted.reshape(n, -1)).reshape(self._lock.shape)
@@ -401,11 +409,12 @@ class AzimuthalAccumulator:
         # exp(-i omega t) sits at numpy's frequency -f: bins 0, -1, ..., -n/2.
         negative = spectrum[(-np.arange(n // 2 + 1)) % n]
         power = np.abs(negative) ** 2  # (F, R, M)
+        power *= self.interval / float(np.sum(self._taper**2))
+        power[1 : (n + 1) // 2] *= 2.0
         r = self.grid.radii[rings]
-        per_m = np.tensordot(r, power, axes=(0, 1)) / np.sum(r)  # (F, M)
-        per_m *= self.interval / float(np.sum(self._taper**2))
-        per_m[1 : (n + 1) // 2] *= 2.0
-        self._sum += per_m.T
+        self._sum += (np.tensordot(r, power, axes=(0, 1)) / np.sum(r)).T  # (M, F)
+        self._ring_sum[:, rings] += power.transpose(2, 1, 0)
+        self._ring_segments[rings] += 1
         self.segments += 1
 
     def spectrum(self) -> MFSpectrum:
@@ -428,6 +437,34 @@ class AzimuthalAccumulator:
         has = self._lock_weight > 0
         weight = np.where(has, self._lock_weight, 1.0)[np.newaxis, :, np.newaxis]
         return np.where(has[np.newaxis, :, np.newaxis], 2.0 * self._lock / weight, np.nan)
+
+    def profile_noise(self, m: int, frequency: float) -> NDArray[np.float64]:
+        """Return the noise variance of each ring's profile value near ``(m, frequency)``.
+
+        The variance of each of the real and imaginary parts of ``A_m(r, f)``
+        (:meth:`profiles`, m^2), from that ring's own (m, f) power between
+        :data:`FLOOR_BINS` bins either side of ``frequency``, the two nearest on each
+        side left out (a tone's leakage through the segments' taper): their median,
+        scaled to the mean of a chi-square of the segments' degrees of freedom, as a
+        density of white noise, through the lock-in's weights (``sum w^2 / (sum w)^2``).
+        NaN on rings that no complete segment or lock-in holds.
+        """
+        column = m + self.grid.m_max
+        n_f = self._sum.shape[1]
+        centre = round(frequency * self.segment * self.interval)
+        offsets = np.r_[-FLOOR_BINS[1] : -FLOOR_BINS[0] + 1, FLOOR_BINS[0] : FLOOR_BINS[1] + 1]
+        bins = centre + offsets
+        bins = bins[(bins >= 2) & (bins < n_f - 1)]  # a segment's mean and slope are removed
+        if bins.size == 0 or self.segments == 0:
+            return np.full(self._ring_segments.size, np.nan)
+        counts = np.maximum(self._ring_segments, 1.0)
+        density = np.median(self._ring_sum[column][:, bins], axis=1) / counts  # (R,)
+        dof = 2.0 * counts  # a segment's complex bin holds 2; overlaps neglected
+        density /= (1.0 - 2.0 / (9.0 * dof)) ** 3  # Wilson-Hilferty: median to mean
+        held = (self._ring_segments > 0) & (self._lock_weight > 0)
+        weight = np.where(held, self._lock_weight, 1.0)
+        spread = self._lock_weight_squares / weight**2
+        return np.where(held, density / self.interval * spread, np.nan)
 
     def series(self) -> tuple[NDArray[np.float64], NDArray[np.complex128]]:
         """Return the times (N,) (s) and ``h_m(r, t)`` (N, R, len(series_m)) kept (m)."""

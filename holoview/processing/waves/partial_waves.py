@@ -39,11 +39,29 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy import special
-from scipy.optimize import minimize_scalar
+from scipy.optimize import minimize, minimize_scalar
 
 from holoview.errors import InputError
 
-__all__ = ["PartialWaveFit", "Tone", "fit_partial_wave", "lock_in_response", "refine_tone"]
+__all__ = [
+    "PartialWaveFit",
+    "Tone",
+    "Unsteady",
+    "fit_partial_wave",
+    "lock_in_response",
+    "refine_tone",
+    "unsteady_tone",
+]
+
+#: A tone's lock-ins are not one steady tone when what the tone leaves of them is this
+#: many times its expectation from the noise beside it, and :data:`UNSTEADY_Z` of its
+#: standard deviations over it (the noise's level is known to some 10-20 %: the
+#: ratio guards against that, the z against a chance excess)...
+UNSTEADY_EXCESS = 2.0
+UNSTEADY_Z = 5.0
+#: ... and a second tone fitted with it moves its profile by this fraction (rms over
+#: the rings): the size of error the partial waves' amplitudes are held to.
+UNSTEADY_SHIFT = 0.02
 
 
 @dataclass(frozen=True)
@@ -135,6 +153,25 @@ class Tone:
     frequency_stderr: float
     phase_stderr: float
     profile: NDArray[np.complex128]
+
+
+@dataclass(frozen=True)
+class Unsteady:
+    """Lock-ins around a tone that one steady tone does not explain (:func:`unsteady_tone`).
+
+    Attributes
+    ----------
+    excess : float
+        What the tone leaves of the lock-ins, over its expectation from the noise.
+    second : float
+        Hz: the other tone of the best fit of two.
+    shift : float
+        How far that fit moves the tone's profile, rms over the rings, relative.
+    """
+
+    excess: float
+    second: float
+    shift: float
 
 
 def _solve(
@@ -401,3 +438,103 @@ def refine_tone(
     profile[rings] = along / np.linalg.norm(response)
     mean_time = float(np.sum(w * t) / np.sum(w))
     return Tone(frequency, stderr, 2.0 * math.pi * abs(mean_time) * stderr, profile)
+
+
+def unsteady_tone(
+    comb: ArrayLike,
+    lock_ins: ArrayLike,
+    times: ArrayLike,
+    weights: ArrayLike,
+    *,
+    tone: Tone,
+    noise: ArrayLike,
+) -> Unsteady | None:
+    """Say whether one steady tone explains the lock-ins it was refined from.
+
+    Two tones of the same ``m`` closer than the comb's reach, or a mode that grows or
+    decays, fit as one tone between them, with an amplitude that is neither's and errors
+    measured from what the fit leaves (two tones of 10 and 8 nm 0.4 Hz apart, resolved
+    by 0.39 Hz: one of 7.4 nm, 30 standard errors off). The comb's own residual cannot
+    tell: it holds two or three degrees of freedom a ring, which a second tone takes
+    up. The noise beside the tone in each ring's (m, f) spectrum can: the residual off
+    the tone, against its expectation from that noise (``2 s^2 tr((I - u u^H) S)`` a
+    ring, ``S`` the lock-ins' correlation), is the test; where it stands out
+    (:data:`UNSTEADY_EXCESS`, :data:`UNSTEADY_Z`), two tones are fitted (one in the comb,
+    the other within four resolutions of it), and where the second moves the tone's
+    profile by :data:`UNSTEADY_SHIFT` or more, the tone is not one.
+
+    Parameters
+    ----------
+    comb, lock_ins, times, weights
+        As :func:`refine_tone` took them.
+    tone : Tone
+        What :func:`refine_tone` made of them.
+    noise : array_like of float, shape (R,)
+        Each ring's noise variance in each of the real and imaginary parts of a lock-in
+        (NaN where unknown: the ring is left out).
+
+    Returns
+    -------
+    Unsteady or None
+        None where one steady tone explains them.
+    """
+    f = np.asarray(comb, dtype=np.float64)
+    a = np.asarray(lock_ins, dtype=np.complex128)
+    t = np.asarray(times, dtype=np.float64)
+    w = np.asarray(weights, dtype=np.float64)
+    s2 = np.asarray(noise, dtype=np.float64)
+    rings = np.all(np.isfinite(a), axis=0) & np.isfinite(s2) & (s2 > 0)
+    if not np.any(rings):
+        return None
+    data, s2 = a[:, rings], s2[rings]
+    response = lock_in_response(t, w, f - tone.frequency)
+    u = response / np.linalg.norm(response)
+    off_tone = np.eye(f.size) - np.outer(u, u.conj())
+    shape = lock_in_response(t, w**2, np.subtract.outer(f, f).ravel()).reshape(f.size, f.size)
+    spread = off_tone @ shape
+    mean = 2.0 * float(np.trace(spread).real) * s2.size
+    variance = 4.0 * float(np.trace(spread @ spread).real) * s2.size
+    left = float(np.sum(np.sum(np.abs(off_tone @ data) ** 2, axis=0) / s2))
+    if left < UNSTEADY_EXCESS * mean or left - mean < UNSTEADY_Z * math.sqrt(variance):
+        return None
+    first, second, coefficients = _two_tones(f, data, t, w)
+    main = 0 if abs(first - tone.frequency) <= abs(second - tone.frequency) else 1
+    alone = tone.profile[rings]
+    shift = float(np.linalg.norm(coefficients[main] - alone) / np.linalg.norm(alone))
+    if shift < UNSTEADY_SHIFT:
+        return None
+    return Unsteady(left / mean, (second, first)[main], shift)
+
+
+def _two_tones(
+    f: np.ndarray, data: np.ndarray, t: np.ndarray, w: np.ndarray
+) -> tuple[float, float, np.ndarray]:
+    """The two tones (Hz) that best fit the lock-ins ``data`` (C, R) at the comb ``f``,
+    one within the comb, the other within four resolutions of it and at least three
+    quarters of a resolution from the first (closer, the two are too alike to part),
+    with their profiles (2, R)."""
+    weighted = t[w > 0]
+    resolution = 1.0 / max(float(np.ptp(weighted)), 1e-300)
+    total = float(np.sum(np.abs(data) ** 2))
+
+    def left(pair: np.ndarray) -> float:
+        if abs(pair[0] - pair[1]) < 0.75 * resolution:
+            return total
+        basis, _ = np.linalg.qr(
+            lock_in_response(t, w, np.subtract.outer(f, pair).ravel()).reshape(f.size, 2)
+        )
+        return total - float(np.sum(np.abs(basis.conj().T @ data) ** 2))
+
+    inside = np.linspace(f[0], f[-1], 9)
+    around = np.linspace(f[0] - 4 * resolution, f[-1] + 4 * resolution, 73)
+    start = min(((x, y) for x in inside for y in around), key=lambda p: left(np.array(p)))
+    best = minimize(
+        left,
+        np.array(start),
+        method="Nelder-Mead",
+        options={"xatol": 1e-4 * resolution, "fatol": 1e-12 * total},
+    )
+    pair = np.asarray(best.x, dtype=np.float64)
+    model = lock_in_response(t, w, np.subtract.outer(f, pair).ravel()).reshape(f.size, 2)
+    coefficients = np.linalg.lstsq(model, data, rcond=None)[0]
+    return float(pair[0]), float(pair[1]), coefficients

@@ -135,6 +135,25 @@ def test_the_mf_spectrum_sums_to_the_mean_square_over_the_annulus():
     assert total == pytest.approx(np.mean(samples**2), rel=0.1)
 
 
+def test_the_profiles_noise_is_the_scatter_of_their_lock_ins_over_seeds():
+    """profile_noise, from each ring's (m, f) power beside a frequency, is the variance
+    of each part of that ring's lock-in over 24 seeds of noise maps (the steady-tone
+    check's yardstick: a factor wrong there refuses good tones or passes bad ones)."""
+    g = polar_grid((SIZE, SIZE), PIXEL, CENTRE_MAP, r_min=5e-3, r_max=20e-3, m_max=3)
+    times = np.arange(FRAMES) / FPS
+    span = (float(times[0]), float(times[-1]))
+    values, noise = [], []
+    for seed in range(24):
+        maps = np.random.default_rng(seed).normal(0, 2e-9, (FRAMES, SIZE, SIZE))
+        acc = AzimuthalAccumulator(g, 1 / FPS, segment=64, lock_in=[21.3], span=span)
+        acc.push_block(maps, times)
+        values.append(acc.profiles()[0, :, 2 + g.m_max])  # m = 2
+        noise.append(acc.profile_noise(2, 21.3))
+    scatter = np.var(np.concatenate([np.real(values), np.imag(values)]), axis=0)  # (R,)
+    ratio = np.mean(noise, axis=0) / scatter
+    assert np.median(ratio) == pytest.approx(1.0, abs=0.15), np.median(ratio)
+
+
 def test_a_hankel_fit_of_a_plain_profile():
     r = np.linspace(5e-3, 30e-3, 60)
     k = 700.0

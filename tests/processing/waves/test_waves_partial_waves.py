@@ -145,3 +145,50 @@ def test_two_tones_e_omega_blends_are_each_fitted_around_their_own_peak():
         for found, truth in ((fit.outgoing, wave.outgoing), (fit.incoming, wave.incoming)):
             assert abs(found) == pytest.approx(abs(truth), rel=0.03)
             assert abs(np.angle(found / truth)) < math.radians(3)
+
+
+def _same_m_pair(second: float, *, modes: tuple[tuple[int, float], ...] = ()):
+    """m = 1 at 18 Hz (10, 10 nm) and at ``second`` (8, 6 nm), 256 frames at 100 per s
+    (a resolution of 0.39 Hz), through the whole analysis."""
+    waves = (PartialWave(1, 18.0, 10e-9, 10e-9), PartialWave(1, second, 8e-9, 6e-9))
+    surface = PartialWaves(waves, centre=CENTRE_MAP, core_radius=3e-3, depth=5e-3)
+    times = np.arange(FRAMES) / FPS
+    maps = sample(surface, times, SIZE, PIXEL, noise=2e-9)
+    options = WaveOptions(
+        fluid=Fluid(),
+        depth=5e-3,
+        fit=False,
+        segment=128,
+        centre=CENTRE_MAP,
+        r_range=(5e-3, 21e-3),
+        m_max=4,
+        n_modes=2,
+        modes=modes,
+    )
+    return analyse_waves(_MapsInMemory(maps, times, PIXEL), options)  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize("second", [18.4, 18.8])
+def test_two_tones_of_one_m_too_close_to_part_are_a_note_not_one_wrong_fit(second):
+    """Two tones of m = 1, 0.4 and 0.8 Hz apart: E(omega) and the (m, f) spectrum show
+    one, and its fit took both as one tone between them: 17.81 Hz and |out| 7.4 nm, 30
+    standard errors off (0.4 Hz), 18.11 Hz and 10.8 nm (0.8 Hz), without a word. Now a
+    note names the second tone, and no partial wave of m = 1 is reported."""
+    results = _same_m_pair(second)
+    assert all(fit.m != 1 for fit in results.partial_waves)
+    (note,) = [note for note in results.notes if "not one steady tone" in note]
+    found = float(note.split("a second tone near ")[1].split(" Hz")[0])
+    assert found == pytest.approx(second, abs=0.1), note
+    with pytest.raises(InputError, match=r"\(m, f\) = \(1, 18 Hz\): not one steady tone"):
+        _same_m_pair(second, modes=((1, 18.0),))
+
+
+def test_a_tone_of_the_same_m_three_resolutions_away_leaves_the_fit_alone():
+    """18 and 19.2 Hz at m = 1: the comb around 18 Hz sees the other's leakage (the
+    residual stands out of the noise) but a second tone moves the profile by 0.3 %:
+    18 Hz is fitted, within 1 %."""
+    results = _same_m_pair(19.2)
+    assert not any("not one steady tone" in note for note in results.notes), results.notes
+    (fit,) = [fit for fit in results.partial_waves if fit.m == 1]
+    assert fit.frequency == pytest.approx(18.0, abs=0.01)
+    assert abs(fit.outgoing) == pytest.approx(10e-9, rel=0.01)
