@@ -53,26 +53,30 @@ CLOSE_WAIT_S = 0.5
 
 @dataclass(frozen=True)
 class _Setup:
-    """How a child sets itself up: its name, niceness, process group and FFT wisdom.
+    """How a child sets itself up: its name, niceness and process group.
 
     ``group``: lead a process group of its own, so that the processes it starts end with
-    it when it must be killed (:meth:`ChildWork.close`). ``wisdom``: the parent's FFT
-    wisdom, planned from alone (its transforms then give the parent's numbers to the bit).
+    it when it must be killed (:meth:`ChildWork.close`).
     """
 
     name: str
     niceness: int
     group: bool
-    wisdom: tuple[bytes, ...]
 
 
 def _serve(conn: Connection, make: Callable[[], Callable[[Any], Any]], setup: _Setup) -> None:
-    """The child: make the work, then run each job received until ``None`` or the pipe ends."""
+    """The child: take the parent's FFT wisdom (the first message: planned from alone, its
+    transforms give the parent's numbers to the bit), make the work, then run each job
+    received until ``None`` or the pipe ends."""
     name, niceness = setup.name, setup.niceness
     if setup.group:
         with contextlib.suppress(OSError):
             os.setpgrp()
-    adopt_wisdom(setup.wisdom)
+    try:
+        wisdom = conn.recv()
+    except (EOFError, OSError):  # the window's process is gone
+        return
+    adopt_wisdom(wisdom)
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     with contextlib.suppress(OSError):  # its name in top and ps (Linux: 15 characters)
         Path("/proc/self/comm").write_text(name[:15])
@@ -301,19 +305,38 @@ class ChildWork(Generic[J, T]):
             ours, theirs = context.Pipe()
             process = context.Process(
                 target=_serve,
-                args=(
-                    theirs,
-                    self._make,
-                    _Setup(self._name, self._niceness, not self._daemon, current_wisdom()),
-                ),
+                args=(theirs, self._make, _Setup(self._name, self._niceness, not self._daemon)),
                 name=self._name,
                 daemon=self._daemon,
             )
             process.start()
             theirs.close()
             self._process, self._conn, self._starting = process, ours, True
+            # The wisdom (75 KB) is more than a pipe holds, and the child reads only once
+            # it has started Python and imported the window's main module: written here,
+            # the caller (the window's thread, opening the Waves panel) waited for that,
+            # 0.25-1.3 s. A thread sends it; the jobs go after it.
+            self._sending.acquire()
+            threading.Thread(
+                target=self._send_wisdom,
+                args=(ours, current_wisdom()),
+                name=f"{self._name}-start",
+                daemon=True,
+            ).start()
             logger.debug("%s started in process %d", self._name, process.pid)
             return ours
+
+    def _send_wisdom(self, conn: Connection, wisdom: tuple[bytes, ...]) -> None:
+        """Send the child its first message, the FFT wisdom; then let the jobs through.
+
+        A child that ended meanwhile is said by the next exchange with it.
+        """
+        try:
+            conn.send(wisdom)
+        except (OSError, TypeError, ValueError):  # ended, or its pipe closed under us
+            pass
+        finally:
+            self._sending.release()
 
     def _forget(self) -> int | None:
         """Drop the child (ended or ending); its exit code where known."""

@@ -234,6 +234,50 @@ def test_the_child_ends_with_the_process_that_started_it(tmp_path: Path) -> None
     assert _gone(int(done.stdout.split()[0]))
 
 
+def test_starting_a_child_does_not_wait_for_it_to_start_python(tmp_path: Path) -> None:
+    """The window's thread starts the Waves map's process when the panel opens: its FFT
+    wisdom (75 KB after a session's plans) went with the process's arguments, more than
+    a pipe holds, and the child reads them only once it has started Python and imported
+    the window's main module: the window froze for that, 0.25-1.3 s. Here the main
+    module takes 2 s to import in the child; start() returns long before."""
+    script = tmp_path / "window.py"
+    script.write_text(
+        textwrap.dedent(
+            f"""
+            import sys, time
+            if __name__ == "__mp_main__":  # the child imports the main module first
+                time.sleep(2.0)
+            sys.path.insert(0, {str(Path(__file__).parent)!r})
+            from test_live_child_work import _counting
+            from holoview.live import child_work
+            if __name__ == "__main__":
+                wisdom = (b"", bytes(200_000), b"")  # a session's wisdom and more
+                child_work.current_wisdom = lambda: wisdom
+                work = child_work.ChildWork(_counting, "holoview-test", niceness=0)
+                began = time.perf_counter()
+                work.start()
+                started = time.perf_counter() - began
+                assert work.wait_ready(60)
+                ready = time.perf_counter() - began
+                print(started, ready, work("a")[1], flush=True)
+                work.close()
+            """
+        )
+    )
+    done = subprocess.run(
+        [sys.executable, str(script)],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        cwd=REPO,
+        check=False,
+    )
+    assert done.returncode == 0, done.stderr
+    started, ready, count = done.stdout.split()
+    assert float(ready) > 2.0 and count == "1"  # the child started, took its wisdom, works
+    assert float(started) < 0.5, done.stdout
+
+
 def test_the_match_worker_measures_in_its_process_as_the_maps_worker_would() -> None:
     """The same detections' frames give the same windows in the child as in this process."""
     setup = wavy_setup(256)
