@@ -66,11 +66,14 @@ def colour_range(
     percentiles : (float, float)
         The low and high percentiles, in [0, 100].
     """
-    ranges = {name: _percentiles(data, percentiles) for name, data in maps.items()}
-    known = {name: r for name, r in ranges.items() if r is not None}
-    if not known:
+    fused = _percentiles(maps[FUSED], percentiles) if FUSED in maps else None
+    if fused is not None:  # the others' are not needed (a sixth of a draw's time)
+        chosen = [fused]
+    else:
+        ranges = (_percentiles(data, percentiles) for data in maps.values())
+        chosen = [r for r in ranges if r is not None]
+    if not chosen:
         return None
-    chosen = [known[FUSED]] if FUSED in known else list(known.values())
     low, high = (float(v) for v in np.median(np.array(chosen), axis=0))
     return (low, high) if high > low else None
 
