@@ -34,6 +34,7 @@ from holoview.processing.naming.identify import Identification, identify_peaks
 from holoview.processing.naming.lattice_geometry import LatticePeak
 from holoview.processing.naming.prefactors import PeakKind
 from holoview.processing.peaks.detection import Peak
+from holoview.processing.series.frame_gaps import lost_between
 from holoview.processing.series.phase_series import check_aliasing
 from holoview.processing.series.rate_fits import RateFit
 
@@ -317,10 +318,9 @@ def _lattice_of(selection: Selection, naming: Naming, j: int) -> LatticePeak | N
 
 def _lost_note(intervals: np.ndarray, times: np.ndarray, frames: np.ndarray) -> str | None:
     """The frames the camera lost (steps of several frame intervals), in one note."""
-    gaps = np.flatnonzero(intervals > 1)
+    lost, gaps = lost_between(intervals)
     if not gaps.size:
         return None
-    lost = int(np.sum(intervals[gaps] - 1))
     longest = int(gaps[np.argmax(intervals[gaps])])
     return (
         f"{lost} frames lost in {gaps.size} gap{'' if gaps.size == 1 else 's'} (the longest, "

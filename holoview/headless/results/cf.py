@@ -263,9 +263,10 @@ def join_complex(dataset: xr.Dataset) -> xr.Dataset:
 
 
 def netcdf_attribute(value: Any) -> Any:
-    """``value`` as netCDF can store it: booleans as 0/1 (netCDF has no boolean type)."""
+    """``value`` as netCDF can store it: booleans as 0/1 (netCDF has no boolean type), int8
+    as in ``results.h5`` (:func:`flag_attribute`)."""
     if isinstance(value, bool | np.bool_):
-        return int(value)
+        return flag_attribute(bool(value))
     if isinstance(value, np.ndarray) and value.dtype == bool:
         return value.astype(np.int8)
     if isinstance(value, list | tuple) and any(isinstance(v, bool | np.bool_) for v in value):

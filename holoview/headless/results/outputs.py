@@ -38,6 +38,7 @@ from holoview.headless.analysis import Analysis, PeakOutcome
 from holoview.headless.inputs import Optics
 from holoview.headless.run_data import RunData
 from holoview.headless.settings import ProcessSettings
+from holoview.processing.series.frame_gaps import lost_between
 
 logger = logging.getLogger(__name__)
 
@@ -192,8 +193,8 @@ def summary_document(
     """
     n = len(data.frames)
     duration = float(data.times[-1] - data.times[0]) if n > 1 else 0.0
-    steps = data.series.intervals[1:]  # the frame intervals between the frames
-    intervals, lost = int(np.sum(steps)), int(np.sum(steps - 1))
+    intervals = int(np.sum(data.series.intervals[1:]))  # between the first and last frames
+    lost = lost_between(data.series.intervals)[0]
     fused = None
     if analysis.fused is not None:
         fused = {

@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["GAP_TOLERANCE", "intervals_of", "spans"]
+__all__ = ["GAP_TOLERANCE", "intervals_of", "lost_between", "spans"]
 
 #: A step longer than ``1 + GAP_TOLERANCE`` nominal intervals is a gap (lost frames).
 GAP_TOLERANCE = 0.5
@@ -49,3 +49,18 @@ def intervals_of(times: NDArray[np.float64]) -> NDArray[np.int64]:
         steps = np.diff(times)
         out[1:] = spans(steps, float(np.median(steps)))
     return out
+
+
+def lost_between(intervals: NDArray[np.int64]) -> tuple[int, NDArray[np.intp]]:
+    """The frames lost between a series' frames, and the frames each gap ends at.
+
+    ``intervals``: per frame, the frame intervals since the one before (as
+    :func:`intervals_of` gives them); the first frame's own are not between two frames.
+
+    Examples
+    --------
+    >>> lost_between(np.array([1, 1, 3, 1, 2]))
+    (3, array([2, 4]))
+    """
+    steps = np.asarray(intervals[1:])
+    return int(np.sum(steps - 1)), np.flatnonzero(steps > 1) + 1
