@@ -517,24 +517,38 @@ def _two_tones(
     resolution = 1.0 / max(float(np.ptp(weighted)), 1e-300)
     total = float(np.sum(np.abs(data) ** 2))
 
-    def left(pair: np.ndarray) -> float:
+    # the comb's lock-in of each frame, so that a tone's response is one product:
+    # lock_in_response(t, w, f - g) = comb @ exp(-2 pi i g t)
+    comb = np.exp(2j * np.pi * np.outer(f, t)) * (w / np.sum(w))
+
+    def responses(frequencies: np.ndarray) -> np.ndarray:
+        """The comb's responses (C, K) to tones at ``frequencies`` (K,)."""
+        return comb @ np.exp(-2j * np.pi * np.outer(t, frequencies))
+
+    def left(pair: np.ndarray, model: np.ndarray | None = None) -> float:
         if abs(pair[0] - pair[1]) < 0.75 * resolution:
             return total
-        basis, _ = np.linalg.qr(
-            lock_in_response(t, w, np.subtract.outer(f, pair).ravel()).reshape(f.size, 2)
-        )
+        basis, _ = np.linalg.qr(responses(pair) if model is None else model)
         return total - float(np.sum(np.abs(basis.conj().T @ data) ** 2))
 
+    # a grid of pairs from responses made once, then refined
     inside = np.linspace(f[0], f[-1], 9)
     around = np.linspace(f[0] - 4 * resolution, f[-1] + 4 * resolution, 73)
-    start = min(((x, y) for x in inside for y in around), key=lambda p: left(np.array(p)))
+    grid = responses(np.concatenate([inside, around]))
+    pairs = [(i, j) for i in range(inside.size) for j in range(around.size)]
+    i, j = min(
+        pairs,
+        key=lambda ij: left(
+            np.array([inside[ij[0]], around[ij[1]]]),
+            grid[:, [ij[0], inside.size + ij[1]]],
+        ),
+    )
     best = minimize(
         left,
-        np.array(start),
+        np.array([inside[i], around[j]]),
         method="Nelder-Mead",
         options={"xatol": 1e-4 * resolution, "fatol": 1e-12 * total},
     )
     pair = np.asarray(best.x, dtype=np.float64)
-    model = lock_in_response(t, w, np.subtract.outer(f, pair).ravel()).reshape(f.size, 2)
-    coefficients = np.linalg.lstsq(model, data, rcond=None)[0]
+    coefficients = np.linalg.lstsq(responses(pair), data, rcond=None)[0]
     return float(pair[0]), float(pair[1]), coefficients
