@@ -230,9 +230,10 @@ def mf_figure(results: WaveResults, path: Path) -> None:
     axes.set_ylabel("frequency f (Hz)")
     figure.colorbar(image, ax=axes).set_label("power density (m²/Hz)")
     x0, y0 = results.centre or (0.0, 0.0)
+    fitted = "circles: fitted" if results.partial_waves else "none fitted (see waves.json notes)"
     axes.set_title(
         f"(m, f) spectrum around ({x0 * 1e3:.2f}, {y0 * 1e3:.2f}) mm, "
-        f"r {mf.radii[0] * 1e3:.3g}-{mf.radii[-1] * 1e3:.3g} mm; circles: fitted",
+        f"r {mf.radii[0] * 1e3:.3g}-{mf.radii[-1] * 1e3:.3g} mm; {fitted}",
         fontsize=9,
     )
     figure.subplots_adjust(left=0.09, right=0.97, bottom=0.11, top=0.92)
