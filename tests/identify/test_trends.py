@@ -153,6 +153,28 @@ def test_rate_standard_error_holds_on_a_short_record_of_correlated_noise(correla
     assert np.mean(np.abs(rates - 3e-8) < 2 * errors) > 0.85
 
 
+def test_a_rate_fitted_after_another_is_that_of_its_own_times():
+    # the residual model of the last times fitted is kept for the next fit on the same
+    # times (the peaks of a series): times of the same length but other values (uneven,
+    # or a lost frame) must not take it
+    rng = np.random.default_rng(5)
+    even = np.arange(40) / 20.0
+    uneven = even + np.r_[0.0, np.cumsum(rng.uniform(0, 0.02, 39))]
+    gapped = np.delete(np.arange(41) / 20.0, 17)
+    depth = 3e-8 * even + rng.normal(0, 1e-9, 40)
+    short = np.arange(30) / 20.0
+
+    def other_times_first() -> None:
+        fit_rate(short, depth[:30])  # a model of another length kept
+
+    other_times_first()
+    alone = fit_rate(even, depth)
+    for other in (uneven, gapped):
+        other_times_first()
+        assert fit_rate(other, depth).stderr != alone.stderr  # a model of these kept
+        assert fit_rate(even, depth) == alone
+
+
 def test_rate_needs_three_frames_and_ordered_times():
     with pytest.raises(InputError, match="at least three"):
         fit_rate([0.0, 1.0], [0.0, 1.0])
