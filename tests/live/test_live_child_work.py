@@ -205,6 +205,18 @@ def test_closing_while_the_child_works_says_stopped_at_once() -> None:
         assert outcome == ["holoview-test was stopped"]
 
 
+def _run(script: Path) -> subprocess.CompletedProcess[str]:
+    """Run ``script`` in a Python of its own (the window's process), its output kept."""
+    return subprocess.run(
+        [sys.executable, str(script)],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        cwd=REPO,
+        check=False,
+    )
+
+
 def test_the_child_ends_with_the_process_that_started_it(tmp_path: Path) -> None:
     """A window killed outright (no exit handler runs) leaves no matcher behind."""
     script = tmp_path / "parent.py"
@@ -222,14 +234,7 @@ def test_the_child_ends_with_the_process_that_started_it(tmp_path: Path) -> None
             """
         )
     )
-    done = subprocess.run(
-        [sys.executable, str(script)],
-        capture_output=True,
-        text=True,
-        timeout=120,
-        cwd=REPO,
-        check=False,
-    )
+    done = _run(script)
     assert done.returncode == -signal.SIGKILL, done.stderr
     assert _gone(int(done.stdout.split()[0]))
 
@@ -264,14 +269,7 @@ def test_starting_a_child_does_not_wait_for_it_to_start_python(tmp_path: Path) -
             """
         )
     )
-    done = subprocess.run(
-        [sys.executable, str(script)],
-        capture_output=True,
-        text=True,
-        timeout=120,
-        cwd=REPO,
-        check=False,
-    )
+    done = _run(script)
     assert done.returncode == 0, done.stderr
     started, ready, count = done.stdout.split()
     assert float(ready) > 2.0 and count == "1"  # the child started, took its wisdom, works

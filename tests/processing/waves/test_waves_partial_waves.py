@@ -116,41 +116,12 @@ class _MapsInMemory:
             yield self.clock.times[start : start + size], self._maps[start : start + size]
 
 
-def test_two_tones_e_omega_blends_are_each_fitted_around_their_own_peak():
-    """m = 1 at 18 Hz and m = -1 at 19 Hz, bins of 0.78 Hz: E(omega), which sums every m,
-    shows one peak between them, the one candidate tone; the (m, f) spectrum tells them
-    apart. The m = -1 mode was refined on the candidate's comb and stopped at its end:
-    18.59 Hz, its outgoing amplitude 75 % low and 171 degrees off, with no note."""
-    waves = (PartialWave(1, 18.0, 10e-9, 10e-9), PartialWave(-1, 19.0, 8e-9, 6e-9))
-    surface = PartialWaves(waves, centre=CENTRE_MAP, core_radius=3e-3, depth=5e-3)
-    times = np.arange(FRAMES) / FPS
-    maps = sample(surface, times, SIZE, PIXEL, noise=2e-9)
-    options = WaveOptions(
-        fluid=Fluid(),
-        depth=5e-3,
-        fit=False,
-        segment=128,
-        centre=CENTRE_MAP,
-        r_range=(5e-3, 21e-3),
-        m_max=4,
-        n_modes=2,
-    )
-    results = analyse_waves(_MapsInMemory(maps, times, PIXEL), options)  # type: ignore[arg-type]
-    assert results.notes == []
-    fits = {fit.m: fit for fit in results.partial_waves}
-    assert set(fits) == {1, -1}
-    for wave in waves:
-        fit = fits[wave.m]
-        assert fit.frequency == pytest.approx(wave.frequency, abs=0.01)
-        for found, truth in ((fit.outgoing, wave.outgoing), (fit.incoming, wave.incoming)):
-            assert abs(found) == pytest.approx(abs(truth), rel=0.03)
-            assert abs(np.angle(found / truth)) < math.radians(3)
-
-
-def _same_m_pair(second: float, *, modes: tuple[tuple[int, float], ...] = ()):
-    """m = 1 at 18 Hz (10, 10 nm) and at ``second`` (8, 6 nm), 256 frames at 100 per s
-    (a resolution of 0.39 Hz), through the whole analysis."""
-    waves = (PartialWave(1, 18.0, 10e-9, 10e-9), PartialWave(1, second, 8e-9, 6e-9))
+def _two_tones(
+    waves: tuple[PartialWave, PartialWave], *, modes: tuple[tuple[int, float], ...] = ()
+):
+    """Two partial waves in 2 nm of noise, 256 frames at 100 per s (a resolution of
+    0.39 Hz, (m, f) bins of 0.78 Hz), through the whole analysis: the two strongest modes,
+    or ``modes``."""
     surface = PartialWaves(waves, centre=CENTRE_MAP, core_radius=3e-3, depth=5e-3)
     times = np.arange(FRAMES) / FPS
     maps = sample(surface, times, SIZE, PIXEL, noise=2e-9)
@@ -166,6 +137,30 @@ def _same_m_pair(second: float, *, modes: tuple[tuple[int, float], ...] = ()):
         modes=modes,
     )
     return analyse_waves(_MapsInMemory(maps, times, PIXEL), options)  # type: ignore[arg-type]
+
+
+def test_two_tones_e_omega_blends_are_each_fitted_around_their_own_peak():
+    """m = 1 at 18 Hz and m = -1 at 19 Hz, bins of 0.78 Hz: E(omega), which sums every m,
+    shows one peak between them, the one candidate tone; the (m, f) spectrum tells them
+    apart. The m = -1 mode was refined on the candidate's comb and stopped at its end:
+    18.59 Hz, its outgoing amplitude 75 % low and 171 degrees off, with no note."""
+    waves = (PartialWave(1, 18.0, 10e-9, 10e-9), PartialWave(-1, 19.0, 8e-9, 6e-9))
+    results = _two_tones(waves)
+    assert results.notes == []
+    fits = {fit.m: fit for fit in results.partial_waves}
+    assert set(fits) == {1, -1}
+    for wave in waves:
+        fit = fits[wave.m]
+        assert fit.frequency == pytest.approx(wave.frequency, abs=0.01)
+        for found, truth in ((fit.outgoing, wave.outgoing), (fit.incoming, wave.incoming)):
+            assert abs(found) == pytest.approx(abs(truth), rel=0.03)
+            assert abs(np.angle(found / truth)) < math.radians(3)
+
+
+def _same_m_pair(second: float, *, modes: tuple[tuple[int, float], ...] = ()):
+    """m = 1 at 18 Hz (10, 10 nm) and at ``second`` (8, 6 nm) (:func:`_two_tones`)."""
+    waves = (PartialWave(1, 18.0, 10e-9, 10e-9), PartialWave(1, second, 8e-9, 6e-9))
+    return _two_tones(waves, modes=modes)
 
 
 @pytest.mark.parametrize("second", [18.4, 18.8])
