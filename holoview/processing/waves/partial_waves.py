@@ -27,7 +27,9 @@ nearly the same numbers: their noise is correlated as ``sum w^2 exp(2 pi i (f_j 
 t)``, and the frequency's error is propagated with that correlation, each ring's noise
 measured from its residual off the tone. A frequency off by ``df`` turns the profile's
 phase (that of ``t = 0``) by ``2 pi df t_mean``, ``t_mean`` the weights' mean time:
-:func:`fit_partial_wave` adds it to the coefficients' phases.
+:func:`fit_partial_wave` adds it to the coefficients' phases. :func:`unsteady_tone` says
+where one steady tone does not explain the lock-ins (two tones of one m that the record
+does not part, a mode that grows or decays), against each ring's noise beside the tone.
 """
 
 from __future__ import annotations
