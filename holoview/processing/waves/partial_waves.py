@@ -352,6 +352,13 @@ def lock_in_response(
     return np.exp(2j * np.pi * np.outer(d, t)) @ w / np.sum(w)
 
 
+def _comb_correlation(comb: np.ndarray, t: np.ndarray, w: np.ndarray) -> NDArray[np.complex128]:
+    """The correlation ``S`` (C, C) of white noise's lock-ins at ``comb`` (Hz) with weights
+    ``w`` at ``t``: ``E[dL dL^H] = 2 s^2 S``, ``s^2`` a lock-in's variance in each part."""
+    offsets = np.subtract.outer(comb, comb)
+    return lock_in_response(t, w**2, offsets.ravel()).reshape(offsets.shape)
+
+
 def refine_tone(
     comb: ArrayLike,
     lock_ins: ArrayLike,
@@ -429,7 +436,7 @@ def refine_tone(
     score = -(np.outer(u, du.conj() @ data) + np.outer(du, along))
     # white noise gives the lock-ins E[dL dL^H] = 2 s^2 shape, s^2 a lock-in's variance
     # in each of its real and imaginary parts
-    shape = lock_in_response(t, w**2, np.subtract.outer(f, f).ravel()).reshape(f.size, f.size)
+    shape = _comb_correlation(f, t, w)
     off_tone = np.eye(f.size) - np.outer(u, u.conj())
     residual = np.sum(np.abs(off_tone @ data) ** 2, axis=0)
     noise = residual / (2.0 * float(np.trace(off_tone @ shape).real))  # s^2 of each ring
@@ -492,7 +499,7 @@ def unsteady_tone(
     response = lock_in_response(t, w, f - tone.frequency)
     u = response / np.linalg.norm(response)
     off_tone = np.eye(f.size) - np.outer(u, u.conj())
-    shape = lock_in_response(t, w**2, np.subtract.outer(f, f).ravel()).reshape(f.size, f.size)
+    shape = _comb_correlation(f, t, w)
     spread = off_tone @ shape
     mean = 2.0 * float(np.trace(spread).real) * s2.size
     variance = 4.0 * float(np.trace(spread @ spread).real) * s2.size
