@@ -1,8 +1,9 @@
 """The wave analyses of one label's maps, streamed from a ``results.h5`` in a few passes.
 
 :func:`analyse_waves` reads the maps a block at a time (:mod:`~holoview.headless.waves.maps`)
-and runs the Qt-free analyses of :mod:`holoview.processing.waves`, so memory stays a
-segment's whatever the number of frames:
+and runs the Qt-free analyses of :mod:`holoview.processing.waves`, so memory stays
+bounded whatever the number of frames (a segment's maps, and at most
+:data:`KEPT_SAMPLES_BYTES` of the rings' samples):
 
 1. every frame into the omega-k accumulator (and, with a drive frequency, the lock-in
    maps); then E(k), E(omega) and the fit of sigma, d and U to the ridge;
@@ -13,7 +14,9 @@ segment's whatever the number of frames:
    every ``m`` at a comb of frequencies around each candidate tone (the strongest peaks
    of E(omega), the drive's harmonics, or the modes asked for) and the series of the
    ringdown's ``m``; then per chosen (m, f) the tone's frequency and radial profile
-   (:func:`refine_tone`) and its Hankel fit, and the ringdown fit.
+   (:func:`refine_tone`) and its Hankel fit, and the ringdown fit. A chosen (m, f) that
+   no candidate's comb holds takes lock-ins on a comb of its own, from the rings'
+   samples kept in this pass (or, past their budget, one more pass).
 
 Times are from the first frame analysed (phases of complex amplitudes refer to it).
 Every fit that fails raises :class:`~holoview.errors.InputError` with the reason, but
@@ -28,7 +31,6 @@ import math
 import time
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
-from typing import Any
 
 import numpy as np
 
@@ -65,6 +67,11 @@ CANDIDATE_TONES = 6
 #: Lock-in frequencies per candidate tone, and their spacing in units of 1 / duration.
 COMB_POINTS = 9
 COMB_SPACING = 0.25
+
+#: Pass 2's ring samples are kept for the lock-ins of modes that no candidate's comb holds
+#: while they take at most this many bytes (2000 frames of rings 5-38 mm at 0.32 mm, with
+#: |m| <= 8: 28 MB); past it, those lock-ins take one more pass over the maps.
+KEPT_SAMPLES_BYTES = 128 * 2**20
 
 
 @dataclass(frozen=True)
@@ -348,6 +355,17 @@ def _comb(maps: WaveMaps, frequency: float) -> np.ndarray:
     return comb
 
 
+def _keep(
+    kept: list[tuple[np.ndarray, np.ndarray]] | None, times: np.ndarray, modes: np.ndarray
+) -> list[tuple[np.ndarray, np.ndarray]] | None:
+    """``kept`` and a block's ring samples (complex64: :meth:`PolarGrid.modes` makes them in
+    float32, so nothing is lost), or None once they would pass :data:`KEPT_SAMPLES_BYTES`."""
+    if kept is None or sum(k.nbytes for _, k in kept) + modes.size * 8 > KEPT_SAMPLES_BYTES:
+        return None
+    kept.append((np.asarray(times), modes.astype(np.complex64)))
+    return kept
+
+
 def _mode_lock_ins(
     maps: WaveMaps,
     options: WaveOptions,
@@ -356,6 +374,7 @@ def _mode_lock_ins(
     *,
     combs: list[np.ndarray],
     profiles: np.ndarray,
+    kept: list[tuple[np.ndarray, np.ndarray]] | None,
 ) -> list[tuple[int, float, np.ndarray, np.ndarray]]:
     """The modes to fit (given, or the strongest (m, f) peaks), each with its comb and
     lock-ins, shape (C, R).
@@ -364,7 +383,8 @@ def _mode_lock_ins(
     in pass 2) where its own (m, f) peak lies within that comb or half a bin of the
     candidate (a peak's precision in a long record, where the comb is narrower; a drive's
     harmonic is exact), and else
-    a comb around its own peak, the lock-ins made in one more pass over the maps:
+    a comb around its own peak, the lock-ins made from pass 2's ring samples (``kept``,
+    :func:`_keep`) or, past :data:`KEPT_SAMPLES_BYTES`, in one more pass over the maps:
     E(omega) sums every ``m`` and blends tones closer than about two bins into one peak
     between them (``m = 1`` at 18 Hz and ``m = -1`` at 19 Hz in bins of 0.78 Hz: one
     candidate at 18.2 Hz, around which the 19 Hz tone was fitted at the comb's end,
@@ -379,7 +399,7 @@ def _mode_lock_ins(
     else:
         chosen = mf.strongest(options.n_modes, f_min=2 * bin_hz)
     modes: list[tuple[int, float, np.ndarray, int]] = []  # with the index of its comb
-    own: list[np.ndarray] = []  # the combs of one more pass, indexed after the candidates'
+    own: list[np.ndarray] = []  # the modes' own combs, indexed after the candidates'
     for m, f in chosen:
         if abs(m) > options.m_max:
             raise InputError(f"mode m={m} is beyond --m-max {options.m_max}")
@@ -404,9 +424,14 @@ def _mode_lock_ins(
             lock_in=np.concatenate(own).tolist(),
             span=_span(maps),
             workers=options.workers,
+            spectrum=False,
         )
-        for times, block in maps.blocks(options.block):
-            accumulator.push_block(block, times)
+        if kept is None:
+            for times, block in maps.blocks(options.block):
+                accumulator.push_block(block, times)
+        else:
+            for times, samples in kept:
+                accumulator.push_modes(samples.astype(np.complex128), times)
         profiles = np.concatenate([profiles, accumulator.profiles()])
     return [
         (m, f, comb, profiles[index * COMB_POINTS : (index + 1) * COMB_POINTS, :, m + grid.m_max])
@@ -445,12 +470,15 @@ def _pass_azimuthal(maps: WaveMaps, options: WaveOptions, results: WaveResults) 
         series=series,
         workers=options.workers,
     )
+    kept: list[tuple[np.ndarray, np.ndarray]] | None = []
     for times, block in maps.blocks(options.block):
-        accumulator.push_block(block, times)
+        modes = grid.modes(block, workers=options.workers)
+        accumulator.push_modes(modes, times)
+        kept = _keep(kept, times, modes)
     results.mf = accumulator.spectrum()
     weights = _hann_weights(maps.clock.times, _span(maps))
     for m, f, comb, block in _mode_lock_ins(
-        maps, options, results, candidates, combs=combs, profiles=accumulator.profiles()
+        maps, options, results, candidates, combs=combs, profiles=accumulator.profiles(), kept=kept
     ):
         try:
             tone = refine_tone(comb, block, maps.clock.times, weights)
@@ -558,39 +586,3 @@ def analyse_waves(maps: WaveMaps, options: WaveOptions) -> WaveResults:
         _pass_azimuthal(maps, options, results)
     results.timing["analysis_s"] = time.perf_counter() - started
     return results
-
-
-def summary_values(results: WaveResults) -> dict[str, Any]:
-    """The analyses' values with their errors, for ``waves.json``."""
-    spectrum = results.spectrum
-    out: dict[str, Any] = {
-        "omega_k": {
-            "segments": spectrum.segments,
-            "frames": spectrum.frames,
-            "frequency_resolution_hz": spectrum.df,
-            "k_resolution_rad_per_m": list(spectrum.dk),
-            "k_cut_rad_per_m": spectrum.k_cut,
-            "relative_stderr": spectrum.relative_stderr,
-        },
-        "dispersion": None if results.dispersion is None else results.dispersion.as_dict(),
-        "dispersion_problem": results.fit_problem,
-        "centre_m": None if results.centre is None else list(results.centre),
-        "centre_stderr_m": None if results.centre is None else list(results.centre_stderr),
-        "centre_method": results.centre_method or None,
-        "partial_waves": [fit.as_dict() for fit in results.partial_waves],
-        "ringdown": None if results.ringdown is None else results.ringdown.as_dict(),
-    }
-    if results.mf is not None:
-        out["mf_spectrum"] = {
-            "segments": results.mf.segments,
-            "strongest": [{"m": m, "frequency_hz": f} for m, f in results.mf.strongest(8)],
-        }
-    if results.lockin is not None:
-        lockin = results.lockin
-        out["lockin"] = {
-            "frequency_hz": lockin.frequency,
-            "harmonics": list(lockin.harmonics),
-            "median_amplitude_m": [float(np.nanmedian(a)) for a in lockin.magnitude],
-            "median_amplitude_stderr_m": [float(np.nanmedian(e)) for e in lockin.stderr],
-        }
-    return out

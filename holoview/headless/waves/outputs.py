@@ -33,7 +33,7 @@ coordinates attached as HDF5 dimension scales (xarray reads each group with
   (``transition_hz``).
 
 ``waves.json`` (format ``holoview-waves-summary`` 1.0): the input, the clock, every value
-with its standard error and unit (:func:`~holoview.headless.waves.analysis.summary_values`),
+with its standard error and unit (:func:`_summary_values`),
 ``dispersion_problem`` (why a dispersion fit asked for was not made, else null), the
 notes, the figures and the timing.
 """
@@ -55,7 +55,7 @@ import numpy as np
 from holoview import __version__
 from holoview.errors import InputError, OutputError, os_error_text
 from holoview.headless.results.output_folder import OutputFolder
-from holoview.headless.waves.analysis import WaveOptions, WaveResults, analyse_waves, summary_values
+from holoview.headless.waves.analysis import WaveOptions, WaveResults, analyse_waves
 from holoview.headless.waves.figures import FIGURES, draw_figures
 from holoview.headless.waves.maps import WaveMaps, open_wave_maps, results_path
 from holoview.processing.waves.filters import band_filter, block_for, transition_width
@@ -384,6 +384,42 @@ def run_waves(
     return WavesOutcome(folder, results, summary, files)
 
 
+def _summary_values(results: WaveResults) -> dict[str, Any]:
+    """The analyses' values with their errors, for ``waves.json``."""
+    spectrum = results.spectrum
+    out: dict[str, Any] = {
+        "omega_k": {
+            "segments": spectrum.segments,
+            "frames": spectrum.frames,
+            "frequency_resolution_hz": spectrum.df,
+            "k_resolution_rad_per_m": list(spectrum.dk),
+            "k_cut_rad_per_m": spectrum.k_cut,
+            "relative_stderr": spectrum.relative_stderr,
+        },
+        "dispersion": None if results.dispersion is None else results.dispersion.as_dict(),
+        "dispersion_problem": results.fit_problem,
+        "centre_m": None if results.centre is None else list(results.centre),
+        "centre_stderr_m": None if results.centre is None else list(results.centre_stderr),
+        "centre_method": results.centre_method or None,
+        "partial_waves": [fit.as_dict() for fit in results.partial_waves],
+        "ringdown": None if results.ringdown is None else results.ringdown.as_dict(),
+    }
+    if results.mf is not None:
+        out["mf_spectrum"] = {
+            "segments": results.mf.segments,
+            "strongest": [{"m": m, "frequency_hz": f} for m, f in results.mf.strongest(8)],
+        }
+    if results.lockin is not None:
+        lockin = results.lockin
+        out["lockin"] = {
+            "frequency_hz": lockin.frequency,
+            "harmonics": list(lockin.harmonics),
+            "median_amplitude_m": [float(np.nanmedian(a)) for a in lockin.magnitude],
+            "median_amplitude_stderr_m": [float(np.nanmedian(e)) for e in lockin.stderr],
+        }
+    return out
+
+
 def _summary(results: WaveResults, maps: WaveMaps, drawn: list[str]) -> dict[str, Any]:
     return {
         "format": SUMMARY_FORMAT,
@@ -405,7 +441,7 @@ def _summary(results: WaveResults, maps: WaveMaps, drawn: list[str]) -> dict[str
             "k_cut_from": maps.k_cut_source,
         },
         "sign_convention": SIGN_CONVENTION,
-        **summary_values(results),
+        **_summary_values(results),
         "notes": results.notes,
         "figures": drawn,
         "timing": results.timing,

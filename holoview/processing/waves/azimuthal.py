@@ -303,6 +303,9 @@ class AzimuthalAccumulator:
         Azimuthal numbers whose ``h_m(r, t)`` are kept, every frame.
     workers : int
         Threads sampling the rings (:meth:`PolarGrid.modes`), default 1.
+    spectrum : bool
+        Make the (m, f) spectrum (default). Without it only the lock-ins and the series
+        are kept: a pass for the lock-ins at more frequencies costs less.
     """
 
     def __init__(
@@ -315,6 +318,7 @@ class AzimuthalAccumulator:
         span: tuple[float, float] | None = None,
         series: Sequence[int] = (),
         workers: int = 1,
+        spectrum: bool = True,
     ) -> None:
         if not (math.isfinite(interval) and interval > 0):
             raise InputError(f"the frame interval must be positive, got {interval!r} s")
@@ -325,6 +329,7 @@ class AzimuthalAccumulator:
                 raise InputError(f"m = {m} is beyond the decomposition's |m| <= {grid.m_max}")
         self.grid = grid
         self.workers = max(1, int(workers))
+        self.makes_spectrum = bool(spectrum)
         self.interval = float(interval)
         self.segment = int(segment)
         self.hop = self.segment // 2
@@ -350,8 +355,12 @@ class AzimuthalAccumulator:
 
     def push_block(self, frames: ArrayLike, times: ArrayLike) -> None:
         """Add maps ``(N, rows, cols)`` (m) taken at ``times`` (N,) (s), in order."""
+        self.push_modes(self.grid.modes(frames, workers=self.workers), times)
+
+    def push_modes(self, modes: np.ndarray, times: ArrayLike) -> None:
+        """Add ``h_m(r)`` of maps (:meth:`PolarGrid.modes` of this grid, (N, R, M), m) taken
+        at ``times`` (N,) (s), in order."""
         stamps = np.asarray(times, dtype=np.float64).ravel()
-        modes = self.grid.modes(frames, workers=self.workers)
         if modes.shape[0] != stamps.size:
             raise InputError(f"{modes.shape[0]} maps and {stamps.size} times do not match")
         self._lock_in(modes, stamps)
@@ -359,8 +368,9 @@ class AzimuthalAccumulator:
             columns = [m + self.grid.m_max for m in self.series_m]
             self._series.append(modes[:, :, columns])
             self._times.extend(stamps.tolist())
-        for item, t in zip(modes, stamps, strict=True):
-            self._push_modes(item, float(t))
+        if self.makes_spectrum:
+            for item, t in zip(modes, stamps, strict=True):
+                self._push_modes(item, float(t))
 
     def _lock_in(self, modes: np.ndarray, times: np.ndarray) -> None:
         if self.frequencies.size == 0:
