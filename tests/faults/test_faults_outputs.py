@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -24,13 +25,19 @@ def snapshot(folder: Path) -> dict[str, bytes]:
     return {p.name: p.read_bytes() for p in folder.iterdir()}
 
 
-@pytest.fixture
-def earlier(sim_recording: Path, tmp_path: Path) -> Path:
-    """A folder holding the results of a complete run."""
-    out = tmp_path / "results"
+@pytest.fixture(scope="module")
+def complete_run(sim_recording: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The results of a complete run, made once by the command in a child process."""
+    out = tmp_path_factory.mktemp("complete") / "results"
     done = run_holoview("-q", "process", str(sim_recording), "--out", str(out), "--frames", ":20")
     assert done.status == 0, done.err
     return out
+
+
+@pytest.fixture
+def earlier(complete_run: Path, tmp_path: Path) -> Path:
+    """A folder holding the results of a complete run (a copy of ``complete_run``)."""
+    return Path(shutil.copytree(complete_run, tmp_path / "results"))
 
 
 def test_a_folder_with_earlier_results_is_refused_without_overwrite(
