@@ -102,10 +102,10 @@ def test_two_runs_started_together_into_one_new_folder_never_both_write(
     assert json.loads((out / "summary.json").read_text())["input"]["frames"] == [0, 40]
 
 
-@pytest.fixture
-def complete(sim_recording: Path, tmp_path: Path) -> Path:
-    """The complete results of a run, to be copied in by 'another program'."""
-    out = tmp_path / "complete"
+@pytest.fixture(scope="module")
+def complete(sim_recording: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The complete results of a run, to be copied in by 'another program' (read only)."""
+    out = tmp_path_factory.mktemp("complete") / "complete"
     done = run_holoview("-q", "process", str(sim_recording), "--out", str(out))
     assert done.status == 0, done.err
     return out
