@@ -114,7 +114,12 @@ def add_wave_options(parser: argparse.ArgumentParser) -> None:
     fluid.add_argument("--no-fit", action="store_true", help="no dispersion fit")
     fluid.add_argument("--k-range", metavar="K1:K2", help="wavenumbers fitted, rad/m")
     fluid.add_argument(
-        "--segment", type=int, default=128, metavar="N", help="frames per spectral segment"
+        "--segment",
+        type=int,
+        default=128,
+        metavar="N",
+        help="frames per spectral segment (the (m, f) spectrum's: at least N, an eighth of "
+        "the record up to 2048)",
     )
     around = parser.add_argument_group("around a centre (partial waves, ringdown)")
     around.add_argument(

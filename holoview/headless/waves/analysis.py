@@ -68,6 +68,12 @@ CANDIDATE_TONES = 6
 COMB_POINTS = 9
 COMB_SPACING = 0.25
 
+#: The (m, f) spectrum's segment is an eighth of the longest run without a gap (a power of
+#: two), at least ``--segment`` and at most this many frames: tones that a long record
+#: parts are then parted in it too (segments of 128 frames at 100 frames/s blend tones
+#: 1.2 Hz apart however long the record, and their one blended peak was fitted as neither).
+MF_SEGMENT_MAX = 2048
+
 #: Pass 2's ring samples are kept for the lock-ins of modes that no candidate's comb holds
 #: while they take at most this many bytes (2000 frames of rings 5-38 mm at 0.32 mm, with
 #: |m| <= 8: 28 MB); past it, those lock-ins take one more pass over the maps.
@@ -355,6 +361,13 @@ def _comb(maps: WaveMaps, frequency: float) -> np.ndarray:
     return comb
 
 
+def _mf_segment(maps: WaveMaps, segment: int) -> int:
+    """Frames per segment of the (m, f) spectrum (:data:`MF_SEGMENT_MAX`)."""
+    longest = max(b - a for a, b in maps.clock.runs)
+    eighth = 1 << max((longest // 8).bit_length() - 1, 0)
+    return max(segment, min(eighth, MF_SEGMENT_MAX))
+
+
 def _keep(
     kept: list[tuple[np.ndarray, np.ndarray]] | None, times: np.ndarray, modes: np.ndarray
 ) -> list[tuple[np.ndarray, np.ndarray]] | None:
@@ -380,9 +393,9 @@ def _mode_lock_ins(
     lock-ins, shape (C, R).
 
     A mode takes its candidate tone's comb (``combs``, their lock-ins ``profiles``, made
-    in pass 2) where its own (m, f) peak lies within that comb or half a bin of the
-    candidate (a peak's precision in a long record, where the comb is narrower; a drive's
-    harmonic is exact), and else
+    in pass 2) where its own (m, f) peak lies within that comb, or within half a bin of a
+    drive's harmonic (exact, where the peak is not: in a long record the comb is
+    narrower than a bin), and else
     a comb around its own peak, the lock-ins made from pass 2's ring samples (``kept``,
     :func:`_keep`) or, past :data:`KEPT_SAMPLES_BYTES`, in one more pass over the maps:
     E(omega) sums every ``m`` and blends tones closer than about two bins into one peak
@@ -394,6 +407,9 @@ def _mode_lock_ins(
     grid, mf = results.grid, results.mf
     assert grid is not None and mf is not None
     bin_hz = float(mf.frequency[1])
+    near = 2 * max(bin_hz, results.spectrum.df)  # a candidate's peak, in E(omega)'s bins
+    drive = options.drive
+    harmonics = set() if drive is None else {drive * n for n in range(1, options.harmonics + 1)}
     if options.modes:
         chosen = list(options.modes)
     else:
@@ -405,13 +421,14 @@ def _mode_lock_ins(
             raise InputError(f"mode m={m} is beyond --m-max {options.m_max}")
         distances = [abs(f - c) for c in candidates]
         nearest = int(np.argmin(distances)) if candidates else -1
-        if nearest < 0 or distances[nearest] > 2 * bin_hz:
+        if nearest < 0 or distances[nearest] > near:
             results.notes.append(
                 f"(m, f) = ({m}, {f:.4g} Hz): no candidate tone near it in E(omega); not fitted"
             )
             continue
         comb = combs[nearest]
-        if comb[0] <= f <= comb[-1] or distances[nearest] <= 0.5 * bin_hz:
+        exact = candidates[nearest] in harmonics and distances[nearest] <= 0.5 * bin_hz
+        if comb[0] <= f <= comb[-1] or exact:
             modes.append((m, f, comb, nearest))
         else:
             own.append(_comb(maps, f))
@@ -464,7 +481,7 @@ def _pass_azimuthal(maps: WaveMaps, options: WaveOptions, results: WaveResults) 
     accumulator = AzimuthalAccumulator(
         grid,
         maps.clock.interval,
-        segment=options.segment,
+        segment=_mf_segment(maps, options.segment),
         lock_in=[float(f) for comb in combs for f in comb],
         span=_span(maps),
         series=series,

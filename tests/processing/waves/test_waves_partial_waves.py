@@ -118,13 +118,16 @@ class _MapsInMemory:
 
 
 def _two_tones(
-    waves: tuple[PartialWave, PartialWave], *, modes: tuple[tuple[int, float], ...] = ()
+    waves: tuple[PartialWave, PartialWave],
+    *,
+    modes: tuple[tuple[int, float], ...] = (),
+    frames: int = FRAMES,
 ):
-    """Two partial waves in 2 nm of noise, 256 frames at 100 per s (a resolution of
+    """Two partial waves in 2 nm of noise, ``frames`` at 100 per s (256: a resolution of
     0.39 Hz, (m, f) bins of 0.78 Hz), through the whole analysis: the two strongest modes,
     or ``modes``."""
     surface = PartialWaves(waves, centre=CENTRE_MAP, core_radius=3e-3, depth=5e-3)
-    times = np.arange(FRAMES) / FPS
+    times = np.arange(frames) / FPS
     maps = sample(surface, times, SIZE, PIXEL, noise=2e-9)
     options = WaveOptions(
         fluid=Fluid(),
@@ -187,6 +190,26 @@ def test_two_tones_of_one_m_too_close_to_part_are_a_note_not_one_wrong_fit(secon
     assert found == pytest.approx(second, abs=0.1), note
     with pytest.raises(InputError, match=r"\(m, f\) = \(1, 18 Hz\): not one steady tone"):
         _same_m_pair(second, modes=((1, 18.0),))
+
+
+def test_two_tones_of_one_m_that_a_long_record_parts_are_both_fitted():
+    """m = 1 at 18 and 19.2 Hz in 20.5 s (2048 frames: 59 resolutions apart). The (m, f)
+    spectrum's segments of 128 frames (0.78 Hz bins) blended them into one peak at
+    18.3 Hz, whose fit failed, and a spurious m = -3 at 19.7 Hz: neither wave came out.
+    Its segments now grow with the record (256 frames here): both are fitted."""
+    results = _two_tones(
+        (PartialWave(1, 18.0, 10e-9, 10e-9), PartialWave(1, 19.2, 8e-9, 6e-9)), frames=2048
+    )
+    assert results.notes == []
+    assert results.mf is not None and results.mf.frequency[1] == pytest.approx(100 / 256)
+    fits = sorted(results.partial_waves, key=lambda fit: fit.frequency)
+    assert [fit.m for fit in fits] == [1, 1]
+    for fit, (frequency, outgoing, incoming) in zip(
+        fits, ((18.0, 10e-9, 10e-9), (19.2, 6e-9, 8e-9)), strict=True
+    ):
+        assert fit.frequency == pytest.approx(frequency, abs=0.01)
+        assert abs(fit.outgoing) == pytest.approx(outgoing, rel=0.03)
+        assert abs(fit.incoming) == pytest.approx(incoming, rel=0.03)
 
 
 def test_a_tone_of_the_same_m_three_resolutions_away_leaves_the_fit_alone():
