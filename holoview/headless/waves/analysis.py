@@ -36,6 +36,7 @@ import numpy as np
 
 from holoview.errors import InputError
 from holoview.headless.waves.maps import WaveMaps
+from holoview.headless.waves.modes import comb_around, mode_lock_ins
 from holoview.headless.waves.tones import PROMINENCE, check_steady, find_tones, tone_energy
 from holoview.optics.surfaces import dispersion_k
 from holoview.processing.waves.azimuthal import (
@@ -64,10 +65,6 @@ __all__ = ["WaveOptions", "WaveResults", "analyse_waves"]
 #: Candidate tones taken from E(omega) when no mode is asked for.
 CANDIDATE_TONES = 6
 
-#: Lock-in frequencies per candidate tone, and their spacing in units of 1 / duration.
-COMB_POINTS = 9
-COMB_SPACING = 0.25
-
 #: The (m, f) spectrum's segment is an eighth of the longest run without a gap (a power of
 #: two), at least ``--segment`` and at most this many frames: tones that a long record
 #: parts are then parted in it too (segments of 128 frames at 100 frames/s blend tones
@@ -75,7 +72,7 @@ COMB_SPACING = 0.25
 MF_SEGMENT_MAX = 2048
 
 #: Pass 2's ring samples are kept for the lock-ins of modes that no candidate's comb holds
-#: while they take at most this many bytes (2000 frames of rings 5-38 mm at 0.32 mm, with
+#: where they take at most this many bytes (2000 frames of rings 5-38 mm at 0.32 mm, with
 #: |m| <= 8: 28 MB); past it, those lock-ins take one more pass over the maps.
 KEPT_SAMPLES_BYTES = 128 * 2**20
 
@@ -353,107 +350,11 @@ def _candidates(results: WaveResults, options: WaveOptions) -> list[float]:
     return found
 
 
-def _comb(maps: WaveMaps, frequency: float) -> np.ndarray:
-    """The lock-in frequencies around a tone, Hz (clipped to 0 and Nyquist)."""
-    duration = max(float(maps.clock.times[-1]), 1e-300)
-    offsets = (np.arange(COMB_POINTS) - COMB_POINTS // 2) * COMB_SPACING / duration
-    comb: np.ndarray = np.clip(frequency + offsets, 1e-9, 0.5 / maps.clock.interval)
-    return comb
-
-
 def _mf_segment(maps: WaveMaps, segment: int) -> int:
     """Frames per segment of the (m, f) spectrum (:data:`MF_SEGMENT_MAX`)."""
     longest = max(b - a for a, b in maps.clock.runs)
     eighth = 1 << max((longest // 8).bit_length() - 1, 0)
     return max(segment, min(eighth, MF_SEGMENT_MAX))
-
-
-def _keep(
-    kept: list[tuple[np.ndarray, np.ndarray]] | None, times: np.ndarray, modes: np.ndarray
-) -> list[tuple[np.ndarray, np.ndarray]] | None:
-    """``kept`` and a block's ring samples (complex64: :meth:`PolarGrid.modes` makes them in
-    float32, so nothing is lost), or None once they would pass :data:`KEPT_SAMPLES_BYTES`."""
-    if kept is None or sum(k.nbytes for _, k in kept) + modes.size * 8 > KEPT_SAMPLES_BYTES:
-        return None
-    kept.append((np.asarray(times), modes.astype(np.complex64)))
-    return kept
-
-
-def _mode_lock_ins(
-    maps: WaveMaps,
-    options: WaveOptions,
-    results: WaveResults,
-    candidates: list[float],
-    *,
-    combs: list[np.ndarray],
-    profiles: np.ndarray,
-    kept: list[tuple[np.ndarray, np.ndarray]] | None,
-) -> list[tuple[int, float, np.ndarray, np.ndarray]]:
-    """The modes to fit (given, or the strongest (m, f) peaks), each with its comb and
-    lock-ins, shape (C, R).
-
-    A mode takes its candidate tone's comb (``combs``, their lock-ins ``profiles``, made
-    in pass 2) where its own (m, f) peak lies within that comb, or within half a bin of a
-    drive's harmonic (exact, where the peak is not: in a long record the comb is
-    narrower than a bin), and else
-    a comb around its own peak, the lock-ins made from pass 2's ring samples (``kept``,
-    :func:`_keep`) or, past :data:`KEPT_SAMPLES_BYTES`, in one more pass over the maps:
-    E(omega) sums every ``m`` and blends tones closer than about two bins into one peak
-    between them (``m = 1`` at 18 Hz and ``m = -1`` at 19 Hz in bins of 0.78 Hz: one
-    candidate at 18.2 Hz, around which the 19 Hz tone was fitted at the comb's end,
-    18.6 Hz, its amplitude 75 % low), where the (m, f) spectrum tells them apart. A mode
-    with no candidate within two bins is a note, not fitted.
-    """
-    grid, mf = results.grid, results.mf
-    assert grid is not None and mf is not None
-    bin_hz = float(mf.frequency[1])
-    near = 2 * max(bin_hz, results.spectrum.df)  # a candidate's peak, in E(omega)'s bins
-    drive = options.drive
-    harmonics = set() if drive is None else {drive * n for n in range(1, options.harmonics + 1)}
-    if options.modes:
-        chosen = list(options.modes)
-    else:
-        chosen = mf.strongest(options.n_modes, f_min=2 * bin_hz)
-    modes: list[tuple[int, float, np.ndarray, int]] = []  # with the index of its comb
-    own: list[np.ndarray] = []  # the modes' own combs, indexed after the candidates'
-    for m, f in chosen:
-        if abs(m) > options.m_max:
-            raise InputError(f"mode m={m} is beyond --m-max {options.m_max}")
-        distances = [abs(f - c) for c in candidates]
-        nearest = int(np.argmin(distances)) if candidates else -1
-        if nearest < 0 or distances[nearest] > near:
-            results.notes.append(
-                f"(m, f) = ({m}, {f:.4g} Hz): no candidate tone near it in E(omega); not fitted"
-            )
-            continue
-        comb = combs[nearest]
-        exact = candidates[nearest] in harmonics and distances[nearest] <= 0.5 * bin_hz
-        if comb[0] <= f <= comb[-1] or exact:
-            modes.append((m, f, comb, nearest))
-        else:
-            own.append(_comb(maps, f))
-            modes.append((m, f, own[-1], len(candidates) + len(own) - 1))
-    if own:
-        accumulator = AzimuthalAccumulator(
-            grid,
-            maps.clock.interval,
-            segment=options.segment,
-            lock_in=np.concatenate(own).tolist(),
-            span=_span(maps),
-            workers=options.workers,
-            spectrum=False,
-        )
-        if kept is None:
-            for times, block in maps.blocks(options.block):
-                accumulator.push_block(block, times)
-        else:
-            for times, samples in kept:
-                accumulator.push_modes(samples.astype(np.complex128), times)
-        profiles = np.concatenate([profiles, accumulator.profiles()])
-    return [
-        (m, f, comb, profiles[index * COMB_POINTS : (index + 1) * COMB_POINTS, :, m + grid.m_max])
-        for m, f, comb, index in modes
-    ]
 
 
 def _pass_azimuthal(maps: WaveMaps, options: WaveOptions, results: WaveResults) -> None:
@@ -476,26 +377,32 @@ def _pass_azimuthal(maps: WaveMaps, options: WaveOptions, results: WaveResults) 
     )
     results.grid = grid
     candidates = _candidates(results, options)
-    combs = [_comb(maps, f) for f in candidates]
+    combs = [comb_around(maps, f) for f in candidates]
     series = () if options.ringdown is None else (options.ringdown[0],)
+    span = _span(maps)
     accumulator = AzimuthalAccumulator(
         grid,
         maps.clock.interval,
         segment=_mf_segment(maps, options.segment),
         lock_in=[float(f) for comb in combs for f in comb],
-        span=_span(maps),
+        span=span,
         series=series,
         workers=options.workers,
     )
-    kept: list[tuple[np.ndarray, np.ndarray]] | None = []
+    # complex64 as PolarGrid.modes makes them (in float32): nothing is lost
+    kept: list[tuple[np.ndarray, np.ndarray]] | None = None
+    if maps.frames * grid.radii.size * grid.m.size * 8 <= KEPT_SAMPLES_BYTES:
+        kept = []
     for times, block in maps.blocks(options.block):
         modes = grid.modes(block, workers=options.workers)
         accumulator.push_modes(modes, times)
-        kept = _keep(kept, times, modes)
+        if kept is not None:
+            kept.append((np.asarray(times), modes.astype(np.complex64)))
     results.mf = accumulator.spectrum()
-    weights = _hann_weights(maps.clock.times, _span(maps))
-    for m, f, comb, block in _mode_lock_ins(
-        maps, options, results, candidates, combs=combs, profiles=accumulator.profiles(), kept=kept
+    weights = _hann_weights(maps.clock.times, span)
+    profiles = accumulator.profiles()
+    for m, f, comb, block in mode_lock_ins(
+        maps, options, results, candidates, combs=combs, profiles=profiles, kept=kept, span=span
     ):
         try:
             tone = refine_tone(comb, block, maps.clock.times, weights)

@@ -410,15 +410,20 @@ class AzimuthalAccumulator:
         rings = np.all(np.isfinite(block), axis=(0, 2))
         if not np.any(rings):
             return
-        data = block[:, rings]
+        data = block if bool(rings.all()) else block[:, rings]
+        del block  # the segment is worked on in place: one copy of it (58 MB at 2048 frames)
         n = self.segment
         ramp = np.linspace(-1.0, 1.0, n)
-        data = data - data.mean(axis=0)
-        data -= ramp[:, None, None] * (np.tensordot(ramp, data, axes=(0, 0)) / np.sum(ramp**2))
-        spectrum = np.fft.fft(data * self._taper[:, None, None], axis=0)
+        data -= data.mean(axis=0)
+        slope = np.tensordot(ramp, data, axes=(0, 0)) / np.sum(ramp**2)
+        for i in range(n):
+            data[i] -= ramp[i] * slope
+            data[i] *= self._taper[i]
+        spectrum = np.fft.fft(data, axis=0)
+        del data
         # exp(-i omega t) sits at numpy's frequency -f: bins 0, -1, ..., -n/2.
-        negative = spectrum[(-np.arange(n // 2 + 1)) % n]
-        power = np.abs(negative) ** 2  # (F, R, M)
+        power = np.abs(spectrum[(-np.arange(n // 2 + 1)) % n]) ** 2  # (F, R, M)
+        del spectrum
         power *= self.interval / float(np.sum(self._taper**2))
         power[1 : (n + 1) // 2] *= 2.0
         r = self.grid.radii[rings]
