@@ -154,6 +154,14 @@ class WaveOptions:
         or band filter): its failure is then the command's."""
         return self.fit and self.centre is None and self.drive is None and self.band is None
 
+    @property
+    def drive_harmonics(self) -> list[float]:
+        """The drive's harmonics, Hz (none without a drive): candidate tones whose frequency
+        is exact."""
+        if self.drive is None:
+            return []
+        return [self.drive * n for n in range(1, self.harmonics + 1)]
+
 
 @dataclass
 class WaveResults:
@@ -340,9 +348,7 @@ def _auto_centre(maps: WaveMaps, options: WaveOptions, results: WaveResults) -> 
 def _candidates(results: WaveResults, options: WaveOptions) -> list[float]:
     if options.modes:
         return sorted({f for _, f in options.modes})
-    found: list[float] = []
-    if options.drive is not None:
-        found = [options.drive * n for n in range(1, options.harmonics + 1)]
+    found = options.drive_harmonics
     omega, energy = tone_energy(results.spectrum)
     for f in find_tones(omega, energy, CANDIDATE_TONES, 2):
         if all(abs(f - g) > 2 * results.spectrum.df for g in found):

@@ -86,8 +86,7 @@ def mode_lock_ins(
     assert grid is not None and mf is not None
     bin_hz = float(mf.frequency[1])
     near = 2 * max(bin_hz, results.spectrum.df)  # a candidate's peak, in E(omega)'s bins
-    drive = options.drive
-    harmonics = set() if drive is None else {drive * n for n in range(1, options.harmonics + 1)}
+    harmonics = set(options.drive_harmonics)
     if options.modes:
         chosen = list(options.modes)
     else:

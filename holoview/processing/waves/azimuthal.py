@@ -411,7 +411,8 @@ class AzimuthalAccumulator:
         if not np.any(rings):
             return
         data = block if bool(rings.all()) else block[:, rings]
-        del block  # the segment is worked on in place: one copy of it (58 MB at 2048 frames)
+        del block  # worked on in place: one copy of the segment (58 MB for 2048 frames of
+        # 104 rings with |m| <= 8)
         n = self.segment
         ramp = np.linspace(-1.0, 1.0, n)
         data -= data.mean(axis=0)
