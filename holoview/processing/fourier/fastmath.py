@@ -10,6 +10,11 @@ made for this module; error below 2e-6 rad, that is 0.3 pm of height for RB1 at
 copies. The phase of exactly 0 is arbitrary (pi/4 here; ``np.angle`` says 0), and
 values below about 1e-36 in modulus get an inaccurate phase: a field that vanishes
 is masked anyway.
+
+Where numpy's own float32 ``arctan2`` is vectorised (its AVX-512 build, SVML),
+:func:`angle` copies the real and imaginary parts apart and calls it: on a 240 x 240
+map 53 us against the polynomial's 138 us (AMD EPYC, AVX-512). The phase is then
+``np.angle``'s. On other CPUs the polynomial is several times faster than numpy.
 """
 
 from __future__ import annotations
@@ -35,6 +40,20 @@ MAX_ERROR = 2e-6
 _TINY = np.finfo(np.float32).tiny
 
 _COEFFICIENTS32 = tuple(np.float32(c) for c in _ATAN_COEFFICIENTS)
+
+
+def _numpy_arctan2_vectorised() -> bool:
+    """Whether numpy dispatches float32 ``arctan2`` to a SIMD kernel on this CPU."""
+    try:
+        targets = np.lib.introspect.opt_func_info(func_name="arctan2$", signature="float32")
+        current = str(targets["arctan2"]["fff"]["current"])
+    except (AttributeError, KeyError):  # an older numpy: no introspection
+        return False
+    return not current.startswith("baseline")
+
+
+#: numpy's float32 ``arctan2`` is vectorised here: :func:`angle` calls it.
+NUMPY_ARCTAN2 = _numpy_arctan2_vectorised()
 
 
 #: The sign bit of a float32.
@@ -87,6 +106,10 @@ def angle(
         out = np.empty(z.shape, dtype=np.float32)
     a, b, u, r = workspace._buffers
     x, y = z.real, z.imag  # strided views, read twice each: cheaper than copying them
+    if NUMPY_ARCTAN2:  # contiguous copies: numpy's strided loop is 1.6x slower
+        np.copyto(a, x)
+        np.copyto(b, y)
+        return np.arctan2(b, a, out=out)
     np.abs(x, out=a)
     np.abs(y, out=b)
     # theta = atan2(|y|, |x|) = pi/4 + atan(u), u = (|y| - |x|) / (|y| + |x|) in [-1, 1]
