@@ -13,10 +13,11 @@ into a :class:`~holoview.live.wave_window.WaveHistory`:
   else every second frame (``frame_id`` even), every fourth, ...: the maps stay evenly
   spaced at ``camera rate / stride`` and the panel says that the frequency axis ends at
   half that rate. The stride rises when a map takes longer than the time between two
-  kept frames, to the smallest at which it takes :data:`TARGET_BUSY` of it; it falls only
-  to a stride at which a map would take at most :data:`RELAX_BUSY` (a band between the
-  two, since each change of stride starts the window again and a map costs more where
-  more are made). Once a smaller stride has sufficed for :data:`RELAX_S` seconds the
+  kept frames and :data:`RISE_BACKLOG` of the ring waits (a map that waits for a core
+  now and then is caught up), to the smallest at which it takes :data:`TARGET_BUSY` of
+  it; it falls only to a stride at which a map would take at most :data:`RELAX_BUSY` (a
+  band between the two, since each change of stride starts the window again and a map
+  costs more where more are made). Once a smaller stride has sufficed for :data:`RELAX_S` seconds the
   stride becomes the largest that was needed meanwhile (one step); a smaller stride
   that had to be left again within :data:`HELD_S` is next tried twice as late (up to
   :data:`MAX_RELAX_S`), so that a machine at the edge settles on the stride it keeps.
@@ -79,6 +80,7 @@ __all__ = [
     "FIT_SHARE_BEHIND",
     "MAX_STRIDE",
     "RELAX_BUSY",
+    "RISE_BACKLOG",
     "TARGET_BUSY",
     "WAVES_HZ",
     "WavesWorker",
@@ -105,6 +107,11 @@ TARGET_BUSY = 0.9
 #: 16.7 ms interval at stride 1 and 31 ms at stride 2; with one bound (0.9) for both ways
 #: the stride went 1, 2, 1, 2, 4, 2, 4 in 30 s, each change the window anew.
 RELAX_BUSY = 0.7
+#: Share of the ring's frames that must wait before a map's cost raises the stride. Maps
+#: that wait for a core now and then time over the interval for a while, the backlog
+#: staying a few frames (``benchmarks/bench_gui.py --waves RB1``, 2 cores: 16 maps timed
+#: 2-26 ms, median 17.5, against 16.7); a machine too slow falls behind steadily.
+RISE_BACKLOG = 1 / 8
 #: Maps timed (since the demodulator was built) before the stride follows their cost.
 MIN_COSTS = 8
 #: Niceness of the map's process: after the series and the window, which must keep up and
@@ -304,6 +311,8 @@ class WavesWorker(RingWorker[LiveWaves]):
         if rebuilt:  # a new demodulator's first frame plans its FFTs: not a map's cost
             self._costs.clear()
             self._cpu.clear()
+            # the frames that came while the first peaks were found: behind only if more come
+            self._backlog_at_change = self.backlog()
         elif child_cpu:
             self._costs.append(time.perf_counter() - tick)
             self._cpu.append(child_cpu)
@@ -380,13 +389,14 @@ class WavesWorker(RingWorker[LiveWaves]):
             return self.stride
         busy = self.map_seconds() * rate  # a map's share of a camera frame's interval
         needed = self.stride
+        backlog = self.backlog()
         if busy > needed:
-            while needed < MAX_STRIDE and busy / needed > TARGET_BUSY:
-                needed *= 2
+            if backlog >= self.ring.capacity * RISE_BACKLOG:  # not only a moment behind
+                while needed < MAX_STRIDE and busy / needed > TARGET_BUSY:
+                    needed *= 2
         else:
             while needed > 1 and busy / (needed // 2) <= RELAX_BUSY:
                 needed //= 2
-        backlog = self.backlog()
         if backlog > max(self.ring.capacity // 2, self._backlog_at_change):
             needed = max(needed, min(2 * self.stride, MAX_STRIDE))  # far behind, and more so
         return needed

@@ -323,19 +323,25 @@ def test_the_stride_rises_when_a_map_outlasts_its_interval_and_falls_with_room(
 ) -> None:
     """A band between rising and falling: a map timed at 0.92 of the camera's interval
     keeps every frame, one at 1.8 of it keeps every second (stride 4 before); a smaller
-    stride is tried only where a map would take at most RELAX_BUSY of its interval."""
-    ring = FrameRing(4, (64, 64), np.uint16)
+    stride is tried only where a map would take at most RELAX_BUSY of its interval. A
+    map's cost raises the stride only once an eighth of the ring waits (a moment behind
+    is caught up)."""
+    ring = FrameRing(64, (64, 64), np.uint16)
     worker = WavesWorker(ring, cast(DemodWorker, None), (64, 64), WaveSettings(label="RB1"))
     worker._costs.extend([0.01] * wave_worker.MIN_COSTS)
-    share = {"busy": 0.0}
+    share = {"busy": 0.0, "backlog": 8}
     monkeypatch.setattr(worker, "paced", lambda: False)
     monkeypatch.setattr(worker, "camera_rate", lambda: 60.0)
     monkeypatch.setattr(worker, "map_seconds", lambda: share["busy"] / 60.0)
+    monkeypatch.setattr(worker, "backlog", lambda: share["backlog"])
 
     def needed(stride: int, busy: float) -> int:
         worker.stride, share["busy"] = stride, busy
         return worker._needed_stride()
 
+    share["backlog"] = 7  # under an eighth of the ring: not behind yet
+    assert needed(1, 1.2) == 1 and needed(2, 2.5) == 2
+    share["backlog"] = 8
     assert needed(1, 0.92) == 1  # keeps up: every frame (2 before)
     assert needed(1, 1.2) == 2 and needed(1, 2.5) == 4  # behind: to TARGET_BUSY at once
     assert needed(2, 1.8) == 2  # the edge at stride 2: stays (4 before)

@@ -9,8 +9,7 @@ import numpy as np
 import pytest
 
 from holoview.errors import InputError
-from holoview.processing.fourier import fftplans
-from holoview.processing.fourier import fastmath
+from holoview.processing.fourier import fastmath, fftplans
 from holoview.processing.fourier.fastmath import MAX_ERROR, angle
 from holoview.processing.fourier.spectrum import display_spectrum, frequencies, log_magnitude, rfft2
 
