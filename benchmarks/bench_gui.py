@@ -58,6 +58,7 @@ import pyqtgraph as pg
 from machine import machine
 from PyQt6.QtCore import QEventLoop, QTimer
 
+from holoview.live.wave_worker import IN_FLIGHT
 from holoview.ui.app import application
 from holoview.ui.garbage import collect_between_events
 from holoview.ui.main_window import MainWindow
@@ -296,7 +297,12 @@ def main() -> int:
         series0 = session.series_worker.status()
         waves_worker = session.waves_worker
         if waves_worker is not None:
-            waves0 = (waves_worker.history.pushed, waves_worker.status(), waves_worker.stride)
+            waves0 = (
+                waves_worker.history.pushed,
+                waves_worker.status(),
+                waves_worker.stride,
+                waves_worker.backlog(),
+            )
         cpu0, queue0 = thread_cpu_seconds(), thread_queue_seconds()
         children0 = child_cpu_seconds()
         t0 = time.monotonic()
@@ -323,12 +329,15 @@ def main() -> int:
             lost = status.dropped - waves0[1].dropped
             frames = session.camera.frames - cam0
             stride = waves_worker.stride
-            waves_ok = stride == 1 and waves0[2] == 1 and lost == 0 and pushed >= frames - 2
+            # frames the worker has yet to read or whose maps are under way are not skipped
+            waiting = waves_worker.backlog() - waves0[3] + IN_FLIGHT
+            waves_ok = stride == 1 and waves0[2] == 1 and lost == 0 and pushed >= frames - waiting
             latest = session.waves()
             fit_s = f", analysis {latest.seconds * 1e3:.0f} ms" if latest is not None else ""
             waves_line = (
                 f"waves       {pushed / elapsed:6.1f} maps/s of {args.waves} ({pushed} maps for "
-                f"{frames} camera frames; stride {waves0[2]} -> {stride}; {lost} frames "
+                f"{frames} camera frames, {waiting} of them still waiting or under way; "
+                f"stride {waves0[2]} -> {stride}; {lost} frames "
                 f"overwritten before the waves worker read them{fit_s}; a map takes "
                 f"{waves_worker.map_seconds() * 1e3:.1f} ms "
                 f"({waves_worker.map_cpu_seconds() * 1e3:.1f} ms of CPU), a camera frame comes "
