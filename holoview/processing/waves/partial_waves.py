@@ -63,8 +63,8 @@ __all__ = [
 #: or a centre a fraction of a pixel off brings other modes' power into the bins beside:
 #: the three steady tones of ``accuracy_waves.py``'s seed 8 left 2.01 (m = 0 at 14 Hz,
 #: whose two halves of record gave amplitudes 0.4 % apart), 0.61 and 0.54 times it.
-#: Two tones a resolution apart or a decaying mode leave hundreds to thousands of times
-#: it (the tests: 994-4000; ``bench_waves.py``'s field: about 90)...
+#: Two tones a resolution apart or a decaying mode leave more: the tests' 994-4000 times
+#: it; ``bench_waves.py``'s four modes, blends of tones and a decaying mode, 5.2-92...
 UNSTEADY_EXCESS = 3.0
 UNSTEADY_Z = 5.0
 #: ... and a second tone fitted with it moves its profile by this fraction (rms over
