@@ -17,10 +17,11 @@ into a :class:`~holoview.live.wave_window.WaveHistory`:
   now and then is caught up), to the smallest at which it takes :data:`TARGET_BUSY` of
   it; it falls only to a stride at which a map would take at most :data:`RELAX_BUSY` (a
   band between the two, since each change of stride starts the window again and a map
-  costs more where more are made). Once a smaller stride has sufficed for :data:`RELAX_S` seconds the
-  stride becomes the largest that was needed meanwhile (one step); a smaller stride
-  that had to be left again within :data:`HELD_S` is next tried twice as late (up to
-  :data:`MAX_RELAX_S`), so that a machine at the edge settles on the stride it keeps.
+  costs more where more are made). Once a smaller stride has sufficed for
+  :data:`RELAX_S` seconds the stride becomes the largest that was needed meanwhile (one
+  step); a smaller stride that had to be left again within :data:`HELD_S` is next tried
+  twice as late (up to :data:`MAX_RELAX_S`), so that a machine at the edge settles on
+  the stride it keeps.
 - a replay played as fast as it reads waits for it
   (:meth:`~holoview.live.worker.RingWorker.wait_for_room`), so a replay at full speed
   fills the panel from every frame;

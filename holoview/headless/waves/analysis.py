@@ -419,6 +419,7 @@ def _pass_azimuthal(maps: WaveMaps, options: WaveOptions, results: WaveResults) 
                 weights,
                 times=maps.clock.times,
                 noise=accumulator.profile_noise(m, tone.frequency),
+                m=m,
             )
         except InputError as exc:
             problem = f"(m, f) = ({m}, {f:.4g} Hz): {exc}"

@@ -89,6 +89,7 @@ def check_steady(
     *,
     times: np.ndarray,
     noise: np.ndarray,
+    m: int,
 ) -> None:
     """Refuse a tone whose lock-ins one steady tone does not explain.
 
@@ -100,6 +101,8 @@ def check_steady(
     noise : ndarray of float, shape (R,)
         Each ring's noise variance beside the tone
         (:meth:`~holoview.processing.waves.azimuthal.AzimuthalAccumulator.profile_noise`).
+    m : int
+        The tone's azimuthal number (m = 0 holds the maps' level).
 
     Raises
     ------
@@ -107,7 +110,7 @@ def check_steady(
         Not one steady tone (:func:`~holoview.processing.waves.partial_waves.unsteady_tone`),
         saying how far from one and where the other lies.
     """
-    found = unsteady_tone(comb, lock_ins, times, weights, tone=tone, noise=noise)
+    found = unsteady_tone(comb, lock_ins, times, weights, tone=tone, noise=noise, level=m == 0)
     if found is None:
         return
     duration = float(times[-1] - times[0])

@@ -59,12 +59,11 @@ __all__ = [
 #: many times its expectation from the noise beside it, and :data:`UNSTEADY_Z` of its
 #: standard deviations over it (the ratio guards against the noise's level being off,
 #: the z against a chance excess). On white noise that level holds to 10-20 %; beside a
-#: tone it can be off by a factor of 2, where m = 0 holds each frame's piston (not white)
-#: or a centre a fraction of a pixel off brings other modes' power into the bins beside:
-#: the three steady tones of ``accuracy_waves.py``'s seed 8 left 2.01 (m = 0 at 14 Hz,
-#: whose two halves of record gave amplitudes 0.4 % apart), 0.61 and 0.54 times it.
-#: Two tones a resolution apart or a decaying mode leave more: the tests' 994-4000 times
-#: it; ``bench_waves.py``'s four modes, blends of tones and a decaying mode, 5.2-92...
+#: tone it can be off by a factor of 2 (noise that is not white: at m = 0 each frame's
+#: piston left 2.0 times it beside a steady wave, ``accuracy_waves.py``'s seed 8, before
+#: :func:`unsteady_tone` left the piston out). Two tones a resolution apart or a
+#: decaying mode leave more: the tests' 994-4000 times it; ``bench_waves.py``'s four
+#: modes, blends of tones and a decaying mode, 5.2-92...
 UNSTEADY_EXCESS = 3.0
 UNSTEADY_Z = 5.0
 #: ... and a second tone fitted with it moves its profile by this fraction (rms over
@@ -463,6 +462,7 @@ def unsteady_tone(
     *,
     tone: Tone,
     noise: ArrayLike,
+    level: bool = False,
 ) -> Unsteady | None:
     """Say whether one steady tone explains the lock-ins it was refined from.
 
@@ -487,6 +487,14 @@ def unsteady_tone(
     noise : array_like of float, shape (R,)
         Each ring's noise variance in each of the real and imaginary parts of a lock-in
         (NaN where unknown: the ring is left out).
+    level : bool
+        The lock-ins are m = 0's, which hold each frame's level (the maps' piston, the
+        same on every ring): what the tone leaves that is common to every ring is left
+        out of the test. A second wave is not the same on every ring; the piston is not
+        white, and near the tone it left 2.0 and 5.2 times the noise beside it
+        (``accuracy_waves.py``'s seeds 8 and 10, steady m = 0 waves at 14 Hz), 0.004
+        and 0.06 times without it. The noise beside holds the piston too, so at m = 0 a
+        second tone must stand out of the piston's level.
 
     Returns
     -------
@@ -507,14 +515,22 @@ def unsteady_tone(
     off_tone = np.eye(f.size) - np.outer(u, u.conj())
     shape = _comb_correlation(f, t, w)
     spread = off_tone @ shape
-    mean = 2.0 * float(np.trace(spread).real) * s2.size
-    variance = 4.0 * float(np.trace(spread @ spread).real) * s2.size
+    alone = tone.profile[rings]
+    rings_tested = s2.size
+    if level and s2.size > 1:  # the part common to every ring (whitened) left out
+        common = 1.0 / np.sqrt(s2)
+        common /= np.linalg.norm(common)
+        whitened = data / np.sqrt(s2)
+        data = (whitened - np.outer(whitened @ common, common)) * np.sqrt(s2)
+        alone = (response.conj() @ data) / float(np.sum(np.abs(response) ** 2))
+        rings_tested -= 1
+    mean = 2.0 * float(np.trace(spread).real) * rings_tested
+    variance = 4.0 * float(np.trace(spread @ spread).real) * rings_tested
     left = float(np.sum(np.sum(np.abs(off_tone @ data) ** 2, axis=0) / s2))
     if left < UNSTEADY_EXCESS * mean or left - mean < UNSTEADY_Z * math.sqrt(variance):
         return None
     first, second, coefficients = _two_tones(f, data, t, w)
     main = 0 if abs(first - tone.frequency) <= abs(second - tone.frequency) else 1
-    alone = tone.profile[rings]
     shift = float(np.linalg.norm(coefficients[main] - alone) / np.linalg.norm(alone))
     if shift < UNSTEADY_SHIFT:
         return None

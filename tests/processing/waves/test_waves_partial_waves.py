@@ -250,10 +250,13 @@ def test_a_tone_of_the_same_m_three_resolutions_away_leaves_the_fit_alone():
     assert abs(fit.outgoing) == pytest.approx(10e-9, rel=0.01)
 
 
-def _comb_lock_ins(seed: int, second: tuple[float, float] | None = None):
+def _comb_lock_ins(
+    seed: int, second: tuple[float, float] | None = None, *, common: float | None = None
+):
     """Lock-ins of 60 rings at a comb around 18 Hz (2.56 s at 100 frames/s): a steady
-    tone of about 3 nm a ring in white noise of 5 % of it a lock-in, and ``second``
-    (Hz, relative amplitude), a second tone of the same profile."""
+    tone of about 3 nm a ring in white noise of 5 % of it a lock-in, ``second`` (Hz,
+    relative amplitude), a second tone of the same profile, and ``common`` (Hz), a tone
+    of 1 nm the same on every ring (as each frame's level is at m = 0)."""
     rng = np.random.default_rng(seed)
     t = np.arange(FRAMES) / FPS
     w = np.ones_like(t)
@@ -262,6 +265,8 @@ def _comb_lock_ins(seed: int, second: tuple[float, float] | None = None):
     profile = 3e-9 * (1 + 0.5 * np.cos(rings / 9)) * np.exp(1j * rings / 5)
     tones = [(18.0, 1.0)] + ([second] if second else [])
     series = sum(a * profile * np.exp(-2j * np.pi * f * t)[:, None] for f, a in tones)
+    if common is not None:
+        series = series + 1e-9 * np.exp(-2j * np.pi * common * t)[:, None]
     sigma = 0.05 * 3e-9 * math.sqrt(t.size)  # a lock-in's noise: 5 % of 3 nm in each part
     series = series + sigma * (
         rng.standard_normal(series.shape) + 1j * rng.standard_normal(series.shape)
@@ -286,4 +291,23 @@ def test_a_steady_tone_beside_noise_measured_low_is_fitted_and_a_second_tone_nam
     comb, lock_ins, t, w, s2 = _comb_lock_ins(seed, second=(18.4, 0.3))
     tone = refine_tone(comb, lock_ins, t, w)
     found = unsteady_tone(comb, lock_ins, t, w, tone=tone, noise=noise)
+    assert found is not None and found.second == pytest.approx(18.4, abs=0.1)
+
+
+@pytest.mark.parametrize("seed", range(2))
+def test_m0_lock_ins_leave_each_frames_level_out_of_the_steadiness_test(seed):
+    """At m = 0 each frame's level (the maps' piston, the same on every ring) is in the
+    lock-ins, and it is not white: in ``accuracy_waves.py``'s seed 10 the steady m = 0
+    wave at 14 Hz left 5.2 times the noise beside it, all of it common to every ring,
+    and came out as a note. A piston's tone of 1 nm 0.3 Hz from a steady tone of 3 nm:
+    taken for a second tone at any other m, left out at m = 0; a second tone that
+    varies over the rings is named at m = 0 too."""
+    comb, lock_ins, t, w, s2 = _comb_lock_ins(seed, common=17.7)
+    noise = np.full(lock_ins.shape[1], s2)
+    tone = refine_tone(comb, lock_ins, t, w)
+    assert unsteady_tone(comb, lock_ins, t, w, tone=tone, noise=noise) is not None
+    assert unsteady_tone(comb, lock_ins, t, w, tone=tone, noise=noise, level=True) is None
+    comb, lock_ins, t, w, s2 = _comb_lock_ins(seed, second=(18.4, 0.3), common=17.7)
+    tone = refine_tone(comb, lock_ins, t, w)
+    found = unsteady_tone(comb, lock_ins, t, w, tone=tone, noise=noise, level=True)
     assert found is not None and found.second == pytest.approx(18.4, abs=0.1)
