@@ -33,12 +33,18 @@ COMB_SPACING = 0.25
 SEARCH_HALF_MAX = 64
 
 
+def _spaced(maps: WaveMaps, frequency: float, half: int) -> np.ndarray:
+    """``2 half + 1`` lock-in frequencies a comb's spacing apart centred on ``frequency``,
+    Hz (clipped to 0 and Nyquist)."""
+    step = COMB_SPACING / max(float(maps.clock.times[-1]), 1e-300)
+    offsets = np.arange(-half, half + 1) * step
+    spaced: np.ndarray = np.clip(frequency + offsets, 1e-9, 0.5 / maps.clock.interval)
+    return spaced
+
+
 def comb_around(maps: WaveMaps, frequency: float) -> np.ndarray:
     """The lock-in frequencies around a tone, Hz (clipped to 0 and Nyquist)."""
-    duration = max(float(maps.clock.times[-1]), 1e-300)
-    offsets = (np.arange(COMB_POINTS) - COMB_POINTS // 2) * COMB_SPACING / duration
-    comb: np.ndarray = np.clip(frequency + offsets, 1e-9, 0.5 / maps.clock.interval)
-    return comb
+    return _spaced(maps, frequency, COMB_POINTS // 2)
 
 
 def _search(maps: WaveMaps, frequency: float, bin_hz: float) -> np.ndarray:
@@ -47,9 +53,7 @@ def _search(maps: WaveMaps, frequency: float, bin_hz: float) -> np.ndarray:
     in a long record a comb is narrower), at most :data:`SEARCH_HALF_MAX` steps, Hz."""
     step = COMB_SPACING / max(float(maps.clock.times[-1]), 1e-300)
     half = max(COMB_POINTS // 2, min(math.ceil(0.5 * bin_hz / step), SEARCH_HALF_MAX))
-    offsets = np.arange(-half, half + 1) * step
-    search: np.ndarray = np.clip(frequency + offsets, 1e-9, 0.5 / maps.clock.interval)
-    return search
+    return _spaced(maps, frequency, half)
 
 
 def mode_lock_ins(
